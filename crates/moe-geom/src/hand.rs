@@ -1,0 +1,285 @@
+//! The MOE hand: N fingers on a palm, each with its `hand_from_finger` pose.
+
+use std::f64::consts::PI;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::GeomError;
+use crate::finger::{FingerModel, FingerParams};
+use crate::math::{Iso3, Point3, Real, Vector3};
+use crate::transform::HandFromFinger;
+
+/// A finger mounted on the palm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandFinger {
+    /// The finger's rest geometry, in its own frame.
+    pub model: FingerModel,
+    /// Where the finger's base sits on the palm.
+    pub hand_from_finger: HandFromFinger,
+}
+
+/// The built-in hand layouts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum HandPreset {
+    /// Two fingers facing each other (the paper's main configuration).
+    TwoFinger,
+    /// Three fingers at 120° (the paper's paper-grasping configuration).
+    ThreeFinger,
+    /// Five fingers evenly around the palm.
+    FiveFinger,
+}
+
+impl HandPreset {
+    /// All presets.
+    pub const ALL: [HandPreset; 3] = [Self::TwoFinger, Self::ThreeFinger, Self::FiveFinger];
+
+    /// The preset's command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::TwoFinger => "two-finger",
+            Self::ThreeFinger => "three-finger",
+            Self::FiveFinger => "five-finger",
+        }
+    }
+
+    /// Number of fingers.
+    pub fn num_fingers(self) -> usize {
+        match self {
+            Self::TwoFinger => 2,
+            Self::ThreeFinger => 3,
+            Self::FiveFinger => 5,
+        }
+    }
+
+    /// Distance from the palm centre to each finger's base centre, metres.
+    pub fn palm_radius_m(self) -> Real {
+        match self {
+            Self::TwoFinger => 0.025,
+            Self::ThreeFinger => 0.028,
+            Self::FiveFinger => 0.035,
+        }
+    }
+}
+
+impl FromStr for HandPreset {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown hand preset '{s}' (expected two-finger, three-finger or five-finger)"
+                )
+            })
+    }
+}
+
+impl std::fmt::Display for HandPreset {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Pose of finger `k` of `n` evenly spaced on a circle of radius `palm_radius_m`, its +x (marker)
+/// side facing the palm's axis.
+pub fn ring_pose(k: usize, n: usize, palm_radius_m: Real) -> HandFromFinger {
+    let theta = 2.0 * PI * k as Real / n as Real;
+    let position = Vector3::new(
+        palm_radius_m * theta.cos(),
+        palm_radius_m * theta.sin(),
+        0.0,
+    );
+    HandFromFinger::new(Iso3::new(position, Vector3::z() * (theta + PI)))
+}
+
+/// A multi-finger hand.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandModel {
+    fingers: Vec<HandFinger>,
+}
+
+impl HandModel {
+    /// A hand from explicitly placed fingers.
+    ///
+    /// # Errors
+    /// [`GeomError::EmptyPointSet`] when there are no fingers.
+    pub fn new(fingers: Vec<HandFinger>) -> Result<Self, GeomError> {
+        if fingers.is_empty() {
+            return Err(GeomError::EmptyPointSet {
+                what: "hand fingers",
+            });
+        }
+        Ok(Self { fingers })
+    }
+
+    /// A built-in layout with identical parametric fingers.
+    ///
+    /// # Errors
+    /// Invalid finger parameters.
+    pub fn preset(preset: HandPreset, params: &FingerParams) -> Result<Self, GeomError> {
+        let model = FingerModel::from_params(params)?;
+        let n = preset.num_fingers();
+        let fingers = (0..n)
+            .map(|k| HandFinger {
+                model: model.clone(),
+                hand_from_finger: ring_pose(k, n, preset.palm_radius_m()),
+            })
+            .collect();
+        Self::new(fingers)
+    }
+
+    /// The fingers.
+    pub fn fingers(&self) -> &[HandFinger] {
+        &self.fingers
+    }
+
+    /// Number of fingers.
+    pub fn num_fingers(&self) -> usize {
+        self.fingers.len()
+    }
+
+    /// Total vertex count over all fingers.
+    pub fn num_vertices(&self) -> usize {
+        self.fingers
+            .iter()
+            .map(|f| f.model.mesh().num_vertices())
+            .sum()
+    }
+
+    /// Rest vertices of finger `i` in the hand frame.
+    pub fn rest_vertices_in_hand(&self, i: usize) -> Vec<Point3> {
+        let f = &self.fingers[i];
+        f.hand_from_finger
+            .transform_points(f.model.mesh().vertices())
+    }
+
+    /// Rest marker positions of every finger in the hand frame (all present).
+    pub fn rest_keypoints(&self) -> HandKeypoints {
+        HandKeypoints {
+            fingers: self
+                .fingers
+                .iter()
+                .map(|f| {
+                    f.model
+                        .marker_positions()
+                        .iter()
+                        .map(|p| Some(f.hand_from_finger.transform_point(p)))
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Observed marker keypoints of a hand in the hand frame: per finger, per marker, `None` when the
+/// marker was not seen in this frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandKeypoints {
+    /// `fingers[f][m]` is marker `m` of finger `f`.
+    pub fingers: Vec<Vec<Option<Point3>>>,
+}
+
+impl HandKeypoints {
+    /// Checks that the keypoints fit `hand` (one list per finger, one entry per marker, finite).
+    ///
+    /// # Errors
+    /// [`GeomError::LengthMismatch`] or [`GeomError::NonFinitePoint`].
+    pub fn check_against(&self, hand: &HandModel) -> Result<(), GeomError> {
+        if self.fingers.len() != hand.num_fingers() {
+            return Err(GeomError::LengthMismatch {
+                what: "keypoint fingers",
+                expected: hand.num_fingers(),
+                got: self.fingers.len(),
+            });
+        }
+        for (kp, f) in self.fingers.iter().zip(hand.fingers()) {
+            let expected = f.model.marker_vertices().len();
+            if kp.len() != expected {
+                return Err(GeomError::LengthMismatch {
+                    what: "keypoints of a finger",
+                    expected,
+                    got: kp.len(),
+                });
+            }
+            if let Some(index) = kp
+                .iter()
+                .position(|p| p.is_some_and(|p| !crate::math::is_finite_point(&p)))
+            {
+                return Err(GeomError::NonFinitePoint {
+                    what: "keypoints",
+                    index,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chamfer::PointIndex;
+
+    #[test]
+    fn presets_place_fingers_apart_and_facing_inward() {
+        for preset in HandPreset::ALL {
+            let hand = HandModel::preset(preset, &FingerParams::default()).unwrap();
+            assert_eq!(hand.num_fingers(), preset.num_fingers());
+            assert_eq!(
+                hand.num_vertices(),
+                preset.num_fingers() * hand.fingers()[0].model.mesh().num_vertices()
+            );
+            for (i, f) in hand.fingers().iter().enumerate() {
+                // The marker side (+x of the finger) points toward the palm axis.
+                let base = f.hand_from_finger.transform_point(&Point3::origin());
+                let inward = f.hand_from_finger.transform_vector(&Vector3::x());
+                assert!(inward.dot(&(-base.coords)) > 0.99 * base.coords.norm());
+                // Fingers do not overlap: the closest vertices of two fingers are apart.
+                let vi = hand.rest_vertices_in_hand(i);
+                for j in (i + 1)..hand.num_fingers() {
+                    let index = PointIndex::new(&hand.rest_vertices_in_hand(j), "finger").unwrap();
+                    let gap = index
+                        .nearest_distances(&vi)
+                        .into_iter()
+                        .fold(Real::INFINITY, Real::min);
+                    assert!(
+                        gap > 0.002,
+                        "{preset}: fingers {i} and {j} are {gap} m apart"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn preset_names_round_trip() {
+        for p in HandPreset::ALL {
+            assert_eq!(p.name().parse::<HandPreset>().unwrap(), p);
+        }
+        assert!("four-finger".parse::<HandPreset>().is_err());
+    }
+
+    #[test]
+    fn keypoints_are_checked_against_the_hand() {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let mut kp = hand.rest_keypoints();
+        kp.check_against(&hand).unwrap();
+        kp.fingers[1][3] = Some(Point3::new(0.0, Real::INFINITY, 0.0));
+        assert_eq!(
+            kp.check_against(&hand),
+            Err(GeomError::NonFinitePoint {
+                what: "keypoints",
+                index: 3
+            })
+        );
+        kp.fingers.pop();
+        assert!(matches!(
+            kp.check_against(&hand),
+            Err(GeomError::LengthMismatch { .. })
+        ));
+    }
+}
