@@ -1,1 +1,38 @@
-fn main() {}
+//! Project automation, run as `cargo xtask <command>`: thin commands over library code.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod ci;
+mod fixtures;
+
+#[derive(Debug, Parser)]
+#[command(name = "xtask", about = "MOE-Touch project automation")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run every check, cheapest first: fmt, clippy, tests, docs, golden fixtures, cargo-deny.
+    Ci(ci::CiArgs),
+    /// Check the golden fixtures against freshly computed results, or rewrite them.
+    Fixtures(fixtures::FixturesArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Ci(args) => ci::run(&args),
+        Command::Fixtures(args) => fixtures::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("xtask: error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

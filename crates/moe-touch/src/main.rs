@@ -1,1 +1,37 @@
-fn main() {}
+//! The `moe-touch` command-line tool. Every subcommand lives in its own module under `cli/`;
+//! this file only parses arguments, dispatches, and turns errors into one line on stderr and a
+//! non-zero exit code.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cli;
+
+/// Shape and contact estimation for soft tendon-driven hands, from deformation alone.
+#[derive(Debug, Parser)]
+#[command(name = "moe-touch", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Generate a hand model (rest meshes, marker and base vertex ids) from a preset or a config.
+    Hand(cli::hand::HandArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Hand(args) => cli::hand::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {}", cli::one_line(&err));
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,23 @@
+//! Subcommands of the `moe-touch` tool, one module each: an `…Args` struct (clap) and a `run`
+//! function. Figures go to stdout (one JSON object with `--json`), progress and logs to stderr.
+
+pub(crate) mod hand;
+
+/// Formats an error and its causes on one line (`outer: inner: root`), without backtraces.
+pub(crate) fn one_line(err: &anyhow::Error) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    for cause in err.chain() {
+        let s = cause.to_string();
+        // Skip a cause whose text the previous message already includes.
+        if parts.last().is_none_or(|prev| !prev.contains(&s)) {
+            parts.push(s.lines().next().unwrap_or_default().to_owned());
+        }
+    }
+    parts.join(": ")
+}
+
+/// Prints `value` as one JSON object on stdout.
+pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
+    println!("{}", serde_json::to_string(value)?);
+    Ok(())
+}

@@ -1,0 +1,77 @@
+//! `cargo xtask ci`: the checks CI runs, cheapest first, stopping at the first failure.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+
+/// Arguments of `cargo xtask ci`.
+#[derive(Debug, Args)]
+pub(crate) struct CiArgs {
+    /// Skip `cargo deny` (for quick local runs; CI never skips it).
+    #[arg(long)]
+    skip_deny: bool,
+}
+
+/// The workspace root (the parent of this crate's directory).
+pub(crate) fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives in the workspace").to_owned()
+}
+
+fn cargo() -> Command {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.current_dir(workspace_root());
+    c
+}
+
+fn step(name: &str, mut cmd: Command) -> Result<()> {
+    eprintln!("xtask ci: {name} ...");
+    let t = Instant::now();
+    let status = cmd.status().with_context(|| format!("starting {name}"))?;
+    if !status.success() {
+        bail!("{name} failed ({status})");
+    }
+    eprintln!("xtask ci: {name} ok ({:.0} s)", t.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn has_cargo_deny() -> bool {
+    cargo().args(["deny", "--version"]).output().is_ok_and(|o| o.status.success())
+}
+
+pub(crate) fn run(args: &CiArgs) -> Result<()> {
+    let mut fmt = cargo();
+    fmt.args(["fmt", "--all", "--", "--check"]);
+    step("cargo fmt --check", fmt)?;
+
+    let mut clippy = cargo();
+    clippy.args(["clippy", "--workspace", "--all-targets", "--locked", "--", "-D", "warnings"]);
+    step("cargo clippy -D warnings", clippy)?;
+
+    let mut test = cargo();
+    test.args(["test", "--workspace", "--locked"]);
+    step("cargo test --workspace", test)?;
+
+    let mut doc = cargo();
+    doc.args(["doc", "--workspace", "--no-deps", "--locked"]).env("RUSTDOCFLAGS", "-D warnings");
+    step("cargo doc", doc)?;
+
+    crate::fixtures::run(&crate::fixtures::FixturesArgs { check: true, update: false })?;
+
+    if args.skip_deny {
+        eprintln!("xtask ci: cargo deny skipped (--skip-deny)");
+        return Ok(());
+    }
+    if !has_cargo_deny() {
+        let mut install = cargo();
+        install.args(["install", "cargo-deny", "--locked"]);
+        step("cargo install cargo-deny", install)?;
+    }
+    let mut deny = cargo();
+    deny.args(["deny", "check", "licenses", "bans", "sources"]);
+    step("cargo deny check licenses bans sources", deny)?;
+    eprintln!("xtask ci: all checks passed");
+    Ok(())
+}
