@@ -18,6 +18,8 @@ pub mod hand;
 pub mod math;
 /// Validated triangle meshes, welding, areas, normals, bounding boxes.
 pub mod mesh;
+/// A small seeded random-number generator (SplitMix64).
+pub mod rng;
 /// Edges, one-rings, boundary loops, connected components.
 pub mod topology;
 /// Rigid transforms named by frame.
@@ -30,5 +32,6 @@ pub use finger::{FingerModel, FingerParams, TendonRoute};
 pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
+pub use rng::SeededRng;
 pub use topology::Topology;
 pub use transform::{CameraFromHand, HandFromFinger, Transform, WorldFromHand, frame};
