@@ -405,11 +405,12 @@ fn stitch(a: (usize, usize, Real), b: (usize, usize, Real), faces: &mut Vec<[u32
 }
 
 /// Marker vertices: the surface vertices nearest to evenly spaced points on the +x side, from
-/// 12 % of the length to half a tip radius below the apex, all distinct.
+/// 12 % of the length to where the body meets the tip cap, all distinct. Markers stay off the
+/// cap: its far side faces away from a wrist camera looking along the finger.
 fn place_markers(mesh: &TriMesh, params: &FingerParams) -> Vec<u32> {
     let n = params.marker_count;
     let z_lo = 0.12 * params.length_m;
-    let z_hi = params.length_m - 0.5 * params.tip_radius_m;
+    let z_hi = params.cap_start_z();
     let mut taken = Vec::with_capacity(n);
     for k in 0..n {
         let z = if n == 1 {
