@@ -14,13 +14,17 @@ fn uniform_points(n: usize, seed: u64) -> Vec<Point3> {
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         (z ^ (z >> 31)) as f64 / u64::MAX as f64
     };
-    (0..n).map(|_| Point3::new(next(), next(), next()) * 0.1).collect()
+    (0..n)
+        .map(|_| Point3::new(next(), next(), next()) * 0.1)
+        .collect()
 }
 
 fn chamfer(c: &mut Criterion) {
     let a = uniform_points(20_000, 1);
     let b = uniform_points(20_000, 2);
-    c.bench_function("chamfer_bcd_20k_x_20k", |bench| bench.iter(|| bcd(&a, &b).unwrap()));
+    c.bench_function("chamfer_bcd_20k_x_20k", |bench| {
+        bench.iter(|| bcd(&a, &b).unwrap())
+    });
 }
 
 fn finger(c: &mut Criterion) {
