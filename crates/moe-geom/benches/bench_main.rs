@@ -2,20 +2,13 @@
 //! 20,000 points) and the parametric finger generation.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_geom::{FingerModel, FingerParams, Point3, bcd};
+use moe_geom::{FingerModel, FingerParams, Point3, SeededRng, bcd};
 
-/// SplitMix64: a tiny seeded generator, so the point sets are the same on every run.
+/// Uniform random points in a 10 cm cube, the same on every run.
 fn uniform_points(n: usize, seed: u64) -> Vec<Point3> {
-    let mut s = seed;
-    let mut next = || {
-        s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = s;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        (z ^ (z >> 31)) as f64 / u64::MAX as f64
-    };
+    let mut rng = SeededRng::new(seed);
     (0..n)
-        .map(|_| Point3::new(next(), next(), next()) * 0.1)
+        .map(|_| Point3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 0.1)
         .collect()
 }
 
