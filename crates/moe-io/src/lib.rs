@@ -1,1 +1,76 @@
-//! File formats.
+//! Every file format of MOE-Touch.
+//!
+//! # Formats
+//! | what | read | write |
+//! |---|---|---|
+//! | meshes | OBJ ([`read_obj`]), PLY ([`read_ply`]), STL ascii/binary ([`read_stl`]), by extension ([`read_mesh`]) | OBJ, PLY ([`write_mesh`]) |
+//! | coloured / scalar point data | PLY ascii, binary LE/BE, float or double ([`PlyData`]) | PLY binary LE, double |
+//! | configs | JSON ([`read_json`]), TOML or JSON by extension ([`read_config`]) | JSON ([`write_json`]), TOML ([`write_toml`]) |
+//! | hand models | [`load_hand_config`] (TOML/JSON, [`HandConfig`]) | — |
+//! | point tables | CSV ([`read_points_csv`]) | CSV ([`write_csv`]) |
+//!
+//! # Units and frames
+//! Lengths are metres, angles radians. A file carries no frame tag: a mesh is in the frame it
+//! was written in (the CLI names it in the file name or in the accompanying JSON). Finger meshes
+//! referenced by a hand config are in the finger frame (base disk at z = 0, +z along the finger,
+//! +x toward the camera-facing marker side); the config gives each finger's `hand_from_finger`
+//! pose.
+//!
+//! # Exactness
+//! - OBJ: coordinates are written in the shortest decimal form that parses back to the same
+//!   `f64`, so write → read is bit-exact, with the same faces in the same order. The reader
+//!   keeps the file's vertex order (vertex ids in configs refer to it) even though `tobj`
+//!   renumbers vertices by first use — see [`obj`].
+//! - PLY: written as binary little-endian with `double` coordinates and `float` scalars, so
+//!   points, faces, colours and scalars round-trip bit-exactly.
+//! - STL: `f32` coordinates widened exactly to `f64`, then welded (tolerance
+//!   [`STL_WELD_RELATIVE_TOLERANCE`] × bounding-box diagonal).
+//! - JSON: serde_json prints the shortest round-trip form of every `f64`.
+//!
+//! # Error policy
+//! Every reader returns [`IoError`] — never panics — on truncated, corrupt or inconsistent input;
+//! each error names the file and, where the format says, the line, column, element or row.
+//! Meshes are validated by [`moe_geom::TriMesh::new`] (non-finite coordinates, bad indices,
+//! degenerate faces, non-manifold edges) and the geometric error names the vertex, face or edge.
+//! The mesh parser crates (`tobj`, `ply-rs-bw`, `stl_io`) are fuzzed by the integration tests
+//! with every prefix of valid files, byte flips and random bytes, and did not panic; as a second
+//! line of defence each call into them is wrapped in `std::panic::catch_unwind`, which turns a
+//! panic into [`IoError::ParserPanic`]. serde_json and toml are called directly (they are
+//! fuzzed upstream, and the same tests cover them here).
+//!
+//! Every writer goes through [`write_atomic`]: the bytes go to a hidden temporary file in the
+//! target's directory, are flushed to disk, and the file is renamed over the target. A failed
+//! write leaves no file behind and never a half-written one under the final name. Writers do not
+//! create directories: a missing directory is [`IoError::MissingDirectory`].
+
+/// Atomic file replacement.
+pub mod atomic;
+/// JSON and TOML documents.
+pub mod config;
+/// Numeric CSV tables.
+pub mod csv;
+/// The crate's error type.
+pub mod error;
+/// Shared file helpers.
+pub mod files;
+/// Hand-model configs.
+pub mod hand_config;
+/// Mesh reading and writing by extension.
+pub mod mesh_io;
+/// Wavefront OBJ.
+pub mod obj;
+/// Stanford PLY.
+pub mod ply;
+/// STL.
+pub mod stl;
+
+pub use atomic::write_atomic;
+pub use config::{parse_json, parse_toml, read_config, read_json, write_json, write_toml};
+pub use csv::{read_points_csv, write_csv};
+pub use error::IoError;
+pub use files::MEMORY;
+pub use hand_config::{FingerConfig, HandConfig, TendonConfig, load_hand_config};
+pub use mesh_io::{read_mesh, write_mesh};
+pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
+pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
+pub use stl::{STL_WELD_RELATIVE_TOLERANCE, read_stl, read_stl_from};

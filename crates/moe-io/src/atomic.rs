@@ -1,0 +1,127 @@
+//! Atomic file replacement: write a temporary sibling, flush it to disk, rename it over the
+//! target.
+//!
+//! A rename within one directory is atomic on POSIX file systems and on NTFS, so a reader sees
+//! either the old file or the complete new one — never a prefix. If anything fails the
+//! temporary file is removed, so a failed write leaves nothing behind.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::IoError;
+
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes `bytes` to `path` atomically.
+///
+/// The parent directory must exist (it is not created).
+///
+/// # Errors
+/// [`IoError::MissingDirectory`] when the parent directory does not exist, [`IoError::Io`]
+/// for any failure to create, write, flush or rename (the temporary file is then removed).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+    let tmp = temp_sibling(path)?;
+    let result = write_and_sync(&tmp, bytes).and_then(|()| fs::rename(&tmp, path));
+    match result {
+        Ok(()) => Ok(()),
+        Err(source) => {
+            // Best effort: the temporary may not exist if creating it failed.
+            let _ = fs::remove_file(&tmp);
+            Err(IoError::io(path, source))
+        }
+    }
+}
+
+/// The directory a file lives in (`.` for a bare file name).
+pub(crate) fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A fresh, hidden temporary name next to `path`, after checking the directory exists.
+fn temp_sibling(path: &Path) -> Result<PathBuf, IoError> {
+    let dir = parent_dir(path);
+    if !dir.is_dir() {
+        return Err(IoError::MissingDirectory {
+            path: path.to_path_buf(),
+            dir: dir.to_path_buf(),
+        });
+    }
+    let Some(name) = path.file_name() else {
+        return Err(IoError::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::InvalidInput, "path has no file name"),
+        ));
+    };
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".tmp-{}-{n}", std::process::id()));
+    Ok(dir.join(tmp_name))
+}
+
+fn write_and_sync(tmp: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut f: File = OpenOptions::new().write(true).create_new(true).open(tmp)?;
+    f.write_all(bytes)?;
+    f.sync_all()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("moe-io-atomic-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn writes_and_replaces_leaving_only_the_target() {
+        let dir = scratch("replace");
+        let p = dir.join("out.txt");
+        write_atomic(&p, b"first").unwrap();
+        write_atomic(&p, b"second, longer").unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"second, longer");
+        assert_eq!(entries(&dir), vec!["out.txt".to_string()]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn missing_directory_is_reported_and_nothing_is_created() {
+        let dir = scratch("missing");
+        let p = dir.join("no-such-dir").join("out.txt");
+        let err = write_atomic(&p, b"x").unwrap_err();
+        assert!(matches!(err, IoError::MissingDirectory { .. }), "{err}");
+        assert!(err.to_string().contains("no-such-dir"), "{err}");
+        assert!(entries(&dir).is_empty());
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn failed_rename_removes_the_temporary() {
+        // Renaming a file over a non-empty directory fails: the target name is taken.
+        let dir = scratch("rename");
+        let target = dir.join("taken");
+        fs::create_dir(&target).unwrap();
+        fs::write(target.join("keep"), b"k").unwrap();
+        let err = write_atomic(&target, b"data").unwrap_err();
+        assert!(matches!(err, IoError::Io { .. }), "{err}");
+        assert_eq!(entries(&dir), vec!["taken".to_string()]);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}
