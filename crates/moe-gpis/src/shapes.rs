@@ -1,0 +1,114 @@
+//! Procedural closed meshes: subdivided icospheres and star-shaped surfaces built from them.
+//!
+//! Used by the benchmark scenes and the tests; every mesh here is closed, manifold and outward
+//! oriented by construction.
+
+use std::collections::HashMap;
+
+use moe_geom::{Point3, Real, TriMesh, Vector3};
+
+/// The unit icosahedron subdivided `level` times (each level splits every triangle in four) and
+/// projected on the sphere of `radius` about the origin: `10·4^level + 2` vertices.
+///
+/// # Panics
+/// Never for `level ≤ 7` (the mesh is valid by construction).
+pub fn icosphere(level: u32, radius: Real) -> TriMesh {
+    let (dirs, faces) = unit_icosphere(level);
+    let vertices = dirs.iter().map(|d| Point3::from(d * radius)).collect();
+    TriMesh::new(vertices, faces).expect("icosphere is a valid closed mesh")
+}
+
+/// Unit directions and faces of a subdivided icosahedron (faces counter-clockwise from outside).
+pub fn unit_icosphere(level: u32) -> (Vec<Vector3>, Vec<[u32; 3]>) {
+    let t = (1.0 + (5.0 as Real).sqrt()) / 2.0;
+    let mut v: Vec<Vector3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vector3::new(x, y, z).normalize())
+    .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..level {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut next = Vec::with_capacity(f.len() * 4);
+        let mut midpoint = |a: u32, b: u32, v: &mut Vec<Vector3>| -> u32 {
+            let key = (a.min(b), a.max(b));
+            *mid.entry(key).or_insert_with(|| {
+                v.push(((v[a as usize] + v[b as usize]) * 0.5).normalize());
+                (v.len() - 1) as u32
+            })
+        };
+        for &[a, b, c] in &f {
+            let ab = midpoint(a, b, &mut v);
+            let bc = midpoint(b, c, &mut v);
+            let ca = midpoint(c, a, &mut v);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = next;
+    }
+    (v, f)
+}
+
+/// A star-shaped closed surface about `center`: each icosphere direction `d` is pushed to
+/// `center + radius(d)·d`. `radius` must be positive.
+///
+/// # Errors
+/// Mesh validation errors if `radius` returns a non-finite or non-positive value.
+pub fn star_shaped(
+    level: u32,
+    center: Point3,
+    radius: impl Fn(&Vector3) -> Real,
+) -> Result<TriMesh, moe_geom::GeomError> {
+    let (dirs, faces) = unit_icosphere(level);
+    let vertices = dirs.iter().map(|d| center + d * radius(d)).collect();
+    TriMesh::new(vertices, faces)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use moe_geom::Topology;
+
+    #[test]
+    fn icosphere_is_closed_with_euler_characteristic_two() {
+        let m = icosphere(3, 2.0);
+        assert_eq!(m.num_vertices(), 10 * 64 + 2);
+        m.require_closed().unwrap();
+        assert_eq!(Topology::new(&m).euler_characteristic(), 2);
+        assert!(m.signed_volume() > 0.0, "outward oriented");
+        let v_sphere = 4.0 / 3.0 * std::f64::consts::PI * 8.0;
+        assert!((m.signed_volume() - v_sphere).abs() < 0.02 * v_sphere);
+    }
+}
