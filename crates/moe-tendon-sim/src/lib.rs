@@ -3,3 +3,30 @@
 //!
 //! Architecture invariant: depends only on `moe-geom`, faer and parry3d-f64. No file IO; scene
 //! files are parsed by `moe-io`, and results are returned as in-memory values.
+
+/// Linear embedding of points in tetrahedra.
+pub mod embedding;
+/// The crate's error type.
+pub mod error;
+/// Corotational elasticity, mass, damping and the implicit step.
+pub mod fem;
+/// The sparse system pattern and its Cholesky factorisation.
+mod linsys;
+/// Material parameters.
+pub mod material;
+/// Polar decomposition.
+pub mod polar;
+/// Interaction terms (forces at embedded points, couplings, rank-one penalties).
+pub mod terms;
+/// Tetrahedral meshes.
+pub mod tetmesh;
+/// Surface-to-volume discretisation.
+pub mod voxelize;
+
+pub use embedding::{Embedded, Embedding};
+pub use error::SimError;
+pub use fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn};
+pub use material::Material;
+pub use terms::{PairTerm, PointTerm, RankOneTerm, Terms};
+pub use tetmesh::TetMesh;
+pub use voxelize::{VolumeMesh, VoxelParams, VoxelStats, voxelize};

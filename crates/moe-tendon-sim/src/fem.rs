@@ -1,0 +1,711 @@
+//! Corotational linear elasticity on linear tetrahedra with lumped mass, Rayleigh damping,
+//! fixed (Dirichlet) nodes, and a linearly implicit backward-Euler or a quasi-static Newton step.
+//! The equations are in the crate documentation.
+
+use moe_geom::{Matrix3, Point3, Real, Vector3};
+
+use crate::error::SimError;
+use crate::linsys::{FIXED, SparseSystem, SystemBuffers};
+use crate::material::Material;
+use crate::polar::polar_rotation;
+use crate::terms::Terms;
+use crate::tetmesh::TetMesh;
+
+/// Builds the interaction terms of a solve from the current positions and velocities.
+pub type TermsFn<'a> = dyn FnMut(&[Point3], &[Vector3], &mut Terms) + 'a;
+
+/// Identifies a body in error messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct StepContext {
+    /// Step index.
+    pub step: u64,
+    /// Finger (body) index.
+    pub finger: usize,
+}
+
+/// How a step advances the body.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Integrator {
+    /// One linearly implicit backward-Euler step of `dt_secs` with Rayleigh damping.
+    Dynamic {
+        /// Time step, seconds.
+        dt_secs: Real,
+    },
+    /// Newton iterations on the static equilibrium (velocities are set to zero).
+    Static {
+        /// Stop when the largest nodal update is below this, metres.
+        tolerance_m: Real,
+        /// Give up after this many iterations.
+        max_iterations: usize,
+    },
+}
+
+/// Figures of one step.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StepReport {
+    /// Kinetic energy at the end of the step, joules.
+    pub kinetic_energy_j: Real,
+    /// Linear solves (1 for a dynamic step; Newton iterations for a static one).
+    pub iterations: usize,
+    /// Linearised end-of-step value of each rank-one term (0 when inactive), metres.
+    pub rank_one_values: Vec<Real>,
+}
+
+/// A body ready to simulate: the tet mesh, per-element shape gradients, lumped masses, the
+/// fixed-node set and the analysed system pattern.
+#[derive(Debug)]
+pub struct FemModel {
+    mesh: TetMesh,
+    material: Material,
+    lambda: Real,
+    mu: Real,
+    grads: Vec<[Vector3; 4]>,
+    volumes: Vec<Real>,
+    mass: Vec<Real>,
+    fixed: Vec<bool>,
+    system: SparseSystem,
+    max_rank_ones: usize,
+}
+
+/// Reusable per-body scratch memory: keeping one per body makes the step allocation-free.
+pub struct FemWorkspace {
+    buf: SystemBuffers,
+    force: Vec<Vector3>,
+    coupling: Vec<Vector3>,
+    dx: Vec<Vector3>,
+}
+
+impl std::fmt::Debug for FemWorkspace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FemWorkspace")
+            .field("nodes", &self.force.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Shape-function gradients `g_a` (`∇N_a`) and the volume of a rest tetrahedron.
+fn shape_gradients(c: &[Point3; 4]) -> ([Vector3; 4], Real) {
+    let dm = Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]]);
+    let vol = dm.determinant() / 6.0;
+    let inv = dm.try_inverse().unwrap_or_else(Matrix3::zeros);
+    let g1 = inv.row(0).transpose();
+    let g2 = inv.row(1).transpose();
+    let g3 = inv.row(2).transpose();
+    ([-(g1 + g2 + g3), g1, g2, g3], vol)
+}
+
+/// Coefficients of one linearised solve `(c_M M + c_K K + c_E K_ext + c_D D_ext) Δx = c_F f + …`.
+#[derive(Debug, Clone, Copy)]
+struct Coefficients {
+    mass: Real,
+    stiffness: Real,
+    external: Real,
+    damping: Real,
+    force: Real,
+    /// `h` for the momentum term `h M v₀` (0 for static solves).
+    momentum: Real,
+}
+
+impl FemModel {
+    /// Prepares a body. `fixed[i]` pins node `i` (it follows prescribed targets); `extra_pairs`
+    /// are node pairs outside any common element that interaction terms will couple (tendon
+    /// segments); `max_rank_ones` bounds the number of rank-one terms per step.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a bad material, [`SimError::LengthMismatch`] when
+    /// `fixed` does not match the nodes, [`SimError::NoFixedNodes`] when nothing is fixed.
+    pub fn new(
+        mesh: TetMesh,
+        material: Material,
+        fixed: Vec<bool>,
+        extra_pairs: &[(u32, u32)],
+        max_rank_ones: usize,
+    ) -> Result<Self, SimError> {
+        material.validate()?;
+        if fixed.len() != mesh.num_nodes() {
+            return Err(SimError::LengthMismatch {
+                what: "fixed-node flags",
+                expected: mesh.num_nodes(),
+                got: fixed.len(),
+            });
+        }
+        if !fixed.iter().any(|&f| f) {
+            return Err(SimError::NoFixedNodes { base_z_m: 0.0 });
+        }
+        for &(a, b) in extra_pairs {
+            for i in [a, b] {
+                if i as usize >= mesh.num_nodes() {
+                    return Err(SimError::IndexOutOfRange {
+                        what: "coupled node",
+                        index: i as usize,
+                        len: mesh.num_nodes(),
+                    });
+                }
+            }
+        }
+        let (lambda, mu) = material.lame();
+        let mut grads = Vec::with_capacity(mesh.num_tets());
+        let mut volumes = Vec::with_capacity(mesh.num_tets());
+        let mut mass = vec![0.0; mesh.num_nodes()];
+        for t in 0..mesh.num_tets() {
+            let (g, v) = shape_gradients(&mesh.corners(t));
+            for &n in &mesh.tets()[t] {
+                mass[n as usize] += material.density_kg_m3 * v / 4.0;
+            }
+            grads.push(g);
+            volumes.push(v);
+        }
+        let element_pairs = mesh
+            .tets()
+            .iter()
+            .flat_map(|t| (0..4).flat_map(move |a| (0..4).map(move |b| (t[a], t[b]))));
+        let system = SparseSystem::new(
+            &fixed,
+            element_pairs.chain(extra_pairs.iter().copied()),
+            1 + max_rank_ones,
+        );
+        Ok(Self {
+            mesh,
+            material,
+            lambda,
+            mu,
+            grads,
+            volumes,
+            mass,
+            fixed,
+            system,
+            max_rank_ones,
+        })
+    }
+
+    /// The tet mesh (rest shape).
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+
+    /// The material.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// Lumped nodal masses, kilograms.
+    pub fn masses(&self) -> &[Real] {
+        &self.mass
+    }
+
+    /// Which nodes are fixed.
+    pub fn fixed(&self) -> &[bool] {
+        &self.fixed
+    }
+
+    /// Number of free (unknown) nodes.
+    pub fn num_free_nodes(&self) -> usize {
+        self.system.n_free()
+    }
+
+    /// Allocates the scratch memory for [`FemModel::step`].
+    pub fn workspace(&self) -> FemWorkspace {
+        let n = self.mesh.num_nodes();
+        FemWorkspace {
+            buf: self.system.buffers(),
+            force: vec![Vector3::zeros(); n],
+            coupling: vec![Vector3::zeros(); n],
+            dx: vec![Vector3::zeros(); n],
+        }
+    }
+
+    /// Deformation gradient of element `t` at node positions `x`.
+    #[inline]
+    fn deformation_gradient(&self, t: usize, x: &[Point3]) -> Matrix3 {
+        let tet = &self.mesh.tets()[t];
+        let g = &self.grads[t];
+        let mut f = Matrix3::zeros();
+        for a in 0..4 {
+            f += x[tet[a] as usize].coords * g[a].transpose();
+        }
+        f
+    }
+
+    /// Checks every element for inversion at `x`.
+    ///
+    /// # Errors
+    /// [`SimError::InvertedElement`] naming the first element with `det F ≤ 0`.
+    pub fn check_elements(&self, x: &[Point3], ctx: StepContext) -> Result<(), SimError> {
+        for t in 0..self.mesh.num_tets() {
+            let det_f = self.deformation_gradient(t, x).determinant();
+            if det_f.is_nan() || det_f <= 0.0 {
+                return Err(SimError::InvertedElement {
+                    step: ctx.step,
+                    finger: ctx.finger,
+                    element: t,
+                    det_f,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Corotational elastic forces at node positions `x` (zero at any rigid motion of the rest
+    /// shape).
+    ///
+    /// # Errors
+    /// [`SimError::LengthMismatch`] for a wrong count, [`SimError::InvertedElement`].
+    pub fn elastic_forces(&self, x: &[Point3]) -> Result<Vec<Vector3>, SimError> {
+        self.check_len("positions", x.len())?;
+        let mut f = vec![Vector3::zeros(); x.len()];
+        for t in 0..self.mesh.num_tets() {
+            let (r, stress) = self.element_state(t, x, StepContext::default())?;
+            let tet = &self.mesh.tets()[t];
+            for a in 0..4 {
+                f[tet[a] as usize] -= r * (stress * self.grads[t][a]) * self.volumes[t];
+            }
+        }
+        Ok(f)
+    }
+
+    /// Rotation and corotated Cauchy stress `σ(S − I)` of element `t`.
+    #[inline]
+    fn element_state(
+        &self,
+        t: usize,
+        x: &[Point3],
+        ctx: StepContext,
+    ) -> Result<(Matrix3, Matrix3), SimError> {
+        let f = self.deformation_gradient(t, x);
+        let r = polar_rotation(&f).ok_or(SimError::InvertedElement {
+            step: ctx.step,
+            finger: ctx.finger,
+            element: t,
+            det_f: f.determinant(),
+        })?;
+        let s = r.transpose() * f;
+        let eps = (s + s.transpose()) * 0.5 - Matrix3::identity();
+        let stress = Matrix3::identity() * (self.lambda * eps.trace()) + eps * (2.0 * self.mu);
+        Ok((r, stress))
+    }
+
+    fn check_len(&self, what: &'static str, got: usize) -> Result<(), SimError> {
+        if got != self.mesh.num_nodes() {
+            return Err(SimError::LengthMismatch {
+                what,
+                expected: self.mesh.num_nodes(),
+                got,
+            });
+        }
+        Ok(())
+    }
+
+    /// Kinetic energy of velocities `v`, joules.
+    pub fn kinetic_energy(&self, v: &[Vector3]) -> Real {
+        v.iter()
+            .zip(&self.mass)
+            .map(|(v, m)| 0.5 * m * v.norm_squared())
+            .sum()
+    }
+
+    /// Advances the body by one step.
+    ///
+    /// `x`, `v`: node positions and velocities (updated in place); `targets`: positions of the
+    /// fixed nodes at the end of the step (entries of free nodes are ignored); `gravity`: m/s²;
+    /// `terms`: the interaction terms, a function of the current positions and velocities
+    /// (called once per linear solve).
+    ///
+    /// # Errors
+    /// Length mismatches, [`SimError::InvalidParameter`] for a bad time step or tolerance,
+    /// [`SimError::InvertedElement`], [`SimError::NotPositiveDefinite`],
+    /// [`SimError::NonFinite`], [`SimError::StaticNotConverged`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn step(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        integrator: Integrator,
+        x: &mut [Point3],
+        v: &mut [Vector3],
+        targets: &[Point3],
+        gravity: &Vector3,
+        terms: &mut TermsFn<'_>,
+    ) -> Result<StepReport, SimError> {
+        self.check_len("positions", x.len())?;
+        self.check_len("velocities", v.len())?;
+        self.check_len("fixed-node targets", targets.len())?;
+        let mut t = Terms::default();
+        match integrator {
+            Integrator::Dynamic { dt_secs: h } => {
+                crate::error::require_positive("dt_secs", h)?;
+                let (alpha, beta) = (
+                    self.material.rayleigh_mass,
+                    self.material.rayleigh_stiffness,
+                );
+                let c = Coefficients {
+                    mass: 1.0 + h * alpha,
+                    stiffness: h * beta + h * h,
+                    external: h * h,
+                    damping: h,
+                    force: h * h,
+                    momentum: h,
+                };
+                terms(x, v, &mut t);
+                let values = self.solve(ws, ctx, c, x, v, targets, gravity, &t, true)?;
+                for i in 0..x.len() {
+                    x[i] += ws.dx[i];
+                    v[i] = ws.dx[i] / h;
+                }
+                self.check_finite(x, v, ctx)?;
+                self.check_elements(x, ctx)?;
+                Ok(StepReport {
+                    kinetic_energy_j: self.kinetic_energy(v),
+                    iterations: 1,
+                    rank_one_values: values,
+                })
+            }
+            Integrator::Static {
+                tolerance_m,
+                max_iterations,
+            } => {
+                crate::error::require_positive("tolerance_m", tolerance_m)?;
+                let c = Coefficients {
+                    mass: 0.0,
+                    stiffness: 1.0,
+                    external: 1.0,
+                    damping: 0.0,
+                    force: 1.0,
+                    momentum: 0.0,
+                };
+                v.iter_mut().for_each(|v| *v = Vector3::zeros());
+                let mut update = Real::INFINITY;
+                let mut values = Vec::new();
+                for it in 0..max_iterations.max(1) {
+                    t.clear();
+                    terms(x, v, &mut t);
+                    values = self.solve(ws, ctx, c, x, v, targets, gravity, &t, it == 0)?;
+                    update = 0.0;
+                    for (xi, d) in x.iter_mut().zip(&ws.dx) {
+                        *xi += d;
+                        update = update.max(d.norm());
+                    }
+                    self.check_finite(x, v, ctx)?;
+                    if update < tolerance_m {
+                        self.check_elements(x, ctx)?;
+                        return Ok(StepReport {
+                            kinetic_energy_j: 0.0,
+                            iterations: it + 1,
+                            rank_one_values: values,
+                        });
+                    }
+                }
+                let _ = values;
+                Err(SimError::StaticNotConverged {
+                    step: ctx.step,
+                    finger: ctx.finger,
+                    iterations: max_iterations,
+                    update_m: update,
+                })
+            }
+        }
+    }
+
+    fn check_finite(&self, x: &[Point3], v: &[Vector3], ctx: StepContext) -> Result<(), SimError> {
+        let bad = x
+            .iter()
+            .zip(v)
+            .position(|(p, v)| !(p.coords.iter().chain(v.iter()).all(|c| c.is_finite())));
+        match bad {
+            Some(node) => Err(SimError::NonFinite {
+                step: ctx.step,
+                finger: ctx.finger,
+                node,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Assembles and solves one linearised system; leaves `Δx` in `ws.dx` and returns the
+    /// linearised end values of the rank-one terms.
+    #[allow(clippy::too_many_arguments)]
+    fn solve(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        c: Coefficients,
+        x: &[Point3],
+        v: &[Vector3],
+        targets: &[Point3],
+        gravity: &Vector3,
+        terms: &Terms,
+        move_fixed: bool,
+    ) -> Result<Vec<Real>, SimError> {
+        let sys = &self.system;
+        let m = terms.rank_ones.len();
+        if m > self.max_rank_ones {
+            return Err(SimError::LengthMismatch {
+                what: "rank-one terms (at most)",
+                expected: self.max_rank_ones,
+                got: m,
+            });
+        }
+        let FemWorkspace {
+            buf,
+            force,
+            coupling,
+            dx,
+        } = ws;
+        buf.values.fill(0.0);
+        force.fill(Vector3::zeros());
+        coupling.fill(Vector3::zeros());
+        for i in 0..x.len() {
+            dx[i] = if self.fixed[i] && move_fixed {
+                targets[i] - x[i]
+            } else {
+                Vector3::zeros()
+            };
+        }
+        // Adds block B = A_ab for the ordered node pair (a, b).
+        let couple =
+            |values: &mut [Real], coupling: &mut [Vector3], a: u32, b: u32, blk: &Matrix3| {
+                let fa = sys.free_of(a);
+                if fa == FIXED {
+                    return;
+                }
+                let fb = sys.free_of(b);
+                if fb == FIXED {
+                    coupling[a as usize] -= blk * dx[b as usize];
+                } else if fa >= fb {
+                    sys.add_block(values, fa, fb, blk);
+                }
+            };
+        // Elasticity.
+        for t in 0..self.mesh.num_tets() {
+            let (r, stress) = self.element_state(t, x, ctx)?;
+            let tet = &self.mesh.tets()[t];
+            let g = &self.grads[t];
+            let vol = self.volumes[t];
+            let rg = g.map(|ga| r * ga);
+            for a in 0..4 {
+                force[tet[a] as usize] -= r * (stress * g[a]) * vol;
+            }
+            let k = c.stiffness * vol;
+            for a in 0..4 {
+                for b in 0..4 {
+                    let blk = (rg[a] * rg[b].transpose() * self.lambda
+                        + rg[b] * rg[a].transpose() * self.mu
+                        + Matrix3::identity() * (self.mu * g[a].dot(&g[b])))
+                        * k;
+                    couple(&mut buf.values, coupling, tet[a], tet[b], &blk);
+                }
+            }
+        }
+        // Mass and gravity.
+        for (i, (fi_force, &mass)) in force.iter_mut().zip(&self.mass).enumerate() {
+            *fi_force += gravity * mass;
+            let fi = sys.free_of(i as u32);
+            if fi != FIXED && c.mass != 0.0 {
+                sys.add_block(
+                    &mut buf.values,
+                    fi,
+                    fi,
+                    &Matrix3::from_diagonal_element(c.mass * mass),
+                );
+            }
+        }
+        for &(n, f) in &terms.nodal_forces {
+            force[n as usize] += f;
+        }
+        // Point terms.
+        for p in &terms.points {
+            let e = &p.point;
+            let blk = p.stiffness * c.external + p.damping * c.damping;
+            // The damping force −D(v − v_t) contributes h²·D v_t to the right-hand side.
+            let damp_force = if c.damping != 0.0 {
+                p.damping * p.target_velocity
+            } else {
+                Vector3::zeros()
+            };
+            for k in 0..4 {
+                force[e.nodes[k] as usize] += (p.force + damp_force) * e.weights[k];
+                for l in 0..4 {
+                    let b = blk * (e.weights[k] * e.weights[l]);
+                    couple(&mut buf.values, coupling, e.nodes[k], e.nodes[l], &b);
+                }
+            }
+        }
+        // Pair terms.
+        for p in &terms.pairs {
+            let nodes: [u32; 8] = std::array::from_fn(|k| {
+                if k < 4 {
+                    p.a.nodes[k]
+                } else {
+                    p.b.nodes[k - 4]
+                }
+            });
+            let w: [Real; 8] = std::array::from_fn(|k| {
+                if k < 4 {
+                    p.a.weights[k]
+                } else {
+                    -p.b.weights[k - 4]
+                }
+            });
+            for k in 0..8 {
+                for l in 0..8 {
+                    let b = p.stiffness * (c.external * w[k] * w[l]);
+                    couple(&mut buf.values, coupling, nodes[k], nodes[l], &b);
+                }
+            }
+        }
+        // Right-hand sides: column 0 the base system, columns 1..=m the rank-one gradients.
+        sys.prepare_rhs(buf, 1 + m);
+        for i in 0..x.len() {
+            let fi = sys.free_of(i as u32);
+            if fi == FIXED {
+                continue;
+            }
+            let r = force[i] * c.force + v[i] * (c.momentum * self.mass[i]) + coupling[i];
+            for d in 0..3 {
+                buf.rhs[(3 * fi as usize + d, 0)] = r[d];
+            }
+        }
+        // Rank-one values shifted by the prescribed motion of fixed nodes.
+        let mut shifted = Vec::with_capacity(m);
+        for (j, r) in terms.rank_ones.iter().enumerate() {
+            let mut g = r.value;
+            for &(n, grad) in &r.gradient {
+                let fi = sys.free_of(n);
+                if fi == FIXED {
+                    g += grad.dot(&dx[n as usize]);
+                } else {
+                    for d in 0..3 {
+                        buf.rhs[(3 * fi as usize + d, 1 + j)] += grad[d];
+                    }
+                }
+            }
+            shifted.push(g);
+        }
+        let grads_free: Vec<Vec<Real>> = (0..m)
+            .map(|j| (0..buf.rhs.nrows()).map(|i| buf.rhs[(i, 1 + j)]).collect())
+            .collect();
+        sys.factor_and_solve(buf, 1 + m)
+            .map_err(|_| SimError::NotPositiveDefinite {
+                step: ctx.step,
+                finger: ctx.finger,
+            })?;
+        let nrows = buf.rhs.nrows();
+        let (combo, values) = woodbury(terms, &shifted, &grads_free, buf, c.external);
+        // Δx_free = y₀ + Σ_j combo_j Y_j.
+        for (i, dxi) in dx.iter_mut().enumerate() {
+            let fi = sys.free_of(i as u32);
+            if fi == FIXED {
+                continue;
+            }
+            let mut d = Vector3::zeros();
+            for r in 0..3 {
+                let row = 3 * fi as usize + r;
+                debug_assert!(row < nrows);
+                let mut s = buf.rhs[(row, 0)];
+                for (j, cj) in combo.iter().enumerate() {
+                    s += cj * buf.rhs[(row, 1 + j)];
+                }
+                d[r] = s;
+            }
+            *dxi = d;
+        }
+        Ok(values)
+    }
+}
+
+/// Active-set Woodbury solve for the rank-one terms. With `Y_j = A⁻¹G_j`, `y₀ = A⁻¹b` and the
+/// active set `S` (weights `c_j = c_E k_j`), the solution of
+/// `(A + Σ_S c_j G_j G_jᵀ) Δx = b − Σ_S c_j g_j G_j` is `Δx = u − Y_S z` with
+/// `u = y₀ − Σ_S c_j g_j Y_j` and `(diag(1/c_S) + G_Sᵀ Y_S) z = G_Sᵀ u`. Returns the coefficients
+/// of `Y_j` in `Δx − y₀` and the linearised end values `g_j + G_jᵀ Δx` (0 when inactive).
+fn woodbury(
+    terms: &Terms,
+    shifted: &[Real],
+    grads_free: &[Vec<Real>],
+    buf: &SystemBuffers,
+    c_ext: Real,
+) -> (Vec<Real>, Vec<Real>) {
+    let m = shifted.len();
+    if m == 0 {
+        return (Vec::new(), Vec::new());
+    }
+    let n = buf.rhs.nrows();
+    // Gram matrices in the small space.
+    let gy0: Vec<Real> = (0..m)
+        .map(|i| (0..n).map(|r| grads_free[i][r] * buf.rhs[(r, 0)]).sum())
+        .collect();
+    let gy = nalgebra::DMatrix::<Real>::from_fn(m, m, |i, j| {
+        (0..n).map(|r| grads_free[i][r] * buf.rhs[(r, 1 + j)]).sum()
+    });
+    let weight: Vec<Real> = terms
+        .rank_ones
+        .iter()
+        .map(|r| c_ext * r.stiffness)
+        .collect();
+    let mut active: Vec<bool> = terms
+        .rank_ones
+        .iter()
+        .zip(shifted)
+        .map(|(r, &g)| !r.unilateral || g > 0.0)
+        .collect();
+    let mut combo = vec![0.0; m];
+    let mut values = vec![0.0; m];
+    for _ in 0..(2 * m + 2) {
+        // u = y0 + Σ_j a_j Y_j with a_j = −c_j g_j on the active set.
+        let a: Vec<Real> = (0..m)
+            .map(|j| {
+                if active[j] {
+                    -weight[j] * shifted[j]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let gu: Vec<Real> = (0..m)
+            .map(|i| gy0[i] + (0..m).map(|j| gy[(i, j)] * a[j]).sum::<Real>())
+            .collect();
+        let idx: Vec<usize> = (0..m).filter(|&j| active[j]).collect();
+        let k = idx.len();
+        let mut z = vec![0.0; m];
+        if k > 0 {
+            let s = nalgebra::DMatrix::<Real>::from_fn(k, k, |p, q| {
+                gy[(idx[p], idx[q])] + if p == q { 1.0 / weight[idx[p]] } else { 0.0 }
+            });
+            let rhs = nalgebra::DVector::<Real>::from_fn(k, |p, _| gu[idx[p]]);
+            let sol = s
+                .clone()
+                .cholesky()
+                .map(|ch| ch.solve(&rhs))
+                .or_else(|| s.lu().solve(&rhs))
+                .unwrap_or_else(|| nalgebra::DVector::zeros(k));
+            for (p, &j) in idx.iter().enumerate() {
+                z[j] = sol[p];
+            }
+        }
+        // Δx = y0 + Σ_j (a_j − z_j) Y_j.
+        for j in 0..m {
+            combo[j] = a[j] - z[j];
+        }
+        let mut changed = false;
+        for i in 0..m {
+            let end = shifted[i] + gy0[i] + (0..m).map(|j| gy[(i, j)] * combo[j]).sum::<Real>();
+            let r = &terms.rank_ones[i];
+            if r.unilateral {
+                let want = end > 0.0;
+                if want != active[i] {
+                    changed = true;
+                    active[i] = want;
+                }
+            }
+            values[i] = end;
+        }
+        if !changed {
+            break;
+        }
+    }
+    for i in 0..m {
+        if !active[i] {
+            values[i] = 0.0;
+        }
+    }
+    (combo, values)
+}
