@@ -73,6 +73,14 @@ pub struct FemWorkspace {
     force: Vec<Vector3>,
     coupling: Vec<Vector3>,
     dx: Vec<Vector3>,
+    slope: Real,
+}
+
+impl FemWorkspace {
+    /// `f·Δx` of the last solve: the directional derivative of the potential's decrease.
+    fn force_dot_dx(&self) -> Real {
+        self.slope
+    }
 }
 
 impl std::fmt::Debug for FemWorkspace {
@@ -211,6 +219,7 @@ impl FemModel {
             force: vec![Vector3::zeros(); n],
             coupling: vec![Vector3::zeros(); n],
             dx: vec![Vector3::zeros(); n],
+            slope: 0.0,
         }
     }
 
@@ -374,15 +383,31 @@ impl FemModel {
                 };
                 v.iter_mut().for_each(|v| *v = Vector3::zeros());
                 let mut update = Real::INFINITY;
-                let mut values = Vec::new();
+                let mut trial = x.to_vec();
                 for it in 0..max_iterations.max(1) {
                     t.clear();
                     terms(x, v, &mut t);
-                    values = self.solve(ws, ctx, c, x, v, targets, gravity, &t, it == 0)?;
+                    let moves_fixed =
+                        it == 0 && (0..x.len()).any(|i| self.fixed[i] && targets[i] != x[i]);
+                    let values = self.solve(ws, ctx, c, x, v, targets, gravity, &t, it == 0)?;
+                    // Backtracking line search on the total potential (exact elastic energy,
+                    // quadratic models of the interaction terms): the corotational tangent omits
+                    // the derivative of the rotations, so a full step can overshoot.
+                    let mut alpha: Real = 1.0;
+                    if !moves_fixed {
+                        let slope: Real = ws.force_dot_dx();
+                        let e0 = self.potential(x, &ws.dx, 0.0, gravity, &t, &mut trial)?;
+                        for _ in 0..30 {
+                            match self.potential(x, &ws.dx, alpha, gravity, &t, &mut trial) {
+                                Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => break,
+                                _ => alpha *= 0.5,
+                            }
+                        }
+                    }
                     update = 0.0;
                     for (xi, d) in x.iter_mut().zip(&ws.dx) {
-                        *xi += d;
-                        update = update.max(d.norm());
+                        *xi += d * alpha;
+                        update = update.max(d.norm() * alpha);
                     }
                     self.check_finite(x, v, ctx)?;
                     if update < tolerance_m {
@@ -394,7 +419,6 @@ impl FemModel {
                         });
                     }
                 }
-                let _ = values;
                 Err(SimError::StaticNotConverged {
                     step: ctx.step,
                     finger: ctx.finger,
@@ -403,6 +427,62 @@ impl FemModel {
                 })
             }
         }
+    }
+
+    /// Total potential at `x + α·d`: exact corotated elastic energy
+    /// `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the gravity and nodal-load potentials, and the quadratic
+    /// models of the interaction terms around `x`.
+    fn potential(
+        &self,
+        x: &[Point3],
+        d: &[Vector3],
+        alpha: Real,
+        gravity: &Vector3,
+        terms: &Terms,
+        trial: &mut [Point3],
+    ) -> Result<Real, SimError> {
+        for ((t, xi), di) in trial.iter_mut().zip(x).zip(d) {
+            *t = xi + di * alpha;
+        }
+        let mut e = 0.0;
+        for t in 0..self.mesh.num_tets() {
+            let (r, _) = self.element_state(t, trial, StepContext::default())?;
+            let f = self.deformation_gradient(t, trial);
+            let eps = r.transpose() * f - Matrix3::identity();
+            let eps = (eps + eps.transpose()) * 0.5;
+            e += self.volumes[t]
+                * (self.mu * eps.norm_squared() + 0.5 * self.lambda * eps.trace().powi(2));
+        }
+        let disp = |i: u32| d[i as usize] * alpha;
+        for (i, m) in self.mass.iter().enumerate() {
+            e -= m * gravity.dot(&disp(i as u32));
+        }
+        for &(n, f) in &terms.nodal_forces {
+            e -= f.dot(&disp(n));
+        }
+        let at = |p: &crate::embedding::Embedded| {
+            (0..4).fold(Vector3::zeros(), |acc, k| {
+                acc + disp(p.nodes[k]) * p.weights[k]
+            })
+        };
+        for p in &terms.points {
+            let dp = at(&p.point);
+            e += 0.5 * dp.dot(&(p.stiffness * dp)) - p.force.dot(&dp);
+        }
+        for p in &terms.pairs {
+            let dd = at(&p.a) - at(&p.b);
+            e += 0.5 * dd.dot(&(p.stiffness * dd));
+        }
+        for r in &terms.rank_ones {
+            let g = r.value
+                + r.gradient
+                    .iter()
+                    .map(|&(n, gr)| gr.dot(&disp(n)))
+                    .sum::<Real>();
+            let g = if r.unilateral { g.max(0.0) } else { g };
+            e += 0.5 * r.stiffness * g * g;
+        }
+        Ok(e)
     }
 
     fn check_finite(&self, x: &[Point3], v: &[Vector3], ctx: StepContext) -> Result<(), SimError> {
@@ -449,6 +529,7 @@ impl FemModel {
             force,
             coupling,
             dx,
+            slope,
         } = ws;
         buf.values.fill(0.0);
         force.fill(Vector3::zeros());
@@ -608,6 +689,24 @@ impl FemModel {
             }
             *dxi = d;
         }
+        // Directional derivative of the potential's decrease along Δx (for line searches).
+        let mut s = 0.0;
+        for (i, (f, d)) in force.iter().zip(dx.iter()).enumerate() {
+            if sys.free_of(i as u32) != FIXED {
+                s += f.dot(d);
+            }
+        }
+        for r in &terms.rank_ones {
+            if !r.unilateral || r.value > 0.0 {
+                let gd: Real = r
+                    .gradient
+                    .iter()
+                    .map(|&(n, g)| g.dot(&dx[n as usize]))
+                    .sum();
+                s -= r.stiffness * r.value * gd;
+            }
+        }
+        *slope = s;
         Ok(values)
     }
 }

@@ -1,0 +1,4 @@
+//! Integration tests of the simulator: mechanics against analytic solutions, tendons, contact,
+//! scenes.
+
+mod mechanics;
