@@ -8,21 +8,42 @@ pub mod error;
 pub mod fit;
 /// Exact GP regression, marginal likelihood and its gradient.
 pub mod gp;
+/// Regular query grids.
+pub mod grid;
 /// Covariance kernels (RBF, Matérn 3/2) and hyper-parameters.
 pub mod kernel;
 /// A bounded limited-memory BFGS minimiser.
 pub mod lbfgs;
+/// Marching tetrahedra: closed, manifold iso-surfaces.
+pub mod marching;
 /// Mean functions: constant, fitted sphere, prior-mesh signed distance.
 pub mod mean;
+/// SDF observations: contacts, normal offsets, free space, interior points.
+pub mod observations;
+/// The GPIS posterior and its grid queries (dense and narrow band).
+pub mod posterior;
+/// Conditioning, grid query, meshing and per-vertex variance.
+pub mod reconstruct;
 /// A seeded pseudo-random generator.
 pub mod rng;
 /// Procedural closed meshes (icospheres, star-shaped surfaces).
 pub mod shapes;
+/// Subset-of-regressors sparse approximation for many observations.
+pub mod sparse;
 
 pub use error::GpisError;
 pub use fit::{FitConfig, FitReport, HyperBounds, fit_hyper};
 pub use gp::{ExactGp, Jitter, log_marginal_likelihood_and_grad};
+pub use grid::Grid3;
 pub use kernel::{Hyper, Kernel, KernelKind};
 pub use lbfgs::{LbfgsConfig, LbfgsReport, minimize_bounded};
+pub use marching::{MeshingOptions, extract_surface};
 pub use mean::{ConstantMean, MeanFunction, MeshSdfMean, SphereMean};
+pub use observations::{ObservationKind, Observations};
+pub use posterior::{Gpis, ResidualGp};
+pub use reconstruct::{
+    ConditionReport, GpisConfig, Reconstruction, SurfaceConfig, Timings, bounds_of, condition,
+    reconstruct,
+};
 pub use rng::SplitMix64;
+pub use sparse::SparseGp;

@@ -36,6 +36,30 @@ pub trait MeanFunction: Send + Sync + std::fmt::Debug {
     }
 }
 
+impl<T: MeanFunction + ?Sized> MeanFunction for Box<T> {
+    fn value(&self, p: &Point3) -> Real {
+        (**self).value(p)
+    }
+    fn lipschitz(&self) -> Real {
+        (**self).lipschitz()
+    }
+    fn values(&self, points: &[Point3]) -> Vec<Real> {
+        (**self).values(points)
+    }
+}
+
+impl<T: MeanFunction + ?Sized> MeanFunction for &T {
+    fn value(&self, p: &Point3) -> Real {
+        (**self).value(p)
+    }
+    fn lipschitz(&self) -> Real {
+        (**self).lipschitz()
+    }
+    fn values(&self, points: &[Point3]) -> Vec<Real> {
+        (**self).values(points)
+    }
+}
+
 /// A constant mean `m(x) = c` (positive: "outside" far from the data).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ConstantMean {
