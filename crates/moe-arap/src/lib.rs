@@ -1,7 +1,80 @@
-//! Smoothed as-rigid-as-possible (SR-ARAP) shape estimation of soft fingers from tracked keypoints.
+//! Smoothed as-rigid-as-possible (SR-ARAP) shape estimation of soft fingers from tracked keypoints
+//! (paper §4.2, App. B, App. C).
 //!
-//! This crate will hold the SR-ARAP solver (Levi & Gotsman) for closed triangle meshes with hard
-//! handle constraints, and the multi-finger shape estimator of the paper (§4.2, App. B, App. C).
+//! # The energy
 //!
-//! Architecture invariant: depends only on `moe-geom` (vocabulary types, cotangent weights) and
-//! faer (sparse Cholesky). No file IO, no candle, no simulator.
+//! For a rest mesh with vertices `p_i` and a deformed copy `p′_i`, every vertex `i` owns a cell of
+//! edges `e = (a, b)` (its one-ring spokes by default; spokes and rims as an option) and a rotation
+//! `R_i`. With cotangent weights `w_e` (mean cotangent of the angles opposite the edge, clamped at
+//! 0, on the rest mesh), rest surface area `A`, one-ring `N(i)` and smoothing weight `α`:
+//!
+//! ```text
+//! E(p′, R) = Σ_i Σ_{e∈cell(i)} w_e ‖(p′_a − p′_b) − R_i (p_a − p_b)‖²
+//!          + Σ_i (α A / |N(i)|) Σ_{j∈N(i)} ‖R_i − R_j‖²_F
+//! ```
+//!
+//! minimised over `p′` with fixed and handle vertices on their targets. `α = 0` is plain ARAP
+//! (Sorkine & Alexa); `α > 0` is SR-ARAP (Levi & Gotsman), which penalises rotation changes
+//! between neighbours and gives smooth bends. The default convention is DESIGN.md's, i.e. that of
+//! Open3D's "Smoothed" ARAP used by the paper's authors:
+//!
+//! * the deformed mesh starts as the rest mesh (handles are not pre-placed);
+//! * local step at iteration `t`: `S_i = Σ_j w_ij (p_i − p_j)(p′_i − p′_j)ᵀ`; with smoothing on and
+//!   `t > 0`, `S_i ← 2 S_i + (4αA/|N(i)|)(Σ_{j∈N(i)} R_j⁽ᵗ⁻¹⁾)ᵀ` (Jacobi: the previous iteration's
+//!   rotations); `R_i = V diag(1, 1, det(VUᵀ)) Uᵀ` for `S_i = UΣVᵀ`. This maximises
+//!   `tr(R_i S_i)`, i.e. minimises cell `i`'s data term plus `(2αA/|N(i)|) Σ_j ‖R_i − R_j⁽ᵗ⁻¹⁾‖²`,
+//!   which is the exact block minimiser of `E` for regular valence;
+//! * global step: `Σ_j w_ij (p′_i − p′_j) = Σ_j (w_ij/2)(R_i + R_j)(p_i − p_j)` for every free
+//!   vertex, fixed and handle vertices equal their targets. For spokes and rims the weights become
+//!   `c_e w_e / 2` and the rotation sum runs over the `c_e` cells containing the edge
+//!   (`cells.rs`).
+//!
+//! With `α = 0` both steps are exact block minimisers, so `E(p′⁽ᵗ⁺¹⁾, R⁽ᵗ⁾)` never increases
+//! once the constraints are met (from the first solved iteration on); [`ArapInfo::energy`] records
+//! it every iteration.
+//!
+//! # Factorise once, solve many
+//!
+//! The global-step matrix depends only on the rest mesh and on which vertices are fixed, so it is
+//! factorised once with faer's sparse Cholesky (symbolic and numeric) when the solver is built.
+//! Markers come and go with occlusion; rather than refactorising per visibility pattern (or caching
+//! up to 2⁷ factors per finger), handle vertices stay unknowns of the factorised system and a
+//! frame's visible handles are imposed with Lagrange multipliers through a dense Schur complement
+//! of at most one row per marker (`system.rs`): `K⁻¹E_H` is precomputed with one
+//! solve per handle, and a frame only factorises the ≤ 7 × 7 block of its visible markers. Each
+//! iteration then costs the local step, a right-hand side, one 3-column triangular solve pair and
+//! an `O(n·h)` correction. The per-frame path allocates nothing once a workspace exists.
+//!
+//! # Rotations
+//!
+//! `R_i` is computed as the orthogonal polar factor of `S_iᵀ` by scaled Newton iteration (equal to
+//! the SVD formula when `det S_i > 0`), with the SVD formula as the fallback for flat or inverted
+//! cells (`rotation.rs`).
+//!
+//! Architecture invariant: depends only on `moe-geom` (vocabulary types, cotangent weights),
+//! faer (sparse Cholesky) and rayon. No file IO.
+
+/// ARAP cells (spokes, spokes and rims) and per-edge data.
+mod cells;
+/// Solver configuration.
+mod config;
+/// The crate's error type.
+mod error;
+/// Multi-finger shape estimation over a hand model.
+mod multi;
+/// Best-fitting rotations for the local step.
+mod rotation;
+/// The SR-ARAP solver.
+mod solver;
+/// The factorised reduced system and the handle Schur complement.
+mod system;
+/// Handle lists given as `(vertex, target)` pairs.
+mod targets;
+#[cfg(test)]
+mod testmesh;
+
+pub use config::{ArapConfig, ArapEnergy};
+pub use error::ArapError;
+pub use multi::{FingerReport, HandShape, MultiShapeEstimator, ShapeEstimate, ShapeOptions};
+pub use solver::{ArapInfo, ArapSolution, ArapSolver, ArapWorkspace, Start};
+pub use targets::HandleTargets;

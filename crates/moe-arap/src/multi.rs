@@ -1,0 +1,328 @@
+//! Multi-finger shape estimation: one SR-ARAP solver per finger of a hand, solved in parallel.
+//!
+//! Each finger's base vertices are fixed at rest; each observed marker pulls one handle vertex
+//! onto its keypoint. Handle vertices follow the paper's rule so that a user's own markers work:
+//! when a marker is first observed, its handle is the rest-mesh vertex nearest to the observed
+//! keypoint (skipping base vertices and vertices already taken by another marker), and it is kept
+//! from then on. The hand should therefore be relaxed (near rest) when a marker is first seen, as
+//! it is when a camera stream starts; a marker first seen on a strongly bent finger would be
+//! attached to the wrong vertex. Missing markers are dropped for the frame without refactorising.
+
+use moe_geom::{HandKeypoints, HandModel, Point3, PointIndex, Real};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::config::{ArapConfig, ArapEnergy};
+use crate::error::ArapError;
+use crate::solver::{ArapInfo, ArapSolver, ArapWorkspace, Start};
+
+/// Number of nearest rest vertices examined when the nearest one is unusable for a handle.
+const HANDLE_CANDIDATES: usize = 32;
+
+/// Options of the multi-finger estimator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ShapeOptions {
+    /// Local/global iterations per frame. Default 50 (paper).
+    pub iterations: usize,
+    /// Smoothing weight α. Default 0.01 (paper).
+    pub alpha: Real,
+    /// Energy variant. Default [`ArapEnergy::Smoothed`].
+    pub energy: ArapEnergy,
+    /// Start each frame from the previous frame's shape instead of the rest shape. Default
+    /// `false` (the paper starts from rest).
+    pub warm_start: bool,
+}
+
+impl Default for ShapeOptions {
+    fn default() -> Self {
+        Self {
+            iterations: 50,
+            alpha: 0.01,
+            energy: ArapEnergy::Smoothed,
+            warm_start: false,
+        }
+    }
+}
+
+/// Deformed vertices of every finger, in the hand frame (metres).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HandShape {
+    /// `fingers[f][v]`: vertex `v` of finger `f`'s mesh.
+    pub fingers: Vec<Vec<Point3>>,
+}
+
+/// How one finger was solved in one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FingerReport {
+    /// Finger index.
+    pub finger: usize,
+    /// Iterations run (0 when no marker was visible).
+    pub iterations: usize,
+    /// Energy per iteration (see [`ArapInfo::energy`]).
+    pub energy: Vec<Real>,
+    /// Indices of the markers used as handles in this frame.
+    pub markers_used: Vec<usize>,
+    /// Mesh vertex of every marker's handle, `None` for markers never observed yet.
+    pub handle_vertices: Vec<Option<u32>>,
+    /// True when every marker was missing: the finger was left at its start shape.
+    pub all_markers_missing: bool,
+    /// True when the frame started from the previous frame's shape rather than the rest shape.
+    pub warm_started: bool,
+    /// Rotations computed by the SVD fallback.
+    pub svd_fallbacks: usize,
+}
+
+/// The result of one frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShapeEstimate {
+    /// Deformed hand shape.
+    pub shape: HandShape,
+    /// One report per finger.
+    pub reports: Vec<FingerReport>,
+}
+
+/// Per-finger solver state.
+#[derive(Debug)]
+struct FingerState {
+    solver: ArapSolver,
+    workspace: ArapWorkspace,
+    info: ArapInfo,
+    rest_index: PointIndex,
+    base_targets: Vec<Point3>,
+    is_base: Vec<bool>,
+    /// Handle vertex of every marker, once observed.
+    marker_handle: Vec<Option<u32>>,
+    /// Slot in the solver's handle list of every marker.
+    marker_slot: Vec<Option<usize>>,
+    handle_targets: Vec<Option<Point3>>,
+    has_previous: bool,
+}
+
+/// SR-ARAP shape estimation for every finger of a hand.
+#[derive(Debug)]
+pub struct MultiShapeEstimator {
+    hand: HandModel,
+    options: ShapeOptions,
+    fingers: Vec<FingerState>,
+}
+
+impl MultiShapeEstimator {
+    /// Builds and factorises one solver per finger (base vertices fixed at rest).
+    ///
+    /// # Errors
+    /// Invalid options, or a finger mesh the solver rejects.
+    pub fn new(hand: HandModel, options: ShapeOptions) -> Result<Self, ArapError> {
+        let config = ArapConfig {
+            energy: options.energy,
+            alpha: options.alpha,
+            iterations: options.iterations,
+            parallel: false,
+        };
+        config.validate()?;
+        let fingers = hand
+            .fingers()
+            .par_iter()
+            .map(|f| {
+                let mesh = f.model.mesh();
+                let base = f.model.base_vertices();
+                let solver = ArapSolver::new(mesh, &config, base, &[])?;
+                let workspace = solver.workspace();
+                let mut is_base = vec![false; mesh.num_vertices()];
+                for &b in base {
+                    is_base[b as usize] = true;
+                }
+                let markers = f.model.marker_vertices().len();
+                Ok(FingerState {
+                    workspace,
+                    info: ArapInfo::default(),
+                    rest_index: PointIndex::new(mesh.vertices(), "finger rest vertices")?,
+                    base_targets: base.iter().map(|&b| mesh.vertices()[b as usize]).collect(),
+                    is_base,
+                    marker_handle: vec![None; markers],
+                    marker_slot: vec![None; markers],
+                    handle_targets: Vec::new(),
+                    has_previous: false,
+                    solver,
+                })
+            })
+            .collect::<Result<Vec<_>, ArapError>>()?;
+        Ok(Self {
+            hand,
+            options,
+            fingers,
+        })
+    }
+
+    /// The hand model.
+    pub fn hand(&self) -> &HandModel {
+        &self.hand
+    }
+
+    /// The options.
+    pub fn options(&self) -> &ShapeOptions {
+        &self.options
+    }
+
+    /// Handle vertex of every marker of finger `finger` (`None` until first observed).
+    ///
+    /// # Panics
+    /// If `finger` is out of range (a programming error).
+    pub fn handle_vertices(&self, finger: usize) -> &[Option<u32>] {
+        &self.fingers[finger].marker_handle
+    }
+
+    /// Forgets the previous frame's shapes (handle assignments are kept).
+    pub fn reset_tracking(&mut self) {
+        for f in &mut self.fingers {
+            f.has_previous = false;
+        }
+    }
+
+    /// Estimates the hand shape from one frame of keypoints (hand frame).
+    ///
+    /// # Errors
+    /// Keypoints that do not fit the hand (finger or marker counts), non-finite keypoints.
+    pub fn estimate(&mut self, keypoints: &HandKeypoints) -> Result<ShapeEstimate, ArapError> {
+        keypoints.check_against(&self.hand).map_err(|e| match e {
+            moe_geom::GeomError::NonFinitePoint { .. } => self.locate_non_finite(keypoints),
+            other => ArapError::Geom(other),
+        })?;
+        let warm = self.options.warm_start;
+        let results = self
+            .fingers
+            .par_iter_mut()
+            .zip(self.hand.fingers().par_iter())
+            .zip(keypoints.fingers.par_iter())
+            .enumerate()
+            .map(|(i, ((state, finger), kp))| {
+                let finger_from_hand = finger.hand_from_finger.inverse();
+                let kp_in_finger: Vec<Option<Point3>> = kp
+                    .iter()
+                    .map(|p| p.map(|p| finger_from_hand.transform_point(&p)))
+                    .collect();
+                let report = state.solve(i, &kp_in_finger, warm)?;
+                let vertices = if report.all_markers_missing && !(warm && state.has_previous) {
+                    finger
+                        .hand_from_finger
+                        .transform_points(state.solver.rest_vertices())
+                } else {
+                    finger
+                        .hand_from_finger
+                        .transform_points(state.workspace.vertices())
+                };
+                Ok((vertices, report))
+            })
+            .collect::<Result<Vec<_>, ArapError>>()?;
+        let (fingers, reports) = results.into_iter().unzip();
+        Ok(ShapeEstimate {
+            shape: HandShape { fingers },
+            reports,
+        })
+    }
+
+    fn locate_non_finite(&self, keypoints: &HandKeypoints) -> ArapError {
+        for (finger, kp) in keypoints.fingers.iter().enumerate() {
+            if let Some(marker) = kp
+                .iter()
+                .position(|p| p.is_some_and(|p| !moe_geom::math::is_finite_point(&p)))
+            {
+                return ArapError::NonFiniteKeypoint { finger, marker };
+            }
+        }
+        ArapError::NonFiniteKeypoint {
+            finger: 0,
+            marker: 0,
+        }
+    }
+}
+
+impl FingerState {
+    /// Solves one frame for this finger; `kp` are the keypoints in the finger frame.
+    fn solve(
+        &mut self,
+        finger: usize,
+        kp: &[Option<Point3>],
+        warm: bool,
+    ) -> Result<FingerReport, ArapError> {
+        self.assign_new_handles(kp)?;
+        let markers_used: Vec<usize> = (0..kp.len()).filter(|&m| kp[m].is_some()).collect();
+        let warm_started = warm && self.has_previous;
+        if markers_used.is_empty() {
+            return Ok(FingerReport {
+                finger,
+                iterations: 0,
+                energy: Vec::new(),
+                markers_used,
+                handle_vertices: self.marker_handle.clone(),
+                all_markers_missing: true,
+                warm_started,
+                svd_fallbacks: 0,
+            });
+        }
+        for t in &mut self.handle_targets {
+            *t = None;
+        }
+        for (m, p) in kp.iter().enumerate() {
+            if let (Some(p), Some(slot)) = (p, self.marker_slot[m]) {
+                self.handle_targets[slot] = Some(*p);
+            }
+        }
+        let start = if warm_started {
+            Start::Previous
+        } else {
+            Start::Rest
+        };
+        self.solver.solve_in(
+            &mut self.workspace,
+            &self.base_targets,
+            &self.handle_targets,
+            start,
+            &mut self.info,
+        )?;
+        self.has_previous = true;
+        Ok(FingerReport {
+            finger,
+            iterations: self.info.iterations,
+            energy: self.info.energy.clone(),
+            markers_used,
+            handle_vertices: self.marker_handle.clone(),
+            all_markers_missing: false,
+            warm_started,
+            svd_fallbacks: self.info.svd_fallbacks,
+        })
+    }
+
+    /// Gives every newly observed marker its handle vertex (the nearest usable rest vertex).
+    fn assign_new_handles(&mut self, kp: &[Option<Point3>]) -> Result<(), ArapError> {
+        let mut changed = false;
+        for (m, p) in kp.iter().enumerate() {
+            let Some(p) = p else { continue };
+            if self.marker_handle[m].is_some() {
+                continue;
+            }
+            let taken = |v: usize| self.is_base[v] || self.marker_handle.contains(&Some(v as u32));
+            let nearest = self
+                .rest_index
+                .k_nearest(p, HANDLE_CANDIDATES)
+                .into_iter()
+                .find(|n| !taken(n.index));
+            if let Some(n) = nearest {
+                self.marker_handle[m] = Some(n.index as u32);
+                changed = true;
+            }
+        }
+        if changed {
+            let mut handles = Vec::new();
+            for (m, h) in self.marker_handle.iter().enumerate() {
+                self.marker_slot[m] = h.map(|v| {
+                    handles.push(v);
+                    handles.len() - 1
+                });
+            }
+            self.solver.set_handles(&handles)?;
+            self.handle_targets = vec![None; handles.len()];
+        }
+        Ok(())
+    }
+}

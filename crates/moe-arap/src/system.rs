@@ -1,0 +1,294 @@
+//! The reduced global-step system, factorised once, with switchable handles imposed through a
+//! small Schur complement.
+//!
+//! Unknowns are the non-fixed vertices. The matrix `K = L′[free, free]` (the Laplacian with the
+//! system weights `c_e w_e / 2`) is factorised once by faer's sparse Cholesky. Handle vertices stay
+//! unknowns of `K`; a frame's active handles `A` are imposed with Lagrange multipliers:
+//!
+//! ```text
+//! [K  E_A] [x]   [b]          y = K⁻¹ b,   (E_Aᵀ K⁻¹ E_A) λ = y_A − t_A,   x = y − K⁻¹ E_A λ,
+//! [E_Aᵀ 0] [λ] = [t_A]   ⇒
+//! ```
+//!
+//! where `E_A` selects the active handle rows. The columns `Z = K⁻¹ E_H` for all handles `H`
+//! and `S = E_Hᵀ Z` are computed once (one solve per handle). A frame picks the rows and columns
+//! of its active handles from `S` (at most a few dozen, dense) and factorises that tiny block; the
+//! sparse factor is never recomputed when markers are occluded. The result equals the solution of
+//! the system reduced by the active handles, because the multiplier rows only replace the
+//! handles' own equations.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Conj, Mat, MatMut, Par, Side};
+use moe_geom::Real;
+
+use crate::cells::Cells;
+use crate::error::ArapError;
+
+/// Marker for a fixed vertex in `unknown_of`.
+pub(crate) const FIXED: u32 = u32::MAX;
+
+/// The factorised reduced system and the handle Schur data.
+#[derive(Debug)]
+pub(crate) struct ReducedSystem {
+    /// Unknown index of every vertex, or [`FIXED`].
+    pub(crate) unknown_of: Vec<u32>,
+    /// Vertex of every unknown.
+    pub(crate) vertex_of: Vec<u32>,
+    symbolic: Option<SymbolicCholesky<u32>>,
+    values: Vec<Real>,
+    /// Per unknown, the fixed neighbours (slot in the fixed list) and system weights (CSR).
+    pub(crate) coupling_offsets: Vec<usize>,
+    pub(crate) coupling: Vec<(u32, Real)>,
+    /// Unknown index of every handle.
+    pub(crate) handle_unknowns: Vec<u32>,
+    /// `Z = K⁻¹ E_H`, one column per handle.
+    z: Mat<Real>,
+    /// `S = E_Hᵀ K⁻¹ E_H`, row-major `h × h`.
+    schur: Vec<Real>,
+}
+
+impl ReducedSystem {
+    /// Assembles and factorises `K` for the given fixed vertices (`fixed_slot[v]` is the slot of
+    /// `v` in the fixed list, or `None`).
+    pub(crate) fn new(cells: &Cells, fixed_slot: &[Option<u32>]) -> Result<Self, ArapError> {
+        let n = cells.num_vertices();
+        check_anchored(cells, fixed_slot)?;
+        let mut unknown_of = vec![FIXED; n];
+        let mut vertex_of = Vec::with_capacity(n);
+        for v in 0..n {
+            if fixed_slot[v].is_none() {
+                unknown_of[v] = vertex_of.len() as u32;
+                vertex_of.push(v as u32);
+            }
+        }
+        let m = vertex_of.len();
+        let mut triplets = Vec::with_capacity(m + 2 * cells.edges.len());
+        let mut coupling_offsets = Vec::with_capacity(m + 1);
+        let mut coupling = Vec::new();
+        coupling_offsets.push(0);
+        for (u, &v) in vertex_of.iter().enumerate() {
+            let mut diag = 0.0;
+            for (&w, &e) in cells
+                .ring(v as usize)
+                .iter()
+                .zip(cells.ring_edge_ids(v as usize))
+            {
+                let weight = cells.matrix_weight(e as usize);
+                diag += weight;
+                match fixed_slot[w as usize] {
+                    Some(slot) => coupling.push((slot, weight)),
+                    None => {
+                        let uw = unknown_of[w as usize];
+                        if uw < u as u32 {
+                            triplets.push(Triplet::new(u as u32, uw, -weight));
+                        }
+                    }
+                }
+            }
+            triplets.push(Triplet::new(u as u32, u as u32, diag));
+            coupling_offsets.push(coupling.len());
+        }
+        let (symbolic, values) = if m == 0 {
+            (None, Vec::new())
+        } else {
+            let factor_err = |reason: String| ArapError::Factorization { reason };
+            let a = SparseColMat::<u32, Real>::try_new_from_triplets(m, m, &triplets)
+                .map_err(|e| factor_err(format!("{e:?}")))?;
+            let symbolic = factorize_symbolic_cholesky(
+                a.symbolic(),
+                Side::Lower,
+                Default::default(),
+                Default::default(),
+            )
+            .map_err(|e| factor_err(format!("{e:?}")))?;
+            let mut values = vec![0.0; symbolic.len_val()];
+            let mut buf = MemBuffer::new(
+                symbolic.factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
+            );
+            symbolic
+                .factorize_numeric_llt::<Real>(
+                    &mut values,
+                    a.as_ref(),
+                    Side::Lower,
+                    LltRegularization::default(),
+                    Par::Seq,
+                    MemStack::new(&mut buf),
+                    Default::default(),
+                )
+                .map_err(|e| factor_err(format!("{e:?}")))?;
+            (Some(symbolic), values)
+        };
+        Ok(Self {
+            unknown_of,
+            vertex_of,
+            symbolic,
+            values,
+            coupling_offsets,
+            coupling,
+            handle_unknowns: Vec::new(),
+            z: Mat::zeros(m, 0),
+            schur: Vec::new(),
+        })
+    }
+
+    /// Number of unknowns.
+    pub(crate) fn num_unknowns(&self) -> usize {
+        self.vertex_of.len()
+    }
+
+    /// Number of handles.
+    pub(crate) fn num_handles(&self) -> usize {
+        self.handle_unknowns.len()
+    }
+
+    /// Scratch needed by [`ReducedSystem::solve_in_place`] for `ncols` right-hand sides.
+    pub(crate) fn scratch(&self, ncols: usize) -> MemBuffer {
+        match &self.symbolic {
+            Some(s) => MemBuffer::new(s.solve_in_place_scratch::<Real>(ncols, Par::Seq)),
+            None => MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+        }
+    }
+
+    /// `rhs ← K⁻¹ rhs`.
+    pub(crate) fn solve_in_place(&self, rhs: MatMut<'_, Real>, buf: &mut MemBuffer) {
+        if let Some(symbolic) = &self.symbolic {
+            LltRef::new(symbolic, &self.values).solve_in_place_with_conj(
+                Conj::No,
+                rhs,
+                Par::Seq,
+                MemStack::new(buf),
+            );
+        }
+    }
+
+    /// Sets the handle unknowns and computes `Z` and `S` (one sparse solve per handle).
+    pub(crate) fn set_handles(&mut self, handle_unknowns: Vec<u32>) {
+        let m = self.num_unknowns();
+        let h = handle_unknowns.len();
+        let mut z = Mat::<Real>::zeros(m, h);
+        for (j, &u) in handle_unknowns.iter().enumerate() {
+            z[(u as usize, j)] = 1.0;
+        }
+        if h > 0 {
+            let mut buf = self.scratch(h);
+            self.solve_in_place(z.as_mut(), &mut buf);
+        }
+        let mut schur = vec![0.0; h * h];
+        for (i, &u) in handle_unknowns.iter().enumerate() {
+            for j in 0..h {
+                schur[i * h + j] = z[(u as usize, j)];
+            }
+        }
+        self.handle_unknowns = handle_unknowns;
+        self.z = z;
+        self.schur = schur;
+    }
+
+    /// Column `j` of `Z = K⁻¹ E_H`.
+    pub(crate) fn z_col(&self, j: usize) -> &[Real] {
+        self.z.col_as_slice(j)
+    }
+
+    /// `S[i, j] = (K⁻¹)[h_i, h_j]`.
+    pub(crate) fn schur(&self, i: usize, j: usize) -> Real {
+        self.schur[i * self.num_handles() + j]
+    }
+}
+
+/// Every vertex must reach a fixed vertex through edges of positive system weight, otherwise `K`
+/// is singular.
+fn check_anchored(cells: &Cells, fixed_slot: &[Option<u32>]) -> Result<(), ArapError> {
+    let n = cells.num_vertices();
+    let mut reached: Vec<bool> = fixed_slot.iter().map(Option::is_some).collect();
+    let mut stack: Vec<usize> = (0..n).filter(|&v| reached[v]).collect();
+    while let Some(v) = stack.pop() {
+        for (&w, &e) in cells.ring(v).iter().zip(cells.ring_edge_ids(v)) {
+            if !reached[w as usize] && cells.matrix_weight(e as usize) > 0.0 {
+                reached[w as usize] = true;
+                stack.push(w as usize);
+            }
+        }
+    }
+    match reached.iter().position(|r| !r) {
+        Some(vertex) => Err(ArapError::Unanchored { vertex }),
+        None => Ok(()),
+    }
+}
+
+/// A dense Cholesky factor of a small symmetric positive-definite matrix, reusing its storage.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SmallCholesky {
+    n: usize,
+    l: Vec<Real>,
+}
+
+impl SmallCholesky {
+    /// Factorises the `n × n` matrix given by `entry(i, j)` (lower triangle read). Returns `false`
+    /// when a pivot is not positive.
+    pub(crate) fn factor(&mut self, n: usize, entry: impl Fn(usize, usize) -> Real) -> bool {
+        self.n = n;
+        self.l.clear();
+        self.l.resize(n * n, 0.0);
+        for j in 0..n {
+            let mut d = entry(j, j);
+            for k in 0..j {
+                d -= self.l[j * n + k] * self.l[j * n + k];
+            }
+            if d.is_nan() || d <= 0.0 {
+                return false;
+            }
+            let d = d.sqrt();
+            self.l[j * n + j] = d;
+            for i in (j + 1)..n {
+                let mut s = entry(i, j);
+                for k in 0..j {
+                    s -= self.l[i * n + k] * self.l[j * n + k];
+                }
+                self.l[i * n + j] = s / d;
+            }
+        }
+        true
+    }
+
+    /// Solves `M x = b` in place for one right-hand side of length `n`.
+    pub(crate) fn solve_in_place(&self, b: &mut [Real]) {
+        let n = self.n;
+        for i in 0..n {
+            let row = &self.l[i * n..i * n + i];
+            let s = b[i] - row.iter().zip(&b[..i]).map(|(l, x)| l * x).sum::<Real>();
+            b[i] = s / self.l[i * n + i];
+        }
+        for i in (0..n).rev() {
+            let s = b[i]
+                - ((i + 1)..n)
+                    .zip(&b[i + 1..])
+                    .map(|(k, x)| self.l[k * n + i] * x)
+                    .sum::<Real>();
+            b[i] = s / self.l[i * n + i];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_cholesky_solves_a_known_system() {
+        let m = [[4.0, 2.0, 0.4], [2.0, 5.0, 1.0], [0.4, 1.0, 3.0]];
+        let x = [1.0, -2.0, 0.5];
+        let mut b: Vec<Real> = (0..3)
+            .map(|i| (0..3).map(|j| m[i][j] * x[j]).sum())
+            .collect();
+        let mut chol = SmallCholesky::default();
+        assert!(chol.factor(3, |i, j| m[i][j]));
+        chol.solve_in_place(&mut b);
+        for (a, e) in b.iter().zip(x) {
+            assert!((a - e).abs() < 1e-14);
+        }
+        assert!(!chol.factor(2, |i, j| if i == j { -1.0 } else { 0.0 }));
+    }
+}
