@@ -268,7 +268,15 @@ pub(crate) fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyData, IoError> {
             ));
         }
     }
-    let has_colors = COLOR_NAMES.iter().all(|c| scalar_def(c));
+    let color_count = COLOR_NAMES.iter().filter(|c| scalar_def(c)).count();
+    if color_count % 3 != 0 {
+        return Err(IoError::invalid(
+            path,
+            "element 'vertex'",
+            "has some but not all of the colour properties red, green, blue",
+        ));
+    }
+    let has_colors = color_count == 3;
     let scalar_names: Vec<String> = vertex_def
         .properties
         .values()
@@ -491,6 +499,9 @@ mod tests {
         assert!(e.to_string().contains("face 0"), "{e}");
         let nan = ASCII.replace("1 1 0 0 0 255 1", "1 nan 0 0 0 255 1");
         assert!(parse(nan.as_bytes()).is_err());
+        let partial_colour = ASCII.replace("property uchar blue", "property uchar blur");
+        let e = parse(partial_colour.as_bytes()).unwrap_err();
+        assert!(e.to_string().contains("colour"), "{e}");
         let d = PlyData {
             points: vec![Point3::origin()],
             scalars: vec![("x".into(), vec![1.0])],

@@ -2,9 +2,12 @@
 //!
 //! STL stores every triangle with its own three corners in `f32`. `stl_io` merges corners with
 //! bit-identical coordinates; the reader then welds corners closer than
-//! [`STL_WELD_RELATIVE_TOLERANCE`] × the bounding-box diagonal (absorbing round-off from
-//! exporters that write the same corner twice with different digits), drops faces that collapse
-//! and validates the result. STL is read-only here: it cannot carry shared vertex ids.
+//! [`STL_WELD_RELATIVE_TOLERANCE`] × the bounding-box diagonal, drops faces that collapse and
+//! validates the result. The tolerance, 1e-7, is just above `f32`'s relative precision
+//! (6e-8): it absorbs exporters that write the same corner twice rounded differently (one `f32`
+//! ulp apart), and is far below any real edge length (for an 8 cm finger, 8 nm). The welded
+//! vertices are numbered in order of first appearance in the file. STL is read-only here: it
+//! cannot carry shared vertex ids.
 
 use std::io::Read;
 use std::path::Path;
@@ -15,7 +18,7 @@ use crate::error::IoError;
 use crate::files::{MEMORY, guarded, read_bytes, read_to_end};
 
 /// Weld tolerance of [`read_stl`], relative to the mesh's bounding-box diagonal.
-pub const STL_WELD_RELATIVE_TOLERANCE: f64 = 1e-9;
+pub const STL_WELD_RELATIVE_TOLERANCE: f64 = 1e-7;
 
 /// Reads an ascii or binary STL file as a welded, validated triangle mesh.
 ///

@@ -1,0 +1,386 @@
+//! Fuzz-style robustness: every reader gets every prefix of valid files, byte-flipped copies and
+//! random bytes, and must return an error or a valid value — never panic. A panic inside a
+//! parser crate would surface as `IoError::ParserPanic` (the readers catch it); that is counted
+//! as a failure too, so the crate doc's claim that the parsers did not panic stays checked.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+use moe_geom::{Point3, TriMesh};
+use moe_io::{HandConfig, IoError, PlyData};
+
+use crate::{SplitMix64, fixture_configs, octahedron};
+
+/// What one reader made of one input.
+enum Outcome {
+    /// A value that passed its validity check.
+    Valid,
+    /// A typed error.
+    Error,
+    /// A value that violates the reader's guarantees, or a caught parser panic.
+    Bad(String),
+}
+
+type Reader = fn(&[u8]) -> Outcome;
+
+fn from_result<T>(r: Result<T, IoError>, check: impl FnOnce(&T) -> Option<String>) -> Outcome {
+    match r {
+        Ok(v) => match check(&v) {
+            None => Outcome::Valid,
+            Some(why) => Outcome::Bad(why),
+        },
+        Err(IoError::ParserPanic { parser, .. }) => Outcome::Bad(format!("{parser} panicked")),
+        Err(_) => Outcome::Error,
+    }
+}
+
+fn mesh_check(m: &TriMesh) -> Option<String> {
+    TriMesh::new(m.vertices().to_vec(), m.faces().to_vec())
+        .err()
+        .map(|e| format!("invalid mesh returned: {e}"))
+}
+
+fn read_obj(b: &[u8]) -> Outcome {
+    from_result(moe_io::read_obj_from(b), mesh_check)
+}
+
+fn read_stl(b: &[u8]) -> Outcome {
+    from_result(moe_io::read_stl_from(b), mesh_check)
+}
+
+fn read_ply(b: &[u8]) -> Outcome {
+    from_result(moe_io::read_ply_from(b), |d: &PlyData| {
+        d.validate(Path::new("fuzz.ply"))
+            .err()
+            .map(|e| format!("invalid PLY data returned: {e}"))
+    })
+}
+
+fn read_csv(b: &[u8]) -> Outcome {
+    from_result(
+        moe_io::csv::read_points_csv_from(b),
+        |rows: &Vec<Vec<f64>>| {
+            let w = rows.first().map_or(3, Vec::len);
+            let ok = (w == 3 || w == 4)
+                && rows
+                    .iter()
+                    .all(|r| r.len() == w && r.iter().all(|x| x.is_finite()));
+            (!ok).then(|| "invalid rows returned".to_string())
+        },
+    )
+}
+
+fn config_path() -> std::path::PathBuf {
+    // Not a real file: only its directory matters, to resolve the finger mesh.
+    fixture_configs().join("fuzz-input.toml")
+}
+
+fn read_hand_toml(b: &[u8]) -> Outcome {
+    let path = config_path();
+    let r = moe_io::parse_toml::<HandConfig>(b, &path).and_then(|c| c.build(&path));
+    from_result(r, |h| (h.num_fingers() == 0).then(|| "empty hand".into()))
+}
+
+fn read_hand_json(b: &[u8]) -> Outcome {
+    let path = config_path();
+    let r = moe_io::parse_json::<HandConfig>(b, &path).and_then(|c| c.build(&path));
+    from_result(r, |h| (h.num_fingers() == 0).then(|| "empty hand".into()))
+}
+
+const HAND_TOML: &str = "[[fingers]]\nmesh = \"tiny-finger.obj\"\nmarker_vertices = [7, 13, 19]\n\
+    base_vertices = [0, 1, 2, 3, 4, 5, 6]\n\
+    tendons = [{ points_in_finger = [[0.005, 0.0, 0.0], [0.005, 0.0, 0.04]], antagonist = 0 }]\n\
+    position_m = [0.025, 0.0, 0.0]\nrotation_axis_angle_rad = [0.0, 0.0, 3.14]\n\n\
+    [[fingers]]\nparams = { length_m = 0.05, vertex_budget = 40 }\n";
+
+const PRESET_TOML: &str =
+    "preset = \"two-finger\"\n[finger]\nlength_m = 0.07\nvertex_budget = 48\n";
+
+fn samples() -> Vec<(&'static str, Reader, Vec<u8>)> {
+    let oct = octahedron(0.01);
+    let mut colored = PlyData::from_mesh(&oct);
+    colored.colors = Some(vec![[10, 20, 30]; 6]);
+    colored.scalars = vec![(
+        "contact_probability".into(),
+        vec![0.0, 0.2, 0.4, 0.6, 0.8, 1.0],
+    )];
+    let ply_le = moe_io::ply_bytes(&colored, Path::new("s.ply")).unwrap();
+    let mut ply_be = b"ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\n\
+        property float y\nproperty float z\nelement face 1\nproperty list uchar uint vertex_indices\n\
+        end_header\n"
+        .to_vec();
+    for x in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        ply_be.extend_from_slice(&x.to_be_bytes());
+    }
+    ply_be.push(3);
+    for i in [0u32, 1, 2] {
+        ply_be.extend_from_slice(&i.to_be_bytes());
+    }
+    let ply_ascii = b"ply\nformat ascii 1.0\ncomment c\nelement vertex 4\nproperty double x\n\
+        property double y\nproperty double z\nproperty uchar red\nproperty uchar green\n\
+        property uchar blue\nproperty float p\nelement face 2\nproperty list uchar int vertex_indices\n\
+        end_header\n0 0 0 1 2 3 0.5\n1 0 0 4 5 6 0.25\n1 1 0 7 8 9 1\n0 1 0 0 0 0 0\n3 0 1 2\n3 0 2 3\n"
+        .to_vec();
+    let obj_rich = b"# comment\nmtllib x.mtl\no a\nv 0 0 0\nv 1 0 0\nv 1 1 0 1.0\nv 0 1 0\n\
+        vt 0 0\nvn 0 0 1\ng b\nusemtl m\ns 1\nf 1/1/1 2/1/1 3/1/1 4/1/1\nl 1 2\nv 2 0.5 0\nf -4 -1 -3\n"
+        .to_vec();
+    let tris: Vec<stl_io::Triangle> = oct
+        .faces()
+        .iter()
+        .map(|f| stl_io::Triangle {
+            normal: stl_io::Normal::new([0.0, 0.0, 1.0]),
+            vertices: f.map(|i| {
+                let p: Point3 = oct.vertices()[i as usize];
+                stl_io::Vertex::new([p.x as f32, p.y as f32, p.z as f32])
+            }),
+        })
+        .collect();
+    let mut stl_bin = Vec::new();
+    stl_io::write_stl(&mut stl_bin, tris.iter()).unwrap();
+    let stl_ascii = b"solid t\nfacet normal 0 0 -1\nouter loop\nvertex 0 0 0\nvertex 0 1 0\n\
+        vertex 1 0 0\nendloop\nendfacet\nfacet normal 0 -1 0\nouter loop\nvertex 0 0 0\n\
+        vertex 1 0 0\nvertex 0 0 1\nendloop\nendfacet\nfacet normal -1 0 0\nouter loop\n\
+        vertex 0 0 0\nvertex 0 0 1\nvertex 0 1 0\nendloop\nendfacet\nfacet normal 1 1 1\n\
+        outer loop\nvertex 1 0 0\nvertex 0 1 0\nvertex 0 0 1\nendloop\nendfacet\nendsolid t\n"
+        .to_vec();
+    let hand: HandConfig = moe_io::parse_toml(HAND_TOML.as_bytes(), Path::new("h.toml")).unwrap();
+    let hand_json = serde_json::to_vec_pretty(&hand).unwrap();
+    let csv = b"x,y,z,p\n0.1,0.2,0.3,0.5\n-1e-3,2.5e2,0,1\n4,5,6,7\n".to_vec();
+    vec![
+        ("obj", read_obj as Reader, moe_io::obj_bytes(&oct)),
+        ("obj-rich", read_obj, obj_rich),
+        ("ply-le", read_ply, ply_le),
+        ("ply-be", read_ply, ply_be),
+        ("ply-ascii", read_ply, ply_ascii),
+        ("stl-binary", read_stl, stl_bin),
+        ("stl-ascii", read_stl, stl_ascii),
+        ("hand-toml", read_hand_toml, HAND_TOML.as_bytes().to_vec()),
+        (
+            "preset-toml",
+            read_hand_toml,
+            PRESET_TOML.as_bytes().to_vec(),
+        ),
+        ("hand-json", read_hand_json, hand_json),
+        ("csv", read_csv, csv),
+    ]
+}
+
+/// Keyword soup for each format family, so random inputs reach past the first token.
+const TOKENS: &[&str] = &[
+    "v",
+    "f",
+    "vt",
+    "vn",
+    "o",
+    "g",
+    "l",
+    "p",
+    "#",
+    "1",
+    "-1",
+    "0",
+    "2",
+    "3",
+    "4294967295",
+    "-9223372036854775808",
+    "1e308",
+    "nan",
+    "inf",
+    "0.5",
+    "/",
+    "//",
+    "1/2/3",
+    "ply",
+    "format",
+    "ascii",
+    "binary_little_endian",
+    "binary_big_endian",
+    "1.0",
+    "element",
+    "vertex",
+    "face",
+    "property",
+    "float",
+    "double",
+    "uchar",
+    "int",
+    "uint",
+    "list",
+    "vertex_indices",
+    "x",
+    "y",
+    "z",
+    "red",
+    "end_header",
+    "solid",
+    "facet",
+    "normal",
+    "outer",
+    "loop",
+    "endloop",
+    "endfacet",
+    "endsolid",
+    "preset",
+    "=",
+    "\"two-finger\"",
+    "[finger]",
+    "[[fingers]]",
+    "mesh",
+    "params",
+    "{",
+    "}",
+    "[",
+    "]",
+    ",",
+    ":",
+    "\"",
+    "length_m",
+    "vertex_budget",
+    "marker_vertices",
+    "\n",
+    " ",
+];
+
+/// Runs one reader on one input, catching panics.
+fn run_case(
+    name: &str,
+    reader: Reader,
+    input: &[u8],
+    kind: &str,
+    failures: &mut Vec<String>,
+) -> bool {
+    match catch_unwind(AssertUnwindSafe(|| reader(input))) {
+        Ok(Outcome::Valid) => true,
+        Ok(Outcome::Error) => false,
+        Ok(Outcome::Bad(why)) => {
+            failures.push(format!("{name} {kind} ({} bytes): {why}", input.len()));
+            false
+        }
+        Err(_) => {
+            failures.push(format!("{name} {kind} ({} bytes): panicked", input.len()));
+            false
+        }
+    }
+}
+
+#[test]
+fn every_reader_survives_truncation_flips_and_garbage() {
+    let mut rng = SplitMix64(0x005E_ED0F_F022);
+    let mut failures = Vec::new();
+    let mut cases = 0usize;
+    let mut valid = 0usize;
+    for (name, reader, sample) in samples() {
+        // The untouched sample is valid.
+        assert!(
+            matches!(reader(&sample), Outcome::Valid),
+            "{name}: the unmodified sample must be accepted"
+        );
+        // Every prefix.
+        for len in 0..sample.len() {
+            cases += 1;
+            valid += usize::from(run_case(
+                name,
+                reader,
+                &sample[..len],
+                "prefix",
+                &mut failures,
+            ));
+        }
+        // Byte flips: 1–4 random bytes replaced by random values or single-bit flips.
+        for _ in 0..1000 {
+            let mut s = sample.clone();
+            for _ in 0..1 + rng.below(4) {
+                let i = rng.below(s.len());
+                s[i] = if rng.below(2) == 0 {
+                    rng.next_u64() as u8
+                } else {
+                    s[i] ^ (1 << rng.below(8))
+                };
+            }
+            cases += 1;
+            valid += usize::from(run_case(name, reader, &s, "byte flip", &mut failures));
+        }
+        // Spliced: a random slice of the sample repeated or dropped.
+        for _ in 0..100 {
+            let a = rng.below(sample.len());
+            let b = a + rng.below(sample.len() - a);
+            let mut s = sample[..b].to_vec();
+            s.extend_from_slice(&sample[a..]);
+            cases += 1;
+            valid += usize::from(run_case(name, reader, &s, "splice", &mut failures));
+        }
+        // Random bytes and keyword soup.
+        for _ in 0..150 {
+            let n = rng.below(300);
+            let bytes: Vec<u8> = (0..n).map(|_| rng.next_u64() as u8).collect();
+            cases += 1;
+            valid += usize::from(run_case(
+                name,
+                reader,
+                &bytes,
+                "random bytes",
+                &mut failures,
+            ));
+            let mut soup = String::new();
+            for _ in 0..rng.below(120) {
+                soup.push_str(TOKENS[rng.below(TOKENS.len())]);
+                soup.push(if rng.below(4) == 0 { '\n' } else { ' ' });
+            }
+            cases += 1;
+            valid += usize::from(run_case(
+                name,
+                reader,
+                soup.as_bytes(),
+                "token soup",
+                &mut failures,
+            ));
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {cases} cases failed:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    // Some mutated inputs still parse (e.g. a flipped digit): the checks above saw them too.
+    assert!(
+        valid > 0,
+        "no mutated input was accepted; the fuzzing never reached a value check"
+    );
+    println!("fuzz: {cases} cases, {valid} accepted as valid, 0 panics");
+}
+
+#[test]
+fn adversarial_sizes_and_nesting_are_errors() {
+    let mut failures = Vec::new();
+    let huge_ply = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n\
+        property double x\nproperty double y\nproperty double z\nend_header\n\x00\x01"
+        .to_vec();
+    let huge_list = b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\n\
+        property float y\nproperty float z\nelement face 1\nproperty list uint uint vertex_indices\n\
+        end_header\n\xff\xff\xff\xff"
+        .to_vec();
+    let mut huge_stl = vec![0u8; 80];
+    huge_stl.extend_from_slice(&u32::MAX.to_le_bytes());
+    huge_stl.extend_from_slice(&[0u8; 50]);
+    let huge_index =
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 18446744073709551615\nf 1 2 -9223372036854775807\n"
+            .to_vec();
+    let deep_toml = format!("a = {}{}", "[".repeat(100_000), "]".repeat(100_000)).into_bytes();
+    let deep_inline = format!("a = {}{}", "{ b = ".repeat(50_000), "}".repeat(50_000)).into_bytes();
+    let deep_json = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000)).into_bytes();
+    let cases: Vec<(&str, Reader, Vec<u8>)> = vec![
+        ("ply 1e12 vertices", read_ply, huge_ply),
+        ("ply 2^32-1 list", read_ply, huge_list),
+        ("stl 2^32-1 facets", read_stl, huge_stl),
+        ("obj huge index", read_obj, huge_index),
+        ("toml deep arrays", read_hand_toml, deep_toml),
+        ("toml deep tables", read_hand_toml, deep_inline),
+        ("json deep arrays", read_hand_json, deep_json),
+    ];
+    for (name, reader, input) in cases {
+        let accepted = run_case(name, reader, &input, "adversarial", &mut failures);
+        assert!(!accepted, "{name} was accepted");
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
