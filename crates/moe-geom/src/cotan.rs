@@ -174,9 +174,9 @@ mod tests {
         for (i, j, v) in lap.triplets() {
             dense[i][j] += v;
         }
-        for i in 0..n {
-            for j in 0..n {
-                assert_eq!(dense[i][j], dense[j][i]);
+        for (i, row) in dense.iter().enumerate() {
+            for (j, value) in row.iter().enumerate() {
+                assert_eq!(*value, dense[j][i]);
             }
         }
     }

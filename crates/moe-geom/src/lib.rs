@@ -25,6 +25,9 @@ pub mod topology;
 /// Rigid transforms named by frame.
 pub mod transform;
 
+/// nalgebra, re-exported so that users name the same version.
+pub use nalgebra;
+
 pub use chamfer::{Neighbor, PointIndex, bcd, ucd};
 pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;

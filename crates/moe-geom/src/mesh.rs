@@ -381,14 +381,13 @@ pub fn weld(
             'search: for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        if let Some(ids) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
-                            if let Some(&id) = ids
+                        if let Some(ids) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz])
+                            && let Some(&id) = ids
                                 .iter()
                                 .find(|&&id| (out[id as usize] - p).norm() <= tolerance)
-                            {
-                                found = Some(id);
-                                break 'search;
-                            }
+                        {
+                            found = Some(id);
+                            break 'search;
                         }
                     }
                 }

@@ -49,6 +49,10 @@ pub mod atomic;
 pub mod config;
 /// Numeric CSV tables.
 pub mod csv;
+/// Training data sets: safetensors shards and the data set card.
+pub mod dataset;
+/// Recorded episodes: MCAP with Foxglove schemas.
+pub mod episode;
 /// The crate's error type.
 pub mod error;
 /// Shared file helpers.
@@ -67,6 +71,14 @@ pub mod stl;
 pub use atomic::write_atomic;
 pub use config::{parse_json, parse_toml, read_config, read_json, write_json, write_toml};
 pub use csv::{read_points_csv, write_csv};
+pub use dataset::{
+    DatasetCard, DatasetFrame, DatasetLayout, DatasetReader, Split, SplitFractions, read_shard,
+    split_of, write_shard,
+};
+pub use episode::{
+    CameraInfo, Episode, EpisodeFrame, EpisodeInfo, EpisodeWriter, ObstacleMesh, parse_episode,
+    parse_episode_prefix, read_episode, write_episode,
+};
 pub use error::IoError;
 pub use files::MEMORY;
 pub use hand_config::{FingerConfig, HandConfig, TendonConfig, load_hand_config};
