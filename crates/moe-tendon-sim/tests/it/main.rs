@@ -2,3 +2,4 @@
 //! scenes.
 
 mod mechanics;
+mod tendons;

@@ -1,0 +1,147 @@
+//! A simulated finger: its voxel tet mesh with the fixed base, the embedded surface mesh and
+//! tendons, and the step that gathers tendon and contact terms.
+
+use moe_geom::{FingerModel, Point3, Real, Vector3};
+
+use crate::contact::{ContactParams, PosedObstacles, add_contact_terms};
+use crate::embedding::Embedding;
+use crate::error::SimError;
+use crate::fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport};
+use crate::material::Material;
+use crate::tendon::{Tendon, TendonCommand, TendonParams};
+use crate::terms::Terms;
+use crate::voxelize::{VoxelParams, VoxelStats, voxelize};
+
+/// Nodes within this height above the finger's base plane are fixed, metres.
+pub const BASE_TOLERANCE_M: Real = 1e-9;
+
+/// A finger ready to simulate, in its own (finger) frame at rest.
+#[derive(Debug)]
+pub struct FingerBody {
+    fem: FemModel,
+    surface: Embedding,
+    tendons: Vec<Tendon>,
+    stats: VoxelStats,
+}
+
+/// External inputs of one finger step besides the state.
+#[derive(Debug, Clone)]
+pub struct FingerInputs<'a> {
+    /// Positions of every node's rest point mapped to the world at the end of the step (only
+    /// the fixed nodes' entries are used).
+    pub targets: &'a [Point3],
+    /// Gravity, m/s², world frame.
+    pub gravity: Vector3,
+    /// One command per tendon.
+    pub commands: &'a [TendonCommand],
+    /// Tendon material.
+    pub tendon: &'a TendonParams,
+    /// Obstacles posed for the step.
+    pub obstacles: &'a PosedObstacles<'a>,
+    /// Contact model.
+    pub contact: &'a ContactParams,
+}
+
+impl FingerBody {
+    /// Tetrahedralises `finger`, fixes the nodes on its base plane (z ≤ the highest base vertex
+    /// + [`BASE_TOLERANCE_M`] in the finger frame), embeds its surface and its tendon routes.
+    ///
+    /// # Errors
+    /// Invalid material or resolution, an open surface, [`SimError::NoFixedNodes`],
+    /// [`SimError::TendonOutsideBody`].
+    pub fn new(
+        finger: &FingerModel,
+        material: &Material,
+        voxel: &VoxelParams,
+    ) -> Result<Self, SimError> {
+        material.validate()?;
+        let vm = voxelize(finger.mesh(), voxel)?;
+        let base_z = finger
+            .base_vertices()
+            .iter()
+            .map(|&v| finger.mesh().vertices()[v as usize].z)
+            .fold(Real::NEG_INFINITY, Real::max);
+        let fixed: Vec<bool> = vm
+            .tets
+            .nodes()
+            .iter()
+            .map(|p| p.z <= base_z + BASE_TOLERANCE_M)
+            .collect();
+        if !fixed.iter().any(|&f| f) {
+            return Err(SimError::NoFixedNodes { base_z_m: base_z });
+        }
+        let tendons = finger
+            .tendon_routes()
+            .iter()
+            .enumerate()
+            .map(|(i, r)| Tendon::new(&vm.tets, i, r))
+            .collect::<Result<Vec<_>, _>>()?;
+        let pairs: Vec<(u32, u32)> = tendons.iter().flat_map(|t| t.coupled_pairs()).collect();
+        let fem = FemModel::new(vm.tets, material.clone(), fixed, &pairs, tendons.len())?;
+        Ok(Self {
+            fem,
+            surface: vm.surface,
+            tendons,
+            stats: vm.stats,
+        })
+    }
+
+    /// The FEM model (tet mesh, masses, fixed nodes).
+    pub fn fem(&self) -> &FemModel {
+        &self.fem
+    }
+
+    /// The surface vertices, embedded in the tets (same order as the finger mesh).
+    pub fn surface(&self) -> &Embedding {
+        &self.surface
+    }
+
+    /// The tendons.
+    pub fn tendons(&self) -> &[Tendon] {
+        &self.tendons
+    }
+
+    /// Accuracy of the tetrahedralisation.
+    pub fn voxel_stats(&self) -> VoxelStats {
+        self.stats
+    }
+
+    /// Advances the finger by one step.
+    ///
+    /// # Errors
+    /// [`SimError::LengthMismatch`] for a wrong number of commands; everything
+    /// [`FemModel::step`] reports.
+    pub fn step(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        integrator: Integrator,
+        x: &mut [Point3],
+        v: &mut [Vector3],
+        inputs: &FingerInputs<'_>,
+    ) -> Result<StepReport, SimError> {
+        if inputs.commands.len() != self.tendons.len() {
+            return Err(SimError::LengthMismatch {
+                what: "tendon commands",
+                expected: self.tendons.len(),
+                got: inputs.commands.len(),
+            });
+        }
+        let mut build = |x: &[Point3], v: &[Vector3], terms: &mut Terms| {
+            for (tendon, &cmd) in self.tendons.iter().zip(inputs.commands) {
+                tendon.add_terms(x, cmd, inputs.tendon, terms);
+            }
+            add_contact_terms(&self.surface, x, v, inputs.obstacles, inputs.contact, terms);
+        };
+        self.fem.step(
+            ws,
+            ctx,
+            integrator,
+            x,
+            v,
+            inputs.targets,
+            &inputs.gravity,
+            &mut build,
+        )
+    }
+}

@@ -1,0 +1,221 @@
+//! Tendons: cables routed as polylines through the body, embedded barycentrically, driven by a
+//! pulled length (displacement) or a tension (force), pull-only.
+//!
+//! A cable of tension `T` through points `p_0 … p_n` with unit segment directions
+//! `u_k = (p_{k+1} − p_k)/ℓ_k` pushes point `k` with `f_k = T (u_k − u_{k−1})` (`u_{−1} = u_n = 0`):
+//! `f_k = −T ∂L/∂p_k` with `L = Σ ℓ_k` its path length. In displacement mode the tension is a
+//! stiff penalty `T = k_t · max(0, L − (L₀ − pull))` (slack when the path is shorter than the
+//! rest length minus the pull; a negative pull pays cable out), treated implicitly as a
+//! unilateral rank-one term; in force mode `T` is given. Both add the cable's geometric
+//! stiffness `(T/ℓ_k)(I − u_k u_kᵀ)` between consecutive points.
+
+use moe_geom::{Matrix3, Point3, Real, TendonRoute, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::embedding::{Embedded, Embedding};
+use crate::error::{SimError, require_positive};
+use crate::terms::{PairTerm, PointTerm, RankOneTerm, Terms};
+use crate::tetmesh::TetMesh;
+
+/// Tendon material.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TendonParams {
+    /// Axial stiffness of a tendon in displacement mode, N/m (a nearly inextensible cable).
+    /// Default 1e5.
+    pub stiffness_n_per_m: Real,
+}
+
+impl Default for TendonParams {
+    fn default() -> Self {
+        Self {
+            stiffness_n_per_m: 1e5,
+        }
+    }
+}
+
+impl TendonParams {
+    /// Checks the parameters.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a non-positive stiffness.
+    pub fn validate(&self) -> Result<(), SimError> {
+        require_positive("tendon stiffness_n_per_m", self.stiffness_n_per_m)
+    }
+}
+
+/// What drives a tendon during one step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "mode", rename_all = "snake_case")]
+pub enum TendonCommand {
+    /// Pulled length, metres (negative pays cable out).
+    Displacement {
+        /// Pulled length, metres.
+        pull_m: Real,
+    },
+    /// Tension, newtons (≥ 0: a cable only pulls).
+    Force {
+        /// Tension, newtons.
+        tension_n: Real,
+    },
+}
+
+/// A tendon embedded in a body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tendon {
+    points: Vec<Embedded>,
+    rest_length_m: Real,
+}
+
+/// State of a tendon after a step.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct TendonState {
+    /// Current path length, metres.
+    pub length_m: Real,
+    /// Tension, newtons (0 when slack).
+    pub tension_n: Real,
+}
+
+impl Tendon {
+    /// Embeds route `index` (points in the body's rest frame) in `mesh`.
+    ///
+    /// # Errors
+    /// [`SimError::TendonOutsideBody`] naming the first route point outside every element.
+    pub fn new(mesh: &TetMesh, index: usize, route: &TendonRoute) -> Result<Self, SimError> {
+        let emb = Embedding::new(mesh, &route.points_in_finger);
+        if let Some(point) = emb.distances_m().iter().position(|&d| d > 0.0) {
+            let p = route.points_in_finger[point];
+            return Err(SimError::TendonOutsideBody {
+                tendon: index,
+                point,
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            });
+        }
+        Ok(Self {
+            points: emb.points().to_vec(),
+            rest_length_m: route.length(),
+        })
+    }
+
+    /// The embedded route points.
+    pub fn points(&self) -> &[Embedded] {
+        &self.points
+    }
+
+    /// Rest path length, metres.
+    pub fn rest_length_m(&self) -> Real {
+        self.rest_length_m
+    }
+
+    /// Node pairs coupled by consecutive route points (for the system pattern).
+    pub(crate) fn coupled_pairs(&self) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        for w in self.points.windows(2) {
+            for a in w[0].nodes {
+                for b in w[1].nodes {
+                    out.push((a, b));
+                }
+            }
+        }
+        out
+    }
+
+    /// Current path length for node positions `x`.
+    pub fn length(&self, x: &[Point3]) -> Real {
+        self.points
+            .windows(2)
+            .map(|w| (w[1].position(x) - w[0].position(x)).norm())
+            .sum()
+    }
+
+    /// Tension for positions `x` under `command` (from the current length; 0 when slack).
+    pub fn tension(&self, x: &[Point3], command: TendonCommand, params: &TendonParams) -> Real {
+        match command {
+            TendonCommand::Displacement { pull_m } => {
+                let excess = self.length(x) - (self.rest_length_m - pull_m);
+                params.stiffness_n_per_m * excess.max(0.0)
+            }
+            TendonCommand::Force { tension_n } => tension_n.max(0.0),
+        }
+    }
+
+    /// Adds this tendon's terms for positions `x` to `terms`.
+    pub(crate) fn add_terms(
+        &self,
+        x: &[Point3],
+        command: TendonCommand,
+        params: &TendonParams,
+        terms: &mut Terms,
+    ) {
+        let p: Vec<Point3> = self.points.iter().map(|e| e.position(x)).collect();
+        let n = p.len();
+        let mut dirs = Vec::with_capacity(n - 1);
+        let mut lens = Vec::with_capacity(n - 1);
+        for w in p.windows(2) {
+            let d = w[1] - w[0];
+            let l = d.norm();
+            lens.push(l);
+            dirs.push(if l > 0.0 { d / l } else { Vector3::zeros() });
+        }
+        let length: Real = lens.iter().sum();
+        // ∂L/∂p_k = u_{k−1} − u_k.
+        let grad_point = |k: usize| {
+            let prev = if k > 0 { dirs[k - 1] } else { Vector3::zeros() };
+            let next = if k < n - 1 { dirs[k] } else { Vector3::zeros() };
+            prev - next
+        };
+        let tension = match command {
+            TendonCommand::Displacement { pull_m } => {
+                let excess = length - (self.rest_length_m - pull_m);
+                let mut gradient: Vec<(u32, Vector3)> = Vec::new();
+                for (k, e) in self.points.iter().enumerate() {
+                    let g = grad_point(k);
+                    for j in 0..4 {
+                        let node = e.nodes[j];
+                        let contrib = g * e.weights[j];
+                        match gradient.iter_mut().find(|(m, _)| *m == node) {
+                            Some((_, acc)) => *acc += contrib,
+                            None => gradient.push((node, contrib)),
+                        }
+                    }
+                }
+                terms.rank_ones.push(RankOneTerm {
+                    gradient,
+                    stiffness: params.stiffness_n_per_m,
+                    value: excess,
+                    unilateral: true,
+                });
+                params.stiffness_n_per_m * excess.max(0.0)
+            }
+            TendonCommand::Force { tension_n } => {
+                let t = tension_n.max(0.0);
+                if t > 0.0 {
+                    for (k, e) in self.points.iter().enumerate() {
+                        terms.points.push(PointTerm {
+                            point: *e,
+                            force: -grad_point(k) * t,
+                            stiffness: Matrix3::zeros(),
+                            damping: Matrix3::zeros(),
+                            target_velocity: Vector3::zeros(),
+                        });
+                    }
+                }
+                t
+            }
+        };
+        if tension > 0.0 {
+            for k in 0..n - 1 {
+                if lens[k] > 0.0 {
+                    let u = dirs[k];
+                    terms.pairs.push(PairTerm {
+                        a: self.points[k],
+                        b: self.points[k + 1],
+                        stiffness: (Matrix3::identity() - u * u.transpose()) * (tension / lens[k]),
+                    });
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,128 @@
+//! Tendon actuation of the default finger (finger frame, no gravity, quasi-static).
+
+use moe_geom::{FingerModel, FingerParams, Point3, Real, Vector3};
+use moe_tendon_sim::{
+    ContactParams, FingerBody, FingerInputs, Integrator, Material, PosedObstacles, StepContext,
+    TendonCommand, TendonParams, VoxelParams,
+};
+
+pub(crate) fn default_finger() -> (FingerModel, FingerBody) {
+    let model = FingerModel::from_params(&FingerParams::default()).unwrap();
+    let body = FingerBody::new(&model, &Material::default(), &VoxelParams::default()).unwrap();
+    (model, body)
+}
+
+/// Static equilibrium under tendon displacements `pulls` (metres, one per tendon).
+fn solve(body: &FingerBody, pulls: [Real; 4]) -> Vec<Point3> {
+    let rest = body.fem().mesh().nodes().to_vec();
+    let mut x = rest.clone();
+    let mut v = vec![Vector3::zeros(); x.len()];
+    let commands = pulls.map(|pull_m| TendonCommand::Displacement { pull_m });
+    let posed = PosedObstacles::new(&[], 0.0, 0.0);
+    let inputs = FingerInputs {
+        targets: &rest,
+        gravity: Vector3::zeros(),
+        commands: &commands,
+        tendon: &TendonParams::default(),
+        obstacles: &posed,
+        contact: &ContactParams::default(),
+    };
+    let mut ws = body.fem().workspace();
+    body.step(
+        &mut ws,
+        StepContext::default(),
+        Integrator::Static {
+            tolerance_m: 1e-9,
+            max_iterations: 200,
+        },
+        &mut x,
+        &mut v,
+        &inputs,
+    )
+    .unwrap();
+    x
+}
+
+/// Mean displacement of the surface vertices in the top 5 % of the finger.
+fn tip_displacement(model: &FingerModel, body: &FingerBody, x: &[Point3]) -> Vector3 {
+    let len = FingerParams::default().length_m;
+    let rest = model.mesh().vertices();
+    let now = body.surface().positions(x);
+    let (mut sum, mut n) = (Vector3::zeros(), 0);
+    for (r, p) in rest.iter().zip(&now) {
+        if r.z > 0.95 * len {
+            sum += p - r;
+            n += 1;
+        }
+    }
+    sum / n as Real
+}
+
+#[test]
+fn pulling_a_tendon_bends_toward_its_side_monotonically_with_a_slack_antagonist() {
+    let (model, body) = default_finger();
+    let params = TendonParams::default();
+    // +x tendon pulled; its antagonist (−x) is released by the same length, as by a pulley.
+    let mut last = 0.0;
+    for d in [0.001, 0.002, 0.003, 0.004] {
+        let x = solve(&body, [d, -d, 0.0, 0.0]);
+        let tip = tip_displacement(&model, &body, &x);
+        eprintln!("pull {d} m: tip {tip:?}");
+        assert!(tip.x > last, "pull {d}: tip x {} not beyond {last}", tip.x);
+        assert!(
+            tip.y.abs() < 0.05 * tip.x,
+            "pull {d}: out-of-plane {}",
+            tip.y
+        );
+        last = tip.x;
+        let t_pulled =
+            body.tendons()[0].tension(&x, TendonCommand::Displacement { pull_m: d }, &params);
+        let t_antagonist =
+            body.tendons()[1].tension(&x, TendonCommand::Displacement { pull_m: -d }, &params);
+        assert!(t_pulled > 0.0);
+        assert_eq!(t_antagonist, 0.0, "antagonist must be slack");
+        // The pulled tendon's path is (nearly) its rest length minus the pull.
+        let len = body.tendons()[0].length(&x);
+        let target = body.tendons()[0].rest_length_m() - d;
+        assert!((len - target).abs() < 0.02 * d, "length {len} vs {target}");
+    }
+    assert!(
+        last > 0.005,
+        "4 mm of pull should bend the tip by several mm, got {last}"
+    );
+}
+
+#[test]
+fn every_tendon_bends_toward_its_own_side() {
+    let (model, body) = default_finger();
+    let sides = [Vector3::x(), -Vector3::x(), Vector3::y(), -Vector3::y()];
+    for (k, side) in sides.iter().enumerate() {
+        let mut pulls = [0.0; 4];
+        pulls[k] = 0.002;
+        pulls[[1, 0, 3, 2][k]] = -0.002;
+        let tip = tip_displacement(&model, &body, &solve(&body, pulls));
+        let lateral = Vector3::new(tip.x, tip.y, 0.0);
+        assert!(
+            lateral.dot(side) > 0.98 * lateral.norm(),
+            "tendon {k}: {tip:?}"
+        );
+    }
+}
+
+#[test]
+fn equal_pulls_on_an_antagonistic_pair_keep_the_finger_straight() {
+    let (model, body) = default_finger();
+    let single = tip_displacement(&model, &body, &solve(&body, [0.002, -0.002, 0.0, 0.0]));
+    let both = tip_displacement(&model, &body, &solve(&body, [0.002, 0.002, 0.0, 0.0]));
+    eprintln!("single {single:?} both {both:?}");
+    let lateral = (both.x * both.x + both.y * both.y).sqrt();
+    assert!(
+        lateral < 0.02 * single.x,
+        "lateral {lateral} vs single-pull {}",
+        single.x
+    );
+    assert!(
+        both.z < -0.0005,
+        "equal pulls compress the finger: {both:?}"
+    );
+}
