@@ -7,7 +7,7 @@
 //! | coloured / scalar point data | PLY ascii, binary LE/BE, float or double ([`PlyData`]) | PLY binary LE, double |
 //! | configs | JSON ([`read_json`]), TOML or JSON by extension ([`read_config`]) | JSON ([`write_json`]), TOML ([`write_toml`]) |
 //! | hand models | [`load_hand_config`] (TOML/JSON, [`HandConfig`]) | — |
-//! | point tables | CSV ([`read_points_csv`]) | CSV ([`write_csv`]) |
+//! | numeric tables, points | CSV with optional header ([`read_csv`], [`read_points_csv`]) | CSV ([`write_csv`]) |
 //!
 //! # Units and frames
 //! Lengths are metres, angles radians. A file carries no frame tag: a mesh is in the frame it
@@ -20,7 +20,7 @@
 //! - OBJ: coordinates are written in the shortest decimal form that parses back to the same
 //!   `f64`, so write → read is bit-exact, with the same faces in the same order. The reader
 //!   keeps the file's vertex order (vertex ids in configs refer to it) even though `tobj`
-//!   renumbers vertices by first use — see [`obj`].
+//!   renumbers vertices by first use — see [`obj`]. Polygons are fan-triangulated.
 //! - PLY: written as binary little-endian with `double` coordinates and `float` scalars, so
 //!   points, faces, colours and scalars round-trip bit-exactly.
 //! - STL: `f32` coordinates widened exactly to `f64`, then welded (tolerance
@@ -32,6 +32,9 @@
 //! each error names the file and, where the format says, the line, column, element or row.
 //! Meshes are validated by [`moe_geom::TriMesh::new`] (non-finite coordinates, bad indices,
 //! degenerate faces, non-manifold edges) and the geometric error names the vertex, face or edge.
+//! (So a deformed mesh that squashes a triangle to zero area can be written but not read back as
+//! a mesh; read it as [`PlyData`] instead.) `tobj` reports no positions; the OBJ reader finds the
+//! line itself (by checking face indices, or by bisecting on the number of lines parsed).
 //! The mesh parser crates (`tobj`, `ply-rs-bw`, `stl_io`) are fuzzed by the integration tests
 //! with every prefix of valid files, byte flips and random bytes, and did not panic; as a second
 //! line of defence each call into them is wrapped in `std::panic::catch_unwind`, which turns a
@@ -70,7 +73,9 @@ pub mod stl;
 
 pub use atomic::write_atomic;
 pub use config::{parse_json, parse_toml, read_config, read_json, write_json, write_toml};
-pub use csv::{read_points_csv, write_csv};
+pub use csv::{
+    CsvTable, csv_bytes, read_csv, read_csv_from, read_points_csv, read_points_csv_from, write_csv,
+};
 pub use dataset::{
     DatasetCard, DatasetFrame, DatasetLayout, DatasetReader, Split, SplitFractions, read_shard,
     split_of, write_shard,

@@ -77,20 +77,10 @@ pub(crate) fn parse_obj(bytes: &[u8], path: &Path) -> Result<TriMesh, IoError> {
             + 1;
         IoError::parse(path, Some(line), "not valid UTF-8 text")
     })?;
-    let (prepared, num_vertices) = prepare(text, path)?;
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: false,
-        ignore_lines: true,
+    let (models, num_vertices) = match run_tobj(text, path)? {
+        Ok(parsed) => parsed,
+        Err(e) => return Err(locate_error(text, path, e)),
     };
-    let mut reader = std::io::Cursor::new(prepared.as_bytes());
-    let (models, _materials) = guarded(path, "tobj", || {
-        tobj::load_obj_buf(&mut reader, &options, |_| {
-            Err(tobj::LoadError::OpenFileFailed)
-        })
-        .map_err(|e| tobj_error(path, e))
-    })?;
     if num_vertices == 0 {
         return Err(IoError::geometry(
             path,
@@ -188,16 +178,99 @@ fn prepare(text: &str, path: &Path) -> Result<(String, usize), IoError> {
     Ok((prepared, num_vertices))
 }
 
-fn tobj_error(path: &Path, e: tobj::LoadError) -> IoError {
+/// Prepares `text` and runs `tobj` on it. The outer error is ours (prepass, caught panic), the
+/// inner one is `tobj`'s.
+#[allow(clippy::type_complexity)]
+fn run_tobj(
+    text: &str,
+    path: &Path,
+) -> Result<Result<(Vec<tobj::Model>, usize), tobj::LoadError>, IoError> {
+    let (prepared, num_vertices) = prepare(text, path)?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: false,
+        ignore_lines: true,
+    };
+    let mut reader = std::io::Cursor::new(prepared.as_bytes());
+    guarded(path, "tobj", || {
+        Ok(tobj::load_obj_buf(&mut reader, &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .map(|(models, _materials)| (models, num_vertices)))
+    })
+}
+
+/// Turns a `tobj` error (which carries no position) into one naming the line: an out-of-range
+/// vertex index is found by checking the face lines; any other error by bisecting on the
+/// number of leading lines handed to `tobj` (its errors come from the first bad line).
+fn locate_error(text: &str, path: &Path, e: tobj::LoadError) -> IoError {
     use tobj::LoadError as E;
-    match e {
-        E::FaceVertexOutOfBounds
-        | E::FaceTexCoordOutOfBounds
-        | E::FaceNormalOutOfBounds
-        | E::FaceColorOutOfBounds => IoError::invalid(path, "face", e.to_string()),
-        E::InvalidPolygon => IoError::invalid(path, "polygon", "cannot be triangulated"),
-        _ => IoError::parse(path, None, e.to_string()),
+    if e == E::FaceVertexOutOfBounds
+        && let Some(err) = find_bad_face_index(text, path)
+    {
+        return err;
     }
+    let lines: Vec<&str> = text.lines().collect();
+    let fails = |k: usize| -> bool {
+        let prefix = lines[..k].join("\n");
+        matches!(run_tobj(&prefix, path), Ok(Err(e2)) if e2 == e)
+    };
+    // Invariant: the first `lo` lines parse, the first `hi` lines fail with `e`.
+    let (mut lo, mut hi) = (0, lines.len());
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if fails(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let line = (hi > 0 && fails(hi)).then_some(hi);
+    match e {
+        E::InvalidPolygon => IoError::InvalidData {
+            path: path.to_path_buf(),
+            item: line.map_or("a polygon".into(), |l| format!("polygon on line {l}")),
+            message: "cannot be triangulated".into(),
+        },
+        _ => IoError::parse(path, line, e.to_string()),
+    }
+}
+
+/// The first face corner whose vertex index is zero or outside the vertex list.
+fn find_bad_face_index(text: &str, path: &Path) -> Option<IoError> {
+    let total = text
+        .lines()
+        .filter(|l| l.split_whitespace().next() == Some("v"))
+        .count() as i64;
+    let mut defined = 0i64;
+    let mut face = 0usize;
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => defined += 1,
+            Some("f") => {
+                for corner in words {
+                    let Some(Ok(x)) = corner.split('/').next().map(str::parse::<i64>) else {
+                        continue;
+                    };
+                    let resolved = if x < 0 { defined + x } else { x - 1 };
+                    if x == 0 || resolved < 0 || resolved >= total {
+                        return Some(IoError::InvalidData {
+                            path: path.to_path_buf(),
+                            item: format!("face {face} (line {})", i + 1),
+                            message: format!(
+                                "vertex index {x} is out of range (the file has {total} vertices)"
+                            ),
+                        });
+                    }
+                }
+                face += 1;
+            }
+            _ => {}
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -236,7 +309,22 @@ mod tests {
 
     #[test]
     fn bad_input_gives_typed_errors() {
-        assert!(matches!(p("v 0 0\n"), Err(IoError::Parse { .. })));
+        assert!(matches!(
+            p("v 0 0\n"),
+            Err(IoError::Parse { line: Some(1), .. })
+        ));
+        let bad_number = TETRA.replace("v 0 1 0", "v 0 x 0");
+        assert!(matches!(
+            p(&bad_number),
+            Err(IoError::Parse { line: Some(3), .. })
+        ));
+        let bad_face = TETRA.replace("f 1 4 3", "f 1 4 q");
+        assert!(matches!(
+            p(&bad_face),
+            Err(IoError::Parse { line: Some(7), .. })
+        ));
+        let e = p(&TETRA.replace("f 1 2 4", "f 1 2 -9")).unwrap_err();
+        assert!(e.to_string().contains("face 1 (line 6)"), "{e}");
         assert!(matches!(
             p(TETRA.replace("f 2 3 4", "f 2 3 9").as_str()),
             Err(IoError::InvalidData { .. })
