@@ -1,0 +1,153 @@
+//! `moe-touch hand`.
+
+use crate::common::{assert_one_line_error, fixtures, run, scratch};
+
+#[test]
+fn presets_write_closed_meshes_and_matching_ids() {
+    for (preset, fingers) in [("two-finger", 2), ("three-finger", 3), ("five-finger", 5)] {
+        let dir = scratch(&format!("hand-{preset}"));
+        let out = run(&[
+            "hand",
+            "--preset",
+            preset,
+            "--out",
+            dir.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let summary: serde_json::Value =
+            serde_json::from_slice(&out.stdout).expect("one JSON object");
+        assert_eq!(summary["num_fingers"], fingers);
+        let written: serde_json::Value = moe_io::read_json(&dir.join("hand.json")).unwrap();
+        assert_eq!(written, summary, "hand.json holds the printed summary");
+        for f in summary["fingers"].as_array().unwrap() {
+            let mesh = moe_io::read_mesh(&dir.join(f["mesh"].as_str().unwrap())).unwrap();
+            mesh.require_closed().unwrap();
+            assert_eq!(
+                mesh.num_vertices(),
+                f["num_vertices"].as_u64().unwrap() as usize
+            );
+            let markers: Vec<usize> = f["marker_vertices"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_u64().unwrap() as usize)
+                .collect();
+            assert_eq!(markers.len(), 7);
+            assert!(markers.iter().all(|&m| m < mesh.num_vertices()));
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+#[test]
+fn the_rest_mesh_matches_the_library_model() {
+    let dir = scratch("hand-library");
+    let out = run(&[
+        "hand",
+        "--out",
+        dir.to_str().unwrap(),
+        "--vertex-budget",
+        "512",
+    ]);
+    assert!(out.status.success());
+    let hand = moe_geom::HandModel::preset(
+        moe_geom::HandPreset::TwoFinger,
+        &moe_geom::FingerParams {
+            vertex_budget: 512,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    for i in 0..2 {
+        let mesh = moe_io::read_mesh(&dir.join(format!("finger_{i}.obj"))).unwrap();
+        assert_eq!(
+            mesh.vertices(),
+            hand.rest_vertices_in_hand(i).as_slice(),
+            "bit-exact OBJ"
+        );
+        assert_eq!(mesh.faces(), hand.fingers()[i].model.mesh().faces());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn example_configs_load() {
+    let configs = std::fs::read_dir(fixtures().join("configs")).unwrap();
+    let mut n = 0;
+    for entry in configs {
+        let path = entry.unwrap().path();
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if !matches!(ext, "toml" | "json") {
+            continue;
+        }
+        let dir = scratch(&format!("hand-config-{n}"));
+        let out = run(&[
+            "hand",
+            "--config",
+            path.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            path.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(dir.join("hand.json").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+        n += 1;
+    }
+    assert!(n >= 2, "the example configs are found");
+}
+
+#[test]
+fn bad_input_gives_one_line_and_writes_nothing() {
+    let dir = scratch("hand-bad");
+    let out_dir = dir.join("out");
+    // A config with a malformed value.
+    let config = dir.join("bad.toml");
+    std::fs::write(
+        &config,
+        "preset = \"two-finger\"\n[finger]\nlength_m = -0.05\n",
+    )
+    .unwrap();
+    let out = run(&[
+        "hand",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let msg = assert_one_line_error(&out);
+    assert!(msg.contains("length_m"), "{msg}");
+    assert!(!out_dir.exists(), "nothing written");
+    // A truncated config.
+    std::fs::write(&config, "preset = \"two-fin").unwrap();
+    let out = run(&[
+        "hand",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let msg = assert_one_line_error(&out);
+    assert!(msg.contains("bad.toml"), "{msg}");
+    assert!(!out_dir.exists());
+    // An unknown preset is a usage error.
+    let out = run(&[
+        "hand",
+        "--preset",
+        "four-finger",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("four-finger"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

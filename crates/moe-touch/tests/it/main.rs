@@ -1,0 +1,4 @@
+//! Integration tests of the `moe-touch` binary: one module per subcommand.
+
+mod common;
+mod hand;
