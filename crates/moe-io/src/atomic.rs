@@ -2,7 +2,9 @@
 //! target.
 //!
 //! A rename within one directory is atomic on POSIX file systems and on NTFS, so a reader sees
-//! either the old file or the complete new one — never a prefix. If anything fails the
+//! either the old file or the complete new one — never a prefix. The data are synced before the
+//! rename and the directory after it, so a crash leaves the old or the new file, not an empty
+//! one. If anything fails the
 //! temporary file is removed, so a failed write leaves nothing behind.
 
 use std::fs::{self, File, OpenOptions};
@@ -25,7 +27,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     let tmp = temp_sibling(path)?;
     let result = write_and_sync(&tmp, bytes).and_then(|()| fs::rename(&tmp, path));
     match result {
-        Ok(()) => Ok(()),
+        Ok(()) => {
+            sync_dir(parent_dir(path));
+            Ok(())
+        }
         Err(source) => {
             // Best effort: the temporary may not exist if creating it failed.
             let _ = fs::remove_file(&tmp);
@@ -62,6 +67,14 @@ fn temp_sibling(path: &Path) -> Result<PathBuf, IoError> {
     tmp_name.push(name);
     tmp_name.push(format!(".tmp-{}-{n}", std::process::id()));
     Ok(dir.join(tmp_name))
+}
+
+/// Flushes the directory entry of the rename to disk (best effort: not every platform or file
+/// system can open a directory for syncing, and the data itself is already synced).
+fn sync_dir(dir: &Path) {
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
 }
 
 fn write_and_sync(tmp: &Path, bytes: &[u8]) -> std::io::Result<()> {

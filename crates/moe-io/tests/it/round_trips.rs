@@ -74,6 +74,25 @@ fn ply_colours_scalars_and_point_clouds_round_trip() {
 }
 
 #[test]
+fn csv_tables_round_trip_exactly_through_files() {
+    let dir = scratch("csv");
+    let rows: Vec<Vec<f64>> = (0..50)
+        .map(|i| {
+            let t = f64::from(i) * 0.37;
+            vec![t.sin() * 0.01, t.cos() / 3.0, -t * 1e-5, (t * 7.0).fract()]
+        })
+        .collect();
+    moe_io::write_csv(&dir.join("p.csv"), &["x", "y", "z", "p"], &rows).unwrap();
+    assert_eq!(moe_io::read_points_csv(&dir.join("p.csv")).unwrap(), rows);
+    let table = moe_io::read_csv(&dir.join("p.csv")).unwrap();
+    assert_eq!(table.header.unwrap(), vec!["x", "y", "z", "p"]);
+    // Two columns are not points.
+    moe_io::write_csv(&dir.join("t.csv"), &[], &[vec![1.0, 2.0]]).unwrap();
+    let e = moe_io::read_points_csv(&dir.join("t.csv")).unwrap_err();
+    assert!(e.to_string().contains("t.csv"), "{e}");
+}
+
+#[test]
 fn unsupported_extensions_are_rejected_naming_the_path() {
     let dir = scratch("extensions");
     let mesh = octahedron(1.0);
