@@ -148,10 +148,16 @@ impl Obstacle {
                         reason: "convex hull point is not finite".into(),
                     });
                 }
-                SharedShape::convex_hull(&pts).ok_or_else(|| SimError::InvalidObstacle {
+                let degenerate = || SimError::InvalidObstacle {
                     obstacle: index,
                     reason: format!("the convex hull of {} points is degenerate", pts.len()),
-                })?
+                };
+                let hull = SharedShape::convex_hull(&pts).ok_or_else(degenerate)?;
+                let volume = hull.mass_properties(1.0).mass();
+                if volume.is_nan() || volume <= 0.0 {
+                    return Err(degenerate());
+                }
+                hull
             }
             ObstacleShape::TriangleMesh { vertices_m, faces } => {
                 let verts: Vec<moe_geom::Point3> =

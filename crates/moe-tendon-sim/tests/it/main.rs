@@ -1,5 +1,6 @@
 //! Integration tests of the simulator: mechanics against analytic solutions, tendons, contact,
 //! scenes.
 
+mod contact;
 mod mechanics;
 mod tendons;
