@@ -1,5 +1,13 @@
 //! The MOE-Touch pipeline: ties shape estimation, contact estimation and the applications
 //! together, and hosts the `moe-touch` command-line tool (`src/main.rs`).
 //!
-//! Architecture invariant: the pipeline is library code that takes and returns in-memory values;
-//! the binary only parses arguments, reads and writes files through `moe-io`, and reports.
+//! Architecture invariant: the pipeline is library code that takes and returns in-memory values
+//! (file access goes through `moe-io`); the binary only parses arguments, reads and writes files,
+//! and reports.
+
+/// Sharded, resumable, deterministic data set generation.
+pub mod datagen;
+/// The crate's error type.
+pub mod error;
+
+pub use error::TouchError;

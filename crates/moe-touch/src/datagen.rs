@@ -1,0 +1,386 @@
+//! Sharded, resumable, deterministic data set generation.
+//!
+//! A run produces `trajectories` trajectories numbered `0..trajectories`; trajectory `t` is a
+//! pure function of `(seed, t)`, so the same seed gives the same bytes whatever the machine,
+//! the thread count or the split. Trajectories are grouped into output shards of
+//! `trajectories_per_shard` consecutive ids; shard `k` is one safetensors file plus a small JSON
+//! sidecar with its statistics. A run on machine `I` of `N` (`--shard I/N`, 1-based) produces the
+//! shards `k` with `k mod N = I − 1`, so an array job splits the work without coordination, and
+//! the union of the machines' shards equals an unsplit run's, byte for byte.
+//!
+//! Shards are written atomically (temporary file, then rename) and a shard whose file already
+//! exists is skipped, so an interrupted run loses at most the shards in progress and a rerun
+//! resumes. Whenever every shard of the plan is present, the run (re)writes the data set card
+//! from the sidecars.
+//!
+//! Within a shard, trajectories are generated in parallel (rayon) and collected in id order.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use moe_io::dataset::{
+    CARD_FILE, DatasetCard, DatasetFrame, DatasetLayout, FrameStats, ShardEntry, shard_file_name,
+    shard_stats, write_shard,
+};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::error::TouchError;
+
+/// What to generate, and which part of it this machine does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GenPlan {
+    /// Trajectories in the whole data set.
+    pub trajectories: u64,
+    /// Trajectories per output shard.
+    pub trajectories_per_shard: u64,
+    /// Seed of the whole data set.
+    pub seed: u64,
+    /// This machine's 1-based index.
+    pub machine: u32,
+    /// Number of machines.
+    pub machines: u32,
+}
+
+impl GenPlan {
+    /// Checks the plan.
+    ///
+    /// # Errors
+    /// [`TouchError::InvalidPlan`].
+    pub fn validate(&self) -> Result<(), TouchError> {
+        let bad = |reason: String| Err(TouchError::InvalidPlan { reason });
+        if self.trajectories == 0 {
+            return bad("at least one trajectory is needed".into());
+        }
+        if self.trajectories_per_shard == 0 {
+            return bad("trajectories per shard must be positive".into());
+        }
+        if self.machines == 0 || self.machine == 0 || self.machine > self.machines {
+            return bad(format!(
+                "shard {}/{} is not of the form I/N with 1 ≤ I ≤ N",
+                self.machine, self.machines
+            ));
+        }
+        Ok(())
+    }
+
+    /// Number of output shards.
+    pub fn num_shards(&self) -> u64 {
+        self.trajectories.div_ceil(self.trajectories_per_shard)
+    }
+
+    /// The shards this machine produces.
+    pub fn shards_for_machine(&self) -> Vec<u64> {
+        (0..self.num_shards())
+            .filter(|k| k % u64::from(self.machines) == u64::from(self.machine - 1))
+            .collect()
+    }
+
+    /// Trajectory ids of shard `k`.
+    pub fn trajectories_of(&self, k: u64) -> std::ops::Range<u64> {
+        let start = k * self.trajectories_per_shard;
+        start..(start + self.trajectories_per_shard).min(self.trajectories)
+    }
+
+    /// File name of shard `k`.
+    pub fn shard_file(&self, k: u64) -> String {
+        shard_file_name(k as usize, self.num_shards() as usize)
+    }
+}
+
+/// Sidecar of one shard: its statistics, for the card.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShardSidecar {
+    stats: FrameStats,
+    families: BTreeMap<String, FrameStats>,
+}
+
+fn sidecar_path(shard: &Path) -> PathBuf {
+    shard.with_extension("json")
+}
+
+/// What a run did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GenReport {
+    /// Shards written by this run.
+    pub shards_written: Vec<u64>,
+    /// Shards found complete and skipped.
+    pub shards_skipped: Vec<u64>,
+    /// Frames written by this run.
+    pub frames_written: u64,
+    /// The card, when every shard of the plan is present.
+    pub card: Option<DatasetCard>,
+}
+
+/// Generates this machine's shards of `plan` into `dir`.
+///
+/// `trajectory` produces the frames of one trajectory id (it must be a pure function of the id
+/// and the seed it captured); `progress` is called with `(trajectories done, trajectories to do)`
+/// after each trajectory, from worker threads.
+///
+/// # Errors
+/// An invalid plan, a trajectory that fails (naming it), or a write failure. Shards finished
+/// before the failure stay on disk and are skipped by the next run.
+pub fn generate(
+    plan: &GenPlan,
+    dir: &Path,
+    layout: &DatasetLayout,
+    generator: serde_json::Value,
+    trajectory: &(dyn Fn(u64) -> Result<Vec<DatasetFrame>, TouchError> + Sync),
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<GenReport, TouchError> {
+    plan.validate()?;
+    let mine = plan.shards_for_machine();
+    let (todo, skipped): (Vec<u64>, Vec<u64>) = mine
+        .iter()
+        .partition(|&&k| !dir.join(plan.shard_file(k)).exists());
+    let total: u64 = todo
+        .iter()
+        .map(|&k| plan.trajectories_of(k).count() as u64)
+        .sum();
+    let done = AtomicU64::new(0);
+    progress(0, total);
+    let mut frames_written = 0;
+    for &k in &todo {
+        let ids: Vec<u64> = plan.trajectories_of(k).collect();
+        let per_trajectory: Vec<Vec<DatasetFrame>> = ids
+            .par_iter()
+            .map(|&t| {
+                let frames = trajectory(t)?;
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+                Ok(frames)
+            })
+            .collect::<Result<_, TouchError>>()?;
+        let frames: Vec<DatasetFrame> = per_trajectory.into_iter().flatten().collect();
+        if frames.is_empty() {
+            return Err(TouchError::InvalidPlan {
+                reason: format!("shard {k} produced no frames"),
+            });
+        }
+        let path = dir.join(plan.shard_file(k));
+        let (stats, families) = shard_stats(layout, &frames);
+        // Sidecar first: a shard file never exists without its statistics.
+        moe_io::write_json(&sidecar_path(&path), &ShardSidecar { stats, families })?;
+        write_shard(&path, layout, &frames)?;
+        frames_written += frames.len() as u64;
+    }
+    let card = write_card_if_complete(plan, dir, layout, generator)?;
+    Ok(GenReport {
+        shards_written: todo,
+        shards_skipped: skipped,
+        frames_written,
+        card,
+    })
+}
+
+fn write_card_if_complete(
+    plan: &GenPlan,
+    dir: &Path,
+    layout: &DatasetLayout,
+    generator: serde_json::Value,
+) -> Result<Option<DatasetCard>, TouchError> {
+    let mut shards = Vec::new();
+    for k in 0..plan.num_shards() {
+        let file = plan.shard_file(k);
+        let path = dir.join(&file);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let sidecar: ShardSidecar = moe_io::read_json(&sidecar_path(&path))?;
+        shards.push((
+            ShardEntry {
+                file,
+                stats: sidecar.stats,
+            },
+            sidecar.families,
+        ));
+    }
+    let card = DatasetCard::new(layout.clone(), plan.seed, generator, shards);
+    moe_io::write_json(&dir.join(CARD_FILE), &card)?;
+    Ok(Some(card))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use moe_geom::SeededRng;
+
+    fn layout() -> DatasetLayout {
+        DatasetLayout {
+            finger_num_vertices: vec![4],
+            markers_per_finger: vec![1],
+            tendons_per_finger: 1,
+            object_param_len: 1,
+            object_families: vec!["a".into(), "b".into()],
+        }
+    }
+
+    /// A stand-in generator: frames that are a pure function of (seed, trajectory).
+    fn synthetic(seed: u64) -> impl Fn(u64) -> Result<Vec<DatasetFrame>, TouchError> + Sync {
+        move |t| {
+            let mut rng = SeededRng::new(seed).split(t);
+            let n = 1 + rng.below(3) as u32;
+            Ok((0..n)
+                .map(|k| DatasetFrame {
+                    trajectory_id: t,
+                    frame_index: k,
+                    vertices: (0..4).map(|_| [rng.uniform() as f32; 3]).collect(),
+                    contact: (0..4).map(|_| u8::from(rng.uniform() < 0.3)).collect(),
+                    markers: vec![[0.0, 0.0, rng.uniform() as f32]],
+                    world_from_hand: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+                    tendon_pull_m: vec![rng.uniform() as f32],
+                    object_family: (t % 2) as u8,
+                    object_params: vec![t as f32],
+                })
+                .collect())
+        }
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("moe-datagen-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn plan(machine: u32, machines: u32) -> GenPlan {
+        GenPlan {
+            trajectories: 23,
+            trajectories_per_shard: 4,
+            seed: 9,
+            machine,
+            machines,
+        }
+    }
+
+    fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .map(|p| {
+                (
+                    p.file_name().unwrap().to_string_lossy().into_owned(),
+                    std::fs::read(&p).unwrap(),
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn split_runs_equal_one_run_byte_for_byte() {
+        let whole = scratch("whole");
+        let report = generate(
+            &plan(1, 1),
+            &whole,
+            &layout(),
+            serde_json::json!({}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
+        assert_eq!(report.shards_written.len(), 6);
+        let card = report.card.expect("complete");
+        assert_eq!(card.totals.trajectories, 23);
+        let split = scratch("split");
+        let first = generate(
+            &plan(1, 2),
+            &split,
+            &layout(),
+            serde_json::json!({}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
+        assert!(first.card.is_none(), "half the shards are missing");
+        let second = generate(
+            &plan(2, 2),
+            &split,
+            &layout(),
+            serde_json::json!({}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
+        assert!(second.card.is_some());
+        assert_eq!(files(&whole), files(&split));
+        // Rerunning skips every shard and rewrites the same card.
+        let again = generate(
+            &plan(1, 1),
+            &whole,
+            &layout(),
+            serde_json::json!({}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
+        assert!(again.shards_written.is_empty());
+        assert_eq!(again.shards_skipped.len(), 6);
+        assert_eq!(files(&whole), files(&split));
+        std::fs::remove_dir_all(&whole).unwrap();
+        std::fs::remove_dir_all(&split).unwrap();
+    }
+
+    #[test]
+    fn a_failing_trajectory_keeps_finished_shards_and_is_named() {
+        let dir = scratch("fail");
+        let good = synthetic(9);
+        let failing = move |t: u64| {
+            if t == 13 {
+                Err(TouchError::Trajectory {
+                    trajectory: t,
+                    message: "diverged at step 7".into(),
+                })
+            } else {
+                good(t)
+            }
+        };
+        let err = generate(
+            &plan(1, 1),
+            &dir,
+            &layout(),
+            serde_json::json!({}),
+            &failing,
+            &|_, _| {},
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("trajectory 13"), "{err}");
+        // Shards 0..=2 (trajectories 0..12) finished; shard 3 holds trajectory 13 and is absent.
+        let names: Vec<String> = files(&dir)
+            .into_keys()
+            .filter(|n| n.ends_with(".safetensors"))
+            .collect();
+        assert_eq!(names.len(), 3, "{names:?}");
+        assert!(!names.iter().any(|n| n.contains("00003")));
+        // A rerun with a working generator completes only what is missing.
+        let report = generate(
+            &plan(1, 1),
+            &dir,
+            &layout(),
+            serde_json::json!({}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
+        assert_eq!(report.shards_written, vec![3, 4, 5]);
+        assert!(report.card.is_some());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn plans_are_checked() {
+        assert!(plan(0, 2).validate().is_err());
+        assert!(plan(3, 2).validate().is_err());
+        assert!(
+            GenPlan {
+                trajectories: 0,
+                ..plan(1, 1)
+            }
+            .validate()
+            .is_err()
+        );
+        assert_eq!(plan(2, 3).shards_for_machine(), vec![1, 4]);
+        assert_eq!(plan(1, 1).trajectories_of(5), 20..23);
+    }
+}

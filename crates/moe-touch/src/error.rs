@@ -1,0 +1,26 @@
+//! The error type of the `moe-touch` library.
+
+use moe_io::IoError;
+
+/// Everything that can go wrong in the pipeline library.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum TouchError {
+    /// Reading or writing a file failed (the error names the file).
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// A generation plan is inconsistent (zero trajectories, a machine index out of range, ...).
+    #[error("invalid generation plan: {reason}")]
+    InvalidPlan {
+        /// What is wrong.
+        reason: String,
+    },
+    /// Producing the frames of one trajectory failed.
+    #[error("trajectory {trajectory}: {message}")]
+    Trajectory {
+        /// The trajectory id.
+        trajectory: u64,
+        /// What went wrong (e.g. the simulator's error, which names the step and element).
+        message: String,
+    },
+}
