@@ -19,7 +19,7 @@
 //! Every frame writes one message per topic (except `/episode/info`) with the frame's time as
 //! log time. Messages are written unchunked, so a file cut short — a crashed recorder, a partial
 //! copy — still yields every frame written completely before the cut
-//! ([`read_episode_prefix`]); [`read_episode`] insists on a complete file.
+//! ([`parse_episode_prefix`]); [`read_episode`] insists on a complete file.
 
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
