@@ -22,6 +22,8 @@ pub mod material;
 pub mod obstacle;
 /// Polar decomposition.
 pub mod polar;
+/// Hand-level scenes with explicit state.
+pub mod scene;
 /// Tendons: embedded cables driven by displacement or force.
 pub mod tendon;
 /// Interaction terms (forces at embedded points, couplings, rank-one penalties).
@@ -40,6 +42,10 @@ pub use error::SimError;
 pub use fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn};
 pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
+pub use scene::{
+    BodyState, FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig,
+    SolverMode, StepInfo,
+};
 pub use tendon::{Tendon, TendonCommand, TendonParams, TendonState};
 pub use terms::{PairTerm, PointTerm, RankOneTerm, Terms};
 pub use tetmesh::TetMesh;

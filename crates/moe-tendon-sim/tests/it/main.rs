@@ -3,4 +3,5 @@
 
 mod contact;
 mod mechanics;
+mod scene;
 mod tendons;

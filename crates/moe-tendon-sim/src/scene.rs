@@ -1,0 +1,535 @@
+//! A hand-level scene: a `HandModel` on a wrist that follows a trajectory, tendon schedules per
+//! finger, kinematic obstacles, and the explicit-state step.
+//!
+//! Fingers are simulated in the world frame, each as its own system (their base nodes follow
+//! `world_from_hand(t)·hand_from_finger`; fingers do not collide with each other). Every loop
+//! is sequential and every reduction runs in a fixed order, so a scene is deterministic: the same
+//! configuration gives the same bytes.
+
+use moe_geom::{FingerParams, HandModel, HandPreset, Iso3, Point3, Real, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::body::{FingerBody, FingerInputs};
+use crate::contact::{ContactParams, PosedObstacles, contact_labels, surface_distances};
+use crate::error::{SimError, require_non_negative, require_positive};
+use crate::fem::{FemWorkspace, Integrator, StepContext};
+use crate::material::Material;
+use crate::obstacle::{Obstacle, ObstacleConfig};
+use crate::tendon::{TendonCommand, TendonParams, TendonState};
+use crate::trajectory::{ActuationMode, ActuationSchedule, PoseTrajectory};
+use crate::voxelize::VoxelParams;
+
+/// Which hand to build.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HandConfig {
+    /// Layout preset. Default two-finger.
+    pub preset: HandPreset,
+    /// Parametric finger geometry (all fingers identical).
+    pub finger: FingerParams,
+}
+
+impl Default for HandConfig {
+    fn default() -> Self {
+        Self {
+            preset: HandPreset::TwoFinger,
+            finger: FingerParams::default(),
+        }
+    }
+}
+
+/// Dynamic or quasi-static stepping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverMode {
+    /// Backward Euler with Rayleigh damping (the paper's SOFA setup).
+    #[default]
+    Dynamic,
+    /// A static equilibrium per step (time only drives the trajectories).
+    Static,
+}
+
+/// Time stepping and divergence limits.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SolverConfig {
+    /// Time step, seconds. Default 0.01.
+    pub dt_secs: Real,
+    /// Dynamic or static. Default dynamic.
+    pub mode: SolverMode,
+    /// Static mode: convergence threshold on the largest nodal update, metres. Default 1e-8.
+    pub static_tolerance_m: Real,
+    /// Static mode: Newton iteration limit. Default 100.
+    pub static_max_iterations: usize,
+    /// A step whose kinetic energy (per finger) exceeds this has diverged, joules. Default 1.
+    pub max_kinetic_energy_j: Real,
+}
+
+impl Default for SolverConfig {
+    fn default() -> Self {
+        Self {
+            dt_secs: 0.01,
+            mode: SolverMode::Dynamic,
+            static_tolerance_m: 1e-8,
+            static_max_iterations: 100,
+            max_kinetic_energy_j: 1.0,
+        }
+    }
+}
+
+/// A complete scripted scene (TOML/JSON through serde; every field has a default).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SceneConfig {
+    /// The hand.
+    pub hand: HandConfig,
+    /// Silicone body.
+    pub material: Material,
+    /// Tet-mesh resolution.
+    pub voxel: VoxelParams,
+    /// Tendon material.
+    pub tendon: TendonParams,
+    /// Contact model.
+    pub contact: ContactParams,
+    /// Time stepping.
+    pub solver: SolverConfig,
+    /// Gravity in the world frame, m/s². Default (0, 0, −9.81).
+    pub gravity_m_s2: [Real; 3],
+    /// Simulated duration, seconds. Default 1.
+    pub duration_secs: Real,
+    /// A frame is saved every this many steps (and at the end). Default 10.
+    pub save_every_steps: u64,
+    /// `world_from_hand` over time.
+    pub wrist: PoseTrajectory,
+    /// Tendon schedule per finger (missing fingers keep their tendons at 0).
+    pub actuation: Vec<ActuationSchedule>,
+    /// Rigid obstacles.
+    pub obstacles: Vec<ObstacleConfig>,
+}
+
+impl Default for SceneConfig {
+    fn default() -> Self {
+        Self {
+            hand: HandConfig::default(),
+            material: Material::default(),
+            voxel: VoxelParams::default(),
+            tendon: TendonParams::default(),
+            contact: ContactParams::default(),
+            solver: SolverConfig::default(),
+            gravity_m_s2: [0.0, 0.0, -9.81],
+            duration_secs: 1.0,
+            save_every_steps: 10,
+            wrist: PoseTrajectory::default(),
+            actuation: Vec::new(),
+            obstacles: Vec::new(),
+        }
+    }
+}
+
+/// Node positions and velocities of one finger, world frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyState {
+    /// Node positions, metres.
+    pub x: Vec<Point3>,
+    /// Node velocities, m/s.
+    pub v: Vec<Vector3>,
+}
+
+/// The full state of a scene: everything a step reads and writes besides the scene itself.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimState {
+    /// Steps taken.
+    pub step: u64,
+    /// Simulated time, seconds.
+    pub time_secs: Real,
+    /// One per finger.
+    pub fingers: Vec<BodyState>,
+}
+
+impl SimState {
+    /// A 64-bit FNV-1a digest of the exact bits of the time, positions and velocities: equal
+    /// digests mean bit-identical states (determinism checks on one machine).
+    pub fn digest(&self) -> u64 {
+        let mut h = Fnv::new();
+        h.eat(self.time_secs.to_bits());
+        for f in &self.fingers {
+            for p in &f.x {
+                p.coords.iter().for_each(|c| h.eat(c.to_bits()));
+            }
+            for v in &f.v {
+                v.iter().for_each(|c| h.eat(c.to_bits()));
+            }
+        }
+        h.0
+    }
+
+    /// A 64-bit FNV-1a digest of the step count and of the node positions rounded to multiples
+    /// of `quantum_m`: insensitive to last-bit differences between CPUs (SIMD width and FMA
+    /// choices of the linear algebra), for golden tests across machines.
+    pub fn rounded_digest(&self, quantum_m: Real) -> u64 {
+        let mut h = Fnv::new();
+        h.eat(self.step);
+        for f in &self.fingers {
+            for p in &f.x {
+                p.coords
+                    .iter()
+                    .for_each(|c| h.eat((c / quantum_m).round() as i64 as u64));
+            }
+        }
+        h.0
+    }
+}
+
+/// 64-bit FNV-1a over little-endian words.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn eat(&mut self, word: u64) {
+        for b in word.to_le_bytes() {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
+/// Figures of one scene step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepInfo {
+    /// Index of the step just taken (0-based).
+    pub step: u64,
+    /// Time at the end of the step, seconds.
+    pub time_secs: Real,
+    /// Kinetic energy per finger, joules.
+    pub kinetic_energy_j: Vec<Real>,
+    /// Linear solves per finger.
+    pub iterations: Vec<usize>,
+    /// Tendon lengths and tensions per finger.
+    pub tendons: Vec<Vec<TendonState>>,
+}
+
+/// The surface of one finger at a saved frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FingerFrame {
+    /// Surface vertices in the hand frame (same order as the finger mesh), metres.
+    pub vertices_in_hand: Vec<Point3>,
+    /// Surface vertices in the world frame, metres.
+    pub vertices_in_world: Vec<Point3>,
+    /// Smallest signed distance of each vertex to any obstacle, metres (+∞ without obstacles).
+    pub distances_m: Vec<Real>,
+    /// Contact label per vertex (`distance < contact.contact_distance_m`).
+    pub labels: Vec<bool>,
+}
+
+/// The hand's surfaces at one instant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Steps taken.
+    pub step: u64,
+    /// Time, seconds.
+    pub time_secs: Real,
+    /// `world_from_hand` at this time.
+    pub world_from_hand: Iso3,
+    /// One per finger.
+    pub fingers: Vec<FingerFrame>,
+}
+
+/// A runnable scene: the built hand, finger bodies, obstacles and per-finger scratch memory.
+#[derive(Debug)]
+pub struct Scene {
+    config: SceneConfig,
+    hand: HandModel,
+    bodies: Vec<FingerBody>,
+    obstacles: Vec<Obstacle>,
+    workspaces: Vec<FemWorkspace>,
+    targets: Vec<Vec<Point3>>,
+}
+
+impl Scene {
+    /// Builds the scene's parametric hand and everything else.
+    ///
+    /// # Errors
+    /// Any invalid parameter, keyframe, obstacle, or geometry (see [`Scene::with_hand`]).
+    pub fn new(config: SceneConfig) -> Result<Self, SimError> {
+        let hand = HandModel::preset(config.hand.preset, &config.hand.finger)?;
+        Self::with_hand(config, hand)
+    }
+
+    /// Builds a scene around a given hand (e.g. fingers from the user's own meshes); the
+    /// `hand` section of `config` is ignored.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] (material, time step ≤ 0, duration, limits),
+    /// [`SimError::InvalidKeyframe`], [`SimError::LengthMismatch`] (actuation values),
+    /// [`SimError::IndexOutOfRange`] (more schedules than fingers),
+    /// [`SimError::InvalidObstacle`], and the finger-building errors of [`FingerBody::new`].
+    pub fn with_hand(config: SceneConfig, hand: HandModel) -> Result<Self, SimError> {
+        config.material.validate()?;
+        config.tendon.validate()?;
+        config.contact.validate()?;
+        let s = &config.solver;
+        require_positive("dt_secs", s.dt_secs)?;
+        require_positive("static_tolerance_m", s.static_tolerance_m)?;
+        require_positive("max_kinetic_energy_j", s.max_kinetic_energy_j)?;
+        require_non_negative("duration_secs", config.duration_secs)?;
+        if config.save_every_steps == 0 {
+            return Err(SimError::InvalidParameter {
+                name: "save_every_steps",
+                value: 0.0,
+                reason: "must be at least 1",
+            });
+        }
+        if let Some(&g) = config.gravity_m_s2.iter().find(|g| !g.is_finite()) {
+            return Err(SimError::InvalidParameter {
+                name: "gravity_m_s2",
+                value: g,
+                reason: "must be finite",
+            });
+        }
+        config.wrist.validate("wrist trajectory")?;
+        if config.actuation.len() > hand.num_fingers() {
+            return Err(SimError::IndexOutOfRange {
+                what: "actuation schedule finger",
+                index: config.actuation.len() - 1,
+                len: hand.num_fingers(),
+            });
+        }
+        let mut bodies = Vec::with_capacity(hand.num_fingers());
+        for f in hand.fingers() {
+            bodies.push(FingerBody::new(&f.model, &config.material, &config.voxel)?);
+        }
+        for (schedule, body) in config.actuation.iter().zip(&bodies) {
+            schedule.validate(body.tendons().len())?;
+        }
+        let obstacles = config
+            .obstacles
+            .iter()
+            .enumerate()
+            .map(|(i, o)| Obstacle::new(i, o))
+            .collect::<Result<Vec<_>, _>>()?;
+        let workspaces = bodies.iter().map(|b| b.fem().workspace()).collect();
+        let targets = bodies
+            .iter()
+            .map(|b| b.fem().mesh().nodes().to_vec())
+            .collect();
+        Ok(Self {
+            config,
+            hand,
+            bodies,
+            obstacles,
+            workspaces,
+            targets,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SceneConfig {
+        &self.config
+    }
+
+    /// The hand.
+    pub fn hand(&self) -> &HandModel {
+        &self.hand
+    }
+
+    /// The finger bodies, in the hand's finger order.
+    pub fn bodies(&self) -> &[FingerBody] {
+        &self.bodies
+    }
+
+    /// The obstacles.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
+    /// Number of steps that cover `duration_secs`.
+    pub fn num_steps(&self) -> u64 {
+        (self.config.duration_secs / self.config.solver.dt_secs - 1e-9)
+            .ceil()
+            .max(0.0) as u64
+    }
+
+    /// `world_from_finger` of finger `i` at time `t`.
+    fn world_from_finger(&self, i: usize, t: Real) -> Iso3 {
+        self.config.wrist.pose_at(t) * self.hand.fingers()[i].hand_from_finger.iso()
+    }
+
+    /// The rest state at time 0: every finger at rest on the wrist's initial pose.
+    pub fn initial_state(&self) -> SimState {
+        let fingers = self
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let pose = self.world_from_finger(i, 0.0);
+                let x = b.fem().mesh().nodes().iter().map(|p| pose * p).collect();
+                BodyState {
+                    x,
+                    v: vec![Vector3::zeros(); b.fem().mesh().num_nodes()],
+                }
+            })
+            .collect();
+        SimState {
+            step: 0,
+            time_secs: 0.0,
+            fingers,
+        }
+    }
+
+    fn check_state(&self, state: &SimState) -> Result<(), SimError> {
+        if state.fingers.len() != self.bodies.len() {
+            return Err(SimError::StateMismatch {
+                what: "number of fingers",
+            });
+        }
+        for (f, b) in state.fingers.iter().zip(&self.bodies) {
+            let n = b.fem().mesh().num_nodes();
+            if f.x.len() != n || f.v.len() != n {
+                return Err(SimError::StateMismatch {
+                    what: "number of nodes of a finger",
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Advances `state` by one time step.
+    ///
+    /// # Errors
+    /// [`SimError::StateMismatch`] for a foreign state; divergence as
+    /// [`SimError::InvertedElement`], [`SimError::NonFinite`], [`SimError::ExplodingEnergy`]
+    /// or [`SimError::NotPositiveDefinite`], each naming the step and finger (and element or
+    /// node); [`SimError::StaticNotConverged`] in static mode.
+    pub fn step(&mut self, state: &mut SimState) -> Result<StepInfo, SimError> {
+        self.check_state(state)?;
+        let dt = self.config.solver.dt_secs;
+        let (t0, t1) = (state.time_secs, state.time_secs + dt);
+        let integrator = match self.config.solver.mode {
+            SolverMode::Dynamic => Integrator::Dynamic { dt_secs: dt },
+            SolverMode::Static => Integrator::Static {
+                tolerance_m: self.config.solver.static_tolerance_m,
+                max_iterations: self.config.solver.static_max_iterations,
+            },
+        };
+        let posed = PosedObstacles::new(&self.obstacles, t0, t1);
+        let gravity = Vector3::from(self.config.gravity_m_s2);
+        let mut info = StepInfo {
+            step: state.step,
+            time_secs: t1,
+            kinetic_energy_j: Vec::with_capacity(self.bodies.len()),
+            iterations: Vec::with_capacity(self.bodies.len()),
+            tendons: Vec::with_capacity(self.bodies.len()),
+        };
+        for i in 0..self.bodies.len() {
+            let pose = self.world_from_finger(i, t1);
+            let body = &self.bodies[i];
+            for (t, p) in self.targets[i].iter_mut().zip(body.fem().mesh().nodes()) {
+                *t = pose * p;
+            }
+            let schedule = self.config.actuation.get(i);
+            let commands: Vec<TendonCommand> = (0..body.tendons().len())
+                .map(|j| command(schedule, j, t1))
+                .collect();
+            let inputs = FingerInputs {
+                targets: &self.targets[i],
+                gravity,
+                commands: &commands,
+                tendon: &self.config.tendon,
+                obstacles: &posed,
+                contact: &self.config.contact,
+            };
+            let ctx = StepContext {
+                step: state.step,
+                finger: i,
+            };
+            let fs = &mut state.fingers[i];
+            let report = body.step(
+                &mut self.workspaces[i],
+                ctx,
+                integrator,
+                &mut fs.x,
+                &mut fs.v,
+                &inputs,
+            )?;
+            let limit = self.config.solver.max_kinetic_energy_j;
+            if report.kinetic_energy_j > limit {
+                let node = (0..fs.v.len())
+                    .max_by(|&a, &b| fs.v[a].norm().total_cmp(&fs.v[b].norm()))
+                    .unwrap_or(0);
+                return Err(SimError::ExplodingEnergy {
+                    step: state.step,
+                    finger: i,
+                    node,
+                    energy_j: report.kinetic_energy_j,
+                    limit_j: limit,
+                });
+            }
+            info.kinetic_energy_j.push(report.kinetic_energy_j);
+            info.iterations.push(report.iterations);
+            info.tendons.push(
+                body.tendons()
+                    .iter()
+                    .zip(&commands)
+                    .map(|(t, &c)| TendonState {
+                        length_m: t.length(&fs.x),
+                        tension_n: t.tension(&fs.x, c, &self.config.tendon),
+                    })
+                    .collect(),
+            );
+        }
+        state.step += 1;
+        state.time_secs = t1;
+        Ok(info)
+    }
+
+    /// The surfaces, distances and contact labels of `state`.
+    pub fn frame(&self, state: &SimState) -> Frame {
+        let t = state.time_secs;
+        let world_from_hand = self.config.wrist.pose_at(t);
+        let hand_from_world = world_from_hand.inverse();
+        let poses: Vec<Iso3> = self.obstacles.iter().map(|o| o.pose_at(t)).collect();
+        let fingers = self
+            .bodies
+            .iter()
+            .zip(&state.fingers)
+            .map(|(b, fs)| {
+                let world = b.surface().positions(&fs.x);
+                let distances_m = surface_distances(&world, &self.obstacles, &poses);
+                let labels = contact_labels(&distances_m, &self.config.contact);
+                FingerFrame {
+                    vertices_in_hand: world.iter().map(|p| hand_from_world * p).collect(),
+                    vertices_in_world: world,
+                    distances_m,
+                    labels,
+                }
+            })
+            .collect();
+        Frame {
+            step: state.step,
+            time_secs: t,
+            world_from_hand,
+            fingers,
+        }
+    }
+
+    /// Convenience: the contact parameters (label rule).
+    pub fn contact_params(&self) -> &ContactParams {
+        &self.config.contact
+    }
+}
+
+fn command(schedule: Option<&ActuationSchedule>, j: usize, t: Real) -> TendonCommand {
+    match schedule {
+        None => TendonCommand::Displacement { pull_m: 0.0 },
+        Some(s) => {
+            let v = s.value_at(j, t);
+            match s.mode {
+                ActuationMode::Displacement => TendonCommand::Displacement { pull_m: v },
+                ActuationMode::Force => TendonCommand::Force { tension_n: v },
+            }
+        }
+    }
+}
