@@ -2,6 +2,7 @@
 //! scenes.
 
 mod contact;
+mod fixtures;
 mod mechanics;
 mod scene;
 mod tendons;
