@@ -20,12 +20,15 @@ struct Cli {
 enum Command {
     /// Generate a hand model (rest meshes, marker and base vertex ids) from a preset or a config.
     Hand(cli::hand::HandArgs),
+    /// Run a scripted tendon-FEM scene; write surface meshes per saved frame and a summary.
+    Sim(cli::sim::SimArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Hand(args) => cli::hand::run(args),
+        Command::Sim(args) => cli::sim::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 //! function. Figures go to stdout (one JSON object with `--json`), progress and logs to stderr.
 
 pub(crate) mod hand;
+pub(crate) mod sim;
 
 /// Formats an error and its causes on one line (`outer: inner: root`), without backtraces.
 pub(crate) fn one_line(err: &anyhow::Error) -> String {
