@@ -20,6 +20,8 @@ pub(crate) struct CellEdge {
     pub(crate) b: u32,
     pub(crate) weight: Real,
     pub(crate) rest: Vector3,
+    /// `weight · rest`.
+    pub(crate) weighted_rest: Vector3,
 }
 
 /// Cells, edge data and one-rings of a rest mesh, ready for the local and global steps.
@@ -39,6 +41,8 @@ pub(crate) struct Cells {
     pub(crate) edge_cell_offsets: Vec<usize>,
     /// Vertices whose rotation acts on each edge in the global step.
     pub(crate) edge_cells: Vec<u32>,
+    /// `Σ_{e∈cell(i)} w_e ‖e‖²` per vertex.
+    pub(crate) rest_energy: Vec<Real>,
     /// One-ring offsets (CSR, as in [`Topology`]).
     pub(crate) ring_offsets: Vec<usize>,
     /// One-ring neighbours.
@@ -84,6 +88,7 @@ impl Cells {
                 b,
                 weight: weights[e as usize],
                 rest: rest_edges[e as usize],
+                weighted_rest: rest_edges[e as usize] * weights[e as usize],
             }
         };
         for v in 0..n {
@@ -116,7 +121,16 @@ impl Cells {
             }
             edge_cell_offsets.push(edge_cells.len());
         }
+        let rest_energy = (0..n)
+            .map(|v| {
+                cell_edges[cell_offsets[v]..cell_offsets[v + 1]]
+                    .iter()
+                    .map(|c| c.weight * c.rest.norm_squared())
+                    .sum()
+            })
+            .collect();
         Self {
+            rest_energy,
             cell_offsets,
             cell_edges,
             edges,

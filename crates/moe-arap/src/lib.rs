@@ -47,9 +47,19 @@
 //!
 //! # Rotations
 //!
-//! `R_i` is computed as the orthogonal polar factor of `S_iᵀ` by scaled Newton iteration (equal to
-//! the SVD formula when `det S_i > 0`), with the SVD formula as the fallback for flat or inverted
-//! cells (`rotation.rs`).
+//! The maximiser of `tr(R S_i)` is found by Newton's method on SO(3) warm-started from the
+//! previous iteration's `R_i` (one to three steps of a few dozen flops, quadratic convergence,
+//! stopped when the step is below 1e-6 rad, i.e. at ~1e-12 of the exact rotation). Cells where
+//! that does not apply fall back to the orthogonal polar factor of `S_iᵀ` by scaled Newton
+//! iteration (equal to the SVD formula when `det S_i > 0`) and then to the SVD formula itself
+//! (flat or inverted cells, counted in [`ArapInfo::svd_fallbacks`]). A solve from rest resets the
+//! warm start to the identity, so its result does not depend on earlier solves.
+//!
+//! # Parallelism
+//!
+//! [`MultiShapeEstimator`] solves the fingers in parallel on the rayon pool, one finger per task,
+//! with sequential local steps inside. A single large mesh ([`ArapSolver`] with
+//! `ArapConfig::parallel`) runs its local step on the pool from 4096 vertices up.
 //!
 //! Architecture invariant: depends only on `moe-geom` (vocabulary types, cotangent weights),
 //! faer (sparse Cholesky) and rayon. No file IO.
