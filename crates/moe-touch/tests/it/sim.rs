@@ -1,0 +1,76 @@
+//! `moe-touch sim` on the shipped Fig. 5 scenes.
+
+use crate::common::{assert_one_line_error, fixtures, run, scratch};
+
+#[test]
+fn sim_writes_ply_frames_with_contact_labels_and_a_summary() {
+    let out = scratch("sim-ply");
+    let scene = fixtures().join("scenes/plate_middle_front.toml");
+    let o = run(&[
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--steps",
+        "30",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    assert_eq!(summary["steps"], 30);
+    let frames = summary["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 4, "frames at steps 0, 10, 20, 30");
+    let on_disk: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(on_disk["frames"], summary["frames"]);
+    let last = frames.last().unwrap();
+    let name = last["files"][0].as_str().unwrap();
+    let ply = moe_io::read_ply(&out.join(name)).unwrap();
+    assert_eq!(ply.points.len(), 1024);
+    let contact = &ply.scalars.iter().find(|(n, _)| n == "contact").unwrap().1;
+    let labelled = contact.iter().filter(|&&c| c == 1.0).count();
+    assert!(labelled > 0, "the plate touches finger 0 by step 30");
+    assert_eq!(last["contact_vertices"][0], labelled);
+    assert_eq!(last["contact_vertices"][1], 0);
+}
+
+#[test]
+fn sim_writes_obj_frames() {
+    let out = scratch("sim-obj");
+    let scene = fixtures().join("scenes/plate_tip_side.toml");
+    let o = run(&[
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--steps",
+        "2",
+        "--format",
+        "obj",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for name in ["frame_000000_finger_0.obj", "frame_000002_finger_1.obj"] {
+        let mesh = moe_io::read_mesh(&out.join(name)).unwrap();
+        assert_eq!(mesh.num_vertices(), 1024, "{name}");
+    }
+}
+
+#[test]
+fn bad_scene_is_one_line_error_and_writes_nothing() {
+    let dir = scratch("sim-bad");
+    let scene = dir.join("bad.toml");
+    std::fs::write(&scene, "[solver]\ndt_secs = 0.0\n").unwrap();
+    let out = dir.join("out");
+    let o = run(&[
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(err.contains("dt_secs"), "{err}");
+    assert!(!out.exists());
+}
