@@ -46,7 +46,7 @@ pub struct FitConfig {
     pub bounds: HyperBounds,
     /// Start point; `None` for the data-driven default (module docs).
     pub initial: Option<Hyper>,
-    /// Largest number of observations the likelihood is evaluated on (default 1000).
+    /// Largest number of observations the likelihood is evaluated on (default 400).
     pub max_fit_points: usize,
     /// Iteration limit of the optimiser (default 60).
     pub max_iterations: usize,
@@ -60,7 +60,7 @@ impl Default for FitConfig {
             kind: KernelKind::Rbf,
             bounds: HyperBounds::default(),
             initial: None,
-            max_fit_points: 1000,
+            max_fit_points: 400,
             max_iterations: 60,
             jitter: Jitter::default(),
         }
@@ -226,6 +226,7 @@ mod tests {
             let cfg = FitConfig {
                 kind,
                 max_iterations: 200,
+                max_fit_points: 1000,
                 ..FitConfig::default()
             };
             let fit = fit_hyper(&pts, &y, &cfg).unwrap();

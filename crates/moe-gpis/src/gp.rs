@@ -296,7 +296,8 @@ pub fn log_marginal_likelihood_and_grad(
     solve_lower_triangular_in_place(factor.as_ref(), inv.as_mut(), Par::Seq);
     solve_upper_triangular_in_place(factor.as_ref().transpose(), inv.as_mut(), Par::Seq);
     // ½ Σ_ij W_ij ∂K_ij, W = ααᵀ − K⁻¹, over the lower triangle (symmetric, off-diagonal ×2).
-    let grads: [Real; 3] = (0..n)
+    // Per-column partial sums in parallel, then a fixed-order total (thread-count independent).
+    let partial: Vec<[Real; 3]> = (0..n)
         .into_par_iter()
         .map(|j| {
             let mut g = [0.0; 3];
@@ -313,7 +314,10 @@ pub fn log_marginal_likelihood_and_grad(
             }
             g
         })
-        .reduce(|| [0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
+        .collect();
+    let grads = partial
+        .iter()
+        .fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]);
     Ok((lml, grads))
 }
 

@@ -287,6 +287,32 @@ mod tests {
         ));
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        /// Any ellipsoid placed anywhere relative to the grid meshes to a closed sphere-like
+        /// surface (exercises every tetrahedron case and near-node crossings).
+        #[test]
+        fn random_ellipsoids_mesh_to_closed_genus_zero_surfaces(
+            cx in -0.5f64..0.5, cy in -0.5f64..0.5, cz in -0.5f64..0.5,
+            a in 0.8f64..2.5, b in 0.8f64..2.5, c in 0.8f64..2.5,
+        ) {
+            let grid = Grid3::new(Point3::new(-3.0, -3.0, -3.0), 0.25, [25, 25, 25]).unwrap();
+            let values: Vec<Real> = grid
+                .points()
+                .iter()
+                .map(|p| {
+                    let q = moe_geom::Vector3::new((p.x - cx) / a, (p.y - cy) / b, (p.z - cz) / c);
+                    (q.norm() - 1.0) * a.min(b).min(c)
+                })
+                .collect();
+            let mesh = extract_surface(&grid, &values, &MeshingOptions::default()).unwrap();
+            mesh.require_closed().unwrap();
+            proptest::prop_assert_eq!(Topology::new(&mesh).euler_characteristic(), 2);
+            let v = 4.0 / 3.0 * std::f64::consts::PI * a * b * c;
+            proptest::prop_assert!((mesh.signed_volume() / v - 1.0).abs() < 0.05);
+        }
+    }
+
     #[test]
     fn two_blobs_keep_the_larger_or_both() {
         let grid = Grid3::new(Point3::origin(), 0.05, [41, 21, 21]).unwrap();

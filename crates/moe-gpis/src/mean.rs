@@ -30,6 +30,16 @@ pub trait MeanFunction: Send + Sync + std::fmt::Debug {
         1.0
     }
 
+    /// `∇m(p)` by central differences with a 0.1 mm step (override when known analytically).
+    fn gradient(&self, p: &Point3) -> Vector3 {
+        let h = 1e-4;
+        Vector3::from_fn(|i, _| {
+            let mut e = Vector3::zeros();
+            e[i] = h;
+            (self.value(&(p + e)) - self.value(&(p - e))) / (2.0 * h)
+        })
+    }
+
     /// `m` at many points, in parallel.
     fn values(&self, points: &[Point3]) -> Vec<Real> {
         points.par_iter().map(|p| self.value(p)).collect()
@@ -43,6 +53,9 @@ impl<T: MeanFunction + ?Sized> MeanFunction for Box<T> {
     fn lipschitz(&self) -> Real {
         (**self).lipschitz()
     }
+    fn gradient(&self, p: &Point3) -> Vector3 {
+        (**self).gradient(p)
+    }
     fn values(&self, points: &[Point3]) -> Vec<Real> {
         (**self).values(points)
     }
@@ -54,6 +67,9 @@ impl<T: MeanFunction + ?Sized> MeanFunction for &T {
     }
     fn lipschitz(&self) -> Real {
         (**self).lipschitz()
+    }
+    fn gradient(&self, p: &Point3) -> Vector3 {
+        (**self).gradient(p)
     }
     fn values(&self, points: &[Point3]) -> Vec<Real> {
         (**self).values(points)
@@ -74,6 +90,9 @@ impl MeanFunction for ConstantMean {
     fn lipschitz(&self) -> Real {
         0.0
     }
+    fn gradient(&self, _p: &Point3) -> Vector3 {
+        Vector3::zeros()
+    }
 }
 
 /// A sphere's signed distance `m(x) = ‖x − c‖ − r`.
@@ -88,6 +107,11 @@ pub struct SphereMean {
 impl MeanFunction for SphereMean {
     fn value(&self, p: &Point3) -> Real {
         (p - self.center).norm() - self.radius
+    }
+    fn gradient(&self, p: &Point3) -> Vector3 {
+        (p - self.center)
+            .try_normalize(1e-300)
+            .unwrap_or_else(Vector3::z)
     }
 }
 

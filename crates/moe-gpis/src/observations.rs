@@ -5,6 +5,7 @@ use moe_geom::{Point3, PointIndex, Real, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::GpisError;
+use crate::mean::MeanFunction;
 
 /// What an observation is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -143,6 +144,34 @@ impl Observations {
             self.push(c - n * offset_m, -offset_m, ObservationKind::NormalOffset);
         }
         Ok(())
+    }
+
+    /// Adds `±d` offsets along the normals that the mean function gives at the contacts
+    /// (`∇m / ‖∇m‖`): the prior's (or fitted sphere's) outward normal. Contacts where the mean
+    /// has no gradient (a constant mean) are skipped; returns how many contacts got offsets.
+    ///
+    /// With contacts alone, the residual `y − m(x)` of noisy contacts is explained equally well
+    /// by a field that cancels the mean's slope (`r ≈ −m` near the contacts), which flattens the
+    /// posterior SDF into a slab with an ill-defined zero level set. The offsets pin the slope.
+    ///
+    /// # Errors
+    /// `offset_m ≤ 0` or non-finite.
+    pub fn add_mean_normal_offsets<M: MeanFunction + ?Sized>(
+        &mut self,
+        mean: &M,
+        offset_m: Real,
+    ) -> Result<usize, GpisError> {
+        let contacts = self.contacts();
+        let (mut pts, mut normals) = (Vec::new(), Vec::new());
+        for c in contacts {
+            let g = mean.gradient(&c);
+            if g.norm() > 1e-6 && g.iter().all(|v| v.is_finite()) {
+                pts.push(c);
+                normals.push(g);
+            }
+        }
+        self.add_normal_offsets(&pts, &normals, offset_m)?;
+        Ok(pts.len())
     }
 
     /// Adds free-space points (outside the surface). Their SDF value is `clearances[i]` if
