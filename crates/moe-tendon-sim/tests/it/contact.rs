@@ -19,11 +19,20 @@ fn press(
     obstacle: &Obstacle,
     steps: u64,
 ) -> (Vec<Point3>, Vec<Real>, Vec<bool>) {
+    press_with(body, obstacle, steps, &ContactParams::default())
+}
+
+/// As [`press`] with the given contact model.
+fn press_with(
+    body: &FingerBody,
+    obstacle: &Obstacle,
+    steps: u64,
+    contact: &ContactParams,
+) -> (Vec<Point3>, Vec<Real>, Vec<bool>) {
     let rest = body.fem().mesh().nodes().to_vec();
     let mut x = rest.clone();
     let mut v = vec![Vector3::zeros(); x.len()];
     let commands = [TendonCommand::Displacement { pull_m: 0.0 }; 4];
-    let contact = ContactParams::default();
     let tendon = TendonParams::default();
     let obstacles = std::slice::from_ref(obstacle);
     let mut ws = body.fem().workspace();
@@ -36,7 +45,7 @@ fn press(
             commands: &commands,
             tendon: &tendon,
             obstacles: &posed,
-            contact: &contact,
+            contact,
         };
         body.step(
             &mut ws,
@@ -51,7 +60,7 @@ fn press(
     let surface = body.surface().positions(&x);
     let t_end = steps as Real * DT;
     let d = surface_distances(&surface, obstacles, &[obstacle.pose_at(t_end)]);
-    let labels = contact_labels(&d, &contact);
+    let labels = contact_labels(&d, contact);
     (surface, d, labels)
 }
 
@@ -170,4 +179,52 @@ fn sphere_pressed_into_the_side_gives_one_compact_patch_at_the_contact_point() {
         err * 1e3
     );
     assert!(extent < radius, "patch is not compact: radius {extent}");
+}
+
+#[test]
+fn friction_drags_the_surface_along_a_sliding_plate() {
+    let (model, body) = default_finger();
+    let p = FingerParams::default();
+    let half = [0.001, 0.03, 0.015];
+    let r = p.radius_at(0.035);
+    let x_in = r - 0.003 + half[0];
+    let plate = Obstacle::new(
+        0,
+        &ObstacleConfig {
+            shape: ObstacleShape::Cuboid {
+                half_extents_m: half,
+            },
+            trajectory: PoseTrajectory {
+                keyframes: vec![
+                    PoseKeyframe::at(0.0, [r + 0.0005 + half[0], 0.0, 0.05]),
+                    PoseKeyframe::at(0.3, [x_in, 0.0, 0.05]),
+                    PoseKeyframe::at(0.6, [x_in, 0.005, 0.05]),
+                ],
+            },
+        },
+    )
+    .unwrap();
+    let drag = |friction: Real| {
+        let contact = ContactParams {
+            friction,
+            ..ContactParams::default()
+        };
+        let (surface, _, labels) = press_with(&body, &plate, 60, &contact);
+        let ids: Vec<usize> = (0..labels.len()).filter(|&i| labels[i]).collect();
+        assert!(!ids.is_empty());
+        ids.iter()
+            .map(|&i| surface[i].y - model.mesh().vertices()[i].y)
+            .sum::<Real>()
+            / ids.len() as Real
+    };
+    let (slip, stick) = (drag(0.0), drag(1.0));
+    eprintln!("mean tangential displacement of the patch: mu = 0: {slip:e} m, mu = 1: {stick:e} m");
+    assert!(
+        slip.abs() < 2e-4,
+        "frictionless contact dragged the surface by {slip}"
+    );
+    assert!(
+        stick > 5e-4,
+        "friction should drag the surface along, got {stick}"
+    );
 }

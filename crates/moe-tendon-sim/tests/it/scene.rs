@@ -273,3 +273,30 @@ fn bad_geometry_gives_typed_errors() {
         SimError::Geometry(moe_geom::GeomError::NonManifoldEdge { .. })
     ));
 }
+
+#[test]
+fn static_mode_follows_the_schedule_through_equilibria() {
+    let mut config = short_scene();
+    config.solver.mode = moe_tendon_sim::SolverMode::Static;
+    config.gravity_m_s2 = [0.0; 3];
+    config.duration_secs = 0.03;
+    let (scene, state) = run(config);
+    assert_eq!(state.step, 3);
+    for f in &state.fingers {
+        assert!(f.v.iter().all(|v| v.norm() == 0.0));
+    }
+    // Finger 0's +x tendon is being pulled: its tip moved toward the finger's +x side.
+    let body = &scene.bodies()[0];
+    let hand_from_finger = scene.hand().fingers()[0].hand_from_finger.iso();
+    let world_from_finger = scene.config().wrist.pose_at(state.time_secs) * hand_from_finger;
+    let tip_rest = body
+        .fem()
+        .mesh()
+        .nodes()
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.z.total_cmp(&b.1.z))
+        .unwrap();
+    let moved = world_from_finger.inverse() * state.fingers[0].x[tip_rest.0] - tip_rest.1;
+    assert!(moved.x > 1e-4, "tip moved by {moved:?}");
+}

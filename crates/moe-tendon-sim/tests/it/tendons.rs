@@ -14,10 +14,17 @@ pub(crate) fn default_finger() -> (FingerModel, FingerBody) {
 
 /// Static equilibrium under tendon displacements `pulls` (metres, one per tendon).
 fn solve(body: &FingerBody, pulls: [Real; 4]) -> Vec<Point3> {
+    solve_commands(
+        body,
+        pulls.map(|pull_m| TendonCommand::Displacement { pull_m }),
+    )
+}
+
+/// Static equilibrium under tendon `commands`.
+fn solve_commands(body: &FingerBody, commands: [TendonCommand; 4]) -> Vec<Point3> {
     let rest = body.fem().mesh().nodes().to_vec();
     let mut x = rest.clone();
     let mut v = vec![Vector3::zeros(); x.len()];
-    let commands = pulls.map(|pull_m| TendonCommand::Displacement { pull_m });
     let posed = PosedObstacles::new(&[], 0.0, 0.0);
     let inputs = FingerInputs {
         targets: &rest,
@@ -125,4 +132,31 @@ fn equal_pulls_on_an_antagonistic_pair_keep_the_finger_straight() {
         both.z < -0.0005,
         "equal pulls compress the finger: {both:?}"
     );
+}
+
+#[test]
+fn force_drive_with_the_displacement_tension_reproduces_the_displacement_shape() {
+    let (model, body) = default_finger();
+    let d = 0.002;
+    let x_disp = solve(&body, [d, -d, 0.0, 0.0]);
+    let tension = body.tendons()[0].tension(
+        &x_disp,
+        TendonCommand::Displacement { pull_m: d },
+        &TendonParams::default(),
+    );
+    let force = |tension_n| TendonCommand::Force { tension_n };
+    let x_force = solve_commands(&body, [force(tension), force(0.0), force(0.0), force(0.0)]);
+    let a = tip_displacement(&model, &body, &x_disp);
+    let b = tip_displacement(&model, &body, &x_force);
+    eprintln!("tension {tension:.3} N: displacement-driven tip {a:?}, force-driven tip {b:?}");
+    assert!(tension > 0.0);
+    assert!((a - b).norm() < 0.01 * a.norm(), "{a:?} vs {b:?}");
+    // A cable cannot push: a negative tension does nothing.
+    let x_neg = solve_commands(&body, [force(-5.0), force(0.0), force(0.0), force(0.0)]);
+    let max = x_neg
+        .iter()
+        .zip(body.fem().mesh().nodes())
+        .map(|(p, q)| (p - q).norm())
+        .fold(0.0, Real::max);
+    assert!(max < 1e-12, "moved by {max}");
 }
