@@ -2,7 +2,7 @@
 //! frame (OBJ, or PLY with the contact label and obstacle distance as vertex scalars) and a JSON
 //! summary.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -40,7 +40,8 @@ pub(crate) struct SimArgs {
     /// the scene's parametric hand.
     #[arg(long, value_name = "FILE")]
     hand: Option<PathBuf>,
-    /// Output directory: frame_<k>_finger_<i>.<format> and summary.json.
+    /// Output directory: frame_<k>_finger_<i>.<format> and summary.json (written only when the
+    /// whole run succeeds).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Mesh format of the saved frames.
@@ -98,17 +99,45 @@ struct SimSummary {
 pub(crate) fn run(args: SimArgs) -> Result<()> {
     let config: SceneConfig = moe_io::read_config(&args.scene)
         .with_context(|| format!("reading scene {}", args.scene.display()))?;
-    let mut scene = match &args.hand {
+    let scene = match &args.hand {
         Some(path) => Scene::with_hand(config, moe_io::load_hand_config(path)?),
         None => Scene::new(config),
     }
     .with_context(|| format!("building scene {}", args.scene.display()))?;
+    // Frames go to a staging directory and move into place only when the whole run succeeded,
+    // so a diverging simulation leaves no partial output.
+    let staging = args.out.join(".moe-sim-partial");
+    std::fs::create_dir_all(&staging)
+        .with_context(|| format!("creating output directory {}", staging.display()))?;
+    let result = simulate(scene, &args, &staging);
+    match result {
+        Ok(summary) => {
+            for frame in &summary.frames {
+                for name in &frame.files {
+                    std::fs::rename(staging.join(name), args.out.join(name))
+                        .with_context(|| format!("moving {name} into {}", args.out.display()))?;
+                }
+            }
+            std::fs::remove_dir(&staging)
+                .with_context(|| format!("removing {}", staging.display()))?;
+            moe_io::write_json(&args.out.join("summary.json"), &summary)?;
+            report(&summary, &args)
+        }
+        Err(err) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            if std::fs::read_dir(&args.out).is_ok_and(|mut d| d.next().is_none()) {
+                let _ = std::fs::remove_dir(&args.out);
+            }
+            Err(err)
+        }
+    }
+}
+
+fn simulate(mut scene: Scene, args: &SimArgs, staging: &Path) -> Result<SimSummary> {
     let steps = args.steps.unwrap_or_else(|| scene.num_steps());
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating output directory {}", args.out.display()))?;
     let every = scene.config().save_every_steps;
     let mut state = scene.initial_state();
-    let mut frames = vec![save_frame(&scene, &state, &args)?];
+    let mut frames = vec![save_frame(&scene, &state, args, staging)?];
     let mut last: Option<StepInfo> = None;
     let start = Instant::now();
     for _ in 0..steps {
@@ -116,13 +145,13 @@ pub(crate) fn run(args: SimArgs) -> Result<()> {
             .step(&mut state)
             .with_context(|| format!("simulating {}", args.scene.display()))?;
         last = Some(info);
-        if state.step % every == 0 || state.step == steps {
-            frames.push(save_frame(&scene, &state, &args)?);
+        if state.step.is_multiple_of(every) || state.step == steps {
+            frames.push(save_frame(&scene, &state, args, staging)?);
             eprintln!("step {}/{steps} (t = {:.3} s)", state.step, state.time_secs);
         }
     }
     let wall_secs = start.elapsed().as_secs_f64();
-    let summary = SimSummary {
+    Ok(SimSummary {
         scene: args.scene.display().to_string(),
         frame: args.frame,
         dt_secs: scene.config().solver.dt_secs,
@@ -161,33 +190,35 @@ pub(crate) fn run(args: SimArgs) -> Result<()> {
             .unwrap_or_default(),
         state_digest: format!("{:#018x}", state.digest()),
         frames,
-    };
-    moe_io::write_json(&args.out.join("summary.json"), &summary)?;
+    })
+}
+
+fn report(summary: &SimSummary, args: &SimArgs) -> Result<()> {
     if args.json {
-        super::print_json(&summary)?;
-    } else {
+        return super::print_json(summary);
+    }
+    println!(
+        "simulated {:.3} s in {} steps ({:.1} steps/s); {} frames written to {}",
+        summary.simulated_secs,
+        summary.steps,
+        summary.steps_per_sec,
+        summary.frames.len(),
+        args.out.display()
+    );
+    if let Some(f) = summary.frames.last() {
         println!(
-            "simulated {:.3} s in {steps} steps ({:.1} steps/s); {} frames written to {}",
-            summary.simulated_secs,
-            summary.steps_per_sec,
-            summary.frames.len(),
-            args.out.display()
+            "final frame: contact vertices per finger {:?}, max penetration {:?} mm",
+            f.contact_vertices,
+            f.max_penetration_m
+                .iter()
+                .map(|p| p * 1e3)
+                .collect::<Vec<_>>()
         );
-        if let Some(f) = summary.frames.last() {
-            println!(
-                "final frame: contact vertices per finger {:?}, max penetration {:?} mm",
-                f.contact_vertices,
-                f.max_penetration_m
-                    .iter()
-                    .map(|p| p * 1e3)
-                    .collect::<Vec<_>>()
-            );
-        }
     }
     Ok(())
 }
 
-fn save_frame(scene: &Scene, state: &SimState, args: &SimArgs) -> Result<FrameRecord> {
+fn save_frame(scene: &Scene, state: &SimState, args: &SimArgs, dir: &Path) -> Result<FrameRecord> {
     let frame: Frame = scene.frame(state);
     let k = frame.step;
     let mut record = FrameRecord {
@@ -208,7 +239,7 @@ fn save_frame(scene: &Scene, state: &SimState, args: &SimArgs) -> Result<FrameRe
             MeshFormat::Ply => "ply",
         };
         let name = format!("frame_{k:06}_finger_{i}.{ext}");
-        let path = args.out.join(&name);
+        let path = dir.join(&name);
         match args.format {
             MeshFormat::Obj => {
                 let mesh = rest

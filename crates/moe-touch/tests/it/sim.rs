@@ -74,3 +74,33 @@ fn bad_scene_is_one_line_error_and_writes_nothing() {
     assert!(err.contains("dt_secs"), "{err}");
     assert!(!out.exists());
 }
+
+#[test]
+fn diverging_scene_names_the_step_and_leaves_no_output() {
+    let dir = scratch("sim-diverge");
+    let scene = dir.join("diverge.toml");
+    let base = std::fs::read_to_string(fixtures().join("scenes/plate_middle_front.toml")).unwrap();
+    // A kinetic-energy limit far below the first step's energy counts as divergence.
+    let text = base.replace(
+        "mode = \"dynamic\"",
+        "mode = \"dynamic\"\nmax_kinetic_energy_j = 1e-15",
+    );
+    assert_ne!(text, base);
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.join("out");
+    let o = run(&[
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let last = stderr.trim_end().lines().last().unwrap();
+    assert!(
+        last.starts_with("error:") && last.contains("step 0"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "partial output left behind");
+}
