@@ -32,11 +32,18 @@ struct Fixture {
 }
 
 /// Every golden fixture of the workspace.
-const FIXTURES: &[Fixture] = &[Fixture {
-    path: "fixtures/golden/hand_presets.json",
-    generate: golden_hand_presets,
-    tolerance: 1e-9,
-}];
+const FIXTURES: &[Fixture] = &[
+    Fixture {
+        path: "fixtures/golden/hand_presets.json",
+        generate: golden_hand_presets,
+        tolerance: 1e-9,
+    },
+    Fixture {
+        path: "fixtures/golden/eval_surface_small.json",
+        generate: crate::eval::surface_fixture,
+        tolerance: 1e-3,
+    },
+];
 
 pub(crate) fn run(args: &FixturesArgs) -> Result<()> {
     let root = workspace_root();

@@ -5,6 +5,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod ci;
+mod eval;
 mod fixtures;
 
 #[derive(Debug, Parser)]
@@ -18,6 +19,8 @@ struct Cli {
 enum Command {
     /// Run every check, cheapest first: fmt, clippy, tests, docs, golden fixtures, cargo-deny.
     Ci(ci::CiArgs),
+    /// Run an evaluation benchmark (`surface`: GPIS reconstruction on head and arm scenes).
+    Eval(eval::EvalArgs),
     /// Check the golden fixtures against freshly computed results, or rewrite them.
     Fixtures(fixtures::FixturesArgs),
 }
@@ -26,6 +29,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Ci(args) => ci::run(&args),
+        Command::Eval(args) => eval::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     };
     match result {
