@@ -286,6 +286,58 @@ mod tests {
     }
 
     #[test]
+    fn capsule_cylinder_mesh_and_inclined_plane() {
+        let id = Iso3::identity();
+        let capsule = obstacle(ObstacleShape::Capsule {
+            half_height_m: 1.0,
+            radius_m: 0.5,
+        });
+        let s = capsule
+            .signed_distance(&id, &Point3::new(0.0, 0.0, 2.0))
+            .unwrap();
+        assert!((s.distance_m - 0.5).abs() < 1e-12);
+        assert!((s.normal - Vector3::z()).norm() < 1e-12);
+        let cylinder = obstacle(ObstacleShape::Cylinder {
+            half_height_m: 1.0,
+            radius_m: 0.5,
+        });
+        let s = cylinder
+            .signed_distance(&id, &Point3::new(0.2, 0.0, 0.0))
+            .unwrap();
+        assert!((s.distance_m + 0.3).abs() < 1e-12, "{s:?}");
+        // A closed tetrahedron as a triangle mesh (inside test through oriented pseudo-normals).
+        let tet = obstacle(ObstacleShape::TriangleMesh {
+            vertices_m: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ],
+            faces: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        });
+        let s = tet
+            .signed_distance(&id, &Point3::new(0.1, 0.1, 0.05))
+            .unwrap();
+        assert!((s.distance_m + 0.05).abs() < 1e-12, "{s:?}");
+        assert!((s.normal + Vector3::z()).norm() < 1e-12);
+        let s = tet
+            .signed_distance(&id, &Point3::new(0.1, 0.1, -0.3))
+            .unwrap();
+        assert!((s.distance_m - 0.3).abs() < 1e-12);
+        // An inclined plane: the floor rotated 30° about x.
+        let plane = obstacle(ObstacleShape::HalfSpace {
+            normal: [0.0, 0.0, 1.0],
+        });
+        let angle = 30f64.to_radians();
+        let pose = Iso3::rotation(Vector3::x() * angle);
+        let n = pose * Vector3::z();
+        let p = Point3::new(0.3, 0.0, 0.0) + n * 0.2;
+        let s = plane.signed_distance(&pose, &p).unwrap();
+        assert!((s.distance_m - 0.2).abs() < 1e-12);
+        assert!((s.normal - n).norm() < 1e-12);
+    }
+
+    #[test]
     fn bad_obstacles_are_named() {
         let bad = ObstacleConfig {
             shape: ObstacleShape::Ball { radius_m: -1.0 },

@@ -300,3 +300,38 @@ fn static_mode_follows_the_schedule_through_equilibria() {
     let moved = world_from_finger.inverse() * state.fingers[0].x[tip_rest.0] - tip_rest.1;
     assert!(moved.x > 1e-4, "tip moved by {moved:?}");
 }
+
+#[test]
+fn a_rigidly_moving_hand_is_not_deformed_once_it_stops() {
+    // No gravity, no obstacles, no actuation: the wrist turns by 1 rad and moves 5 cm, then
+    // holds. Corotation must leave the fingers undeformed in the hand frame after the motion.
+    let config = SceneConfig {
+        gravity_m_s2: [0.0; 3],
+        duration_secs: 1.5,
+        wrist: PoseTrajectory {
+            keyframes: vec![
+                PoseKeyframe::at(0.0, [0.0; 3]),
+                PoseKeyframe {
+                    time_secs: 0.5,
+                    translation_m: [0.05, 0.0, 0.02],
+                    rotation_rad: [0.6, 0.0, 0.8],
+                },
+            ],
+        },
+        ..SceneConfig::default()
+    };
+    let (scene, state) = run(config);
+    let frame = scene.frame(&state);
+    let mut worst: moe_geom::Real = 0.0;
+    for (i, f) in frame.fingers.iter().enumerate() {
+        let rest = scene.hand().rest_vertices_in_hand(i);
+        for (p, q) in f.vertices_in_hand.iter().zip(&rest) {
+            worst = worst.max((p - q).norm());
+        }
+    }
+    eprintln!("largest deviation from the rest shape after the motion: {worst:e} m");
+    assert!(
+        worst < 5e-5,
+        "fingers deformed by {worst} m after a rigid motion"
+    );
+}
