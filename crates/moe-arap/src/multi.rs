@@ -172,6 +172,38 @@ impl MultiShapeEstimator {
         &self.fingers[finger].marker_handle
     }
 
+    /// Assigns handle vertices to the markers observed in `keypoints` that have none yet, without
+    /// solving. Passing the hand's rest keypoints ([`HandModel::rest_keypoints`]) attaches every
+    /// marker to its nearest rest vertex before the first real frame — what a one-shot
+    /// estimation from a single, possibly strongly bent frame needs.
+    ///
+    /// # Errors
+    /// As [`MultiShapeEstimator::estimate`].
+    pub fn assign_handles(&mut self, keypoints: &HandKeypoints) -> Result<(), ArapError> {
+        self.check_keypoints(keypoints)?;
+        for ((state, finger), kp) in self
+            .fingers
+            .iter_mut()
+            .zip(self.hand.fingers())
+            .zip(&keypoints.fingers)
+        {
+            let finger_from_hand = finger.hand_from_finger.inverse();
+            let kp_in_finger: Vec<Option<Point3>> = kp
+                .iter()
+                .map(|p| p.map(|p| finger_from_hand.transform_point(&p)))
+                .collect();
+            state.assign_new_handles(&kp_in_finger)?;
+        }
+        Ok(())
+    }
+
+    fn check_keypoints(&self, keypoints: &HandKeypoints) -> Result<(), ArapError> {
+        keypoints.check_against(&self.hand).map_err(|e| match e {
+            moe_geom::GeomError::NonFinitePoint { .. } => self.locate_non_finite(keypoints),
+            other => ArapError::Geom(other),
+        })
+    }
+
     /// Forgets the previous frame's shapes (handle assignments are kept).
     pub fn reset_tracking(&mut self) {
         for f in &mut self.fingers {
@@ -184,10 +216,7 @@ impl MultiShapeEstimator {
     /// # Errors
     /// Keypoints that do not fit the hand (finger or marker counts), non-finite keypoints.
     pub fn estimate(&mut self, keypoints: &HandKeypoints) -> Result<ShapeEstimate, ArapError> {
-        keypoints.check_against(&self.hand).map_err(|e| match e {
-            moe_geom::GeomError::NonFinitePoint { .. } => self.locate_non_finite(keypoints),
-            other => ArapError::Geom(other),
-        })?;
+        self.check_keypoints(keypoints)?;
         let warm = self.options.warm_start;
         let results = self
             .fingers

@@ -422,7 +422,10 @@ impl ArapSolver {
             let mut energy = 0.0;
             if previous_valid {
                 let r_prev = &rot_prev[i];
-                energy = self.cells.rest_energy[i] + deformed_sq - 2.0 * r_prev.transpose().dot(&s);
+                // A sum of squares: clamp the rounding of the expansion at zero.
+                energy = (self.cells.rest_energy[i] + deformed_sq
+                    - 2.0 * r_prev.transpose().dot(&s))
+                .max(0.0);
                 if coeff > 0.0 {
                     let mut sum = Matrix3::zeros();
                     for &j in self.cells.ring(i) {
@@ -473,7 +476,7 @@ impl ArapSolver {
             .map(|i| {
                 let (s, sq) = self.cell_covariance(i, deformed);
                 let r = &rotations[i];
-                let mut e = self.cells.rest_energy[i] + sq - 2.0 * r.transpose().dot(&s);
+                let mut e = (self.cells.rest_energy[i] + sq - 2.0 * r.transpose().dot(&s)).max(0.0);
                 let coeff = self.smoothing[i];
                 if coeff > 0.0 {
                     let mut sum = Matrix3::zeros();
@@ -554,7 +557,7 @@ impl ArapSolver {
 
 /// `coeff · Σ_j ‖R_i − R_j‖²_F` from `Σ_j R_j`, for rotations.
 fn smoothing_energy(coeff: Real, valence: usize, r: &Matrix3, sum: &Matrix3) -> Real {
-    coeff * (6.0 * valence as Real - 2.0 * r.dot(sum))
+    (coeff * (6.0 * valence as Real - 2.0 * r.dot(sum))).max(0.0)
 }
 
 fn check_id(what: &'static str, v: u32, len: usize) -> Result<usize, ArapError> {

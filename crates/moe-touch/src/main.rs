@@ -20,6 +20,10 @@ struct Cli {
 enum Command {
     /// Generate a hand model (rest meshes, marker and base vertex ids) from a preset or a config.
     Hand(cli::hand::HandArgs),
+    /// Deform any mesh with SR-ARAP so that handle vertices reach their targets.
+    Arap(cli::arap::ArapArgs),
+    /// Estimate a hand's deformed finger meshes from one frame of marker keypoints (SR-ARAP).
+    Shape(cli::shape::ShapeArgs),
     /// Run a scripted tendon-FEM scene; write surface meshes per saved frame and a summary.
     Sim(cli::sim::SimArgs),
 }
@@ -28,6 +32,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Hand(args) => cli::hand::run(args),
+        Command::Arap(args) => cli::arap::run(args),
+        Command::Shape(args) => cli::shape::run(args),
         Command::Sim(args) => cli::sim::run(args),
     };
     match result {

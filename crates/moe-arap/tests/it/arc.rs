@@ -16,8 +16,8 @@ fn arc_error_mm(missing: &[usize]) -> f64 {
     let tip = 60f64.to_radians();
     let kappa = tip / FingerParams::default().length_m;
     let mut estimator = MultiShapeEstimator::new(hand.clone(), ShapeOptions::default()).unwrap();
-    // The hand starts relaxed: the first frame assigns every marker its nearest rest vertex.
-    estimator.estimate(&hand.rest_keypoints()).unwrap();
+    // Attach every marker to its nearest rest vertex before the bent frame.
+    estimator.assign_handles(&hand.rest_keypoints()).unwrap();
     let est = estimator
         .estimate(&bent_keypoints(&hand, tip, missing))
         .unwrap();

@@ -1,7 +1,9 @@
 //! Subcommands of the `moe-touch` tool, one module each: an `…Args` struct (clap) and a `run`
 //! function. Figures go to stdout (one JSON object with `--json`), progress and logs to stderr.
 
+pub(crate) mod arap;
 pub(crate) mod hand;
+pub(crate) mod shape;
 pub(crate) mod sim;
 
 /// Formats an error and its causes on one line (`outer: inner: root`), without backtraces.

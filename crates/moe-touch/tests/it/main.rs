@@ -3,3 +3,4 @@
 mod common;
 mod hand;
 mod sim;
+mod arap;
