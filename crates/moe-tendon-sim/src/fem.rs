@@ -10,6 +10,7 @@ use crate::material::Material;
 use crate::polar::polar_rotation;
 use crate::terms::Terms;
 use crate::tetmesh::TetMesh;
+use crate::woodbury::woodbury;
 
 /// Builds the interaction terms of a solve from the current positions and velocities.
 pub type TermsFn<'a> = dyn FnMut(&[Point3], &[Vector3], &mut Terms) + 'a;
@@ -74,6 +75,8 @@ pub struct FemWorkspace {
     coupling: Vec<Vector3>,
     dx: Vec<Vector3>,
     slope: Real,
+    terms: Terms,
+    grads: Vec<Real>,
 }
 
 impl FemWorkspace {
@@ -220,6 +223,8 @@ impl FemModel {
             coupling: vec![Vector3::zeros(); n],
             dx: vec![Vector3::zeros(); n],
             slope: 0.0,
+            terms: Terms::default(),
+            grads: Vec::new(),
         }
     }
 
@@ -335,10 +340,30 @@ impl FemModel {
         gravity: &Vector3,
         terms: &mut TermsFn<'_>,
     ) -> Result<StepReport, SimError> {
+        // The terms' buffers live in the workspace so that their allocations are reused.
+        let mut t = std::mem::take(&mut ws.terms);
+        let result = self.step_with(ws, ctx, integrator, x, v, targets, gravity, terms, &mut t);
+        ws.terms = t;
+        result
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn step_with(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        integrator: Integrator,
+        x: &mut [Point3],
+        v: &mut [Vector3],
+        targets: &[Point3],
+        gravity: &Vector3,
+        terms: &mut TermsFn<'_>,
+        t: &mut Terms,
+    ) -> Result<StepReport, SimError> {
         self.check_len("positions", x.len())?;
         self.check_len("velocities", v.len())?;
         self.check_len("fixed-node targets", targets.len())?;
-        let mut t = Terms::default();
+        t.clear();
         match integrator {
             Integrator::Dynamic { dt_secs: h } => {
                 crate::error::require_positive("dt_secs", h)?;
@@ -354,8 +379,8 @@ impl FemModel {
                     force: h * h,
                     momentum: h,
                 };
-                terms(x, v, &mut t);
-                let values = self.solve(ws, ctx, c, x, v, targets, gravity, &t, true)?;
+                terms(x, v, t);
+                let values = self.solve(ws, ctx, c, x, v, targets, gravity, t, true)?;
                 for i in 0..x.len() {
                     x[i] += ws.dx[i];
                     v[i] = ws.dx[i] / h;
@@ -386,19 +411,19 @@ impl FemModel {
                 let mut trial = x.to_vec();
                 for it in 0..max_iterations.max(1) {
                     t.clear();
-                    terms(x, v, &mut t);
+                    terms(x, v, t);
                     let moves_fixed =
                         it == 0 && (0..x.len()).any(|i| self.fixed[i] && targets[i] != x[i]);
-                    let values = self.solve(ws, ctx, c, x, v, targets, gravity, &t, it == 0)?;
+                    let values = self.solve(ws, ctx, c, x, v, targets, gravity, t, it == 0)?;
                     // Backtracking line search on the total potential (exact elastic energy,
                     // quadratic models of the interaction terms): the corotational tangent omits
                     // the derivative of the rotations, so a full step can overshoot.
                     let mut alpha: Real = 1.0;
                     if !moves_fixed {
                         let slope: Real = ws.force_dot_dx();
-                        let e0 = self.potential(x, &ws.dx, 0.0, gravity, &t, &mut trial)?;
+                        let e0 = self.potential(x, &ws.dx, 0.0, gravity, t, &mut trial)?;
                         for _ in 0..30 {
-                            match self.potential(x, &ws.dx, alpha, gravity, &t, &mut trial) {
+                            match self.potential(x, &ws.dx, alpha, gravity, t, &mut trial) {
                                 Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => break,
                                 _ => alpha *= 0.5,
                             }
@@ -530,6 +555,8 @@ impl FemModel {
             coupling,
             dx,
             slope,
+            grads,
+            ..
         } = ws;
         buf.values.fill(0.0);
         force.fill(Vector3::zeros());
@@ -661,16 +688,19 @@ impl FemModel {
             }
             shifted.push(g);
         }
-        let grads_free: Vec<Vec<Real>> = (0..m)
-            .map(|j| (0..buf.rhs.nrows()).map(|i| buf.rhs[(i, 1 + j)]).collect())
-            .collect();
+        // Keep the free gradients (the solve overwrites them with Y_j = A⁻¹G_j).
+        let n_rows = buf.rhs.nrows();
+        grads.clear();
+        for j in 0..m {
+            grads.extend((0..n_rows).map(|i| buf.rhs[(i, 1 + j)]));
+        }
         sys.factor_and_solve(buf, 1 + m)
             .map_err(|_| SimError::NotPositiveDefinite {
                 step: ctx.step,
                 finger: ctx.finger,
             })?;
         let nrows = buf.rhs.nrows();
-        let (combo, values) = woodbury(terms, &shifted, &grads_free, buf, c.external);
+        let (combo, values) = woodbury(terms, &shifted, grads, buf, c.external);
         // Δx_free = y₀ + Σ_j combo_j Y_j.
         for (i, dxi) in dx.iter_mut().enumerate() {
             let fi = sys.free_of(i as u32);
@@ -709,102 +739,4 @@ impl FemModel {
         *slope = s;
         Ok(values)
     }
-}
-
-/// Active-set Woodbury solve for the rank-one terms. With `Y_j = A⁻¹G_j`, `y₀ = A⁻¹b` and the
-/// active set `S` (weights `c_j = c_E k_j`), the solution of
-/// `(A + Σ_S c_j G_j G_jᵀ) Δx = b − Σ_S c_j g_j G_j` is `Δx = u − Y_S z` with
-/// `u = y₀ − Σ_S c_j g_j Y_j` and `(diag(1/c_S) + G_Sᵀ Y_S) z = G_Sᵀ u`. Returns the coefficients
-/// of `Y_j` in `Δx − y₀` and the linearised end values `g_j + G_jᵀ Δx` (0 when inactive).
-fn woodbury(
-    terms: &Terms,
-    shifted: &[Real],
-    grads_free: &[Vec<Real>],
-    buf: &SystemBuffers,
-    c_ext: Real,
-) -> (Vec<Real>, Vec<Real>) {
-    let m = shifted.len();
-    if m == 0 {
-        return (Vec::new(), Vec::new());
-    }
-    let n = buf.rhs.nrows();
-    // Gram matrices in the small space.
-    let gy0: Vec<Real> = (0..m)
-        .map(|i| (0..n).map(|r| grads_free[i][r] * buf.rhs[(r, 0)]).sum())
-        .collect();
-    let gy = nalgebra::DMatrix::<Real>::from_fn(m, m, |i, j| {
-        (0..n).map(|r| grads_free[i][r] * buf.rhs[(r, 1 + j)]).sum()
-    });
-    let weight: Vec<Real> = terms
-        .rank_ones
-        .iter()
-        .map(|r| c_ext * r.stiffness)
-        .collect();
-    let mut active: Vec<bool> = terms
-        .rank_ones
-        .iter()
-        .zip(shifted)
-        .map(|(r, &g)| !r.unilateral || g > 0.0)
-        .collect();
-    let mut combo = vec![0.0; m];
-    let mut values = vec![0.0; m];
-    for _ in 0..(2 * m + 2) {
-        // u = y0 + Σ_j a_j Y_j with a_j = −c_j g_j on the active set.
-        let a: Vec<Real> = (0..m)
-            .map(|j| {
-                if active[j] {
-                    -weight[j] * shifted[j]
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let gu: Vec<Real> = (0..m)
-            .map(|i| gy0[i] + (0..m).map(|j| gy[(i, j)] * a[j]).sum::<Real>())
-            .collect();
-        let idx: Vec<usize> = (0..m).filter(|&j| active[j]).collect();
-        let k = idx.len();
-        let mut z = vec![0.0; m];
-        if k > 0 {
-            let s = nalgebra::DMatrix::<Real>::from_fn(k, k, |p, q| {
-                gy[(idx[p], idx[q])] + if p == q { 1.0 / weight[idx[p]] } else { 0.0 }
-            });
-            let rhs = nalgebra::DVector::<Real>::from_fn(k, |p, _| gu[idx[p]]);
-            let sol = s
-                .clone()
-                .cholesky()
-                .map(|ch| ch.solve(&rhs))
-                .or_else(|| s.lu().solve(&rhs))
-                .unwrap_or_else(|| nalgebra::DVector::zeros(k));
-            for (p, &j) in idx.iter().enumerate() {
-                z[j] = sol[p];
-            }
-        }
-        // Δx = y0 + Σ_j (a_j − z_j) Y_j.
-        for j in 0..m {
-            combo[j] = a[j] - z[j];
-        }
-        let mut changed = false;
-        for i in 0..m {
-            let end = shifted[i] + gy0[i] + (0..m).map(|j| gy[(i, j)] * combo[j]).sum::<Real>();
-            let r = &terms.rank_ones[i];
-            if r.unilateral {
-                let want = end > 0.0;
-                if want != active[i] {
-                    changed = true;
-                    active[i] = want;
-                }
-            }
-            values[i] = end;
-        }
-        if !changed {
-            break;
-        }
-    }
-    for i in 0..m {
-        if !active[i] {
-            values[i] = 0.0;
-        }
-    }
-    (combo, values)
 }

@@ -92,6 +92,8 @@ pub mod tetmesh;
 pub mod trajectory;
 /// Surface-to-volume discretisation.
 pub mod voxelize;
+/// Rank-one (Woodbury) updates of the factorised system.
+mod woodbury;
 
 pub use body::{BASE_TOLERANCE_M, FingerBody, FingerInputs};
 pub use contact::{ContactParams, PosedObstacles, contact_labels, surface_distances};
