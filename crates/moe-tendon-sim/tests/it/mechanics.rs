@@ -279,3 +279,20 @@ fn damped_dynamics_settle_to_the_static_gravity_sag() {
         })
     ));
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+    #[test]
+    fn any_rigid_motion_has_zero_elastic_force(
+        a in -3.2..3.2f64, b in -1.5..1.5f64, c in -3.2..3.2f64,
+        tx in -1.0..1.0f64, ty in -1.0..1.0f64, tz in -1.0..1.0f64,
+    ) {
+        let model = bar(0.01, 0.02, 2, 4);
+        let q = nalgebra::Rotation3::from_euler_angles(a, b, c).into_inner();
+        let t = Vector3::new(tx, ty, tz);
+        let moved: Vec<Point3> = model.mesh().nodes().iter().map(|p| Point3::from(q * p.coords + t)).collect();
+        let f = model.elastic_forces(&moved).unwrap();
+        let max = f.iter().map(|f| f.norm()).fold(0.0, Real::max);
+        proptest::prop_assert!(max < 1e-10, "max force {max:e} N");
+    }
+}

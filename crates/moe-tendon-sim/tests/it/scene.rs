@@ -335,3 +335,31 @@ fn a_rigidly_moving_hand_is_not_deformed_once_it_stops() {
         "fingers deformed by {worst} m after a rigid motion"
     );
 }
+
+#[test]
+fn three_and_five_finger_hands_step() {
+    for preset in [
+        moe_geom::HandPreset::ThreeFinger,
+        moe_geom::HandPreset::FiveFinger,
+    ] {
+        let config = SceneConfig {
+            hand: moe_tendon_sim::HandConfig {
+                preset,
+                finger: FingerParams {
+                    vertex_budget: 256,
+                    ..FingerParams::default()
+                },
+            },
+            voxel: VoxelParams { cell_size_m: 0.005 },
+            duration_secs: 0.02,
+            ..SceneConfig::default()
+        };
+        let (scene, state) = run(config);
+        assert_eq!(state.fingers.len(), preset.num_fingers());
+        let frame = scene.frame(&state);
+        assert!(
+            frame.fingers.iter().all(|f| f.vertices_in_hand.len()
+                == scene.hand().fingers()[0].model.mesh().num_vertices())
+        );
+    }
+}
