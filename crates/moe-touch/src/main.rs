@@ -26,6 +26,9 @@ enum Command {
     Shape(cli::shape::ShapeArgs),
     /// Run a scripted tendon-FEM scene; write surface meshes per saved frame and a summary.
     Sim(cli::sim::SimArgs),
+    /// Reconstruct an occluded surface from contact points (GPIS with a prior, sphere or constant
+    /// mean, or the non-probabilistic baseline); query the posterior at points.
+    Surface(cli::surface::SurfaceArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +38,7 @@ fn main() -> ExitCode {
         Command::Arap(args) => cli::arap::run(args),
         Command::Shape(args) => cli::shape::run(args),
         Command::Sim(args) => cli::sim::run(args),
+        Command::Surface(args) => cli::surface::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,6 +5,7 @@ pub(crate) mod arap;
 pub(crate) mod hand;
 pub(crate) mod shape;
 pub(crate) mod sim;
+pub(crate) mod surface;
 
 /// Formats an error and its causes on one line (`outer: inner: root`), without backtraces.
 pub(crate) fn one_line(err: &anyhow::Error) -> String {

@@ -4,3 +4,4 @@ mod common;
 mod hand;
 mod sim;
 mod arap;
+mod surface;

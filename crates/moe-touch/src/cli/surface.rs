@@ -1,0 +1,386 @@
+//! `moe-touch surface`: reconstruct an occluded surface from contact points with a
+//! Gaussian-process implicit surface (paper §6.1), or the non-probabilistic baseline.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use moe_geom::{Aabb, Point3, TriMesh, Vector3};
+use moe_gpis::{
+    ConstantMean, FitConfig, GpisConfig, Hyper, IcpConfig, KernelKind, MeanFunction, MeshSdfMean,
+    NonProbConfig, Observations, RegistrationKind, SphereMean, SurfaceConfig, bounds_of, condition,
+    nonprobabilistic, reconstruct, register_prior,
+};
+use serde_json::json;
+
+/// Reconstruction method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Method {
+    /// GP whose mean is the prior mesh's signed distance (the task prior).
+    Prior,
+    /// GP whose mean is a sphere fitted to the contacts.
+    Sphere,
+    /// GP with a constant mean (`--mean-value`); needs an inside (adds the contacts' centroid).
+    Constant,
+    /// Non-probabilistic baseline: prior vertices pulled to the contacts, Laplacian smoothing.
+    Nonprob,
+}
+
+/// Kernel family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Kernel {
+    /// Squared exponential (RBF).
+    Rbf,
+    /// Matérn 3/2.
+    Matern32,
+}
+
+/// Registration transform family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum Registration {
+    /// Rotation and translation.
+    Rigid,
+    /// Rotation, translation and uniform scale.
+    Similarity,
+}
+
+/// Arguments of `moe-touch surface`.
+#[derive(Debug, Args)]
+pub(crate) struct SurfaceArgs {
+    /// Contact points in metres: CSV rows `x,y,z` (SDF 0) or `x,y,z,sdf`, or a PLY point cloud
+    /// (an optional vertex scalar `sdf` gives the values).
+    #[arg(long, value_name = "FILE")]
+    contacts: PathBuf,
+    /// Prior mesh (closed; OBJ/PLY/STL). Required by `--method prior` and `nonprob`.
+    #[arg(long, value_name = "FILE")]
+    prior: Option<PathBuf>,
+    /// Reconstruction method.
+    #[arg(long, value_enum, default_value = "prior")]
+    method: Method,
+    /// Register the prior to the contacts by ICP before conditioning (rigid unless a value is
+    /// given).
+    #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "rigid", value_name = "KIND")]
+    register: Option<Registration>,
+    /// Output surface mesh (OBJ or PLY). May be omitted when only querying.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Output PLY with the surface and per-vertex posterior `variance` (m²) and `std` (m).
+    #[arg(long, value_name = "FILE")]
+    variance_out: Option<PathBuf>,
+    /// Fixed length scale (m); with --signal-variance and --noise-variance, skips fitting.
+    #[arg(long, requires_all = ["signal_variance", "noise_variance"])]
+    lengthscale: Option<f64>,
+    /// Fixed signal variance (m²).
+    #[arg(long, requires_all = ["lengthscale", "noise_variance"])]
+    signal_variance: Option<f64>,
+    /// Fixed noise variance (m²).
+    #[arg(long, requires_all = ["lengthscale", "signal_variance"])]
+    noise_variance: Option<f64>,
+    /// Value of the constant mean (m, positive = outside) for `--method constant`.
+    #[arg(long, default_value_t = 0.02)]
+    mean_value: f64,
+    /// Kernel family.
+    #[arg(long, value_enum, default_value = "rbf")]
+    kernel: Kernel,
+    /// Offset (m) of the ±d points added along the mean's normals at every contact to pin the
+    /// SDF's slope; 0 disables them.
+    #[arg(long, default_value_t = 0.01)]
+    normal_offset: f64,
+    /// Grid nodes along each axis of an equivalent cube (the grid has at most N³ nodes).
+    #[arg(long, default_value_t = 64)]
+    grid: usize,
+    /// Points (CSV `x,y,z`, metres) at which to query the posterior.
+    #[arg(long, value_name = "FILE", requires = "query_out")]
+    query: Option<PathBuf>,
+    /// Output CSV with `mean,std` (m) per query row, in the input order.
+    #[arg(long, value_name = "FILE", requires = "query")]
+    query_out: Option<PathBuf>,
+    /// Print fitted hyper-parameters, log marginal likelihood and timings as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+fn ext(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or_default()
+        .to_ascii_lowercase()
+}
+
+/// Reads observations from CSV (`x,y,z[,sdf]`) or PLY (points, optional scalar `sdf`).
+fn read_observations(path: &Path) -> Result<Observations> {
+    let (points, values): (Vec<Point3>, Vec<f64>) = match ext(path).as_str() {
+        "ply" => {
+            let ply = moe_io::read_ply(path)?;
+            let values = match ply.scalar("sdf") {
+                Some(s) => s.iter().map(|&v| f64::from(v)).collect(),
+                None => vec![0.0; ply.points.len()],
+            };
+            (ply.points, values)
+        }
+        _ => moe_io::read_points_csv(path)?
+            .into_iter()
+            .map(|r| {
+                (
+                    Point3::new(r[0], r[1], r[2]),
+                    r.get(3).copied().unwrap_or(0.0),
+                )
+            })
+            .unzip(),
+    };
+    let mut obs = Observations::new();
+    obs.add_valued(&points, &values)
+        .with_context(|| format!("reading observations from {}", path.display()))?;
+    Ok(obs)
+}
+
+fn read_prior(args: &SurfaceArgs) -> Result<TriMesh> {
+    let Some(path) = &args.prior else {
+        bail!("--method {:?} needs --prior PRIOR.obj", args.method);
+    };
+    moe_io::read_mesh(path).with_context(|| format!("reading prior {}", path.display()))
+}
+
+fn grown(b: &Aabb, frac: f64) -> Aabb {
+    let g = b.extents() * frac + Vector3::repeat(1e-3);
+    Aabb {
+        min: b.min - g,
+        max: b.max + g,
+    }
+}
+
+pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
+    if args.out.is_none() && args.query.is_none() {
+        bail!(
+            "nothing to do: give --out SURFACE.obj and/or --query POINTS.csv --query-out VALUES.csv"
+        );
+    }
+    if args.variance_out.is_some() && args.out.is_none() {
+        bail!("--variance-out needs --out (the variance is attached to the output surface)");
+    }
+    if args.grid < 2 {
+        bail!("--grid must be at least 2, got {}", args.grid);
+    }
+    let t0 = Instant::now();
+    let mut obs = read_observations(&args.contacts)?;
+    let contacts = obs.contacts();
+    let mut report = serde_json::Map::new();
+    report.insert(
+        "method".into(),
+        json!(format!("{:?}", args.method).to_lowercase()),
+    );
+    report.insert("contacts".into(), json!(contacts.len()));
+
+    // Mean function and query bounds.
+    let (mean, bounds): (Box<dyn MeanFunction>, Option<Aabb>) = match args.method {
+        Method::Prior => {
+            let mut prior = read_prior(&args)?;
+            if let Some(kind) = args.register {
+                let cfg = IcpConfig {
+                    kind: match kind {
+                        Registration::Rigid => RegistrationKind::Rigid,
+                        Registration::Similarity => RegistrationKind::Similarity,
+                    },
+                    ..IcpConfig::default()
+                };
+                let (registered, icp) = register_prior(&prior, &contacts, &cfg)?;
+                eprintln!(
+                    "surface: registered the prior ({} iterations, RMS {:.2} mm -> {:.2} mm)",
+                    icp.iterations,
+                    1e3 * icp.rms_before_m,
+                    1e3 * icp.rms_after_m
+                );
+                report.insert("registration".into(), serde_json::to_value(icp)?);
+                prior = registered;
+            }
+            let sdf = MeshSdfMean::new(&prior)
+                .with_context(|| "the prior mesh cannot serve as a signed distance")?;
+            let b = bounds_of(obs.points(), Some(&prior));
+            (Box::new(sdf), b)
+        }
+        Method::Sphere => {
+            let sphere = SphereMean::fit(&contacts).context("fitting a sphere to the contacts")?;
+            report.insert(
+                "sphere".into(),
+                json!({ "center_m": [sphere.center.x, sphere.center.y, sphere.center.z], "radius_m": sphere.radius }),
+            );
+            let r = Vector3::repeat(sphere.radius);
+            let b = bounds_of(obs.points(), None).map(|cb| {
+                let g = cb.extents() * 0.5;
+                Aabb {
+                    min: (sphere.center - r).sup(&(cb.min - g)).inf(&cb.min),
+                    max: (sphere.center + r).inf(&(cb.max + g)).sup(&cb.max),
+                }
+            });
+            (Box::new(sphere), b)
+        }
+        Method::Constant => {
+            if !(args.mean_value.is_finite()) {
+                bail!("--mean-value must be finite, got {}", args.mean_value);
+            }
+            if obs.num_interior() == 0 {
+                obs.add_centroid_interior()?;
+                eprintln!("surface: no inside observation; added the contacts' centroid as one");
+            }
+            let b = bounds_of(obs.points(), None).map(|b| grown(&b, 0.5));
+            (
+                Box::new(ConstantMean {
+                    value: args.mean_value,
+                }),
+                b,
+            )
+        }
+        Method::Nonprob => return run_nonprob(&args, &contacts, report),
+    };
+    if args.normal_offset < 0.0 || !args.normal_offset.is_finite() {
+        bail!("--normal-offset must be >= 0, got {}", args.normal_offset);
+    }
+    if args.normal_offset > 0.0 {
+        obs.add_mean_normal_offsets(&mean, args.normal_offset)?;
+    }
+    report.insert("observations".into(), json!(obs.len()));
+
+    let fixed = match (args.lengthscale, args.signal_variance, args.noise_variance) {
+        (Some(lengthscale), Some(signal_variance), Some(noise_variance)) => Some(Hyper {
+            signal_variance,
+            lengthscale,
+            noise_variance,
+        }),
+        _ => None,
+    };
+    let gpis_cfg = GpisConfig {
+        fit: FitConfig {
+            kind: match args.kernel {
+                Kernel::Rbf => KernelKind::Rbf,
+                Kernel::Matern32 => KernelKind::Matern32,
+            },
+            ..FitConfig::default()
+        },
+        fixed,
+        ..GpisConfig::default()
+    };
+    let surface_cfg = SurfaceConfig {
+        gpis: gpis_cfg,
+        max_grid_nodes: args.grid.saturating_pow(3),
+        vertex_variance: args.variance_out.is_some(),
+        ..SurfaceConfig::default()
+    };
+
+    let gpis = if let Some(out) = &args.out {
+        let bounds = bounds.context("no observations")?;
+        let (rec, gpis) = reconstruct(mean, &obs, &bounds, &surface_cfg)?;
+        moe_io::write_mesh(out, &rec.mesh)?;
+        if let Some(vpath) = &args.variance_out {
+            let mut ply = moe_io::PlyData::from_mesh(&rec.mesh);
+            ply.scalars.push((
+                "variance".into(),
+                rec.vertex_variance.iter().map(|&v| v as f32).collect(),
+            ));
+            ply.scalars.push((
+                "std".into(),
+                rec.vertex_variance
+                    .iter()
+                    .map(|&v| v.sqrt() as f32)
+                    .collect(),
+            ));
+            moe_io::write_ply(vpath, &ply)?;
+        }
+        insert_condition(&mut report, &rec.report)?;
+        report.insert("vertices".into(), json!(rec.mesh.num_vertices()));
+        report.insert("faces".into(), json!(rec.mesh.num_faces()));
+        report.insert("grid_dims".into(), json!(rec.grid.dims));
+        report.insert("timings".into(), serde_json::to_value(rec.timings)?);
+        gpis
+    } else {
+        let (gpis, cond) = condition(mean, &obs, &surface_cfg.gpis)?;
+        insert_condition(&mut report, &cond)?;
+        report.insert("timings".into(), json!({ "fit_secs": cond.secs }));
+        gpis
+    };
+
+    if let (Some(q), Some(qout)) = (&args.query, &args.query_out) {
+        let rows = moe_io::read_points_csv(q)?;
+        let pts: Vec<Point3> = rows.iter().map(|r| Point3::new(r[0], r[1], r[2])).collect();
+        let t = Instant::now();
+        let values = gpis
+            .query(&pts)
+            .with_context(|| format!("querying {}", q.display()))?;
+        let rows: Vec<Vec<f64>> = values.iter().map(|(m, s)| vec![*m, *s]).collect();
+        moe_io::write_csv(qout, &["mean", "std"], &rows)?;
+        report.insert("queries".into(), json!(pts.len()));
+        report.insert("query_secs".into(), json!(t.elapsed().as_secs_f64()));
+    }
+    report.insert("total_secs".into(), json!(t0.elapsed().as_secs_f64()));
+    finish(&args, report)
+}
+
+/// The non-probabilistic baseline: no posterior, only a mesh.
+fn run_nonprob(
+    args: &SurfaceArgs,
+    contacts: &[Point3],
+    mut report: serde_json::Map<String, serde_json::Value>,
+) -> Result<()> {
+    if args.query.is_some() || args.variance_out.is_some() {
+        bail!("--method nonprob has no posterior: --query and --variance-out need a GP method");
+    }
+    let Some(out) = &args.out else {
+        bail!("--method nonprob needs --out SURFACE.obj");
+    };
+    let prior = read_prior(args)?;
+    let t = Instant::now();
+    let mesh = nonprobabilistic(&prior, contacts, &NonProbConfig::default())?;
+    let secs = t.elapsed().as_secs_f64();
+    moe_io::write_mesh(out, &mesh)?;
+    report.insert("vertices".into(), json!(mesh.num_vertices()));
+    report.insert("faces".into(), json!(mesh.num_faces()));
+    report.insert("timings".into(), json!({ "total_secs": secs }));
+    finish(args, report)
+}
+
+fn insert_condition(
+    report: &mut serde_json::Map<String, serde_json::Value>,
+    cond: &moe_gpis::ConditionReport,
+) -> Result<()> {
+    let h = cond.hyper;
+    report.insert(
+        "hyper".into(),
+        json!({
+            "lengthscale_m": h.lengthscale,
+            "signal_variance_m2": h.signal_variance,
+            "noise_variance_m2": h.noise_variance,
+            "fitted": cond.fit.is_some(),
+        }),
+    );
+    report.insert(
+        "log_marginal_likelihood".into(),
+        json!(cond.log_marginal_likelihood),
+    );
+    report.insert("sparse".into(), json!(cond.sparse));
+    report.insert("jitter".into(), json!(cond.jitter));
+    if let Some(fit) = &cond.fit {
+        report.insert("fit".into(), serde_json::to_value(fit)?);
+    }
+    Ok(())
+}
+
+fn finish(args: &SurfaceArgs, report: serde_json::Map<String, serde_json::Value>) -> Result<()> {
+    if args.json {
+        return super::print_json(&serde_json::Value::Object(report));
+    }
+    let get = |k: &str| {
+        report
+            .get(k)
+            .map(|v| v.to_string())
+            .unwrap_or_else(|| "-".into())
+    };
+    println!(
+        "surface: method {}, {} contacts, {} vertices, hyper {}, log marginal likelihood {}",
+        get("method").trim_matches('"'),
+        get("contacts"),
+        get("vertices"),
+        get("hyper"),
+        get("log_marginal_likelihood")
+    );
+    Ok(())
+}

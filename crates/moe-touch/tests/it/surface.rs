@@ -1,0 +1,263 @@
+//! `moe-touch surface`.
+
+use moe_geom::{Point3, TriMesh, Vector3};
+use moe_gpis::SplitMix64;
+use moe_gpis::shapes::icosphere;
+
+use crate::common::{assert_one_line_error, run, scratch};
+
+fn sphere_points(r: f64, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    let mut rng = SplitMix64::new(seed);
+    (0..n)
+        .map(|_| {
+            let d = Vector3::new(rng.normal(), rng.normal(), rng.normal()).normalize() * r;
+            vec![d.x, d.y, d.z]
+        })
+        .collect()
+}
+
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object on stdout")
+}
+
+#[test]
+fn sphere_method_reconstructs_a_sphere_and_reports_fitted_hyper_parameters() {
+    let dir = scratch("surface-sphere");
+    let contacts = dir.join("contacts.csv");
+    moe_io::write_csv(&contacts, &["x", "y", "z"], &sphere_points(0.05, 200, 1)).unwrap();
+    let out_path = dir.join("surface.obj");
+    let out = run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--grid",
+        "40",
+        "--out",
+        out_path.to_str().unwrap(),
+        "--json",
+    ]);
+    let report = json_of(&out);
+    assert_eq!(report["contacts"], 200);
+    assert_eq!(report["hyper"]["fitted"], true);
+    assert!(
+        report["log_marginal_likelihood"]
+            .as_f64()
+            .unwrap()
+            .is_finite()
+    );
+    let mesh = moe_io::read_mesh(&out_path).unwrap();
+    mesh.require_closed().unwrap();
+    let worst = mesh
+        .vertices()
+        .iter()
+        .map(|p| (p.coords.norm() - 0.05).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3, "{worst}");
+}
+
+#[test]
+fn prior_method_writes_variance_and_answers_queries_in_order() {
+    let dir = scratch("surface-prior");
+    let prior = dir.join("prior.obj");
+    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    let contacts = dir.join("contacts.csv");
+    // The body is 10 mm larger than the prior on the patted cap.
+    let pts: Vec<Vec<f64>> = sphere_points(0.1, 300, 2)
+        .into_iter()
+        .filter(|p| p[2] > 0.03)
+        .collect();
+    moe_io::write_csv(&contacts, &["x", "y", "z"], &pts).unwrap();
+    let queries = dir.join("q.csv");
+    moe_io::write_csv(
+        &queries,
+        &["x", "y", "z"],
+        &[
+            vec![0.0, 0.0, 0.1],
+            vec![0.0, 0.0, 0.0],
+            vec![0.3, 0.0, 0.0],
+        ],
+    )
+    .unwrap();
+    let (out_path, var_path, q_out) = (dir.join("s.obj"), dir.join("v.ply"), dir.join("qv.csv"));
+    let out = run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--prior",
+        prior.to_str().unwrap(),
+        "--grid",
+        "40",
+        "--out",
+        out_path.to_str().unwrap(),
+        "--variance-out",
+        var_path.to_str().unwrap(),
+        "--query",
+        queries.to_str().unwrap(),
+        "--query-out",
+        q_out.to_str().unwrap(),
+        "--json",
+    ]);
+    let report = json_of(&out);
+    assert_eq!(report["queries"], 3);
+    let ply = moe_io::read_ply(&var_path).unwrap();
+    let std = ply.scalar("std").expect("std scalar");
+    assert_eq!(std.len(), ply.points.len());
+    // Standard deviation: small on the patted top, larger on the unobserved bottom.
+    let top: Vec<f32> = ply
+        .points
+        .iter()
+        .zip(std)
+        .filter(|(p, _)| p.z > 0.07)
+        .map(|(_, s)| *s)
+        .collect();
+    let bottom: Vec<f32> = ply
+        .points
+        .iter()
+        .zip(std)
+        .filter(|(p, _)| p.z < -0.07)
+        .map(|(_, s)| *s)
+        .collect();
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    assert!(
+        mean(&top) < mean(&bottom),
+        "{} vs {}",
+        mean(&top),
+        mean(&bottom)
+    );
+    let table = moe_io::read_csv(&q_out).unwrap();
+    assert_eq!(
+        table.header.as_deref(),
+        Some(&["mean".to_owned(), "std".to_owned()][..])
+    );
+    assert_eq!(table.rows.len(), 3);
+    assert!(
+        table.rows[0][0].abs() < 2e-3,
+        "on the contacts: {:?}",
+        table.rows[0]
+    );
+    assert!(table.rows[1][0] < -0.05, "inside: {:?}", table.rows[1]);
+    // Outside, 0.21 m from the prior: the (uniform 10 mm) correction is long-range here.
+    assert!(
+        (table.rows[2][0] - 0.21).abs() < 0.015,
+        "far outside: {:?}",
+        table.rows[2]
+    );
+    let mesh = moe_io::read_mesh(&out_path).unwrap();
+    let top_r = mesh
+        .vertices()
+        .iter()
+        .filter(|p| p.z > 0.08)
+        .map(|p| p.coords.norm())
+        .fold(0.0, f64::max);
+    assert!(
+        (top_r - 0.1).abs() < 2e-3,
+        "top follows the contacts: {top_r}"
+    );
+}
+
+#[test]
+fn nonprob_baseline_writes_a_closed_mesh() {
+    let dir = scratch("surface-nonprob");
+    let prior = dir.join("prior.obj");
+    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    let contacts = dir.join("contacts.csv");
+    moe_io::write_csv(&contacts, &[], &sphere_points(0.095, 50, 3)).unwrap();
+    let out_path = dir.join("np.obj");
+    let out = run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--prior",
+        prior.to_str().unwrap(),
+        "--method",
+        "nonprob",
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    moe_io::read_mesh(&out_path)
+        .unwrap()
+        .require_closed()
+        .unwrap();
+}
+
+#[test]
+fn bad_inputs_give_one_line_errors() {
+    let dir = scratch("surface-bad");
+    let contacts = dir.join("c.csv");
+    moe_io::write_csv(&contacts, &[], &sphere_points(0.05, 3, 4)).unwrap();
+    let out_path = dir.join("s.obj");
+    let o = out_path.to_str().unwrap();
+    // Too few contacts for a sphere.
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--out",
+        o,
+    ]));
+    assert!(err.contains("at least 4"), "{err}");
+    // A prior method without a prior.
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--out",
+        o,
+    ]));
+    assert!(err.contains("--prior"), "{err}");
+    // A non-watertight prior.
+    let (v, mut f) = icosphere(2, 0.05).into_parts();
+    f.pop();
+    let open = dir.join("open.obj");
+    moe_io::write_mesh(&open, &TriMesh::new(v, f).unwrap()).unwrap();
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--prior",
+        open.to_str().unwrap(),
+        "--out",
+        o,
+    ]));
+    assert!(err.contains("watertight"), "{err}");
+    // A NaN coordinate.
+    let nan = dir.join("nan.csv");
+    std::fs::write(&nan, "x,y,z\n0,0,0.05\n0,nan,0.05\n").unwrap();
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        nan.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--out",
+        o,
+    ]));
+    assert!(
+        err.contains("nan") || err.contains("finite") || err.contains("number"),
+        "{err}"
+    );
+    // Nothing to do.
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+    ]));
+    assert!(err.contains("--out"), "{err}");
+    let _ = Point3::origin();
+}
