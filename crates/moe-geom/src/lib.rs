@@ -4,6 +4,8 @@
 //! Architecture invariant: depends on no other crate of this workspace, does no file IO, and
 //! never panics on user data — constructors validate and return [`GeomError`].
 
+/// Procedural heads and arms.
+pub mod bodies;
 /// k-d tree queries and Chamfer distances.
 pub mod chamfer;
 /// Cotangent edge weights and the cotangent Laplacian.
@@ -20,6 +22,8 @@ pub mod math;
 pub mod mesh;
 /// A small seeded random-number generator (SplitMix64).
 pub mod rng;
+/// Procedural closed meshes: icospheres, star-shaped surfaces, superquadrics.
+pub mod shapes;
 /// Edges, one-rings, boundary loops, connected components.
 pub mod topology;
 /// Rigid transforms named by frame.

@@ -9,15 +9,19 @@
 use crate::math::Real;
 
 /// SplitMix64 with uniform, normal and integer helpers.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct SeededRng {
     state: u64,
+    spare_normal: Option<Real>,
 }
 
 impl SeededRng {
     /// A generator whose whole stream is determined by `seed`.
     pub fn new(seed: u64) -> Self {
-        Self { state: seed }
+        Self {
+            state: seed,
+            spare_normal: None,
+        }
     }
 
     /// The next 64 random bits.
@@ -51,11 +55,17 @@ impl SeededRng {
         }
     }
 
-    /// Standard normal sample (Box–Muller; one of the pair is discarded for simplicity).
+    /// Standard normal sample (Box–Muller; the pair's second value is kept for the next call).
     pub fn normal(&mut self) -> Real {
-        let u1 = 1.0 - self.uniform(); // (0, 1]
+        if let Some(z) = self.spare_normal.take() {
+            return z;
+        }
+        let u1 = 1.0 - self.uniform(); // (0, 1]: the logarithm is finite
         let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        let r = (-2.0 * u1.ln()).sqrt();
+        let t = std::f64::consts::TAU * u2;
+        self.spare_normal = Some(r * t.sin());
+        r * t.cos()
     }
 
     /// An independent generator for stream `stream` (e.g. one per trajectory or per shard).
