@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::cells::Cells;
 use crate::config::ArapConfig;
 use crate::error::ArapError;
-use crate::rotation::fit_rotation_from;
+use crate::rotation::{fit_rotation_from, orthonormalize};
 use crate::system::{FIXED, ReducedSystem, SmallCholesky};
 
 /// Meshes with fewer vertices run the local step sequentially even when `parallel` is set: below
@@ -279,8 +279,11 @@ impl ArapSolver {
                 ws.deformed.copy_from_slice(&self.rest);
                 ws.rot_prev.fill(Matrix3::identity());
             }
-            Start::Positions(p) => ws.deformed.copy_from_slice(p),
-            Start::Previous => {}
+            Start::Positions(p) => {
+                ws.deformed.copy_from_slice(p);
+                ws.rot_prev.iter_mut().for_each(|r| *r = orthonormalize(r));
+            }
+            Start::Previous => ws.rot_prev.iter_mut().for_each(|r| *r = orthonormalize(r)),
         }
         self.prepare_frame(ws, fixed_targets, handle_targets, info);
         let iterations = self.config.iterations;
