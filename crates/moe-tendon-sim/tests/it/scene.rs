@@ -363,3 +363,13 @@ fn three_and_five_finger_hands_step() {
         );
     }
 }
+
+#[test]
+fn scenes_and_states_can_move_between_threads() {
+    fn assert_send<T: Send>() {}
+    fn assert_sync<T: Sync>() {}
+    assert_send::<Scene>();
+    assert_send::<moe_tendon_sim::SimState>();
+    assert_sync::<moe_tendon_sim::SimState>();
+    assert_sync::<moe_tendon_sim::FingerBody>();
+}
