@@ -50,7 +50,14 @@ impl Default for CameraIntrinsics {
     /// short-range RealSense (D405-class) at that resolution: wide enough to see the markers
     /// near the finger bases from a wrist mount.
     fn default() -> Self {
-        Self { width: 640, height: 480, fx: 380.0, fy: 380.0, cx: 319.5, cy: 239.5 }
+        Self {
+            width: 640,
+            height: 480,
+            fx: 380.0,
+            fy: 380.0,
+            cx: 319.5,
+            cy: 239.5,
+        }
     }
 }
 
@@ -72,12 +79,20 @@ impl CameraIntrinsics {
         }
         for (name, v) in [("camera fx", self.fx), ("camera fy", self.fy)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(GeomError::InvalidParameter { name, value: v, reason: "must be positive" });
+                return Err(GeomError::InvalidParameter {
+                    name,
+                    value: v,
+                    reason: "must be positive",
+                });
             }
         }
         for (name, v) in [("camera cx", self.cx), ("camera cy", self.cy)] {
             if !v.is_finite() {
-                return Err(GeomError::InvalidParameter { name, value: v, reason: "must be finite" });
+                return Err(GeomError::InvalidParameter {
+                    name,
+                    value: v,
+                    reason: "must be finite",
+                });
             }
         }
         Ok(())
@@ -147,8 +162,16 @@ impl NoiseModel {
 
     fn validate(&self) -> Result<(), GeomError> {
         let checks = [
-            ("depth_std_base_m", self.depth_std_base_m, self.depth_std_base_m >= 0.0),
-            ("depth_std_per_m2", self.depth_std_per_m2, self.depth_std_per_m2 >= 0.0),
+            (
+                "depth_std_base_m",
+                self.depth_std_base_m,
+                self.depth_std_base_m >= 0.0,
+            ),
+            (
+                "depth_std_per_m2",
+                self.depth_std_per_m2,
+                self.depth_std_per_m2 >= 0.0,
+            ),
             ("color_std", self.color_std, self.color_std >= 0.0),
             (
                 "grazing_dropout_deg",
@@ -156,11 +179,19 @@ impl NoiseModel {
                 (0.0..=90.0).contains(&self.grazing_dropout_deg),
             ),
             ("min_depth_m", self.min_depth_m, self.min_depth_m >= 0.0),
-            ("max_depth_m", self.max_depth_m, self.max_depth_m > self.min_depth_m),
+            (
+                "max_depth_m",
+                self.max_depth_m,
+                self.max_depth_m > self.min_depth_m,
+            ),
         ];
         for (name, value, ok) in checks {
             if !ok || value.is_nan() {
-                return Err(GeomError::InvalidParameter { name, value, reason: "out of range" });
+                return Err(GeomError::InvalidParameter {
+                    name,
+                    value,
+                    reason: "out of range",
+                });
             }
         }
         Ok(())
@@ -256,7 +287,10 @@ impl RgbdCamera {
     pub fn render(&self, items: &[RenderItem<'_>], seed: u64) -> Result<RgbdImage, GeomError> {
         self.intrinsics.validate()?;
         self.noise.validate()?;
-        let (w, h) = (self.intrinsics.width as usize, self.intrinsics.height as usize);
+        let (w, h) = (
+            self.intrinsics.width as usize,
+            self.intrinsics.height as usize,
+        );
         let mut hits: Vec<Option<Hit>> = vec![None; w * h];
         let camera_from_hand = self.hand_from_camera.inverse();
         let mut markers_in_camera: Vec<Vec<Point3>> = Vec::with_capacity(items.len());
@@ -265,11 +299,13 @@ impl RgbdCamera {
             for (face, tri) in item.faces.iter().enumerate() {
                 let mut q = [Point3::origin(); 3];
                 for (k, &v) in tri.iter().enumerate() {
-                    q[k] = *verts.get(v as usize).ok_or(GeomError::FaceIndexOutOfRange {
-                        face,
-                        index: v,
-                        len: verts.len(),
-                    })?;
+                    q[k] = *verts
+                        .get(v as usize)
+                        .ok_or(GeomError::FaceIndexOutOfRange {
+                            face,
+                            index: v,
+                            len: verts.len(),
+                        })?;
                 }
                 self.raster_triangle(&q, index as u32, &mut hits);
             }
@@ -304,7 +340,13 @@ impl RgbdCamera {
         }
     }
 
-    fn raster_clipped(&self, q: &[Point3; 3], normal: &Vector3, item: u32, hits: &mut [Option<Hit>]) {
+    fn raster_clipped(
+        &self,
+        q: &[Point3; 3],
+        normal: &Vector3,
+        item: u32,
+        hits: &mut [Option<Hit>],
+    ) {
         let cam = &self.intrinsics;
         let uv = q.map(|p| cam.project(&p).expect("clipped to z >= near"));
         let edge = |a: (Real, Real), b: (Real, Real), p: (Real, Real)| {
@@ -315,10 +357,30 @@ impl RgbdCamera {
             return;
         }
         let (w, h) = (cam.width as Real, cam.height as Real);
-        let min_u = uv.iter().map(|p| p.0).fold(Real::INFINITY, Real::min).ceil().max(0.0);
-        let max_u = uv.iter().map(|p| p.0).fold(Real::NEG_INFINITY, Real::max).floor().min(w - 1.0);
-        let min_v = uv.iter().map(|p| p.1).fold(Real::INFINITY, Real::min).ceil().max(0.0);
-        let max_v = uv.iter().map(|p| p.1).fold(Real::NEG_INFINITY, Real::max).floor().min(h - 1.0);
+        let min_u = uv
+            .iter()
+            .map(|p| p.0)
+            .fold(Real::INFINITY, Real::min)
+            .ceil()
+            .max(0.0);
+        let max_u = uv
+            .iter()
+            .map(|p| p.0)
+            .fold(Real::NEG_INFINITY, Real::max)
+            .floor()
+            .min(w - 1.0);
+        let min_v = uv
+            .iter()
+            .map(|p| p.1)
+            .fold(Real::INFINITY, Real::min)
+            .ceil()
+            .max(0.0);
+        let max_v = uv
+            .iter()
+            .map(|p| p.1)
+            .fold(Real::NEG_INFINITY, Real::max)
+            .floor()
+            .min(h - 1.0);
         if min_u > max_u || min_v > max_v {
             return;
         }
@@ -340,10 +402,18 @@ impl RgbdCamera {
                     continue;
                 }
                 let point = Point3::from(
-                    (q[0].coords * (l0 * inv_z[0]) + q[1].coords * (l1 * inv_z[1]) + q[2].coords * (l2 * inv_z[2])) * z,
+                    (q[0].coords * (l0 * inv_z[0])
+                        + q[1].coords * (l1 * inv_z[1])
+                        + q[2].coords * (l2 * inv_z[2]))
+                        * z,
                 );
                 let cos_view = normal.dot(&point.coords.normalize()).abs();
-                *slot = Some(Hit { z, item, cos_view, point });
+                *slot = Some(Hit {
+                    z,
+                    item,
+                    cos_view,
+                    point,
+                });
             }
         }
     }
@@ -383,12 +453,21 @@ impl RgbdCamera {
                 }
             };
             for c in rgb {
-                let noisy = if noise.color_std > 0.0 { c + noise.color_std * rng.normal() } else { c };
+                let noisy = if noise.color_std > 0.0 {
+                    c + noise.color_std * rng.normal()
+                } else {
+                    c
+                };
                 color.push(noisy.round().clamp(0.0, 255.0) as u8);
             }
             depth_m.push(depth as f32);
         }
-        RgbdImage { width: self.intrinsics.width, height: self.intrinsics.height, color, depth_m }
+        RgbdImage {
+            width: self.intrinsics.width,
+            height: self.intrinsics.height,
+            color,
+            depth_m,
+        }
     }
 }
 
@@ -399,40 +478,71 @@ mod tests {
 
     /// A square of side `size` centred on the camera axis at depth `z` in the camera frame,
     /// expressed in the hand frame for `camera`.
-    fn plane_facing(camera: &RgbdCamera, z: Real, size: Real, tilt_rad: Real) -> (Vec<Point3>, Vec<[u32; 3]>) {
+    fn plane_facing(
+        camera: &RgbdCamera,
+        z: Real,
+        size: Real,
+        tilt_rad: Real,
+    ) -> (Vec<Point3>, Vec<[u32; 3]>) {
         let rot = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), tilt_rad);
         let s = 0.5 * size;
-        let v = [(-s, -s), (s, -s), (s, s), (-s, s)]
-            .map(|(x, y)| camera.hand_from_camera.transform_point(&(Point3::new(0.0, 0.0, z) + rot * Vector3::new(x, y, 0.0))));
+        let v = [(-s, -s), (s, -s), (s, s), (-s, s)].map(|(x, y)| {
+            camera
+                .hand_from_camera
+                .transform_point(&(Point3::new(0.0, 0.0, z) + rot * Vector3::new(x, y, 0.0)))
+        });
         (v.to_vec(), vec![[0, 1, 2], [0, 2, 3]])
     }
 
     fn item<'a>(v: &'a [Point3], f: &'a [[u32; 3]], markers: &'a [Point3]) -> RenderItem<'a> {
-        RenderItem { vertices_in_hand: v, faces: f, albedo: [200, 200, 200], markers_in_hand: markers, marker_radius_m: 0.003 }
+        RenderItem {
+            vertices_in_hand: v,
+            faces: f,
+            albedo: [200, 200, 200],
+            markers_in_hand: markers,
+            marker_radius_m: 0.003,
+        }
     }
 
     #[test]
     fn ideal_depth_of_a_fronto_parallel_plane_is_exact() {
-        let camera = RgbdCamera { noise: NoiseModel::ideal(), ..RgbdCamera::default() };
+        let camera = RgbdCamera {
+            noise: NoiseModel::ideal(),
+            ..RgbdCamera::default()
+        };
         let (v, f) = plane_facing(&camera, 0.5, 2.0, 0.0);
         let img = camera.render(&[item(&v, &f, &[])], 1).unwrap();
-        assert!(img.depth_m.iter().all(|&d| (Real::from(d) - 0.5).abs() < 1e-6));
+        assert!(
+            img.depth_m
+                .iter()
+                .all(|&d| (Real::from(d) - 0.5).abs() < 1e-6)
+        );
     }
 
     #[test]
     fn tilted_plane_depth_matches_ray_plane_intersection() {
-        let camera = RgbdCamera { noise: NoiseModel::ideal(), ..RgbdCamera::default() };
+        let camera = RgbdCamera {
+            noise: NoiseModel::ideal(),
+            ..RgbdCamera::default()
+        };
         let tilt = 0.4;
         let (v, f) = plane_facing(&camera, 0.4, 2.0, tilt);
         let img = camera.render(&[item(&v, &f, &[])], 1).unwrap();
         let n = Vector3::new(tilt.sin(), 0.0, tilt.cos()); // plane normal in the camera frame
         let k = &camera.intrinsics;
         for (i, j) in [(10, 10), (320, 240), (600, 50), (200, 470)] {
-            let ray = Vector3::new((Real::from(i) - k.cx) / k.fx, (Real::from(j) - k.cy) / k.fy, 1.0);
+            let ray = Vector3::new(
+                (Real::from(i) - k.cx) / k.fx,
+                (Real::from(j) - k.cy) / k.fy,
+                1.0,
+            );
             let t = 0.4 * n.z / n.dot(&ray); // point on the plane: (0, 0, 0.4)
             let expected = t * ray.z;
             let got = Real::from(img.depth(i, j));
-            assert!((got - expected).abs() < 1e-5 * expected, "pixel ({i},{j}): {got} vs {expected}");
+            assert!(
+                (got - expected).abs() < 1e-5 * expected,
+                "pixel ({i},{j}): {got} vs {expected}"
+            );
         }
     }
 
@@ -445,10 +555,23 @@ mod tests {
         let sigma = camera.noise.depth_std(z);
         let n = img.depth_m.len() as Real;
         let mean = img.depth_m.iter().map(|&d| Real::from(d)).sum::<Real>() / n;
-        let var = img.depth_m.iter().map(|&d| (Real::from(d) - mean).powi(2)).sum::<Real>() / n;
-        assert!(img.depth_m.iter().all(|&d| (Real::from(d) - z).abs() < 6.0 * sigma));
+        let var = img
+            .depth_m
+            .iter()
+            .map(|&d| (Real::from(d) - mean).powi(2))
+            .sum::<Real>()
+            / n;
+        assert!(
+            img.depth_m
+                .iter()
+                .all(|&d| (Real::from(d) - z).abs() < 6.0 * sigma)
+        );
         assert!((mean - z).abs() < 0.05 * sigma, "mean {mean}");
-        assert!((var.sqrt() / sigma - 1.0).abs() < 0.02, "std {} vs {sigma}", var.sqrt());
+        assert!(
+            (var.sqrt() / sigma - 1.0).abs() < 0.02,
+            "std {} vs {sigma}",
+            var.sqrt()
+        );
         // Same seed, same bytes; another seed, another image.
         assert_eq!(img, camera.render(&[item(&v, &f, &[])], 7).unwrap());
         assert_ne!(img, camera.render(&[item(&v, &f, &[])], 8).unwrap());
@@ -466,12 +589,22 @@ mod tests {
         for j in 0..img.height {
             if img.rgb(centre, j) != BACKGROUND {
                 centre_hits += 1;
-                assert_eq!(img.depth(centre, j), 0.0, "grazing pixel ({centre},{j}) has depth");
+                assert_eq!(
+                    img.depth(centre, j),
+                    0.0,
+                    "grazing pixel ({centre},{j}) has depth"
+                );
             }
         }
-        assert!(centre_hits > 0, "the plane is visible along the centre column");
+        assert!(
+            centre_hits > 0,
+            "the plane is visible along the centre column"
+        );
         let right = camera.intrinsics.width - 1;
-        assert!(img.depth(right, camera.intrinsics.cy as u32) > 0.0, "oblique but not grazing");
+        assert!(
+            img.depth(right, camera.intrinsics.cy as u32) > 0.0,
+            "oblique but not grazing"
+        );
         let (v, f) = plane_facing(&camera, 5.0, 40.0, 0.0);
         let img = camera.render(&[item(&v, &f, &[])], 3).unwrap();
         assert!(img.depth_m.iter().all(|&d| d == 0.0), "beyond max depth");
@@ -482,7 +615,12 @@ mod tests {
     }
 
     /// Centroid of the red pixels within `radius_px` of `(u, v)`.
-    fn red_centroid(img: &RgbdImage, u: Real, v: Real, radius_px: Real) -> Option<(Real, Real, usize)> {
+    fn red_centroid(
+        img: &RgbdImage,
+        u: Real,
+        v: Real,
+        radius_px: Real,
+    ) -> Option<(Real, Real, usize)> {
         let (mut su, mut sv, mut n) = (0.0, 0.0, 0usize);
         for j in 0..img.height {
             for i in 0..img.width {
@@ -498,24 +636,40 @@ mod tests {
         (n > 0).then(|| (su / n as Real, sv / n as Real, n))
     }
 
-    fn hand_items(hand: &HandModel) -> Vec<(Vec<Point3>, Vec<[u32; 3]>, Vec<Point3>)> {
+    /// Vertices in the hand frame, faces and marker centres of one finger.
+    type FingerData = (Vec<Point3>, Vec<[u32; 3]>, Vec<Point3>);
+
+    fn hand_items(hand: &HandModel) -> Vec<FingerData> {
         (0..hand.num_fingers())
             .map(|i| {
                 let f = &hand.fingers()[i];
-                let markers = f.hand_from_finger.transform_points(&f.model.marker_positions());
-                (hand.rest_vertices_in_hand(i), f.model.mesh().faces().to_vec(), markers)
+                let markers = f
+                    .hand_from_finger
+                    .transform_points(&f.model.marker_positions());
+                (
+                    hand.rest_vertices_in_hand(i),
+                    f.model.mesh().faces().to_vec(),
+                    markers,
+                )
             })
             .collect()
     }
 
     #[test]
     fn a_marker_seen_head_on_is_centred_on_its_projection() {
-        let camera = RgbdCamera { noise: NoiseModel::ideal(), ..RgbdCamera::default() };
+        let camera = RgbdCamera {
+            noise: NoiseModel::ideal(),
+            ..RgbdCamera::default()
+        };
         let (v, f) = plane_facing(&camera, 0.3, 1.0, 0.0);
         // Off-centre markers, in the hand frame, on the plane.
         let markers: Vec<Point3> = [(0.02, -0.01), (-0.05, 0.04)]
             .iter()
-            .map(|&(x, y)| camera.hand_from_camera.transform_point(&Point3::new(x, y, 0.3)))
+            .map(|&(x, y)| {
+                camera
+                    .hand_from_camera
+                    .transform_point(&Point3::new(x, y, 0.3))
+            })
             .collect();
         let img = camera.render(&[item(&v, &f, &markers)], 0).unwrap();
         let camera_from_hand = camera.hand_from_camera.inverse();
@@ -525,8 +679,14 @@ mod tests {
             let r_px = 0.003 * camera.intrinsics.fx / p.z;
             let (cu, cv, n) = red_centroid(&img, u, v, 1.5 * r_px).unwrap();
             let area = std::f64::consts::PI * r_px * r_px;
-            assert!((n as Real / area - 1.0).abs() < 0.1, "{n} pixels for a disc of {area:.0}");
-            assert!((cu - u).abs() < 0.3 && (cv - v).abs() < 0.3, "({cu},{cv}) vs ({u},{v})");
+            assert!(
+                (n as Real / area - 1.0).abs() < 0.1,
+                "{n} pixels for a disc of {area:.0}"
+            );
+            assert!(
+                (cu - u).abs() < 0.3 && (cv - v).abs() < 0.3,
+                "({cu},{cv}) vs ({u},{v})"
+            );
         }
     }
 
@@ -536,7 +696,10 @@ mod tests {
         // marker patch is foreshortened and partly behind the finger's curvature: its pixel
         // centroid lies within a fraction of the marker's projected radius of the projected
         // centre, and the centre pixel itself is red.
-        let camera = RgbdCamera { noise: NoiseModel::ideal(), ..RgbdCamera::default() };
+        let camera = RgbdCamera {
+            noise: NoiseModel::ideal(),
+            ..RgbdCamera::default()
+        };
         let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
         let data = hand_items(&hand);
         let camera_from_hand = camera.hand_from_camera.inverse();
@@ -547,17 +710,25 @@ mod tests {
                 let items: Vec<RenderItem<'_>> = data
                     .iter()
                     .enumerate()
-                    .map(|(g, (v, fc, _))| item(v, fc, if g == f { std::slice::from_ref(m) } else { &[] }))
+                    .map(|(g, (v, fc, _))| {
+                        item(v, fc, if g == f { std::slice::from_ref(m) } else { &[] })
+                    })
                     .collect();
                 let img = camera.render(&items, 0).unwrap();
                 let p = camera_from_hand.transform_point(m);
                 let (u, v) = camera.intrinsics.project(&p).unwrap();
-                assert!(is_marker_red(img.rgb(u.round() as u32, v.round() as u32)), "centre of marker at ({u:.1},{v:.1}) is not red");
+                assert!(
+                    is_marker_red(img.rgb(u.round() as u32, v.round() as u32)),
+                    "centre of marker at ({u:.1},{v:.1}) is not red"
+                );
                 let r_px = 0.003 * camera.intrinsics.fx / p.z;
                 let (cu, cv, n) = red_centroid(&img, u, v, Real::INFINITY).expect("marker visible");
                 assert!(n >= 20, "marker at ({u:.1},{v:.1}) covers {n} pixels");
                 let err = ((cu - u).powi(2) + (cv - v).powi(2)).sqrt();
-                assert!(err < 0.5 * r_px, "marker at ({u:.1},{v:.1}) seen at ({cu:.1},{cv:.1}), radius {r_px:.1} px");
+                assert!(
+                    err < 0.5 * r_px,
+                    "marker at ({u:.1},{v:.1}) seen at ({cu:.1},{cv:.1}), radius {r_px:.1} px"
+                );
                 checked += 1;
             }
         }
@@ -566,7 +737,10 @@ mod tests {
 
     #[test]
     fn an_object_in_front_of_a_marker_hides_it() {
-        let camera = RgbdCamera { noise: NoiseModel::ideal(), ..RgbdCamera::default() };
+        let camera = RgbdCamera {
+            noise: NoiseModel::ideal(),
+            ..RgbdCamera::default()
+        };
         let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
         let data = hand_items(&hand);
         let camera_from_hand = camera.hand_from_camera.inverse();
@@ -577,16 +751,26 @@ mod tests {
         let s = 0.004;
         let plate: Vec<Point3> = [(-s, -s), (s, -s), (s, s), (-s, s)]
             .iter()
-            .map(|&(x, y)| camera.hand_from_camera.transform_point(&(mid + Vector3::new(x, y, 0.0))))
+            .map(|&(x, y)| {
+                camera
+                    .hand_from_camera
+                    .transform_point(&(mid + Vector3::new(x, y, 0.0)))
+            })
             .collect();
         let plate_faces = vec![[0, 1, 2], [0, 2, 3]];
         let mut items: Vec<RenderItem<'_>> = data.iter().map(|(v, f, mk)| item(v, f, mk)).collect();
         let (u, v) = camera.intrinsics.project(&m).unwrap();
         let before = camera.render(&items, 0).unwrap();
-        assert!(red_centroid(&before, u, v, 3.0).is_some(), "visible without the plate");
+        assert!(
+            red_centroid(&before, u, v, 3.0).is_some(),
+            "visible without the plate"
+        );
         items.push(item(&plate, &plate_faces, &[]));
         let img = camera.render(&items, 0).unwrap();
-        assert!(red_centroid(&img, u, v, 3.0).is_none(), "hidden marker must not be red");
+        assert!(
+            red_centroid(&img, u, v, 3.0).is_none(),
+            "hidden marker must not be red"
+        );
         // The same marker of the other finger stays visible.
         let m2 = camera_from_hand.transform_point(&data[1].2[2]);
         let (u2, v2) = camera.intrinsics.project(&m2).unwrap();
@@ -596,12 +780,18 @@ mod tests {
     #[test]
     fn bad_intrinsics_are_rejected() {
         let camera = RgbdCamera {
-            intrinsics: CameraIntrinsics { fx: 0.0, ..CameraIntrinsics::default() },
+            intrinsics: CameraIntrinsics {
+                fx: 0.0,
+                ..CameraIntrinsics::default()
+            },
             ..RgbdCamera::default()
         };
         assert!(matches!(
             camera.render(&[], 0),
-            Err(GeomError::InvalidParameter { name: "camera fx", .. })
+            Err(GeomError::InvalidParameter {
+                name: "camera fx",
+                ..
+            })
         ));
     }
 }

@@ -64,6 +64,8 @@
 
 /// A simulated finger: tet mesh, fixed base, embedded surface and tendons.
 pub mod body;
+/// The virtual wrist RGB-D camera (rasteriser and noise model).
+pub mod camera;
 /// Penalty contact, friction and contact labels.
 pub mod contact;
 /// Linear embedding of points in tetrahedra.
@@ -80,8 +82,12 @@ pub mod material;
 pub mod obstacle;
 /// Polar decomposition.
 pub mod polar;
+/// Randomised contact scenes for training data.
+pub mod randomize;
 /// Hand-level scenes with explicit state.
 pub mod scene;
+/// Triangle meshes of obstacle surfaces.
+pub mod surface;
 /// Tendons: embedded cables driven by displacement or force.
 pub mod tendon;
 /// Interaction terms (forces at embedded points, couplings, rank-one penalties).
