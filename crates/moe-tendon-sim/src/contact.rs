@@ -140,7 +140,7 @@ pub(crate) fn add_contact_terms(
 }
 
 /// Per surface vertex: the smallest signed distance to any obstacle at poses `poses`
-/// (`+∞` without obstacles), metres.
+/// (`+∞` without obstacles; 0 for a point exactly on an obstacle's surface), metres.
 pub fn surface_distances(
     surface_in_world: &[Point3],
     obstacles: &[Obstacle],
@@ -152,7 +152,8 @@ pub fn surface_distances(
             obstacles
                 .iter()
                 .zip(poses)
-                .filter_map(|(o, pose)| o.signed_distance(pose, p).map(|s| s.distance_m))
+                // A point exactly on the surface has no normal but distance 0.
+                .map(|(o, pose)| o.signed_distance(pose, p).map_or(0.0, |s| s.distance_m))
                 .fold(Real::INFINITY, Real::min)
         })
         .collect()
@@ -164,4 +165,35 @@ pub fn contact_labels(distances_m: &[Real], params: &ContactParams) -> Vec<bool>
         .iter()
         .map(|&d| d < params.contact_distance_m)
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::obstacle::{ObstacleConfig, ObstacleShape};
+    use crate::trajectory::PoseTrajectory;
+
+    #[test]
+    fn labels_follow_the_distance_rule_including_points_on_the_surface() {
+        let ball = Obstacle::new(
+            0,
+            &ObstacleConfig {
+                shape: ObstacleShape::Ball { radius_m: 0.01 },
+                trajectory: PoseTrajectory::default(),
+            },
+        )
+        .unwrap();
+        let pts = [
+            Point3::new(0.0, 0.0, 0.0105), // 0.5 mm outside: labelled
+            Point3::new(0.0, 0.0, 0.0115), // 1.5 mm outside: not labelled
+            Point3::new(0.0, 0.01, 0.0),   // on the surface: labelled
+            Point3::new(0.0, 0.0, 0.005),  // inside: labelled
+        ];
+        let d = surface_distances(&pts, std::slice::from_ref(&ball), &[Iso3::identity()]);
+        assert!((d[0] - 0.0005).abs() < 1e-12);
+        assert_eq!(d[2], 0.0);
+        let labels = contact_labels(&d, &ContactParams::default());
+        assert_eq!(labels, vec![true, false, true, true]);
+        assert_eq!(surface_distances(&pts, &[], &[]), vec![Real::INFINITY; 4]);
+    }
 }
