@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 mod ci;
 mod eval;
 mod fixtures;
+mod gen_data;
 
 #[derive(Debug, Parser)]
 #[command(name = "xtask", about = "MOE-Touch project automation")]
@@ -21,6 +22,8 @@ enum Command {
     Ci(ci::CiArgs),
     /// Run an evaluation benchmark (`surface`: GPIS reconstruction on head and arm scenes).
     Eval(eval::EvalArgs),
+    /// Generate a labelled training set with the tendon FEM simulator (sharded, resumable).
+    GenData(gen_data::GenDataArgs),
     /// Check the golden fixtures against freshly computed results, or rewrite them.
     Fixtures(fixtures::FixturesArgs),
 }
@@ -30,6 +33,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Ci(args) => ci::run(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::GenData(args) => gen_data::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
     };
     match result {

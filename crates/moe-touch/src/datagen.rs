@@ -23,6 +23,9 @@ use moe_io::dataset::{
     CARD_FILE, DatasetCard, DatasetFrame, DatasetLayout, FrameStats, ShardEntry, shard_file_name,
     shard_stats, write_shard,
 };
+use moe_tendon_sim::randomize::{
+    OBJECT_PARAM_LEN, ObjectFamily, RandomSceneParams, simulate_trajectory,
+};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -200,6 +203,127 @@ fn write_card_if_complete(
     let card = DatasetCard::new(layout.clone(), plan.seed, generator, shards);
     moe_io::write_json(&dir.join(CARD_FILE), &card)?;
     Ok(Some(card))
+}
+
+/// Draws per trajectory before a failing simulation is reported.
+pub const MAX_DRAWS: u64 = 4;
+
+/// The frame layout of a data set simulated with `params`.
+///
+/// # Errors
+/// Invalid finger parameters.
+pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, TouchError> {
+    let hand = moe_geom::HandModel::preset(params.preset, &params.finger).map_err(|e| {
+        TouchError::InvalidPlan {
+            reason: e.to_string(),
+        }
+    })?;
+    Ok(DatasetLayout {
+        finger_num_vertices: hand
+            .fingers()
+            .iter()
+            .map(|f| f.model.mesh().num_vertices())
+            .collect(),
+        markers_per_finger: hand
+            .fingers()
+            .iter()
+            .map(|f| f.model.marker_vertices().len())
+            .collect(),
+        tendons_per_finger: hand.fingers()[0].model.tendon_routes().len(),
+        object_param_len: OBJECT_PARAM_LEN,
+        object_families: ObjectFamily::ALL
+            .iter()
+            .map(|f| f.name().to_owned())
+            .collect(),
+    })
+}
+
+/// Simulates trajectory `trajectory_id` of a data set with `seed` and returns its labelled frames
+/// (all fingers concatenated in the hand frame; markers are the marker vertices).
+///
+/// # Errors
+/// [`TouchError::Trajectory`] naming the trajectory and carrying the simulator's error (which
+/// names the step and element on divergence).
+pub fn simulated_frames(
+    params: &RandomSceneParams,
+    seed: u64,
+    trajectory_id: u64,
+) -> Result<Vec<DatasetFrame>, TouchError> {
+    // A draw whose simulation diverges (an element inverted by an extreme press, say) is
+    // replaced by a redraw from a derived seed; the redraws are part of the pure function of
+    // (seed, trajectory), so determinism holds.
+    let mut last_error = String::new();
+    let mut result = None;
+    for attempt in 0..MAX_DRAWS {
+        let attempt_seed = seed ^ attempt.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        match simulate_trajectory(params, attempt_seed, trajectory_id) {
+            Ok(r) => {
+                result = Some(r);
+                break;
+            }
+            Err(e) => last_error = e.to_string(),
+        }
+    }
+    let (sampled, frames) = result.ok_or_else(|| TouchError::Trajectory {
+        trajectory: trajectory_id,
+        message: format!("{MAX_DRAWS} draws failed; the last: {last_error}"),
+    })?;
+    let hand = moe_geom::HandModel::preset(params.preset, &params.finger).map_err(|e| {
+        TouchError::Trajectory {
+            trajectory: trajectory_id,
+            message: e.to_string(),
+        }
+    })?;
+    let object_params: Vec<f32> = sampled.object_params.iter().map(|&v| v as f32).collect();
+    Ok(frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let to32 = |p: &moe_geom::Point3| [p.x as f32, p.y as f32, p.z as f32];
+            let vertices = f
+                .frame
+                .fingers
+                .iter()
+                .flat_map(|g| g.vertices_in_hand.iter().map(to32))
+                .collect();
+            let contact = f
+                .frame
+                .fingers
+                .iter()
+                .flat_map(|g| g.labels.iter().map(|&l| u8::from(l)))
+                .collect();
+            let markers = f
+                .frame
+                .fingers
+                .iter()
+                .zip(hand.fingers())
+                .flat_map(|(g, hf)| {
+                    hf.model
+                        .marker_vertices()
+                        .iter()
+                        .map(|&m| to32(&g.vertices_in_hand[m as usize]))
+                })
+                .collect();
+            let iso = f.frame.world_from_hand;
+            let (t, q) = (iso.translation.vector, iso.rotation.quaternion());
+            DatasetFrame {
+                trajectory_id,
+                frame_index: k as u32,
+                vertices,
+                contact,
+                markers,
+                world_from_hand: [t.x, t.y, t.z, q.i, q.j, q.k, q.w],
+                tendon_pull_m: f
+                    .tendon_values
+                    .iter()
+                    .flatten()
+                    .map(|&v| v as f32)
+                    .collect(),
+                object_family: sampled.family.code(),
+                object_params: object_params.clone(),
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]
@@ -382,5 +506,50 @@ mod tests {
         );
         assert_eq!(plan(2, 3).shards_for_machine(), vec![1, 4]);
         assert_eq!(plan(1, 1).trajectories_of(5), 20..23);
+    }
+
+    #[test]
+    fn simulated_frames_fit_their_layout_and_are_deterministic() {
+        let params = RandomSceneParams {
+            press_secs: 0.25,
+            hold_secs: 0.0,
+            retract_secs: 0.05,
+            save_every_steps: 5,
+            ..RandomSceneParams::default()
+        };
+        let layout = simulated_layout(&params).unwrap();
+        let dir = scratch("simulated");
+        let plan = GenPlan {
+            trajectories: 2,
+            trajectories_per_shard: 2,
+            seed: 4,
+            machine: 1,
+            machines: 1,
+        };
+        let frames_of = |t| simulated_frames(&params, 4, t);
+        let report = generate(
+            &plan,
+            &dir,
+            &layout,
+            serde_json::json!({}),
+            &frames_of,
+            &|_, _| {},
+        )
+        .unwrap();
+        let card = report.card.unwrap();
+        assert_eq!(card.totals.trajectories, 2);
+        let (l, frames) = moe_io::read_shard(&dir.join(plan.shard_file(0))).unwrap();
+        assert_eq!(l, layout);
+        assert_eq!(
+            frames,
+            [frames_of(0).unwrap(), frames_of(1).unwrap()].concat()
+        );
+        // Frame 0 is the rest hand: its markers are the rest markers.
+        let hand = moe_geom::HandModel::preset(params.preset, &params.finger).unwrap();
+        let rest = hand.rest_keypoints();
+        let m0 = rest.fingers[0][0].unwrap();
+        let got = frames[0].markers[0];
+        assert!((f64::from(got[0]) - m0.x).abs() < 1e-6 && (f64::from(got[2]) - m0.z).abs() < 1e-6);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
