@@ -18,6 +18,7 @@
 //!   the positive (outside) ones — outward for the crate's negative-inside convention.
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use moe_geom::{Point3, Real, TriMesh};
 
@@ -61,6 +62,20 @@ impl Default for MeshingOptions {
     }
 }
 
+/// The magnitude below which node values are moved to `+near_zero` (a thousandth of a cell).
+pub(crate) fn near_zero(grid: &Grid3) -> Real {
+    1e-3 * grid.spacing
+}
+
+/// Whether marching treats node `idx` with value `v` as inside: negative, not within `eps` of
+/// zero, and not on the grid's outer layer (clamped outside).
+pub(crate) fn counts_as_inside(grid: &Grid3, idx: usize, v: Real, eps: Real) -> bool {
+    let [nx, ny, nz] = grid.dims;
+    let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
+    let boundary = i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1;
+    v < 0.0 && v.abs() >= eps && !boundary
+}
+
 /// Extracts the zero level set of `values` (one per node of `grid`, negative inside) as a
 /// closed, outward-oriented [`TriMesh`].
 ///
@@ -100,16 +115,19 @@ pub fn extract_surface(
             }
         }
     }
+    let inside: Vec<bool> = v.iter().map(|x| *x < 0.0).collect();
     let empty = || GpisError::EmptySurface { nx, ny, nz };
     if v.iter().all(|x| *x > 0.0) {
         return Err(empty());
     }
     let mut vertices: Vec<Point3> = Vec::new();
-    let mut edge_vertex: HashMap<(usize, usize), u32> = HashMap::new();
+    // Crossing vertex of each grid edge, keyed by the edge's end nodes (a fast deterministic
+    // hasher: the keys are small integers).
+    let mut edge_vertex: HashMap<u64, u32, BuildHasherDefault<EdgeHasher>> = HashMap::default();
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut crossing =
         |a: usize, b: usize, pa: &Point3, pb: &Point3, vertices: &mut Vec<Point3>| {
-            let key = (a.min(b), a.max(b));
+            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
             *edge_vertex.entry(key).or_insert_with(|| {
                 let t = v[a] / (v[a] - v[b]);
                 vertices.push(pa + (pb - pa) * t);
@@ -120,7 +138,7 @@ pub fn extract_surface(
         for j in 0..ny - 1 {
             for i in 0..nx - 1 {
                 let ids = CORNERS.map(|[dx, dy, dz]| grid.index(i + dx, j + dy, k + dz));
-                let inside_count = ids.iter().filter(|&&n| v[n] < 0.0).count();
+                let inside_count = ids.iter().filter(|&&n| inside[n]).count();
                 if inside_count == 0 || inside_count == 8 {
                     continue;
                 }
@@ -174,6 +192,25 @@ pub fn extract_surface(
         (vertices, faces) = largest_component(vertices, faces);
     }
     Ok(TriMesh::new(vertices, faces)?)
+}
+
+/// A multiply-xorshift hasher for `u64` edge keys (deterministic, no per-process seed).
+#[derive(Default)]
+struct EdgeHasher(u64);
+
+impl Hasher for EdgeHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        let z = (x ^ (x >> 31)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        self.0 = z ^ (z >> 29);
+    }
 }
 
 fn find(parent: &mut [u32], mut x: u32) -> u32 {

@@ -44,6 +44,14 @@ pub trait MeanFunction: Send + Sync + std::fmt::Debug {
     fn values(&self, points: &[Point3]) -> Vec<Real> {
         points.par_iter().map(|p| self.value(p)).collect()
     }
+
+    /// `Some(m(p))`, or `None` only when `|m(p)| > max_abs` is certain. Implementations can answer
+    /// `None` cheaply for points far from the surface (a bounded nearest-feature search); the
+    /// default always evaluates.
+    fn value_within(&self, p: &Point3, max_abs: Real) -> Option<Real> {
+        let _ = max_abs;
+        Some(self.value(p))
+    }
 }
 
 impl<T: MeanFunction + ?Sized> MeanFunction for Box<T> {
@@ -59,6 +67,9 @@ impl<T: MeanFunction + ?Sized> MeanFunction for Box<T> {
     fn values(&self, points: &[Point3]) -> Vec<Real> {
         (**self).values(points)
     }
+    fn value_within(&self, p: &Point3, max_abs: Real) -> Option<Real> {
+        (**self).value_within(p, max_abs)
+    }
 }
 
 impl<T: MeanFunction + ?Sized> MeanFunction for &T {
@@ -73,6 +84,9 @@ impl<T: MeanFunction + ?Sized> MeanFunction for &T {
     }
     fn values(&self, points: &[Point3]) -> Vec<Real> {
         (**self).values(points)
+    }
+    fn value_within(&self, p: &Point3, max_abs: Real) -> Option<Real> {
+        (**self).value_within(p, max_abs)
     }
 }
 
@@ -266,6 +280,14 @@ impl MeanFunction for MeshSdfMean {
         let proj = self.shape.project_local_point(q, false);
         let d = (proj.point - q).length();
         if proj.is_inside { -d } else { d }
+    }
+    fn value_within(&self, p: &Point3, max_abs: Real) -> Option<Real> {
+        let q = to_parry(p);
+        let proj = self
+            .shape
+            .project_local_point_with_max_dist(q, false, max_abs)?;
+        let d = (proj.point - q).length();
+        Some(if proj.is_inside { -d } else { d })
     }
 }
 

@@ -8,15 +8,16 @@
 //! a matrix product for the separable RBF kernel). The mean `m` — a BVH query for a prior mesh,
 //! the expensive part — is evaluated exactly only where meshing needs it:
 //!
-//! **Narrow band.** Marching tetrahedra needs exact values only at nodes next to a sign change.
-//! [`Gpis::grid_values_for_meshing`] walks an octree of node blocks: for a block with centre `c`
-//! and radius `ρ` (half its diagonal plus one cell diagonal, so the nodes it connects to are
-//! covered), `m(x) ∈ m(c) ± L·ρ` where `L` is the mean's Lipschitz constant (1 for a signed
-//! distance), and `g` is known at every node. If `m(c) − Lρ + min g > 0` (or
-//! `m(c) + Lρ + max g < 0`, both over the block grown by one node), every node of the block and
-//! every node it connects to has that sign; the block gets `m(c) + g(x)`, which has the certified
-//! sign, and no crossing is computed from it. Otherwise the block is split, down to 2×2×2 blocks
-//! that are evaluated exactly. The mesh is therefore the same as from the dense evaluation.
+//! **Narrow band.** Marching tetrahedra needs exact values only at the end points of grid edges
+//! whose sign changes. [`Gpis::grid_values_for_meshing`] first walks an octree of node blocks:
+//! for a block with centre `c` and radius `ρ` (half its diagonal), `m(x) ∈ m(c) ± L·ρ` where `L`
+//! is the mean's Lipschitz constant (1 for a signed distance), and `g` is known at every node.
+//! If `m(c) − Lρ + min g > 0` (or `m(c) + Lρ + max g < 0`), every node of the block has that
+//! sign and gets the value `m(c) + g(x)`, which has the certified sign. Otherwise the block is
+//! split, down to 2×2×2 blocks that are evaluated exactly. A second pass evaluates exactly every
+//! certified node that shares a tetrahedron edge with a node of the other sign (as marching will
+//! classify it). Every crossing is therefore interpolated from exact values, and the mesh is the
+//! same as from the dense evaluation.
 
 use moe_geom::{Point3, Real};
 use rayon::prelude::*;
@@ -88,6 +89,24 @@ pub struct Gpis<M> {
     /// The residual GP.
     pub gp: ResidualGp,
 }
+
+/// Offsets to the 14 nodes that share a tetrahedron edge with a node (Freudenthal split).
+const NEIGHBOURS: [[isize; 3]; 14] = [
+    [1, 0, 0],
+    [-1, 0, 0],
+    [0, 1, 0],
+    [0, -1, 0],
+    [0, 0, 1],
+    [0, 0, -1],
+    [1, 1, 0],
+    [-1, -1, 0],
+    [1, 0, 1],
+    [-1, 0, -1],
+    [0, 1, 1],
+    [0, -1, -1],
+    [1, 1, 1],
+    [-1, -1, -1],
+];
 
 /// Nodes per side of the top-level blocks of grid queries.
 const TOP_BLOCK: usize = 16;
@@ -196,19 +215,59 @@ impl<M: MeanFunction> Gpis<M> {
                 }
             }
         }
-        let pieces: Vec<Vec<(usize, Real)>> = tops
+        let pieces: Vec<Vec<(usize, Real, bool)>> = tops
             .par_iter()
             .map(|b| {
                 let mut out = Vec::new();
-                self.fill(grid, *b, &g, &mut out);
+                self.fill(grid, *b, &g, None, &mut out);
                 out
             })
             .collect();
-        let mut values = g;
+        let mut values = g.clone();
+        let mut exact = vec![false; grid.num_nodes()];
         for piece in pieces {
-            for (i, v) in piece {
+            for (i, v, e) in piece {
                 values[i] = v;
+                exact[i] = e;
             }
+        }
+        // Second pass: a certified node whose tetrahedron neighbour has the other sign (as
+        // marching will see it) is an edge end point: evaluate it exactly. Certification is
+        // rigorous for the node itself, so this creates no new sign change.
+        let eps = crate::marching::near_zero(grid);
+        let inside = |idx: usize, v: Real| crate::marching::counts_as_inside(grid, idx, v, eps);
+        let [nx, ny, _] = grid.dims;
+        let todo: Vec<usize> = (0..grid.num_nodes())
+            .into_par_iter()
+            .filter(|&idx| {
+                if exact[idx] {
+                    return false;
+                }
+                let (i, j, k) = (idx % nx, (idx / nx) % ny, idx / (nx * ny));
+                let me = inside(idx, values[idx]);
+                NEIGHBOURS.iter().any(|&[di, dj, dk]| {
+                    let (a, b, c) = (i as isize + di, j as isize + dj, k as isize + dk);
+                    if a < 0 || b < 0 || c < 0 {
+                        return false;
+                    }
+                    let (a, b, c) = (a as usize, b as usize, c as usize);
+                    if a >= grid.dims[0] || b >= grid.dims[1] || c >= grid.dims[2] {
+                        return false;
+                    }
+                    let n = grid.index(a, b, c);
+                    inside(n, values[n]) != me
+                })
+            })
+            .collect();
+        let fixed: Vec<Real> = todo
+            .par_iter()
+            .map(|&idx| {
+                let p = grid.point(idx % nx, (idx / nx) % ny, idx / (nx * ny));
+                self.mean.value(&p) + g[idx]
+            })
+            .collect();
+        for (idx, v) in todo.into_iter().zip(fixed) {
+            values[idx] = v;
         }
         values
     }
@@ -271,34 +330,60 @@ impl<M: MeanFunction> Gpis<M> {
     }
 
     /// Narrow-band recursion over a block: `g` holds the residual at every node.
-    fn fill(&self, grid: &Grid3, b: Block, g: &[Real], out: &mut Vec<(usize, Real)>) {
+    /// `parent` is the parent block's centre and the sign of `m` there.
+    fn fill(
+        &self,
+        grid: &Grid3,
+        b: Block,
+        g: &[Real],
+        parent: Option<(Point3, Real)>,
+        out: &mut Vec<(usize, Real, bool)>,
+    ) {
         let size = [0, 1, 2].map(|d| b.hi[d] - b.lo[d]);
         if size.iter().any(|&s| s > 2) {
             let lo = grid.point(b.lo[0], b.lo[1], b.lo[2]);
             let hi = grid.point(b.hi[0] - 1, b.hi[1] - 1, b.hi[2] - 1);
             let c = nalgebra_center(&lo, &hi);
-            let rho = 0.5 * (hi - lo).norm() + grid.spacing * 3f64.sqrt();
-            // Residual range over the block grown by one node (the neighbours it connects to).
+            let rho = 0.5 * (hi - lo).norm();
             let (mut g_min, mut g_max) = (Real::INFINITY, Real::NEG_INFINITY);
-            let dl = b.lo.map(|v| v.saturating_sub(1));
-            let dh = [0, 1, 2].map(|d| (b.hi[d] + 1).min(grid.dims[d]));
-            for k in dl[2]..dh[2] {
-                for j in dl[1]..dh[1] {
-                    for i in dl[0]..dh[0] {
+            for k in b.lo[2]..b.hi[2] {
+                for j in b.lo[1]..b.hi[1] {
+                    for i in b.lo[0]..b.hi[0] {
                         let v = g[grid.index(i, j, k)];
                         g_min = g_min.min(v);
                         g_max = g_max.max(v);
                     }
                 }
             }
-            let m_c = self.mean.value(&c);
-            let slack = self.mean.lipschitz() * rho;
+            let lip = self.mean.lipschitz();
+            let slack = lip * rho;
+            // Far from the surface a bounded search answers "farther than t" cheaply; the sign is
+            // then the parent centre's, which lies inside the surface-free ball of radius t.
+            let g_abs = g_min.abs().max(g_max.abs());
+            let t = slack + g_abs + 2.0 * crate::marching::near_zero(grid);
+            let m_c = match parent {
+                Some((pc, _)) if lip > 0.0 && (c - pc).norm() < t => self.mean.value_within(&c, t),
+                _ => Some(self.mean.value(&c)),
+            };
+            let Some(m_c) = m_c else {
+                let sign = parent.map_or(1.0, |(_, s)| s);
+                for k in b.lo[2]..b.hi[2] {
+                    for j in b.lo[1]..b.hi[1] {
+                        for i in b.lo[0]..b.hi[0] {
+                            let idx = grid.index(i, j, k);
+                            // |m| ≥ t − Lρ = |g|max + 2ε here, so this has the sign of f.
+                            out.push((idx, sign * (t - slack) + g[idx], false));
+                        }
+                    }
+                }
+                return;
+            };
             if m_c - slack + g_min > 0.0 || m_c + slack + g_max < 0.0 {
                 for k in b.lo[2]..b.hi[2] {
                     for j in b.lo[1]..b.hi[1] {
                         for i in b.lo[0]..b.hi[0] {
                             let idx = grid.index(i, j, k);
-                            out.push((idx, m_c + g[idx]));
+                            out.push((idx, m_c + g[idx], false));
                         }
                     }
                 }
@@ -327,7 +412,8 @@ impl<M: MeanFunction> Gpis<M> {
                             empty |= sub.lo[d] >= sub.hi[d];
                         }
                         if !empty {
-                            self.fill(grid, sub, g, out);
+                            let sign = if m_c < 0.0 { -1.0 } else { 1.0 };
+                            self.fill(grid, sub, g, Some((c, sign)), out);
                         }
                     }
                 }
@@ -338,7 +424,7 @@ impl<M: MeanFunction> Gpis<M> {
             for j in b.lo[1]..b.hi[1] {
                 for i in b.lo[0]..b.hi[0] {
                     let idx = grid.index(i, j, k);
-                    out.push((idx, self.mean.value(&grid.point(i, j, k)) + g[idx]));
+                    out.push((idx, self.mean.value(&grid.point(i, j, k)) + g[idx], true));
                 }
             }
         }

@@ -294,6 +294,72 @@ mod tests {
     }
 
     #[test]
+    fn narrow_band_with_a_mesh_prior_gives_the_dense_mesh() {
+        let prior_mesh =
+            crate::shapes::star_shaped(3, Point3::origin(), |d| 0.07 + 0.01 * d.x * d.y).unwrap();
+        let prior = crate::mean::MeshSdfMean::new(&prior_mesh).unwrap();
+        let pts: Vec<Point3> = sphere_points(0.075, 300, 7)
+            .into_iter()
+            .filter(|p| p.z > 0.0)
+            .collect();
+        let mut obs = Observations::from_contacts(&pts).unwrap();
+        obs.add_mean_normal_offsets(&prior, 0.01).unwrap();
+        let b = bounds_of(&pts, Some(&prior_mesh)).unwrap();
+        let cfg = SurfaceConfig {
+            max_grid_nodes: 40 * 40 * 40,
+            vertex_variance: false,
+            ..SurfaceConfig::default()
+        };
+        let (rec, gpis) = reconstruct(&prior, &obs, &b, &cfg).unwrap();
+        let dense = gpis.grid_values(&rec.grid);
+        let dense_mesh = extract_surface(&rec.grid, &dense, &MeshingOptions::default()).unwrap();
+        assert_eq!(dense_mesh.faces(), rec.mesh.faces());
+        let max_diff = dense_mesh
+            .vertices()
+            .iter()
+            .zip(rec.mesh.vertices())
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        assert!(max_diff < 1e-9, "{max_diff}");
+    }
+
+    #[test]
+    fn beyond_the_exact_limit_the_sparse_approximation_is_used_and_agrees() {
+        let r = 0.08;
+        let pts = sphere_points(r, 600, 5);
+        let obs = Observations::from_contacts(&pts).unwrap();
+        let mean = SphereMean {
+            center: Point3::new(0.004, 0.0, 0.0),
+            radius: 0.085,
+        };
+        let hyper = Hyper {
+            signal_variance: 1e-4,
+            lengthscale: 0.05,
+            noise_variance: 1e-8,
+        };
+        let exact_cfg = GpisConfig {
+            fixed: Some(hyper),
+            ..GpisConfig::default()
+        };
+        let sparse_cfg = GpisConfig {
+            exact_limit: 500,
+            inducing_points: 250,
+            ..exact_cfg
+        };
+        let (exact, re) = condition(mean, &obs, &exact_cfg).unwrap();
+        let (sparse, rs) = condition(mean, &obs, &sparse_cfg).unwrap();
+        assert!(!re.sparse && rs.sparse);
+        assert!(rs.log_marginal_likelihood.is_none());
+        let probes = sphere_points(r, 200, 6);
+        let worst = probes
+            .iter()
+            .map(|p| (exact.mean_at(p) - sparse.mean_at(p)).abs())
+            .fold(0.0, Real::max);
+        // 250 inducing points for 600 observations: the SDF differs by well under a millimetre.
+        assert!(worst < 3e-4, "max |exact - sparse| = {worst} m");
+    }
+
+    #[test]
     fn constant_mean_needs_an_inside_and_fixed_hyper_parameters_are_used() {
         let pts = sphere_points(0.05, 200, 4);
         let mut obs = Observations::from_contacts(&pts).unwrap();
