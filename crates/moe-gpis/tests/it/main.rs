@@ -1,0 +1,3 @@
+//! Integration tests of `moe-gpis` through its public API.
+
+mod bad_input;
