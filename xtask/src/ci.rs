@@ -17,7 +17,10 @@ pub(crate) struct CiArgs {
 
 /// The workspace root (the parent of this crate's directory).
 pub(crate) fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask lives in the workspace").to_owned()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives in the workspace")
+        .to_owned()
 }
 
 fn cargo() -> Command {
@@ -38,7 +41,10 @@ fn step(name: &str, mut cmd: Command) -> Result<()> {
 }
 
 fn has_cargo_deny() -> bool {
-    cargo().args(["deny", "--version"]).output().is_ok_and(|o| o.status.success())
+    cargo()
+        .args(["deny", "--version"])
+        .output()
+        .is_ok_and(|o| o.status.success())
 }
 
 pub(crate) fn run(args: &CiArgs) -> Result<()> {
@@ -47,7 +53,15 @@ pub(crate) fn run(args: &CiArgs) -> Result<()> {
     step("cargo fmt --check", fmt)?;
 
     let mut clippy = cargo();
-    clippy.args(["clippy", "--workspace", "--all-targets", "--locked", "--", "-D", "warnings"]);
+    clippy.args([
+        "clippy",
+        "--workspace",
+        "--all-targets",
+        "--locked",
+        "--",
+        "-D",
+        "warnings",
+    ]);
     step("cargo clippy -D warnings", clippy)?;
 
     let mut test = cargo();
@@ -55,10 +69,14 @@ pub(crate) fn run(args: &CiArgs) -> Result<()> {
     step("cargo test --workspace", test)?;
 
     let mut doc = cargo();
-    doc.args(["doc", "--workspace", "--no-deps", "--locked"]).env("RUSTDOCFLAGS", "-D warnings");
+    doc.args(["doc", "--workspace", "--no-deps", "--locked"])
+        .env("RUSTDOCFLAGS", "-D warnings");
     step("cargo doc", doc)?;
 
-    crate::fixtures::run(&crate::fixtures::FixturesArgs { check: true, update: false })?;
+    crate::fixtures::run(&crate::fixtures::FixturesArgs {
+        check: true,
+        update: false,
+    })?;
 
     if args.skip_deny {
         eprintln!("xtask ci: cargo deny skipped (--skip-deny)");

@@ -57,7 +57,10 @@ pub(crate) fn run(args: &FixturesArgs) -> Result<()> {
             continue;
         }
         let text = std::fs::read_to_string(&path).with_context(|| {
-            format!("reading {} (run `cargo xtask fixtures --update` to create it)", fixture.path)
+            format!(
+                "reading {} (run `cargo xtask fixtures --update` to create it)",
+                fixture.path
+            )
         })?;
         let committed: Value =
             serde_json::from_str(&text).with_context(|| format!("parsing {}", fixture.path))?;
@@ -70,7 +73,11 @@ pub(crate) fn run(args: &FixturesArgs) -> Result<()> {
         }
     }
     if !failures.is_empty() {
-        bail!("{} golden fixture(s) differ: {}", failures.len(), failures.join(", "));
+        bail!(
+            "{} golden fixture(s) differ: {}",
+            failures.len(),
+            failures.join(", ")
+        );
     }
     Ok(())
 }
@@ -95,7 +102,11 @@ fn first_difference(a: &Value, b: &Value, tol: f64, at: &str) -> Option<String> 
         }
         (Value::Array(x), Value::Array(y)) => {
             if x.len() != y.len() {
-                return Some(format!("{at}: committed {} items, computed {}", x.len(), y.len()));
+                return Some(format!(
+                    "{at}: committed {} items, computed {}",
+                    x.len(),
+                    y.len()
+                ));
             }
             x.iter()
                 .zip(y)
@@ -106,9 +117,12 @@ fn first_difference(a: &Value, b: &Value, tol: f64, at: &str) -> Option<String> 
             let keys_x: Vec<_> = x.keys().collect();
             let keys_y: Vec<_> = y.keys().collect();
             if keys_x != keys_y {
-                return Some(format!("{at}: committed keys {keys_x:?}, computed {keys_y:?}"));
+                return Some(format!(
+                    "{at}: committed keys {keys_x:?}, computed {keys_y:?}"
+                ));
             }
-            x.iter().find_map(|(k, u)| first_difference(u, &y[k], tol, &format!("{at}.{k}")))
+            x.iter()
+                .find_map(|(k, u)| first_difference(u, &y[k], tol, &format!("{at}.{k}")))
         }
         _ => (a != b).then(|| format!("{at}: committed {a}, computed {b}")),
     }
@@ -122,7 +136,10 @@ fn golden_hand_presets() -> Result<Value> {
         let hand = HandModel::preset(preset, &FingerParams::default())?;
         let f = &hand.fingers()[0].model;
         let mesh = f.mesh();
-        let centroid = mesh.vertices().iter().fold(moe_geom::Vector3::zeros(), |s, p| s + p.coords)
+        let centroid = mesh
+            .vertices()
+            .iter()
+            .fold(moe_geom::Vector3::zeros(), |s, p| s + p.coords)
             / mesh.num_vertices() as f64;
         let poses: Vec<Value> = hand
             .fingers()

@@ -73,8 +73,8 @@ pub(crate) fn run(args: &GenDataArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let layout = simulated_layout(&params)?;
-    let generator =
-        serde_json::json!({ "simulator": "moe-tendon-sim", "params": params, "plan": plan });
+    // Everything but the machine split: every machine of an array job records the same.
+    let generator = serde_json::json!({ "simulator": "moe-tendon-sim", "params": params });
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template(

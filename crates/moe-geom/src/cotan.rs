@@ -10,6 +10,7 @@
 //! `(cot α + cot β) / 2`, a boundary edge `cot α`. The Laplacian is `L = D − W` with
 //! `D_ii = Σ_j w_ij`: symmetric positive semi-definite, `L·1 = 0`.
 
+use crate::error::GeomError;
 use crate::math::{Point3, Real};
 use crate::mesh::TriMesh;
 use crate::topology::Topology;
@@ -49,11 +50,26 @@ pub struct CotanLaplacian {
 impl CotanLaplacian {
     /// Builds the Laplacian of a mesh.
     pub fn new(mesh: &TriMesh, topology: &Topology) -> Self {
-        Self::from_weights(topology, cotan_weights(mesh, topology))
+        Self::assemble(topology, cotan_weights(mesh, topology))
     }
 
     /// Builds a Laplacian from given edge weights (one per edge of `topology`).
-    pub fn from_weights(topology: &Topology, weights: Vec<Real>) -> Self {
+    ///
+    /// # Errors
+    /// [`GeomError::LengthMismatch`] when there is not exactly one weight per edge.
+    pub fn from_weights(topology: &Topology, weights: Vec<Real>) -> Result<Self, GeomError> {
+        if weights.len() != topology.edges().len() {
+            return Err(GeomError::LengthMismatch {
+                what: "Laplacian edge weights",
+                expected: topology.edges().len(),
+                got: weights.len(),
+            });
+        }
+        Ok(Self::assemble(topology, weights))
+    }
+
+    /// `weights` has one entry per edge of `topology`.
+    fn assemble(topology: &Topology, weights: Vec<Real>) -> Self {
         let mut diagonal = vec![0.0; topology.num_vertices()];
         for (&[a, b], &w) in topology.edges().iter().zip(&weights) {
             diagonal[a as usize] += w;
@@ -167,6 +183,8 @@ mod tests {
         let m = crate::mesh::tests::tetrahedron();
         let topo = Topology::new(&m);
         let lap = CotanLaplacian::new(&m, &topo);
+        assert!(CotanLaplacian::from_weights(&topo, vec![1.0; 5]).is_err());
+        assert_eq!(CotanLaplacian::from_weights(&topo, lap.weights().to_vec()).unwrap(), lap);
         let y = lap.apply(&[3.5; 4]);
         assert!(y.iter().all(|v| v.abs() < 1e-12), "{y:?}");
         let n = 4;

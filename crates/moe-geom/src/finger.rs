@@ -161,7 +161,7 @@ impl FingerModel {
             .filter(|(_, p)| p.z == 0.0)
             .map(|(i, _)| i as u32)
             .collect();
-        let marker_vertices = place_markers(&mesh, params);
+        let marker_vertices = place_markers(&mesh, params)?;
         let tendon_routes = tendon_routes(params);
         Self::from_parts(mesh, marker_vertices, base_vertices, tendon_routes)
     }
@@ -407,7 +407,7 @@ fn stitch(a: (usize, usize, Real), b: (usize, usize, Real), faces: &mut Vec<[u32
 /// Marker vertices: the surface vertices nearest to evenly spaced points on the +x side, from
 /// 12 % of the length to where the body meets the tip cap, all distinct. Markers stay off the
 /// cap: its far side faces away from a wrist camera looking along the finger.
-fn place_markers(mesh: &TriMesh, params: &FingerParams) -> Vec<u32> {
+fn place_markers(mesh: &TriMesh, params: &FingerParams) -> Result<Vec<u32>, GeomError> {
     let n = params.marker_count;
     let z_lo = 0.12 * params.length_m;
     let z_hi = params.cap_start_z();
@@ -426,10 +426,14 @@ fn place_markers(mesh: &TriMesh, params: &FingerParams) -> Vec<u32> {
             .filter(|(i, _)| !taken.contains(&(*i as u32)))
             .min_by(|(_, p), (_, q)| (*p - target).norm().total_cmp(&(*q - target).norm()))
             .map(|(i, _)| i as u32)
-            .expect("the mesh has more vertices than markers");
+            .ok_or(GeomError::InvalidParameter {
+                name: "marker_count",
+                value: n as Real,
+                reason: "exceeds the number of mesh vertices (raise vertex_budget)",
+            })?;
         taken.push(best);
     }
-    taken
+    Ok(taken)
 }
 
 /// Four straight tendon routes at `tendon_offset_ratio` of the local radius, from the base plane
@@ -566,6 +570,22 @@ mod tests {
             FingerModel::from_params(&p),
             Err(GeomError::InvalidParameter {
                 name: "vertex_budget",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn more_markers_than_vertices_is_an_error() {
+        let p = FingerParams {
+            vertex_budget: 16,
+            marker_count: 64,
+            ..FingerParams::default()
+        };
+        assert!(matches!(
+            FingerModel::from_params(&p),
+            Err(GeomError::InvalidParameter {
+                name: "marker_count",
                 ..
             })
         ));

@@ -39,6 +39,96 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     }
 }
 
+/// A file being written in place of `path`: the bytes go to a hidden temporary sibling, and
+/// [`AtomicFile::commit`] flushes, syncs and renames it over `path`. Dropped without a commit
+/// (an error, a panic), it removes the temporary file, so nothing appears under `path`.
+#[derive(Debug)]
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    file: Option<std::io::BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Starts writing a replacement for `path`.
+    ///
+    /// # Errors
+    /// [`IoError::MissingDirectory`] or [`IoError::Io`].
+    pub fn create(path: &Path) -> Result<Self, IoError> {
+        let tmp = temp_sibling(path)?;
+        let file = OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(|e| IoError::io(path, e))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            tmp,
+            file: Some(std::io::BufWriter::new(file)),
+        })
+    }
+
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flushes, syncs and renames the temporary file over the final path.
+    ///
+    /// # Errors
+    /// [`IoError::Io`]; the temporary file is then removed.
+    pub fn commit(mut self) -> Result<(), IoError> {
+        let Some(writer) = self.file.take() else {
+            return Ok(());
+        };
+        let result = writer
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .and_then(|f| f.sync_all())
+            .and_then(|()| fs::rename(&self.tmp, &self.path));
+        match result {
+            Ok(()) => {
+                sync_dir(parent_dir(&self.path));
+                Ok(())
+            }
+            Err(source) => {
+                let _ = fs::remove_file(&self.tmp);
+                Err(IoError::io(&self.path, source))
+            }
+        }
+    }
+
+    fn writer(&mut self) -> std::io::Result<&mut std::io::BufWriter<File>> {
+        self.file
+            .as_mut()
+            .ok_or_else(|| std::io::Error::other("file already committed"))
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.writer()?.write(buf)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.writer()?.flush()
+    }
+}
+
+impl std::io::Seek for AtomicFile {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.writer()?.seek(pos)
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if self.file.take().is_some() {
+            let _ = fs::remove_file(&self.tmp);
+        }
+    }
+}
+
 /// The directory a file lives in (`.` for a bare file name).
 pub(crate) fn parent_dir(path: &Path) -> &Path {
     match path.parent() {
@@ -136,5 +226,30 @@ mod tests {
         assert!(matches!(err, IoError::Io { .. }), "{err}");
         assert_eq!(entries(&dir), vec!["taken".to_string()]);
         fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn streamed_atomic_files_appear_only_on_commit() {
+        let dir = std::env::temp_dir().join(format!("moe-atomic-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.bin");
+        let mut f = AtomicFile::create(&path).unwrap();
+        f.write_all(b"hello").unwrap();
+        assert!(!path.exists());
+        f.commit().unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"hello");
+        let mut g = AtomicFile::create(&dir.join("b.bin")).unwrap();
+        g.write_all(b"partial").unwrap();
+        drop(g);
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(
+            names,
+            vec![std::ffi::OsString::from("a.bin")],
+            "nothing left of the dropped file"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

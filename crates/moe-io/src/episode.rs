@@ -32,6 +32,7 @@ use moe_geom::nalgebra;
 use moe_geom::{Iso3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::atomic::AtomicFile;
 use crate::error::IoError;
 
 /// Pinhole intrinsics of the recorded camera.
@@ -815,6 +816,28 @@ fn decode_frame(
     Ok(frame)
 }
 
+/// Starts an episode file at `path`, streamed to a temporary sibling; [`EpisodeWriter::commit`]
+/// moves it into place, and dropping the writer without committing leaves nothing at `path`.
+///
+/// # Errors
+/// As [`EpisodeWriter::new`], and file-system errors.
+pub fn create_episode(
+    path: &Path,
+    info: &EpisodeInfo,
+) -> Result<EpisodeWriter<AtomicFile>, IoError> {
+    EpisodeWriter::new(AtomicFile::create(path)?, info, path)
+}
+
+impl EpisodeWriter<AtomicFile> {
+    /// Finishes the episode and moves the file into place.
+    ///
+    /// # Errors
+    /// A write failure; nothing is left at the path.
+    pub fn commit(self) -> Result<(), IoError> {
+        self.finish()?.commit()
+    }
+}
+
 /// Writes a whole episode to `path` atomically (temporary file, then rename).
 ///
 /// # Errors
@@ -884,7 +907,12 @@ pub fn parse_episode_prefix(path: &Path, bytes: &[u8]) -> (Option<Episode>, Opti
         let topic = message.channel.topic.as_str();
         if topic == INFO_TOPIC {
             match serde_json::from_slice::<EpisodeInfo>(&message.data) {
-                Ok(i) => info = Some(i),
+                Ok(i) => {
+                    if let Err(e) = check_info(path, &i) {
+                        return (None, Some(e));
+                    }
+                    info = Some(i);
+                }
                 Err(e) => return (None, Some(format_err(path, format!("{INFO_TOPIC}: {e}")))),
             }
             continue;
@@ -1138,6 +1166,39 @@ mod tests {
             EpisodeWriter::new(std::io::Cursor::new(Vec::new()), &bad, Path::new("x.mcap"))
                 .is_err()
         );
+    }
+
+    #[test]
+    fn an_inconsistent_info_record_is_an_error() {
+        // Hand-craft an episode whose info lists two finger poses but one vertex count.
+        let mut data = Vec::new();
+        {
+            let mut w = mcap::WriteOptions::new()
+                .use_chunks(false)
+                .create(std::io::Cursor::new(&mut data))
+                .unwrap();
+            let schema = w
+                .add_schema("moe.EpisodeInfo", "jsonschema", b"{}")
+                .unwrap();
+            let ch = w
+                .add_channel(schema, INFO_TOPIC, "json", &BTreeMap::new())
+                .unwrap();
+            let mut bad = info();
+            bad.finger_num_vertices.pop();
+            let body = serde_json::to_vec(&bad).unwrap();
+            let header = mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: 0,
+                log_time: 0,
+                publish_time: 0,
+            };
+            w.write_to_known_channel(&header, &body).unwrap();
+            w.finish().unwrap();
+        }
+        let err = parse_episode(Path::new("i.mcap"), &data)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("2 finger poses"), "{err}");
     }
 
     #[test]

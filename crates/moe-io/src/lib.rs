@@ -71,7 +71,7 @@ pub mod ply;
 /// STL.
 pub mod stl;
 
-pub use atomic::write_atomic;
+pub use atomic::{AtomicFile, write_atomic};
 pub use config::{parse_json, parse_toml, read_config, read_json, write_json, write_toml};
 pub use csv::{
     CsvTable, csv_bytes, read_csv, read_csv_from, read_points_csv, read_points_csv_from, write_csv,
@@ -81,8 +81,8 @@ pub use dataset::{
     split_of, write_shard,
 };
 pub use episode::{
-    CameraInfo, Episode, EpisodeFrame, EpisodeInfo, EpisodeWriter, ObstacleMesh, parse_episode,
-    parse_episode_prefix, read_episode, write_episode,
+    CameraInfo, Episode, EpisodeFrame, EpisodeInfo, EpisodeWriter, ObstacleMesh, create_episode,
+    parse_episode, parse_episode_prefix, read_episode, write_episode,
 };
 pub use error::IoError;
 pub use files::MEMORY;

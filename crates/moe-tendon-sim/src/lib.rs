@@ -82,6 +82,8 @@ pub mod material;
 pub mod obstacle;
 /// Polar decomposition.
 pub mod polar;
+/// The scenes of the paper's experiments (head patting, inclined plates).
+pub mod paper_scenes;
 /// Randomised contact scenes for training data.
 pub mod randomize;
 /// Hand-level scenes with explicit state.

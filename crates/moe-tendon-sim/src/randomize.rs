@@ -95,6 +95,17 @@ pub enum FingerRegion {
     Base,
 }
 
+impl FingerRegion {
+    /// Fraction of the press depth range used in this region (1 at the tip, 0.35 at the base).
+    pub fn press_scale(self) -> Real {
+        match self {
+            Self::Tip => 1.0,
+            Self::Middle => 0.7,
+            Self::Base => 0.35,
+        }
+    }
+}
+
 /// Number of object parameters stored per frame (zero-padded).
 pub const OBJECT_PARAM_LEN: usize = 8;
 
@@ -110,7 +121,8 @@ pub struct RandomSceneParams {
     pub families: Vec<ObjectFamily>,
     /// Gap between the object and the target at the start, metres. Default 0.003.
     pub gap_m: Real,
-    /// Press depth range beyond first touch, metres. Default 2–8 mm.
+    /// Press depth range beyond first touch at the tip, metres (scaled by
+    /// [`FingerRegion::press_scale`] elsewhere). Default 2–8 mm.
     pub press_depth_m: [Real; 2],
     /// Largest tendon pull, metres. Default 0.006.
     pub max_pull_m: Real,
@@ -224,7 +236,10 @@ pub fn sample_scene(
         if !clear {
             continue;
         }
-        let depth = rng.uniform_range(params.press_depth_m[0], params.press_depth_m[1]);
+        // The finger is stiffer toward its fixed base, where a deep press would only push the
+        // rigid object into the silicone: presses scale down from the tip to the base.
+        let depth = region.press_scale()
+            * rng.uniform_range(params.press_depth_m[0], params.press_depth_m[1]);
         let config = build_config(
             params,
             &hand,
@@ -449,15 +464,13 @@ fn build_config(
         .map(|f| {
             let n = f.model.tendon_routes().len();
             let mut values = vec![0.0; n];
-            // In each antagonistic pair, pull at most one side (or neither).
+            // Each antagonistic pair is driven like a pulley on one servo: one side pulled by
+            // `d`, the other paid out by `d` (a slack cable), in 70 % of the pairs.
             for (j, route) in f.model.tendon_routes().iter().enumerate() {
                 if j < route.antagonist && rng.uniform() < 0.7 {
-                    let side = if rng.uniform() < 0.5 {
-                        j
-                    } else {
-                        route.antagonist
-                    };
-                    values[side] = rng.uniform_range(0.0, params.max_pull_m);
+                    let d = rng.uniform_range(-params.max_pull_m, params.max_pull_m);
+                    values[j] = d;
+                    values[route.antagonist] = -d;
                 }
             }
             ActuationSchedule {

@@ -10,6 +10,7 @@ use moe_geom::{FingerParams, HandModel, HandPreset, Iso3, Point3, Real, Vector3}
 use serde::{Deserialize, Serialize};
 
 use crate::body::{FingerBody, FingerInputs};
+use crate::camera::RgbdCamera;
 use crate::contact::{ContactParams, PosedObstacles, contact_labels, surface_distances};
 use crate::error::{SimError, require_non_negative, require_positive};
 use crate::fem::{FemWorkspace, Integrator, StepContext};
@@ -105,6 +106,8 @@ pub struct SceneConfig {
     pub actuation: Vec<ActuationSchedule>,
     /// Rigid obstacles.
     pub obstacles: Vec<ObstacleConfig>,
+    /// The wrist camera that records episodes (it does not affect the physics).
+    pub camera: RgbdCamera,
 }
 
 impl Default for SceneConfig {
@@ -122,6 +125,7 @@ impl Default for SceneConfig {
             wrist: PoseTrajectory::default(),
             actuation: Vec::new(),
             obstacles: Vec::new(),
+            camera: RgbdCamera::default(),
         }
     }
 }

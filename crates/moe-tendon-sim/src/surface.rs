@@ -11,8 +11,8 @@ use moe_geom::{Iso3, Point3, Vector3};
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
 
-/// Subdivision level of the enclosing icosphere (2562 vertices).
-const LEVEL: u32 = 4;
+/// Subdivision level of the enclosing icosphere (642 vertices).
+const LEVEL: u32 = 3;
 
 /// Vertices and triangles of an obstacle's surface in its own frame.
 ///

@@ -135,6 +135,7 @@ pub fn generate(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<GenReport, TouchError> {
     plan.validate()?;
+    check_settings(plan, dir, layout, &generator)?;
     let mine = plan.shards_for_machine();
     let (todo, skipped): (Vec<u64>, Vec<u64>) = mine
         .iter()
@@ -176,6 +177,54 @@ pub fn generate(
         frames_written,
         card,
     })
+}
+
+/// What every machine of a data set must agree on, kept in `plan.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Settings {
+    trajectories: u64,
+    trajectories_per_shard: u64,
+    seed: u64,
+    layout: DatasetLayout,
+    generator: serde_json::Value,
+}
+
+/// File holding the [`Settings`] of a data set directory.
+pub const SETTINGS_FILE: &str = "plan.json";
+
+/// Refuses to add shards to a directory generated with other settings (a resumed run with
+/// another seed or other ranges would otherwise mix two data sets); records the settings on the
+/// first run.
+fn check_settings(
+    plan: &GenPlan,
+    dir: &Path,
+    layout: &DatasetLayout,
+    generator: &serde_json::Value,
+) -> Result<(), TouchError> {
+    let settings = Settings {
+        trajectories: plan.trajectories,
+        trajectories_per_shard: plan.trajectories_per_shard,
+        seed: plan.seed,
+        layout: layout.clone(),
+        generator: generator.clone(),
+    };
+    let path = dir.join(SETTINGS_FILE);
+    if path.exists() {
+        let existing: Settings = moe_io::read_json(&path)?;
+        if existing != settings {
+            return Err(TouchError::InvalidPlan {
+                reason: format!(
+                    "{} holds a data set generated with other settings (seed, trajectories, \
+                     shard size, layout or randomisation); use another directory",
+                    dir.display()
+                ),
+            });
+        }
+        return Ok(());
+    }
+    moe_io::write_json(&path, &settings)?;
+    Ok(())
 }
 
 fn write_card_if_complete(
@@ -489,6 +538,54 @@ mod tests {
         .unwrap();
         assert_eq!(report.shards_written, vec![3, 4, 5]);
         assert!(report.card.is_some());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_directory_refuses_a_different_data_set() {
+        let dir = scratch("settings");
+        generate(
+            &plan(1, 2),
+            &dir,
+            &layout(),
+            serde_json::json!({"a": 1}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
+        let other_seed = GenPlan {
+            seed: 10,
+            ..plan(2, 2)
+        };
+        let err = generate(
+            &other_seed,
+            &dir,
+            &layout(),
+            serde_json::json!({"a": 1}),
+            &synthetic(10),
+            &|_, _| {},
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("other settings"), "{err}");
+        let err = generate(
+            &plan(2, 2),
+            &dir,
+            &layout(),
+            serde_json::json!({"a": 2}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("other settings"), "{err}");
+        generate(
+            &plan(2, 2),
+            &dir,
+            &layout(),
+            serde_json::json!({"a": 1}),
+            &synthetic(9),
+            &|_, _| {},
+        )
+        .unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -7,6 +7,8 @@
 
 /// Sharded, resumable, deterministic data set generation.
 pub mod datagen;
+/// Recording simulated episodes (rendered camera frames with ground truth).
+pub mod episode;
 /// The crate's error type.
 pub mod error;
 

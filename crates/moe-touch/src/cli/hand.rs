@@ -58,7 +58,10 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
     let (hand, source) = match &args.config {
         Some(path) => (moe_io::load_hand_config(path)?, path.display().to_string()),
         None => {
-            let params = FingerParams { vertex_budget: args.vertex_budget, ..FingerParams::default() };
+            let params = FingerParams {
+                vertex_budget: args.vertex_budget,
+                ..FingerParams::default()
+            };
             let hand = HandModel::preset(args.preset, &params)
                 .with_context(|| format!("building the {} preset", args.preset))?;
             (hand, args.preset.to_string())
@@ -68,7 +71,10 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
     let mut meshes = Vec::with_capacity(hand.num_fingers());
     let mut fingers = Vec::with_capacity(hand.num_fingers());
     for (i, f) in hand.fingers().iter().enumerate() {
-        let mesh = f.model.mesh().with_vertices(hand.rest_vertices_in_hand(i))?;
+        let mesh = f
+            .model
+            .mesh()
+            .with_vertices(hand.rest_vertices_in_hand(i))?;
         let (min_edge, max_edge) = edge_length_range(&mesh);
         let iso = f.hand_from_finger.iso();
         let q = iso.rotation.quaternion();
@@ -121,15 +127,21 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
                 f.max_edge_length_m * 1e3
             );
         }
-        println!("wrote {} meshes and hand.json to {}", record.num_fingers, args.out.display());
+        println!(
+            "wrote {} meshes and hand.json to {}",
+            record.num_fingers,
+            args.out.display()
+        );
     }
     Ok(())
 }
 
 fn edge_length_range(mesh: &TriMesh) -> (f64, f64) {
     let topo = moe_geom::Topology::new(mesh);
-    topo.edges().iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &[a, b]| {
-        let l = (mesh.vertices()[a as usize] - mesh.vertices()[b as usize]).norm();
-        (lo.min(l), hi.max(l))
-    })
+    topo.edges()
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &[a, b]| {
+            let l = (mesh.vertices()[a as usize] - mesh.vertices()[b as usize]).norm();
+            (lo.min(l), hi.max(l))
+        })
 }

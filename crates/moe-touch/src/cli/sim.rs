@@ -40,10 +40,15 @@ pub(crate) struct SimArgs {
     /// the scene's parametric hand.
     #[arg(long, value_name = "FILE")]
     hand: Option<PathBuf>,
-    /// Output directory: frame_<k>_finger_<i>.<format> and summary.json (written only when the
-    /// whole run succeeds).
-    #[arg(long, value_name = "DIR")]
+    /// Output: a directory for frame_<k>_finger_<i>.<format> and summary.json, or a file
+    /// ending in .mcap for an episode (wrist-camera colour and depth, calibration, transforms,
+    /// tendons, ground-truth meshes coloured by contact, markers and obstacles; opens in
+    /// Foxglove). Written only when the whole run succeeds.
+    #[arg(long, value_name = "DIR|EPISODE.mcap")]
     out: PathBuf,
+    /// Seed of the camera noise (episodes only).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
     /// Mesh format of the saved frames.
     #[arg(long, value_enum, default_value = "ply")]
     format: MeshFormat,
@@ -104,6 +109,13 @@ pub(crate) fn run(args: SimArgs) -> Result<()> {
         None => Scene::new(config),
     }
     .with_context(|| format!("building scene {}", args.scene.display()))?;
+    if args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+    {
+        return record_episode(scene, &args);
+    }
     // Frames go to a staging directory and move into place only when the whole run succeeded,
     // so a diverging simulation leaves no partial output.
     let staging = args.out.join(".moe-sim-partial");
@@ -281,4 +293,61 @@ fn save_frame(scene: &Scene, state: &SimState, args: &SimArgs, dir: &Path) -> Re
             .push((-f.distances_m.iter().copied().fold(f64::INFINITY, f64::min)).max(0.0));
     }
     Ok(record)
+}
+
+/// `--json` output of an episode run.
+#[derive(Debug, Serialize)]
+struct EpisodeSummary {
+    scene: String,
+    episode: String,
+    steps: u64,
+    frames: usize,
+    contact_frames: usize,
+    bytes: u64,
+    wall_secs: f64,
+}
+
+/// Runs the scene and writes an MCAP episode (streamed to a temporary file, moved into place
+/// when complete).
+fn record_episode(mut scene: Scene, args: &SimArgs) -> Result<()> {
+    let started = Instant::now();
+    let steps = args.steps.unwrap_or_else(|| scene.num_steps());
+    let name = args
+        .scene
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let frames = moe_tendon_sim::randomize::run_saving(&mut scene, steps)
+        .with_context(|| format!("simulating {}", args.scene.display()))?;
+    let recorder = moe_touch::episode::EpisodeRecorder::new(&scene, &name, args.seed)?;
+    let mut writer = moe_io::create_episode(&args.out, recorder.info())?;
+    let mut contact_frames = 0;
+    for (k, saved) in frames.iter().enumerate() {
+        let frame = recorder.frame(&scene, saved, k as u64)?;
+        contact_frames += usize::from(frame.contact_vertices.iter().any(|c| !c.is_empty()));
+        writer.write_frame(&frame)?;
+    }
+    writer.commit()?;
+    let summary = EpisodeSummary {
+        scene: args.scene.display().to_string(),
+        episode: args.out.display().to_string(),
+        steps,
+        frames: frames.len(),
+        contact_frames,
+        bytes: std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0),
+        wall_secs: started.elapsed().as_secs_f64(),
+    };
+    if args.json {
+        super::print_json(&summary)
+    } else {
+        println!(
+            "{}: {} frames ({} with contact) from {} steps in {:.1} s, {:.1} MB",
+            summary.episode,
+            summary.frames,
+            summary.contact_frames,
+            summary.steps,
+            summary.wall_secs,
+            summary.bytes as f64 / 1e6
+        );
+        Ok(())
+    }
 }

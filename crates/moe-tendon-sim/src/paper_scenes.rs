@@ -1,0 +1,253 @@
+//! The scenes of the paper's experiments, built in code so that the committed scene files under
+//! `fixtures/scenes/` are reproducible (`cargo xtask fixtures --update` writes them, `--check`
+//! compares them):
+//!
+//! - [`head_patting`]: a two-finger hand pats a head-like surface at 30 poses over the top, back
+//!   and sides of the scalp (paper §5.3, where 30 contact conditions on a head are evaluated);
+//! - [`inclined_plate`]: a three-finger hand presses a flat plate inclined at 0°, 30° or 45°
+//!   (paper §6.2, grasping paper on an inclined surface).
+//!
+//! The paper's plate-at-tip/middle/base scenes (Fig. 5) are hand-written TOML files beside them.
+
+use std::f64::consts::PI;
+
+use moe_geom::bodies::HeadParams;
+use moe_geom::math::UnitQuat;
+use moe_geom::{FingerParams, HandPreset, Point3, Real, Vector3};
+
+use crate::error::SimError;
+use crate::obstacle::{ObstacleConfig, ObstacleShape};
+use crate::scene::{HandConfig, SceneConfig};
+use crate::trajectory::{PoseKeyframe, PoseTrajectory};
+
+/// Seed of the head used by [`head_patting`].
+pub const HEAD_SEED: u64 = 2024;
+/// Number of pats in [`head_patting`].
+pub const HEAD_PATS: usize = 30;
+
+/// A wrist keyframe that puts the fingertips (hand z = finger length) at `point`, the hand's z
+/// axis along `-normal` (fingers pointing into the surface) with a roll about it.
+fn pose_facing(
+    time_secs: Real,
+    point: &Point3,
+    normal: &Vector3,
+    standoff_m: Real,
+    roll: Real,
+) -> PoseKeyframe {
+    let fingertips = FingerParams::default().length_m;
+    let align = UnitQuat::rotation_between(&Vector3::z(), &(-normal))
+        .unwrap_or_else(|| UnitQuat::from_axis_angle(&Vector3::x_axis(), PI));
+    let rotation = align * UnitQuat::from_axis_angle(&Vector3::z_axis(), roll);
+    let origin = point + normal * (fingertips + standoff_m);
+    PoseKeyframe {
+        time_secs,
+        translation_m: origin.coords.into(),
+        rotation_rad: rotation.scaled_axis().into(),
+    }
+}
+
+/// The outward normal of a star-shaped surface `r(d)·d` at direction `d`, by central differences.
+fn star_normal(radius: impl Fn(&Vector3) -> Real, d: &Vector3) -> (Point3, Vector3) {
+    let a = if d.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
+    let t1 = d.cross(&a).normalize();
+    let t2 = d.cross(&t1);
+    let h = 1e-4;
+    let s = |v: Vector3| {
+        let u = v.normalize();
+        u * radius(&u)
+    };
+    let du = s(d + t1 * h) - s(d - t1 * h);
+    let dv = s(d + t2 * h) - s(d - t2 * h);
+    let mut n = du.cross(&dv).normalize();
+    if n.dot(d) < 0.0 {
+        n = -n;
+    }
+    (Point3::from(s(*d)), n)
+}
+
+/// Pat directions over the scalp (head frame: x left–right, y toward the face, z up): rings of
+/// constant elevation, the face sector left out, in snake order so that consecutive pats are
+/// neighbours.
+fn pat_directions() -> Vec<Vector3> {
+    let rings: [(Real, usize); 3] = [(70.0, 6), (40.0, 10), (12.0, 14)];
+    let mut out = Vec::with_capacity(HEAD_PATS);
+    for (r, &(elevation_deg, count)) in rings.iter().enumerate() {
+        let el = elevation_deg.to_radians();
+        // Azimuth from the face direction (+y): keep 50°..310° (sides and back).
+        let mut ring: Vec<Vector3> = (0..count)
+            .map(|k| {
+                let az = (50.0 + 260.0 * (k as Real + 0.5) / count as Real).to_radians();
+                Vector3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin())
+            })
+            .collect();
+        if r % 2 == 1 {
+            ring.reverse();
+        }
+        out.extend(ring);
+    }
+    out
+}
+
+/// The head-patting scene: a two-finger hand pats the head of seed [`HEAD_SEED`] at
+/// [`HEAD_PATS`] poses, each an approach from 3 cm, a 6 mm press past first touch, and a
+/// retreat to 5 cm before moving to the next pose.
+///
+/// # Errors
+/// Mesh errors from the head generator (none for the fixed seed).
+pub fn head_patting() -> Result<SceneConfig, SimError> {
+    let head = HeadParams::sample(HEAD_SEED);
+    let mesh = head.mesh(3)?;
+    let mut keyframes = Vec::new();
+    let period = 0.9;
+    for (k, d) in pat_directions().iter().enumerate() {
+        let (p, n) = star_normal(|u| head.radius(u), d);
+        let t0 = k as Real * period;
+        let roll = 0.5 * k as Real;
+        keyframes.push(pose_facing(t0, &p, &n, 0.05, roll));
+        keyframes.push(pose_facing(t0 + 0.2, &p, &n, 0.03, roll));
+        keyframes.push(pose_facing(t0 + 0.5, &p, &n, -0.006, roll));
+        keyframes.push(pose_facing(t0 + 0.6, &p, &n, -0.006, roll));
+        keyframes.push(pose_facing(t0 + 0.8, &p, &n, 0.05, roll));
+    }
+    let duration = keyframes.last().map_or(0.0, |k| k.time_secs);
+    Ok(SceneConfig {
+        hand: HandConfig {
+            preset: HandPreset::TwoFinger,
+            finger: FingerParams::default(),
+        },
+        duration_secs: duration,
+        save_every_steps: 10,
+        wrist: PoseTrajectory { keyframes },
+        obstacles: vec![ObstacleConfig {
+            shape: ObstacleShape::TriangleMesh {
+                vertices_m: mesh.vertices().iter().map(|p| [p.x, p.y, p.z]).collect(),
+                faces: mesh.faces().to_vec(),
+            },
+            trajectory: PoseTrajectory::default(),
+        }],
+        ..SceneConfig::default()
+    })
+}
+
+/// The inclined-plate scene: a 190 × 130 mm plate on a 5 mm acrylic-like slab, inclined by
+/// `incline_deg` about the world x axis, pressed from above by a three-finger hand held level
+/// (fingers pointing down): approach from 2 cm above first touch, press 8 mm, hold, retract.
+///
+/// # Errors
+/// [`SimError::InvalidParameter`] for an incline outside `[0°, 60°]`.
+pub fn inclined_plate(incline_deg: Real) -> Result<SceneConfig, SimError> {
+    if !(0.0..=60.0).contains(&incline_deg) {
+        return Err(SimError::InvalidParameter {
+            name: "incline_deg",
+            value: incline_deg,
+            reason: "must be in [0, 60]",
+        });
+    }
+    let incline = incline_deg.to_radians();
+    let finger = FingerParams::default();
+    let palm = HandPreset::ThreeFinger.palm_radius_m();
+    // Hand level, fingers down: hand z = world −z (a half turn about x).
+    let down = Vector3::x() * PI;
+    // The plate's top surface passes through the world origin with normal n = (0, −sin, cos).
+    // The fingertip that touches first is the lowest one on the slope.
+    let n = Vector3::new(0.0, -incline.sin(), incline.cos());
+    let hand_rotation = UnitQuat::from_scaled_axis(down);
+    let first_touch = (0..3)
+        .map(|k| {
+            let th = 2.0 * PI * k as Real / 3.0;
+            // Centre of the hemispherical tip; the tip touches when the centre is one tip radius
+            // above the plane.
+            let tip_centre = Vector3::new(palm * th.cos(), palm * th.sin(), finger.cap_start_z());
+            finger.tip_radius_m - (hand_rotation * tip_centre).dot(&n)
+        })
+        .fold(Real::MIN, Real::max);
+    let at = |t: Real, extra: Real| PoseKeyframe {
+        time_secs: t,
+        translation_m: (n * (first_touch + extra)).into(),
+        rotation_rad: down.into(),
+    };
+    let half_thickness = 0.0025;
+    let rotation = Vector3::x() * incline;
+    let centre = -n * half_thickness;
+    Ok(SceneConfig {
+        hand: HandConfig {
+            preset: HandPreset::ThreeFinger,
+            finger,
+        },
+        duration_secs: 1.4,
+        save_every_steps: 10,
+        wrist: PoseTrajectory {
+            keyframes: vec![
+                at(0.0, 0.02),
+                at(0.7, -0.008),
+                at(1.0, -0.008),
+                at(1.4, 0.02),
+            ],
+        },
+        obstacles: vec![ObstacleConfig {
+            shape: ObstacleShape::Cuboid {
+                half_extents_m: [0.095, 0.065, half_thickness],
+            },
+            trajectory: PoseTrajectory::fixed(centre.into(), rotation.into()),
+        }],
+        ..SceneConfig::default()
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::obstacle::Obstacle;
+
+    #[test]
+    fn head_pats_approach_along_the_surface_normal() {
+        let config = head_patting().unwrap();
+        assert_eq!(config.wrist.keyframes.len(), 5 * HEAD_PATS);
+        let head = Obstacle::new(0, &config.obstacles[0]).unwrap();
+        let length = FingerParams::default().length_m;
+        // At every press keyframe the point between the fingertips is 6 mm inside the head, and
+        // at every retreat keyframe 5 cm outside.
+        for (k, key) in config.wrist.keyframes.iter().enumerate() {
+            let pose = config.wrist.pose_at(key.time_secs);
+            let tip_centre = pose * Point3::new(0.0, 0.0, length);
+            let d = head
+                .signed_distance(&moe_geom::Iso3::identity(), &tip_centre)
+                .unwrap()
+                .distance_m;
+            let expected = [0.05, 0.03, -0.006, -0.006, 0.05][k % 5];
+            assert!(
+                (d - expected).abs() < 2e-3,
+                "keyframe {k}: {d} vs {expected}"
+            );
+        }
+    }
+
+    #[test]
+    fn inclined_plate_is_first_touched_at_the_end_of_the_approach_gap() {
+        for deg in [0.0, 30.0, 45.0] {
+            let config = inclined_plate(deg).unwrap();
+            let plate = Obstacle::new(0, &config.obstacles[0]).unwrap();
+            let pose = config.obstacles[0].trajectory.pose_at(0.0);
+            let hand =
+                moe_geom::HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())
+                    .unwrap();
+            let wrist = config.wrist.pose_at(0.0);
+            let closest = (0..3)
+                .flat_map(|i| hand.rest_vertices_in_hand(i))
+                .map(|p| {
+                    plate
+                        .signed_distance(&pose, &(wrist * p))
+                        .unwrap()
+                        .distance_m
+                })
+                .fold(Real::INFINITY, Real::min);
+            // 2 cm of approach (the surface mesh approximates the round tip within 0.3 mm).
+            assert!((0.0197..0.0203).contains(&closest), "{deg}°: {closest}");
+        }
+        assert!(inclined_plate(75.0).is_err());
+    }
+}
