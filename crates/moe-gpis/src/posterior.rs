@@ -361,8 +361,12 @@ impl<M: MeanFunction> Gpis<M> {
             // then the parent centre's, which lies inside the surface-free ball of radius t.
             let g_abs = g_min.abs().max(g_max.abs());
             let t = slack + g_abs + 2.0 * crate::marching::near_zero(grid);
+            // Node blocks do not nest exactly (the parent centre can be farther than `t`): the
+            // bounded search radius is grown to reach it.
             let m_c = match parent {
-                Some((pc, _)) if lip > 0.0 && (c - pc).norm() < t => self.mean.value_within(&c, t),
+                Some((pc, _)) if lip > 0.0 => {
+                    self.mean.value_within(&c, t.max(1.0001 * (c - pc).norm()))
+                }
                 _ => Some(self.mean.value(&c)),
             };
             let Some(m_c) = m_c else {
