@@ -5,3 +5,4 @@ mod hand;
 mod sim;
 mod arap;
 mod surface;
+mod episode;
