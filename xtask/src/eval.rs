@@ -52,7 +52,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
 }
 
 /// Offset of the ±d points along the mean's normals at each contact (metres).
-const NORMAL_OFFSET_M: f64 = 0.01;
+const NORMAL_OFFSET_M: f64 = 0.005;
 
 fn surface_reports(size: Size) -> Result<Vec<SceneReport>> {
     let mut out = Vec::new();

@@ -15,7 +15,7 @@ fn head_inputs() -> (moe_gpis::bench_scene::Scene, MeshSdfMean, Observations) {
     let scene = build_scene(&SceneConfig::head()).expect("head scene");
     let prior = MeshSdfMean::new(&scene.prior).expect("watertight prior");
     let mut obs = Observations::from_contacts(&scene.contacts).expect("finite contacts");
-    obs.add_mean_normal_offsets(&prior, 0.01).expect("offsets");
+    obs.add_mean_normal_offsets(&prior, 0.005).expect("offsets");
     (scene, prior, obs)
 }
 

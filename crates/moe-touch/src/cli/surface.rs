@@ -84,8 +84,8 @@ pub(crate) struct SurfaceArgs {
     #[arg(long, value_enum, default_value = "rbf")]
     kernel: Kernel,
     /// Offset (m) of the ±d points added along the mean's normals at every contact to pin the
-    /// SDF's slope; 0 disables them.
-    #[arg(long, default_value_t = 0.01)]
+    /// SDF's slope (keep it well below the body's half-thickness); 0 disables them.
+    #[arg(long, default_value_t = 0.005)]
     normal_offset: f64,
     /// Grid nodes along each axis of an equivalent cube (the grid has at most N³ nodes).
     #[arg(long, default_value_t = 64)]
