@@ -2,7 +2,7 @@
 //! and its analytic gradient.
 //!
 //! The GP models the residual `r = y − m(x)` of the observations about the mean function `m`
-//! (the mean is added back by the caller, see [`crate::surface`]). With `K_y = K + σ_n² I`:
+//! (the mean is added back by the caller, see [`mod@crate::reconstruct`]). With `K_y = K + σ_n² I`:
 //!
 //! ```text
 //! α = K_y⁻¹ r,   μ(x*) = m(x*) + k*ᵀ α,   var(x*) = k(x*, x*) − ‖L⁻¹ k*‖²   (K_y = L Lᵀ)
