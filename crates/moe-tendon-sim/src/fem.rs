@@ -422,17 +422,29 @@ impl FemModel {
                     if !moves_fixed {
                         let slope: Real = ws.force_dot_dx();
                         let e0 = self.potential(x, &ws.dx, 0.0, gravity, t, &mut trial)?;
+                        let mut accepted = false;
                         for _ in 0..30 {
                             match self.potential(x, &ws.dx, alpha, gravity, t, &mut trial) {
-                                Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => break,
+                                Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => {
+                                    accepted = true;
+                                    break;
+                                }
                                 _ => alpha *= 0.5,
                             }
                         }
+                        // No decrease found: the energy change is below round-off (near the
+                        // solution) or the model is poor; take the Newton step and let the
+                        // convergence test below judge it.
+                        if !accepted {
+                            alpha = 1.0;
+                        }
                     }
+                    // Convergence is judged on the full Newton step, not the damped one: a
+                    // heavily damped step is small without the state being near equilibrium.
                     update = 0.0;
                     for (xi, d) in x.iter_mut().zip(&ws.dx) {
                         *xi += d * alpha;
-                        update = update.max(d.norm() * alpha);
+                        update = update.max(d.norm());
                     }
                     self.check_finite(x, v, ctx)?;
                     if update < tolerance_m {
