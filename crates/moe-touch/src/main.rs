@@ -10,7 +10,13 @@ mod cli;
 
 /// Shape and contact estimation for soft tendon-driven hands, from deformation alone.
 #[derive(Debug, Parser)]
-#[command(name = "moe-touch", version, about, long_about = None, propagate_version = true)]
+#[command(
+    name = "moe-touch",
+    version,
+    about = "Shape and contact estimation for soft tendon-driven hands, from deformation alone",
+    long_about = None,
+    propagate_version = true
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -120,7 +120,7 @@ pub(crate) fn run(args: ArapArgs) -> Result<()> {
     if args.json {
         super::print_json(&summary)?;
     } else {
-        println!(
+        super::outln!(
             "{}: {} vertices, {} handles, {} iterations of {} ARAP (α = {}); energy {} → {}; \
              max displacement {:.4e}; wrote {}",
             summary.mesh,

@@ -109,12 +109,14 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
     if args.json {
         super::print_json(&record)?;
     } else {
-        println!(
+        super::outln!(
             "hand '{}': {} fingers, {} vertices in total",
-            record.source, record.num_fingers, record.total_vertices
+            record.source,
+            record.num_fingers,
+            record.total_vertices
         );
         for (i, f) in record.fingers.iter().enumerate() {
-            println!(
+            super::outln!(
                 "  finger {i}: {} vertices, {} faces, {} markers, {} base vertices, area {:.1} cm², \
                  volume {:.2} cm³, edges {:.2}–{:.2} mm",
                 f.num_vertices,
@@ -127,7 +129,7 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
                 f.max_edge_length_m * 1e3
             );
         }
-        println!(
+        super::outln!(
             "wrote {} meshes and hand.json to {}",
             record.num_fingers,
             args.out.display()

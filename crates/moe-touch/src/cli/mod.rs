@@ -22,6 +22,26 @@ pub(crate) fn one_line(err: &anyhow::Error) -> String {
 
 /// Prints `value` as one JSON object on stdout.
 pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
-    println!("{}", serde_json::to_string(value)?);
+    emit(format_args!("{}", serde_json::to_string(value)?));
     Ok(())
 }
+
+/// Writes one line to stdout. A reader that went away (`moe-touch … | head`) is not an error:
+/// the line is dropped, where `println!` would panic; any other failure is reported on stderr.
+pub(crate) fn emit(line: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{line}")
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+    {
+        eprintln!("warning: cannot write to stdout: {e}");
+    }
+}
+
+/// `println!` for command output; see [`emit`].
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        $crate::cli::emit(format_args!($($arg)*))
+    };
+}
+pub(crate) use outln;

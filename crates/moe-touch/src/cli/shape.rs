@@ -146,12 +146,12 @@ pub(crate) fn run(args: ShapeArgs) -> Result<()> {
     if args.json {
         super::print_json(&record)?;
     } else {
-        println!("hand '{}': {} fingers", record.hand, record.fingers.len());
+        super::outln!("hand '{}': {} fingers", record.hand, record.fingers.len());
         for (i, f) in record.fingers.iter().enumerate() {
             if f.all_markers_missing {
                 eprintln!("finger {i}: every marker missing, left at the rest shape");
             }
-            println!(
+            super::outln!(
                 "  finger {i}: {} of {} markers, {} iterations, max displacement {:.2} mm, wrote {}",
                 f.markers_used.len(),
                 f.handle_vertices.len(),

@@ -209,7 +209,7 @@ fn report(summary: &SimSummary, args: &SimArgs) -> Result<()> {
     if args.json {
         return super::print_json(summary);
     }
-    println!(
+    super::outln!(
         "simulated {:.3} s in {} steps ({:.1} steps/s); {} frames written to {}",
         summary.simulated_secs,
         summary.steps,
@@ -218,7 +218,7 @@ fn report(summary: &SimSummary, args: &SimArgs) -> Result<()> {
         args.out.display()
     );
     if let Some(f) = summary.frames.last() {
-        println!(
+        super::outln!(
             "final frame: contact vertices per finger {:?}, max penetration {:?} mm",
             f.contact_vertices,
             f.max_penetration_m
@@ -339,7 +339,7 @@ fn record_episode(mut scene: Scene, args: &SimArgs) -> Result<()> {
     if args.json {
         super::print_json(&summary)
     } else {
-        println!(
+        super::outln!(
             "{}: {} frames ({} with contact) from {} steps in {:.1} s, {:.1} MB",
             summary.episode,
             summary.frames,

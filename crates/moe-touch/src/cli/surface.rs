@@ -374,7 +374,7 @@ fn finish(args: &SurfaceArgs, report: serde_json::Map<String, serde_json::Value>
             .map(|v| v.to_string())
             .unwrap_or_else(|| "-".into())
     };
-    println!(
+    super::outln!(
         "surface: method {}, {} contacts, {} vertices, hyper {}, log marginal likelihood {}",
         get("method").trim_matches('"'),
         get("contacts"),

@@ -151,3 +151,21 @@ fn bad_input_gives_one_line_and_writes_nothing() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("four-finger"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_closed_stdout_is_not_a_panic() {
+    // `moe-touch hand --json | head -c 0`: the reader is gone before the summary is printed.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let dir = scratch("hand-pipe");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_moe-touch"))
+        .args(["hand", "--out", dir.to_str().unwrap(), "--json"])
+        .env("RUST_BACKTRACE", "0")
+        .stdout(writer)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1,8 +1,8 @@
 //! Integration tests of the `moe-touch` binary: one module per subcommand.
 
+mod arap;
 mod common;
+mod episode;
 mod hand;
 mod sim;
-mod arap;
 mod surface;
-mod episode;
