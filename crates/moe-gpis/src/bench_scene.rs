@@ -411,6 +411,26 @@ pub struct MethodResult {
     pub signal_sd_mm: Option<Real>,
     /// Fitted noise standard deviation, mm (GP methods).
     pub noise_sd_mm: Option<Real>,
+    /// Why the method failed on this scene (its figures are then NaN, `null` in JSON).
+    pub error: Option<String>,
+}
+
+impl MethodResult {
+    fn failed(method: &str, err: &GpisError) -> Self {
+        Self {
+            method: method.to_owned(),
+            ucd_mm: Real::NAN,
+            ucd_truth_to_recon_mm: Real::NAN,
+            bcd_mm: Real::NAN,
+            secs: Real::NAN,
+            variance_secs: Real::NAN,
+            vertices: 0,
+            lengthscale_mm: None,
+            signal_sd_mm: None,
+            noise_sd_mm: None,
+            error: Some(err.to_string()),
+        }
+    }
 }
 
 /// All methods on one scene.
@@ -467,6 +487,7 @@ fn gp_result<M: MeanFunction>(
             lengthscale_mm: Some(1e3 * h.lengthscale),
             signal_sd_mm: Some(1e3 * h.signal_variance.sqrt()),
             noise_sd_mm: Some(1e3 * h.noise_variance.sqrt()),
+            error: None,
         },
         rec.grid.num_nodes(),
     ))
@@ -502,6 +523,7 @@ pub fn evaluate_scene(
         lengthscale_mm: None,
         signal_sd_mm: None,
         noise_sd_mm: None,
+        error: None,
     });
     // GP with the task prior; building the prior's BVH is part of the timed work.
     let t = Instant::now();
@@ -515,7 +537,9 @@ pub fn evaluate_scene(
             got: 0,
         },
     )?;
-    let (gp_prior, grid_nodes) = gp_result(
+    // A method that fails on a scene (e.g. a sphere fit to a flat patch set) is reported as
+    // failed; the others still run.
+    let grid_nodes = match gp_result(
         "gp_prior",
         prior_sdf,
         &obs,
@@ -524,43 +548,47 @@ pub fn evaluate_scene(
         surface,
         &truth,
         build,
-    )?;
-    methods.push(gp_prior);
-    // GP with a sphere fitted to the contacts.
-    let t = Instant::now();
-    let sphere = SphereMean::fit(&scene.contacts)?;
-    let fit_secs = t.elapsed().as_secs_f64();
-    // Query box: the sphere's box, but at most the contacts' box grown by half its size on each
-    // side (a sphere fitted to an elongated body can be huge; the grid caps it).
-    let r = Vector3::repeat(sphere.radius);
-    let contact_box = crate::reconstruct::bounds_of(&scene.contacts, None).ok_or(
-        GpisError::TooFewObservations {
-            method: "benchmark",
-            what: "contacts",
-            needed: 1,
-            got: 0,
-        },
-    )?;
-    let grow = contact_box.extents() * 0.5;
-    let bounds_s = Aabb {
-        min: (sphere.center - r)
-            .sup(&(contact_box.min - grow))
-            .inf(&contact_box.min),
-        max: (sphere.center + r)
-            .inf(&(contact_box.max + grow))
-            .sup(&contact_box.max),
+    ) {
+        Ok((result, nodes)) => {
+            methods.push(result);
+            nodes
+        }
+        Err(e) => {
+            methods.push(MethodResult::failed("gp_prior", &e));
+            0
+        }
     };
-    let (gp_sphere, _) = gp_result(
-        "gp_sphere",
-        sphere,
-        &obs,
-        normal_offset_m,
-        &bounds_s,
-        surface,
-        &truth,
-        fit_secs,
-    )?;
-    methods.push(gp_sphere);
+    // GP with a sphere fitted to the contacts.
+    let bounds_c = crate::reconstruct::bounds_of(&scene.contacts, None).unwrap_or(bounds);
+    let gp_sphere = || -> Result<MethodResult, GpisError> {
+        let t = Instant::now();
+        let sphere = SphereMean::fit(&scene.contacts)?;
+        let fit_secs = t.elapsed().as_secs_f64();
+        // Query box: the sphere's box, but at most the contacts' box grown by half its size on
+        // each side (a sphere fitted to an elongated body can be huge; the grid caps it).
+        let r = Vector3::repeat(sphere.radius);
+        let grow = bounds_c.extents() * 0.5;
+        let bounds_s = Aabb {
+            min: (sphere.center - r)
+                .sup(&(bounds_c.min - grow))
+                .inf(&bounds_c.min),
+            max: (sphere.center + r)
+                .inf(&(bounds_c.max + grow))
+                .sup(&bounds_c.max),
+        };
+        let (result, _) = gp_result(
+            "gp_sphere",
+            sphere,
+            &obs,
+            normal_offset_m,
+            &bounds_s,
+            surface,
+            &truth,
+            fit_secs,
+        )?;
+        Ok(result)
+    };
+    methods.push(gp_sphere().unwrap_or_else(|e| MethodResult::failed("gp_sphere", &e)));
     // Non-probabilistic baseline.
     let t = Instant::now();
     let np = nonprobabilistic(&scene.prior, &scene.contacts, &NonProbConfig::default())?;
@@ -578,6 +606,7 @@ pub fn evaluate_scene(
         lengthscale_mm: None,
         signal_sd_mm: None,
         noise_sd_mm: None,
+        error: None,
     });
     Ok(SceneReport {
         scene: kind,

@@ -9,9 +9,10 @@
 //! grid edge, so the triangles share vertices and the surface is closed.
 //!
 //! Details that make the guarantee hold in floating point:
-//! - node values with `|v| < 1e-3·h` are set to `+1e-3·h` (the surface moves by at most a
-//!   thousandth of a cell), so no crossing point sits on (or numerically next to) a node and no
-//!   triangle is degenerate;
+//! - node values with `|v| < 1e-3·h` are set to `+1e-3·h`, and crossing points are kept at least
+//!   0.1 % of an edge away from its end nodes (the surface moves by at most a thousandth of a
+//!   cell), so no crossing point sits on (or numerically next to) a node and no triangle is
+//!   degenerate, however steep the field;
 //! - nodes on the grid's outer layer are clamped to at least `+1e-3·h` (outside), so a surface
 //!   that leaves the grid is capped along its boundary instead of left open;
 //! - each triangle is oriented so that its normal points from the negative (inside) corners to
@@ -46,6 +47,10 @@ const TETS: [[usize; 4]; 6] = [
     [0, 4, 5, 7], // z, x, y
     [0, 4, 6, 7], // z, y, x
 ];
+
+/// Crossing points stay at least this fraction of an edge away from its end nodes, so no
+/// triangle is degenerate even where the field is steep (moves the surface by ≤ 0.1 % of a cell).
+const EDGE_MARGIN: Real = 1e-3;
 
 /// Options of [`extract_surface`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -129,7 +134,7 @@ pub fn extract_surface(
         |a: usize, b: usize, pa: &Point3, pb: &Point3, vertices: &mut Vec<Point3>| {
             let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
             *edge_vertex.entry(key).or_insert_with(|| {
-                let t = v[a] / (v[a] - v[b]);
+                let t = (v[a] / (v[a] - v[b])).clamp(EDGE_MARGIN, 1.0 - EDGE_MARGIN);
                 vertices.push(pa + (pb - pa) * t);
                 (vertices.len() - 1) as u32
             })
@@ -348,6 +353,24 @@ mod tests {
             let v = 4.0 / 3.0 * std::f64::consts::PI * a * b * c;
             proptest::prop_assert!((mesh.signed_volume() / v - 1.0).abs() < 0.05);
         }
+    }
+
+    #[test]
+    fn steep_fields_with_near_zero_nodes_still_give_a_valid_mesh() {
+        // A field 10⁵ times steeper than a distance, with some nodes a hair from zero: crossing
+        // points would crowd the nodes without the edge margin.
+        let grid = Grid3::new(Point3::new(-1.0, -1.0, -1.0), 0.1, [21, 21, 21]).unwrap();
+        let values: Vec<Real> = grid
+            .points()
+            .iter()
+            .map(|p| {
+                let v = 1e5 * (p.coords.norm() - 0.55);
+                if v.abs() < 2e3 { v.signum() * 1e-12 } else { v }
+            })
+            .collect();
+        let mesh = extract_surface(&grid, &values, &MeshingOptions::default()).unwrap();
+        mesh.require_closed().unwrap();
+        assert_eq!(Topology::new(&mesh).euler_characteristic(), 2);
     }
 
     #[test]
