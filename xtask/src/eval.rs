@@ -104,6 +104,10 @@ fn run_surface(args: &SurfaceEvalArgs) -> Result<()> {
             "method", "UCD mm", "back mm", "BCD mm", "time ms", "var ms", "vertices"
         );
         for m in &r.methods {
+            if let Some(e) = &m.error {
+                println!("  {:<10} failed: {e}", m.method);
+                continue;
+            }
             println!(
                 "  {:<10} {:>9.3} {:>9.3} {:>9.3} {:>10.1} {:>10.1} {:>9}",
                 m.method,
