@@ -184,7 +184,10 @@ mod tests {
         let topo = Topology::new(&m);
         let lap = CotanLaplacian::new(&m, &topo);
         assert!(CotanLaplacian::from_weights(&topo, vec![1.0; 5]).is_err());
-        assert_eq!(CotanLaplacian::from_weights(&topo, lap.weights().to_vec()).unwrap(), lap);
+        assert_eq!(
+            CotanLaplacian::from_weights(&topo, lap.weights().to_vec()).unwrap(),
+            lap
+        );
         let y = lap.apply(&[3.5; 4]);
         assert!(y.iter().all(|v| v.abs() < 1e-12), "{y:?}");
         let n = 4;

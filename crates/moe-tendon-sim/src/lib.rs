@@ -80,10 +80,10 @@ mod linsys;
 pub mod material;
 /// Rigid obstacles from parry3d shapes.
 pub mod obstacle;
-/// Polar decomposition.
-pub mod polar;
 /// The scenes of the paper's experiments (head patting, inclined plates).
 pub mod paper_scenes;
+/// Polar decomposition.
+pub mod polar;
 /// Randomised contact scenes for training data.
 pub mod randomize;
 /// Hand-level scenes with explicit state.
