@@ -49,7 +49,9 @@
 //!
 //! The maximiser of `tr(R S_i)` is found by Newton's method on SO(3) warm-started from the
 //! previous iteration's `R_i` (one to three steps of a few dozen flops, quadratic convergence,
-//! stopped when the step is below 1e-6 rad, i.e. at ~1e-12 of the exact rotation). Cells where
+//! stopped when the step is below 1e-6 rad, i.e. at ~1e-12 of the exact rotation), two cells in
+//! lockstep so that their dependent chains interleave (`newton.rs`; bit-identical to one at a
+//! time). Cells where
 //! that does not apply fall back to the orthogonal polar factor of `S_iᵀ` by scaled Newton
 //! iteration (equal to the SVD formula when `det S_i > 0`) and then to the SVD formula itself
 //! (flat or inverted cells, counted in [`ArapInfo::svd_fallbacks`]). A solve from rest resets the
@@ -73,6 +75,8 @@ mod config;
 mod error;
 /// Multi-finger shape estimation over a hand model.
 mod multi;
+/// Warm-started Newton iteration on SO(3), several cells in lockstep.
+mod newton;
 /// Best-fitting rotations for the local step.
 mod rotation;
 /// The SR-ARAP solver.

@@ -8,68 +8,46 @@
 //! ill-conditioned or reflecting (flat one-rings give rank-2 `S`, inverted cells give `det S < 0`)
 //! take the SVD route with the determinant correction.
 
-use moe_geom::{Matrix3, Real, Vector3};
+use moe_geom::{Matrix3, Real};
+
+use crate::newton::{Rows, group_newton};
 
 /// Relative determinant below which the Newton route is not trusted: `det S ≤ TOL·‖S‖³`.
 const MIN_REL_DET: Real = 1e-9;
 /// Maximum Newton steps before falling back to the SVD.
 const MAX_NEWTON_STEPS: usize = 24;
 
-/// Newton steps on the rotation group tried from a warm start before the polar route.
-const MAX_GROUP_STEPS: usize = 6;
-/// A group Newton step shorter than this (radians) ends the iteration: convergence is quadratic,
-/// so the remaining error is of the order of its square (1e-12).
-const GROUP_STEP_TOL: Real = 1e-6;
-
-/// Like [`fit_rotation`], starting from a nearby rotation `r0` (the previous iteration's).
-///
-/// Newton's method on SO(3) for `f(R) = tr(R S)`: with `R = exp([ω]) R₀` (applied through the
-/// Cayley retraction) and `M = R₀ S`, the
-/// gradient is `g = (M₁₂ − M₂₁, M₂₀ − M₀₂, M₀₁ − M₁₀)` and the Hessian `½(M + Mᵀ) − tr(M) I`, so the
-/// step solves `(tr(M) I − ½(M + Mᵀ)) ω = g`. The iteration stops at a point where that matrix is
-/// positive definite and the gradient vanishes — the maximiser, which is unique when `S` has full
-/// rank or rank 2 — and converges quadratically, so a warm start needs one to three steps. It
-/// falls back to [`fit_rotation`] when a step is not an ascent direction or it does not converge.
+/// Like [`fit_rotation`], starting from a nearby rotation `r0` (the previous iteration's): Newton's
+/// method on SO(3) (see `newton.rs`), falling back to [`fit_rotation`] when a step is not an
+/// ascent direction or it does not converge. (The solver fits two cells at a time through
+/// [`fit_rotations_from`].)
+#[cfg(test)]
 pub(crate) fn fit_rotation_from(s: &Matrix3, r0: &Matrix3) -> (Matrix3, bool) {
-    // Plain row-major arrays: this runs for every vertex in every iteration, and the explicit
-    // 3 × 3 arithmetic compiles to a fraction of the generic matrix code.
-    let sa = rows(s);
-    let mut r = rows(r0);
-    for _ in 0..MAX_GROUP_STEPS {
-        let m = mul(&r, &sa);
-        let g = Vector3::new(m[1][2] - m[2][1], m[2][0] - m[0][2], m[0][1] - m[1][0]);
-        let tr = m[0][0] + m[1][1] + m[2][2];
-        let p = Matrix3::new(
-            tr - m[0][0],
-            -0.5 * (m[0][1] + m[1][0]),
-            -0.5 * (m[0][2] + m[2][0]),
-            -0.5 * (m[0][1] + m[1][0]),
-            tr - m[1][1],
-            -0.5 * (m[1][2] + m[2][1]),
-            -0.5 * (m[0][2] + m[2][0]),
-            -0.5 * (m[1][2] + m[2][1]),
-            tr - m[2][2],
-        );
-        let Some(omega) = solve_spd3(&p, &g) else {
-            break;
-        };
-        let theta_sq = omega.norm_squared();
-        if theta_sq > 1.0 {
-            break;
+    let [fit] = fit_rotations_from::<1>(&[rows(s)], &[rows(r0)]);
+    fit
+}
+
+/// [`fit_rotation_from`] for `L` independent cells at once (`s` and `r0` row-major); the results
+/// are those of `L` separate calls, bit for bit.
+pub(crate) fn fit_rotations_from<const L: usize>(
+    s: &[Rows; L],
+    r0: &[Rows; L],
+) -> [(Matrix3, bool); L] {
+    let fits = group_newton(s, r0);
+    std::array::from_fn(|l| match fits[l] {
+        Some(r) => (
+            Matrix3::new(
+                r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+            ),
+            false,
+        ),
+        None => {
+            let m = &s[l];
+            fit_rotation(&Matrix3::new(
+                m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2],
+            ))
         }
-        r = mul(&cayley(&omega), &r);
-        if theta_sq < GROUP_STEP_TOL * GROUP_STEP_TOL {
-            // Each Cayley product adds ~1e-16 of drift from orthogonality; the solver bounds it by
-            // re-orthonormalising the warm starts once per solve (`orthonormalize`).
-            return (
-                Matrix3::new(
-                    r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
-                ),
-                false,
-            );
-        }
-    }
-    fit_rotation(s)
+    })
 }
 
 /// One Newton polar step `(R + R⁻ᵀ)/2`: removes the rounding drift of a nearly orthogonal matrix.
@@ -84,79 +62,12 @@ pub(crate) fn orthonormalize(r: &Matrix3) -> Matrix3 {
 
 /// Row-major copy of a matrix.
 #[inline]
-fn rows(m: &Matrix3) -> [[Real; 3]; 3] {
+pub(crate) fn rows(m: &Matrix3) -> Rows {
     [
         [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
         [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
         [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
     ]
-}
-
-/// Product of row-major 3 × 3 matrices.
-#[inline]
-fn mul(a: &[[Real; 3]; 3], b: &[[Real; 3]; 3]) -> [[Real; 3]; 3] {
-    let mut c = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            c[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-        }
-    }
-    c
-}
-
-/// The Cayley rotation of `ω` (row-major): `I + c([ω] + [ω]²/2)` with `c = 1/(1 + |ω|²/4)`, a
-/// retraction that agrees with `exp([ω])` to second order and needs no trigonometry.
-#[inline]
-fn cayley(omega: &Vector3) -> [[Real; 3]; 3] {
-    let (x, y, z) = (omega.x, omega.y, omega.z);
-    let sq = x * x + y * y + z * z;
-    let c = 1.0 / (1.0 + 0.25 * sq);
-    // [ω]² = ωωᵀ − |ω|² I.
-    let h = 0.5 * c;
-    [
-        [
-            1.0 + h * (x * x - sq),
-            c * -z + h * x * y,
-            c * y + h * x * z,
-        ],
-        [
-            c * z + h * y * x,
-            1.0 + h * (y * y - sq),
-            c * -x + h * y * z,
-        ],
-        [
-            c * -y + h * z * x,
-            c * x + h * z * y,
-            1.0 + h * (z * z - sq),
-        ],
-    ]
-}
-
-/// Solves `P x = g` for symmetric `P` through its adjugate; `None` unless `P` is (numerically)
-/// positive definite, checked by its leading principal minors. One division and no square root:
-/// this sits on the critical path of every local step.
-fn solve_spd3(p: &Matrix3, g: &Vector3) -> Option<Vector3> {
-    let (a, b, c) = (p[(0, 0)], p[(0, 1)], p[(0, 2)]);
-    let (d, e, f) = (p[(1, 1)], p[(1, 2)], p[(2, 2)]);
-    // Cofactors of the symmetric matrix [[a, b, c], [b, d, e], [c, e, f]].
-    let c00 = d * f - e * e;
-    let c01 = c * e - b * f;
-    let c02 = b * e - c * d;
-    let c11 = a * f - c * c;
-    let c12 = b * c - a * e;
-    let c22 = a * d - b * b;
-    let det = a * c00 + b * c01 + c * c02;
-    let scale = a.abs().max(d).max(f);
-    // Relative floor: a nearly singular Hessian means a saddle or a degenerate S.
-    if a.is_nan() || a <= 0.0 || c22 <= 0.0 || det <= 1e-12 * scale * scale * scale {
-        return None;
-    }
-    let inv = 1.0 / det;
-    Some(Vector3::new(
-        (c00 * g.x + c01 * g.y + c02 * g.z) * inv,
-        (c01 * g.x + c11 * g.y + c12 * g.z) * inv,
-        (c02 * g.x + c12 * g.y + c22 * g.z) * inv,
-    ))
 }
 
 /// The rotation `R = V·diag(1, 1, det(VUᵀ))·Uᵀ` for `S = UΣVᵀ`, and whether the SVD route was used.
@@ -225,6 +136,7 @@ pub(crate) fn svd_rotation(s: &Matrix3) -> Matrix3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use moe_geom::Vector3;
 
     fn rotation(axis: Vector3, angle: Real) -> Matrix3 {
         let iso = moe_geom::Iso3::new(Vector3::zeros(), axis.normalize() * angle);

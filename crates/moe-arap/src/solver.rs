@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 use crate::cells::Cells;
 use crate::config::ArapConfig;
 use crate::error::ArapError;
-use crate::rotation::{fit_rotation_from, orthonormalize};
+use crate::newton::Rows;
+use crate::rotation::{fit_rotations_from, orthonormalize, rows};
 use crate::system::{FIXED, ReducedSystem, SmallCholesky};
 
 /// Meshes with fewer vertices run the local step sequentially even when `parallel` is set. The
@@ -422,7 +423,8 @@ impl ArapSolver {
     fn local_step(&self, ws: &mut ArapWorkspace, previous_valid: bool) -> (Real, usize) {
         let deformed = &ws.deformed;
         let rot_prev = &ws.rot_prev;
-        let work = |i: usize, r: &mut Matrix3| -> (Real, usize) {
+        // The matrix whose best rotation is wanted, and the cell's energy with the previous one.
+        let target = |i: usize| -> (Rows, Real) {
             let (mut s, deformed_sq) = self.cell_covariance(i, deformed);
             let coeff = self.smoothing[i];
             let mut energy = 0.0;
@@ -441,24 +443,51 @@ impl ArapSolver {
                     s = s * 2.0 + sum.transpose() * (4.0 * coeff);
                 }
             }
-            let (fit, fallback) = fit_rotation_from(&s, &rot_prev[i]);
-            *r = fit;
-            (energy, usize::from(fallback))
+            (rows(&s), energy)
         };
-        let add = |a: (Real, usize), b: (Real, usize)| (a.0 + b.0, a.1 + b.1);
+        // Rotations are fitted two cells at a time (see `newton.rs`): `out` holds the rotations
+        // of cells `first..first + out.len()`; returns their energies and SVD fallbacks.
+        let work = |first: usize, out: &mut [Matrix3]| -> ([Real; 2], usize) {
+            if let [r0, r1] = out {
+                let (s0, e0) = target(first);
+                let (s1, e1) = target(first + 1);
+                let warm = [rows(&rot_prev[first]), rows(&rot_prev[first + 1])];
+                let [(f0, b0), (f1, b1)] = fit_rotations_from::<2>(&[s0, s1], &warm);
+                *r0 = f0;
+                *r1 = f1;
+                ([e0, e1], usize::from(b0) + usize::from(b1))
+            } else {
+                let mut energies = [0.0; 2];
+                let mut fallbacks = 0;
+                for (k, r) in out.iter_mut().enumerate() {
+                    let (s, e) = target(first + k);
+                    let [(fit, fallback)] =
+                        fit_rotations_from::<1>(&[s], &[rows(&rot_prev[first + k])]);
+                    *r = fit;
+                    energies[k] = e;
+                    fallbacks += usize::from(fallback);
+                }
+                (energies, fallbacks)
+            }
+        };
         if self.config.parallel && self.rest.len() >= PARALLEL_MIN_VERTICES {
             ws.rot
-                .par_iter_mut()
+                .par_chunks_mut(2)
                 .enumerate()
-                .with_min_len(256)
-                .map(|(i, r)| work(i, r))
-                .reduce(|| (0.0, 0), add)
+                .with_min_len(128)
+                .map(|(c, out)| {
+                    let (e, f) = work(2 * c, out);
+                    (e[0] + e[1], f)
+                })
+                .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
         } else {
             ws.rot
-                .iter_mut()
+                .chunks_mut(2)
                 .enumerate()
-                .map(|(i, r)| work(i, r))
-                .fold((0.0, 0), add)
+                .fold((0.0, 0), |acc, (c, out)| {
+                    let (e, f) = work(2 * c, out);
+                    (acc.0 + e[0] + e[1], acc.1 + f)
+                })
         }
     }
 
