@@ -110,6 +110,7 @@ fn cayley<const L: usize>(x: Lanes<L>, y: Lanes<L>, z: Lanes<L>, sq: Lanes<L>) -
 /// `r0[l]`, or `None` when a step of that lane was not an ascent direction (the Hessian was not
 /// safely positive definite), was longer than one radian, or the lane did not converge within
 /// [`MAX_GROUP_STEPS`]; the caller then takes the polar or SVD route.
+#[inline(always)]
 pub(crate) fn group_newton<const L: usize>(s: &[Rows; L], r0: &[Rows; L]) -> [Option<Rows>; L] {
     let lanes = |m: &[Rows; L]| -> M3<L> {
         std::array::from_fn(|i| std::array::from_fn(|j| Lanes(std::array::from_fn(|l| m[l][i][j]))))

@@ -29,6 +29,7 @@ pub(crate) fn fit_rotation_from(s: &Matrix3, r0: &Matrix3) -> (Matrix3, bool) {
 
 /// [`fit_rotation_from`] for `L` independent cells at once (`s` and `r0` row-major); the results
 /// are those of `L` separate calls, bit for bit.
+#[inline(always)]
 pub(crate) fn fit_rotations_from<const L: usize>(
     s: &[Rows; L],
     r0: &[Rows; L],

@@ -20,6 +20,9 @@ use crate::system::{FIXED, ReducedSystem, SmallCholesky};
 /// an iteration.
 const PARALLEL_MIN_VERTICES: usize = 1024;
 
+/// Cells whose rotations are fitted together in the local step (see `newton.rs`).
+const LANES: usize = 2;
+
 /// Where the iterations start.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Start<'a> {
@@ -445,20 +448,23 @@ impl ArapSolver {
             }
             (rows(&s), energy)
         };
-        // Rotations are fitted two cells at a time (see `newton.rs`): `out` holds the rotations
-        // of cells `first..first + out.len()`; returns their energies and SVD fallbacks.
-        let work = |first: usize, out: &mut [Matrix3]| -> ([Real; 2], usize) {
-            if let [r0, r1] = out {
-                let (s0, e0) = target(first);
-                let (s1, e1) = target(first + 1);
-                let warm = [rows(&rot_prev[first]), rows(&rot_prev[first + 1])];
-                let [(f0, b0), (f1, b1)] = fit_rotations_from::<2>(&[s0, s1], &warm);
-                *r0 = f0;
-                *r1 = f1;
-                ([e0, e1], usize::from(b0) + usize::from(b1))
+        // Rotations are fitted `LANES` cells at a time (see `newton.rs`): `out` holds the
+        // rotations of cells `first..first + out.len()`; returns their energies and SVD fallbacks.
+        let work = |first: usize, out: &mut [Matrix3]| -> ([Real; LANES], usize) {
+            let mut energies = [0.0; LANES];
+            let mut fallbacks = 0;
+            if out.len() == LANES {
+                let mut s = [[[0.0; 3]; 3]; LANES];
+                for (k, (sk, ek)) in s.iter_mut().zip(&mut energies).enumerate() {
+                    (*sk, *ek) = target(first + k);
+                }
+                let warm = std::array::from_fn(|k| rows(&rot_prev[first + k]));
+                let fits = fit_rotations_from::<LANES>(&s, &warm);
+                for (r, (fit, fallback)) in out.iter_mut().zip(fits) {
+                    *r = fit;
+                    fallbacks += usize::from(fallback);
+                }
             } else {
-                let mut energies = [0.0; 2];
-                let mut fallbacks = 0;
                 for (k, r) in out.iter_mut().enumerate() {
                     let (s, e) = target(first + k);
                     let [(fit, fallback)] =
@@ -467,26 +473,26 @@ impl ArapSolver {
                     energies[k] = e;
                     fallbacks += usize::from(fallback);
                 }
-                (energies, fallbacks)
             }
+            (energies, fallbacks)
         };
         if self.config.parallel && self.rest.len() >= PARALLEL_MIN_VERTICES {
             ws.rot
-                .par_chunks_mut(2)
+                .par_chunks_mut(LANES)
                 .enumerate()
-                .with_min_len(128)
+                .with_min_len(256 / LANES)
                 .map(|(c, out)| {
-                    let (e, f) = work(2 * c, out);
-                    (e[0] + e[1], f)
+                    let (e, f) = work(LANES * c, out);
+                    (e.iter().sum::<Real>(), f)
                 })
                 .reduce(|| (0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
         } else {
             ws.rot
-                .chunks_mut(2)
+                .chunks_mut(LANES)
                 .enumerate()
                 .fold((0.0, 0), |acc, (c, out)| {
-                    let (e, f) = work(2 * c, out);
-                    (acc.0 + e[0] + e[1], acc.1 + f)
+                    let (e, f) = work(LANES * c, out);
+                    (e.iter().fold(acc.0, |a, e| a + e), acc.1 + f)
                 })
         }
     }
