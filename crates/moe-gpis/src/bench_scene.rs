@@ -558,24 +558,14 @@ pub fn evaluate_scene(
             0
         }
     };
-    // GP with a sphere fitted to the contacts.
-    let bounds_c = crate::reconstruct::bounds_of(&scene.contacts, None).unwrap_or(bounds);
+    // GP with a sphere fitted to the contacts, queried on the same grid as the task prior so that
+    // both reconstructions cover the same region (a narrower box would clip the sphere where it
+    // strays from the body and hide that error from the one-way distance).
     let gp_sphere = || -> Result<MethodResult, GpisError> {
         let t = Instant::now();
         let sphere = SphereMean::fit(&scene.contacts)?;
         let fit_secs = t.elapsed().as_secs_f64();
-        // Query box: the sphere's box, but at most the contacts' box grown by half its size on
-        // each side (a sphere fitted to an elongated body can be huge; the grid caps it).
-        let r = Vector3::repeat(sphere.radius);
-        let grow = bounds_c.extents() * 0.5;
-        let bounds_s = Aabb {
-            min: (sphere.center - r)
-                .sup(&(bounds_c.min - grow))
-                .inf(&bounds_c.min),
-            max: (sphere.center + r)
-                .inf(&(bounds_c.max + grow))
-                .sup(&bounds_c.max),
-        };
+        let bounds_s = bounds;
         let (result, _) = gp_result(
             "gp_sphere",
             sphere,

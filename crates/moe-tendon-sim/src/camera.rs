@@ -11,7 +11,7 @@
 //! item's marker centres is red. The red region is therefore the patch of the real surface around
 //! the marker vertex, and it deforms and hides exactly as the surface does.
 //!
-//! Noise model ([`NoiseModel`], defaults chosen to resemble a short-range stereo RGB-D camera such
+//! Noise model ([`NoiseModel`](crate::camera::NoiseModel), defaults chosen to resemble a short-range stereo RGB-D camera such
 //! as the RealSense D405):
 //! - depth: `z + N(0, σ(z)²)` with `σ(z) = depth_std_base_m + depth_std_per_m2 · z²` (structured-light
 //!   and stereo depth error grows with the square of the distance);
@@ -20,7 +20,7 @@
 //!   angles);
 //! - colour: every channel `+ N(0, color_std²)` in 8-bit levels, clamped to `[0, 255]`.
 //!
-//! The noise is drawn from a [`SeededRng`] in pixel order, so a seed fixes the image bit for bit.
+//! The noise is drawn from a [`SeededRng`](moe_geom::SeededRng) in pixel order, so a seed fixes the image bit for bit.
 
 use moe_geom::rng::SeededRng;
 use moe_geom::transform::{Transform, frame};

@@ -2,9 +2,9 @@
 //! `fixtures/scenes/` are reproducible (`cargo xtask fixtures --update` writes them, `--check`
 //! compares them):
 //!
-//! - [`head_patting`]: a two-finger hand pats a head-like surface at 30 poses over the top, back
+//! - [`head_patting`](crate::paper_scenes::head_patting): a two-finger hand pats a head-like surface at 30 poses over the top, back
 //!   and sides of the scalp (paper §5.3, where 30 contact conditions on a head are evaluated);
-//! - [`inclined_plate`]: a three-finger hand presses a flat plate inclined at 0°, 30° or 45°
+//! - [`inclined_plate`](crate::paper_scenes::inclined_plate): a three-finger hand presses a flat plate inclined at 0°, 30° or 45°
 //!   (paper §6.2, grasping paper on an inclined surface).
 //!
 //! The paper's plate-at-tip/middle/base scenes (Fig. 5) are hand-written TOML files beside them.

@@ -4,7 +4,7 @@
 //!
 //! Families cover the variety of the YCB objects the paper uses: boxes, spheres, cylinders,
 //! capsules, thin plates, superquadrics, random convex hulls and a head-like shape. Every
-//! choice is drawn from a [`SeededRng`] split by trajectory id, so a trajectory is a pure
+//! choice is drawn from a [`SeededRng`](moe_geom::SeededRng) split by trajectory id, so a trajectory is a pure
 //! function of `(seed, trajectory id)`.
 //!
 //! Placement: the contact target is a point of the chosen finger's rest surface (hand frame) with
@@ -181,7 +181,7 @@ const MAX_ATTEMPTS: usize = 64;
 /// Draws the scene of trajectory `trajectory_id` of a data set with `seed`.
 ///
 /// # Errors
-/// Invalid parameters, or no clear placement found in [`MAX_ATTEMPTS`] draws (reported as
+/// Invalid parameters, or no clear placement found in 64 draws (reported as
 /// [`SimError::InvalidObstacle`]).
 pub fn sample_scene(
     params: &RandomSceneParams,

@@ -190,7 +190,7 @@ struct Settings {
     generator: serde_json::Value,
 }
 
-/// File holding the [`Settings`] of a data set directory.
+/// File holding the settings of a data set directory (seed, sizes, layout, randomisation).
 pub const SETTINGS_FILE: &str = "plan.json";
 
 /// Refuses to add shards to a directory generated with other settings (a resumed run with
