@@ -194,11 +194,11 @@ mod tests {
     use super::*;
     use crate::gp::{cholesky_with_jitter, kernel_matrix};
     use crate::kernel::Kernel;
-    use crate::rng::SplitMix64;
+    use moe_geom::SeededRng;
 
     /// Draws `f ~ GP(0, k)` at random points via the Cholesky factor, plus Gaussian noise.
     fn sample_gp(kind: KernelKind, truth: &Hyper, n: usize, seed: u64) -> (Vec<Point3>, Vec<Real>) {
-        let mut rng = SplitMix64::new(seed);
+        let mut rng = SeededRng::new(seed);
         let pts: Vec<Point3> = (0..n)
             .map(|_| Point3::new(rng.uniform(), rng.uniform(), rng.uniform()))
             .collect();

@@ -324,10 +324,10 @@ pub fn log_marginal_likelihood_and_grad(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SplitMix64;
+    use moe_geom::SeededRng;
 
     fn scattered(n: usize, seed: u64) -> Vec<Point3> {
-        let mut rng = SplitMix64::new(seed);
+        let mut rng = SeededRng::new(seed);
         (0..n)
             .map(|_| Point3::new(rng.uniform(), rng.uniform(), rng.uniform()))
             .collect()

@@ -82,10 +82,6 @@ pub mod posterior;
 pub mod reconstruct;
 /// ICP registration of the prior mesh to the contacts.
 pub mod register;
-/// A seeded pseudo-random generator.
-pub mod rng;
-/// Procedural closed meshes (icospheres, star-shaped surfaces).
-pub mod shapes;
 /// Subset-of-regressors sparse approximation for many observations.
 pub mod sparse;
 
@@ -106,5 +102,4 @@ pub use reconstruct::{
     reconstruct,
 };
 pub use register::{IcpConfig, IcpReport, RegistrationKind, Similarity, register_prior};
-pub use rng::SplitMix64;
 pub use sparse::SparseGp;

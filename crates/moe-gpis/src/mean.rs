@@ -294,10 +294,10 @@ impl MeanFunction for MeshSdfMean {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::SplitMix64;
+    use moe_geom::SeededRng;
 
     fn sphere_points(c: Point3, r: Real, n: usize, noise: Real, seed: u64) -> Vec<Point3> {
-        let mut rng = SplitMix64::new(seed);
+        let mut rng = SeededRng::new(seed);
         (0..n)
             .map(|_| {
                 let d = Vector3::new(rng.normal(), rng.normal(), rng.normal()).normalize();
@@ -350,7 +350,7 @@ mod tests {
 
     #[test]
     fn mesh_sdf_matches_the_sphere_sdf_and_rejects_open_meshes() {
-        let mesh = crate::shapes::icosphere(3, 0.1);
+        let mesh = moe_geom::shapes::icosphere(3, 0.1);
         let sdf = MeshSdfMean::new(&mesh).unwrap();
         for p in [
             Point3::new(0.0, 0.0, 0.0),

@@ -116,7 +116,7 @@ pub fn nonprobabilistic(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shapes::icosphere;
+    use moe_geom::shapes::icosphere;
 
     #[test]
     fn contacts_pull_the_prior_and_smoothing_keeps_it_closed() {

@@ -240,11 +240,11 @@ mod tests {
     use super::*;
     use crate::kernel::KernelKind;
     use crate::mean::{ConstantMean, SphereMean};
-    use crate::rng::SplitMix64;
+    use moe_geom::SeededRng;
     use moe_geom::{Topology, Vector3};
 
     fn sphere_points(r: Real, n: usize, seed: u64) -> Vec<Point3> {
-        let mut rng = SplitMix64::new(seed);
+        let mut rng = SeededRng::new(seed);
         (0..n)
             .map(|_| {
                 let d = Vector3::new(rng.normal(), rng.normal(), rng.normal()).normalize();
@@ -296,7 +296,8 @@ mod tests {
     #[test]
     fn narrow_band_with_a_mesh_prior_gives_the_dense_mesh() {
         let prior_mesh =
-            crate::shapes::star_shaped(3, Point3::origin(), |d| 0.07 + 0.01 * d.x * d.y).unwrap();
+            moe_geom::shapes::star_shaped(3, Point3::origin(), |d| 0.07 + 0.01 * d.x * d.y)
+                .unwrap();
         let prior = crate::mean::MeshSdfMean::new(&prior_mesh).unwrap();
         let pts: Vec<Point3> = sphere_points(0.075, 300, 7)
             .into_iter()

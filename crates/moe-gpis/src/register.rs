@@ -237,7 +237,7 @@ pub fn register_prior(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shapes::star_shaped;
+    use moe_geom::shapes::star_shaped;
 
     #[test]
     fn icp_recovers_a_known_pose_and_scale() {

@@ -191,11 +191,11 @@ impl SparseGp {
 mod tests {
     use super::*;
     use crate::gp::ExactGp;
-    use crate::rng::SplitMix64;
+    use moe_geom::SeededRng;
 
     #[test]
     fn sparse_mean_and_variance_are_close_to_exact() {
-        let mut rng = SplitMix64::new(5);
+        let mut rng = SeededRng::new(5);
         let pts: Vec<Point3> = (0..1500)
             .map(|_| Point3::new(rng.uniform(), rng.uniform(), rng.uniform()))
             .collect();

@@ -1,8 +1,8 @@
 //! Bad input through the public API: every case is a typed error naming the problem, never a
 //! panic.
 
+use moe_geom::shapes::icosphere;
 use moe_geom::{Point3, Real, TriMesh};
-use moe_gpis::shapes::icosphere;
 use moe_gpis::{
     FitConfig, GpisConfig, GpisError, Hyper, Jitter, MeshSdfMean, NonProbConfig, Observations,
     SphereMean, SurfaceConfig, bounds_of, condition, nonprobabilistic, reconstruct,
