@@ -49,6 +49,9 @@ pub(crate) struct Cells {
     pub(crate) ring_vertices: Vec<u32>,
     /// Edge index of each one-ring entry.
     pub(crate) ring_edges: Vec<u32>,
+    /// Per one-ring entry of `v`: `+1` when `v` is the edge's first end point, `−1` otherwise
+    /// (the edge's orientation as seen from `v`, applied without a branch).
+    pub(crate) ring_signs: Vec<Real>,
 }
 
 impl Cells {
@@ -121,6 +124,20 @@ impl Cells {
             }
             edge_cell_offsets.push(edge_cells.len());
         }
+        let ring_signs = (0..n)
+            .flat_map(|v| {
+                let edges = &edges;
+                ring_edges[ring_offsets[v]..ring_offsets[v + 1]]
+                    .iter()
+                    .map(move |&e| {
+                        if edges[e as usize][0] as usize == v {
+                            1.0
+                        } else {
+                            -1.0
+                        }
+                    })
+            })
+            .collect();
         let rest_energy = (0..n)
             .map(|v| {
                 cell_edges[cell_offsets[v]..cell_offsets[v + 1]]
@@ -141,6 +158,7 @@ impl Cells {
             ring_offsets,
             ring_vertices,
             ring_edges,
+            ring_signs,
         }
     }
 
@@ -162,6 +180,11 @@ impl Cells {
     /// Edge indices of the one-ring of `v`.
     pub(crate) fn ring_edge_ids(&self, v: usize) -> &[u32] {
         &self.ring_edges[self.ring_offsets[v]..self.ring_offsets[v + 1]]
+    }
+
+    /// Orientation signs of the one-ring edges of `v` (see `ring_signs`).
+    pub(crate) fn ring_edge_signs(&self, v: usize) -> &[Real] {
+        &self.ring_signs[self.ring_offsets[v]..self.ring_offsets[v + 1]]
     }
 
     /// The vertices whose rotations act on edge `e`.

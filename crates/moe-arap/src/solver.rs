@@ -498,6 +498,7 @@ impl ArapSolver {
     }
 
     /// `S_i = Σ_{e∈cell(i)} w_e e e′ᵀ` and `Σ w_e ‖e′‖²` for the current positions.
+    #[inline(always)]
     fn cell_covariance(&self, i: usize, deformed: &[Point3]) -> (Matrix3, Real) {
         let mut s = Matrix3::zeros();
         let mut sq = 0.0;
@@ -546,41 +547,40 @@ impl ArapSolver {
         let sys = &self.system;
         for (u, &v) in sys.vertex_of.iter().enumerate() {
             let mut b = ws.fixed_rhs[u];
-            for &e in cells.ring_edge_ids(v as usize) {
-                let r = ws.edge_rhs[e as usize];
-                if cells.edges[e as usize][0] == v {
-                    b += r;
-                } else {
-                    b -= r;
-                }
+            let v = v as usize;
+            for (&e, &sign) in cells.ring_edge_ids(v).iter().zip(cells.ring_edge_signs(v)) {
+                // `b + (−1)·r` is `b − r` exactly.
+                b += ws.edge_rhs[e as usize] * sign;
             }
             ws.rhs[u] = [b.x, b.y, b.z];
         }
         sys.solve3_in_place(&mut ws.rhs, &mut ws.solve_tmp, &mut ws.buf);
         let na = ws.active.len();
-        if na > 0 {
-            ws.lambda.clear();
-            ws.lambda.resize(3 * na, 0.0);
-            for c in 0..3 {
-                let lam = &mut ws.lambda[c * na..(c + 1) * na];
-                for (k, &a) in ws.active.iter().enumerate() {
-                    let u = sys.handle_unknowns[a] as usize;
-                    lam[k] = ws.rhs[u][c] - ws.active_targets[k][c];
-                }
+        ws.lambda.clear();
+        ws.lambda.resize(3 * na, 0.0);
+        for c in 0..3 {
+            let lam = &mut ws.lambda[c * na..(c + 1) * na];
+            for (k, &a) in ws.active.iter().enumerate() {
+                let u = sys.handle_unknowns[a] as usize;
+                lam[k] = ws.rhs[u][c] - ws.active_targets[k][c];
+            }
+            if na > 0 {
                 ws.chol.solve_in_place(lam);
             }
-            for (k, &a) in ws.active.iter().enumerate() {
-                let l = [ws.lambda[k], ws.lambda[na + k], ws.lambda[2 * na + k]];
-                for (x, z) in ws.rhs.iter_mut().zip(sys.z_col(a)) {
-                    x[0] -= z * l[0];
-                    x[1] -= z * l[1];
-                    x[2] -= z * l[2];
-                }
-            }
         }
+        // Handle correction `x ← x − Z λ` fused with the write-back, one pass over the unknowns.
+        let (lx, rest) = ws.lambda.split_at(na);
+        let (ly, lz) = rest.split_at(na);
         for (u, &v) in sys.vertex_of.iter().enumerate() {
-            let [x, y, z] = ws.rhs[u];
-            ws.deformed[v as usize] = Point3::new(x, y, z);
+            let mut x = ws.rhs[u];
+            let z = sys.z_row(u);
+            for (k, &a) in ws.active.iter().enumerate() {
+                let zk = z[a];
+                x[0] -= zk * lx[k];
+                x[1] -= zk * ly[k];
+                x[2] -= zk * lz[k];
+            }
+            ws.deformed[v as usize] = Point3::new(x[0], x[1], x[2]);
         }
         self.place_constraints(ws, fixed_targets);
     }

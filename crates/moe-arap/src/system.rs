@@ -49,8 +49,9 @@ pub(crate) struct ReducedSystem {
     pub(crate) coupling: Vec<(u32, Real)>,
     /// Unknown index of every handle.
     pub(crate) handle_unknowns: Vec<u32>,
-    /// `Z = K⁻¹ E_H`, one column per handle.
-    z: Mat<Real>,
+    /// `Z = K⁻¹ E_H` row-major (`m × h`): row `u` holds the handle columns' entries for
+    /// unknown `u`, read together in the correction pass.
+    z: Vec<Real>,
     /// `S = E_Hᵀ K⁻¹ E_H`, row-major `h × h`.
     schur: Vec<Real>,
 }
@@ -136,7 +137,7 @@ impl ReducedSystem {
             coupling_offsets,
             coupling,
             handle_unknowns: Vec::new(),
-            z: Mat::zeros(m, 0),
+            z: Vec::new(),
             schur: Vec::new(),
         })
     }
@@ -212,13 +213,14 @@ impl ReducedSystem {
             }
         }
         self.handle_unknowns = handle_unknowns;
-        self.z = z;
+        self.z = (0..m * h).map(|k| z[(k / h, k % h)]).collect();
         self.schur = schur;
     }
 
-    /// Column `j` of `Z = K⁻¹ E_H`.
-    pub(crate) fn z_col(&self, j: usize) -> &[Real] {
-        self.z.col_as_slice(j)
+    /// Row `u` of `Z = K⁻¹ E_H`: entry `j` is `(K⁻¹)[u, h_j]`.
+    pub(crate) fn z_row(&self, u: usize) -> &[Real] {
+        let h = self.num_handles();
+        &self.z[u * h..(u + 1) * h]
     }
 
     /// `S[i, j] = (K⁻¹)[h_i, h_j]`.
