@@ -9,7 +9,7 @@ use std::path::Path;
 use moe_geom::{Point3, TriMesh};
 use moe_io::{HandConfig, IoError, PlyData};
 
-use crate::{SplitMix64, fixture_configs, octahedron};
+use crate::{Fuzz, fixture_configs, octahedron};
 
 /// What one reader made of one input.
 enum Outcome {
@@ -265,7 +265,7 @@ fn run_case(
 
 #[test]
 fn every_reader_survives_truncation_flips_and_garbage() {
-    let mut rng = SplitMix64(0x005E_ED0F_F022);
+    let mut rng = Fuzz::new(0x005E_ED0F_F022);
     let mut failures = Vec::new();
     let mut cases = 0usize;
     let mut valid = 0usize;

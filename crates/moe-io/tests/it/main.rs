@@ -69,21 +69,21 @@ pub(crate) fn octahedron(r: f64) -> TriMesh {
     TriMesh::new(v, f).expect("valid octahedron")
 }
 
-/// SplitMix64: a tiny seeded generator, same seed → same sequence.
-pub(crate) struct SplitMix64(pub(crate) u64);
+/// The workspace's seeded generator, with a `usize` range helper for the fuzz loops.
+pub(crate) struct Fuzz(pub(crate) moe_geom::SeededRng);
 
-impl SplitMix64 {
+impl Fuzz {
+    pub(crate) fn new(seed: u64) -> Self {
+        Self(moe_geom::SeededRng::new(seed))
+    }
+
     pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in `0..n` (n > 0).
     pub(crate) fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
+        self.0.below(n as u64) as usize
     }
 }
 
