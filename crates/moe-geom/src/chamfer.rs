@@ -84,44 +84,26 @@ impl PointIndex {
         let Some(k) = NonZero::new(k.min(self.len)) else {
             return Vec::new();
         };
-        let mut out: Vec<Neighbor> = self
-            .tree
-            .query(&[q.x, q.y, q.z])
-            .nearest_n::<SquaredEuclidean<Real>>(k)
-            .execute()
-            .into_iter()
-            .map(|r| Neighbor {
-                index: r.item as usize,
-                distance: r.distance.sqrt(),
-            })
-            .collect();
-        out.sort_by(|a, b| {
-            a.distance
-                .total_cmp(&b.distance)
-                .then(a.index.cmp(&b.index))
-        });
-        out
+        sorted(
+            self.tree
+                .query(&[q.x, q.y, q.z])
+                .nearest_n::<SquaredEuclidean<Real>>(k)
+                .execute()
+                .into_iter()
+                .map(|r| (r.item, r.distance)),
+        )
     }
 
     /// Every indexed point within `radius` of `q`, nearest first.
     pub fn within(&self, q: &Point3, radius: Real) -> Vec<Neighbor> {
-        let mut out: Vec<Neighbor> = self
-            .tree
-            .query(&[q.x, q.y, q.z])
-            .within::<SquaredEuclidean<Real>>(radius * radius)
-            .execute()
-            .into_iter()
-            .map(|r| Neighbor {
-                index: r.item as usize,
-                distance: r.distance.sqrt(),
-            })
-            .collect();
-        out.sort_by(|a, b| {
-            a.distance
-                .total_cmp(&b.distance)
-                .then(a.index.cmp(&b.index))
-        });
-        out
+        sorted(
+            self.tree
+                .query(&[q.x, q.y, q.z])
+                .within::<SquaredEuclidean<Real>>(radius * radius)
+                .execute()
+                .into_iter()
+                .map(|r| (r.item, r.distance)),
+        )
     }
 
     /// Distance from every query point to its nearest indexed point (parallel, order kept).
@@ -131,6 +113,22 @@ impl PointIndex {
             .map(|q| self.nearest(q).distance)
             .collect()
     }
+}
+
+/// Neighbours from `(index, squared distance)` pairs, nearest first (ties by index).
+fn sorted(pairs: impl Iterator<Item = (u32, Real)>) -> Vec<Neighbor> {
+    let mut out: Vec<Neighbor> = pairs
+        .map(|(index, d2)| Neighbor {
+            index: index as usize,
+            distance: d2.sqrt(),
+        })
+        .collect();
+    out.sort_by(|a, b| {
+        a.distance
+            .total_cmp(&b.distance)
+            .then(a.index.cmp(&b.index))
+    });
+    out
 }
 
 fn check_points(points: &[Point3], what: &'static str) -> Result<(), GeomError> {

@@ -40,5 +40,5 @@ pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
 pub use rng::SeededRng;
-pub use topology::Topology;
+pub use topology::{Topology, largest_component};
 pub use transform::{CameraFromHand, HandFromFinger, Transform, WorldFromHand, frame};

@@ -1,6 +1,7 @@
 //! Mesh connectivity: unique edges, edge–face incidence, one-rings, boundary loops and connected
 //! components.
 
+use crate::math::Point3;
 use crate::mesh::TriMesh;
 
 /// Connectivity of a [`TriMesh`], computed once and shared by the algorithms that need it.
@@ -209,6 +210,57 @@ impl Topology {
     }
 }
 
+/// Keeps the largest set of cells (triangles, tetrahedra, …) connected through shared vertices
+/// and renumbers the vertices they use in order of first use. Ties go to the component with the
+/// smallest vertex id, so the result is deterministic. Vertex ids must be in range.
+pub fn largest_component<const N: usize>(
+    vertices: Vec<Point3>,
+    cells: Vec<[u32; N]>,
+) -> (Vec<Point3>, Vec<[u32; N]>) {
+    fn find(parent: &mut [u32], mut a: u32) -> u32 {
+        while parent[a as usize] != a {
+            parent[a as usize] = parent[parent[a as usize] as usize];
+            a = parent[a as usize];
+        }
+        a
+    }
+    // Union into the smaller root: a component's root is its smallest vertex id.
+    let mut parent: Vec<u32> = (0..vertices.len() as u32).collect();
+    for c in &cells {
+        for k in 1..N {
+            let (a, b) = (find(&mut parent, c[0]), find(&mut parent, c[k]));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    let mut count = vec![0usize; vertices.len()];
+    for c in &cells {
+        if N > 0 {
+            count[find(&mut parent, c[0]) as usize] += 1;
+        }
+    }
+    let root = (0..vertices.len())
+        .max_by_key(|&r| (count[r], std::cmp::Reverse(r)))
+        .unwrap_or(0) as u32;
+    let mut remap = vec![u32::MAX; vertices.len()];
+    let mut kept_vertices = Vec::new();
+    let mut kept_cells = Vec::new();
+    for c in &cells {
+        if N == 0 || find(&mut parent, c[0]) != root {
+            continue;
+        }
+        kept_cells.push(c.map(|i| {
+            if remap[i as usize] == u32::MAX {
+                remap[i as usize] = kept_vertices.len() as u32;
+                kept_vertices.push(vertices[i as usize]);
+            }
+            remap[i as usize]
+        }));
+    }
+    (kept_vertices, kept_cells)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -256,5 +308,18 @@ mod tests {
         assert_eq!(label, vec![0, 0, 0, 0, 1, 1, 1]);
         // Square: V − E + F = 4 − 5 + 2 = 1 (a disk); triangle: 3 − 3 + 1 = 1.
         assert_eq!(topo.euler_characteristic(), 2);
+    }
+
+    #[test]
+    fn largest_component_keeps_the_bigger_piece_renumbered() {
+        let p = |x: f64| Point3::new(x, 0.0, 0.0);
+        let vertices = vec![p(0.0), p(1.0), p(2.0), p(3.0), p(4.0), p(5.0), p(6.0)];
+        // Component {4, 5, 6, 3} has two triangles, {0, 1, 2} one.
+        let cells = vec![[0, 1, 2], [4, 5, 6], [3, 4, 6]];
+        let (v, c) = largest_component(vertices, cells);
+        assert_eq!(v, vec![p(4.0), p(5.0), p(6.0), p(3.0)]);
+        assert_eq!(c, vec![[0, 1, 2], [3, 0, 2]]);
+        let (v, c) = largest_component::<3>(Vec::new(), Vec::new());
+        assert!(v.is_empty() && c.is_empty());
     }
 }

@@ -194,7 +194,7 @@ pub fn extract_surface(
         return Err(empty());
     }
     if options.keep_largest_component {
-        (vertices, faces) = largest_component(vertices, faces);
+        (vertices, faces) = moe_geom::largest_component(vertices, faces);
     }
     Ok(TriMesh::new(vertices, faces)?)
 }
@@ -216,51 +216,6 @@ impl Hasher for EdgeHasher {
         let z = (x ^ (x >> 31)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
         self.0 = z ^ (z >> 29);
     }
-}
-
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        parent[x as usize] = parent[parent[x as usize] as usize];
-        x = parent[x as usize];
-    }
-    x
-}
-
-/// The connected component (through shared vertices) with the most faces, re-indexed.
-fn largest_component(vertices: Vec<Point3>, faces: Vec<[u32; 3]>) -> (Vec<Point3>, Vec<[u32; 3]>) {
-    let mut parent: Vec<u32> = (0..vertices.len() as u32).collect();
-    for f in &faces {
-        for e in [(f[0], f[1]), (f[1], f[2])] {
-            let (a, b) = (find(&mut parent, e.0), find(&mut parent, e.1));
-            if a != b {
-                parent[a.max(b) as usize] = a.min(b);
-            }
-        }
-    }
-    let mut count = vec![0usize; vertices.len()];
-    for f in &faces {
-        count[find(&mut parent, f[0]) as usize] += 1;
-    }
-    // Ties resolve to the smallest root id, so the choice is deterministic.
-    let best = (0..vertices.len())
-        .max_by_key(|&r| (count[r], std::cmp::Reverse(r)))
-        .unwrap_or(0) as u32;
-    let mut remap = vec![u32::MAX; vertices.len()];
-    let mut kept_v = Vec::new();
-    let mut kept_f = Vec::new();
-    for f in &faces {
-        if find(&mut parent, f[0]) != best {
-            continue;
-        }
-        kept_f.push(f.map(|x| {
-            if remap[x as usize] == u32::MAX {
-                remap[x as usize] = kept_v.len() as u32;
-                kept_v.push(vertices[x as usize]);
-            }
-            remap[x as usize]
-        }));
-    }
-    (kept_v, kept_f)
 }
 
 #[cfg(test)]

@@ -147,7 +147,7 @@ pub fn voxelize(surface: &TriMesh, params: &VoxelParams) -> Result<VolumeMesh, S
     if tets.is_empty() {
         return Err(SimError::EmptyVolume { cell_size_m: h });
     }
-    let (nodes, tets) = largest_component(nodes, tets);
+    let (nodes, tets) = moe_geom::largest_component(nodes, tets);
     let tets = TetMesh::new(nodes, tets)?;
     let embedding = Embedding::new(&tets, oriented.vertices());
     let d = embedding.distances_m();
@@ -162,50 +162,6 @@ pub fn voxelize(surface: &TriMesh, params: &VoxelParams) -> Result<VolumeMesh, S
         surface: embedding,
         stats,
     })
-}
-
-/// Keeps the largest set of elements connected through shared nodes, renumbering nodes in order
-/// of first use.
-fn largest_component(nodes: Vec<Point3>, tets: Vec<[u32; 4]>) -> (Vec<Point3>, Vec<[u32; 4]>) {
-    let mut parent: Vec<u32> = (0..nodes.len() as u32).collect();
-    fn find(parent: &mut [u32], mut a: u32) -> u32 {
-        while parent[a as usize] != a {
-            parent[a as usize] = parent[parent[a as usize] as usize];
-            a = parent[a as usize];
-        }
-        a
-    }
-    for t in &tets {
-        for k in 1..4 {
-            let (a, b) = (find(&mut parent, t[0]), find(&mut parent, t[k]));
-            if a != b {
-                parent[a.max(b) as usize] = a.min(b);
-            }
-        }
-    }
-    let mut count = vec![0usize; nodes.len()];
-    for t in &tets {
-        count[find(&mut parent, t[0]) as usize] += 1;
-    }
-    let root = (0..nodes.len())
-        .max_by_key(|&r| (count[r], usize::MAX - r))
-        .unwrap_or(0) as u32;
-    let mut remap = vec![u32::MAX; nodes.len()];
-    let mut new_nodes = Vec::new();
-    let mut new_tets = Vec::new();
-    for t in &tets {
-        if find(&mut parent, t[0]) != root {
-            continue;
-        }
-        new_tets.push(t.map(|i| {
-            if remap[i as usize] == u32::MAX {
-                remap[i as usize] = new_nodes.len() as u32;
-                new_nodes.push(nodes[i as usize]);
-            }
-            remap[i as usize]
-        }));
-    }
-    (new_nodes, new_tets)
 }
 
 #[cfg(test)]

@@ -418,6 +418,23 @@ mod tests {
         dir
     }
 
+    /// `generate` with the test layout, the synthetic generator of `seed` and no progress.
+    fn run(
+        plan: &GenPlan,
+        dir: &Path,
+        generator: serde_json::Value,
+        seed: u64,
+    ) -> Result<GenReport, TouchError> {
+        generate(
+            plan,
+            dir,
+            &layout(),
+            generator,
+            &synthetic(seed),
+            &|_, _| {},
+        )
+    }
+
     fn plan(machine: u32, machines: u32) -> GenPlan {
         GenPlan {
             trajectories: 23,
@@ -444,50 +461,18 @@ mod tests {
     #[test]
     fn split_runs_equal_one_run_byte_for_byte() {
         let whole = scratch("whole");
-        let report = generate(
-            &plan(1, 1),
-            &whole,
-            &layout(),
-            serde_json::json!({}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        let report = run(&plan(1, 1), &whole, serde_json::json!({}), 9).unwrap();
         assert_eq!(report.shards_written.len(), 6);
         let card = report.card.expect("complete");
         assert_eq!(card.totals.trajectories, 23);
         let split = scratch("split");
-        let first = generate(
-            &plan(1, 2),
-            &split,
-            &layout(),
-            serde_json::json!({}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        let first = run(&plan(1, 2), &split, serde_json::json!({}), 9).unwrap();
         assert!(first.card.is_none(), "half the shards are missing");
-        let second = generate(
-            &plan(2, 2),
-            &split,
-            &layout(),
-            serde_json::json!({}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        let second = run(&plan(2, 2), &split, serde_json::json!({}), 9).unwrap();
         assert!(second.card.is_some());
         assert_eq!(files(&whole), files(&split));
         // Rerunning skips every shard and rewrites the same card.
-        let again = generate(
-            &plan(1, 1),
-            &whole,
-            &layout(),
-            serde_json::json!({}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        let again = run(&plan(1, 1), &whole, serde_json::json!({}), 9).unwrap();
         assert!(again.shards_written.is_empty());
         assert_eq!(again.shards_skipped.len(), 6);
         assert_eq!(files(&whole), files(&split));
@@ -527,15 +512,7 @@ mod tests {
         assert_eq!(names.len(), 3, "{names:?}");
         assert!(!names.iter().any(|n| n.contains("00003")));
         // A rerun with a working generator completes only what is missing.
-        let report = generate(
-            &plan(1, 1),
-            &dir,
-            &layout(),
-            serde_json::json!({}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        let report = run(&plan(1, 1), &dir, serde_json::json!({}), 9).unwrap();
         assert_eq!(report.shards_written, vec![3, 4, 5]);
         assert!(report.card.is_some());
         std::fs::remove_dir_all(&dir).unwrap();
@@ -544,48 +521,16 @@ mod tests {
     #[test]
     fn a_directory_refuses_a_different_data_set() {
         let dir = scratch("settings");
-        generate(
-            &plan(1, 2),
-            &dir,
-            &layout(),
-            serde_json::json!({"a": 1}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        run(&plan(1, 2), &dir, serde_json::json!({"a": 1}), 9).unwrap();
         let other_seed = GenPlan {
             seed: 10,
             ..plan(2, 2)
         };
-        let err = generate(
-            &other_seed,
-            &dir,
-            &layout(),
-            serde_json::json!({"a": 1}),
-            &synthetic(10),
-            &|_, _| {},
-        )
-        .unwrap_err();
+        let err = run(&other_seed, &dir, serde_json::json!({"a": 1}), 10).unwrap_err();
         assert!(err.to_string().contains("other settings"), "{err}");
-        let err = generate(
-            &plan(2, 2),
-            &dir,
-            &layout(),
-            serde_json::json!({"a": 2}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap_err();
+        let err = run(&plan(2, 2), &dir, serde_json::json!({"a": 2}), 9).unwrap_err();
         assert!(err.to_string().contains("other settings"), "{err}");
-        generate(
-            &plan(2, 2),
-            &dir,
-            &layout(),
-            serde_json::json!({"a": 1}),
-            &synthetic(9),
-            &|_, _| {},
-        )
-        .unwrap();
+        run(&plan(2, 2), &dir, serde_json::json!({"a": 1}), 9).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

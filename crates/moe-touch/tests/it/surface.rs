@@ -1,13 +1,13 @@
 //! `moe-touch surface`.
 
+use moe_geom::SeededRng;
+use moe_geom::shapes::icosphere;
 use moe_geom::{Point3, TriMesh, Vector3};
-use moe_gpis::SplitMix64;
-use moe_gpis::shapes::icosphere;
 
 use crate::common::{assert_one_line_error, run, scratch};
 
 fn sphere_points(r: f64, n: usize, seed: u64) -> Vec<Vec<f64>> {
-    let mut rng = SplitMix64::new(seed);
+    let mut rng = SeededRng::new(seed);
     (0..n)
         .map(|_| {
             let d = Vector3::new(rng.normal(), rng.normal(), rng.normal()).normalize() * r;
