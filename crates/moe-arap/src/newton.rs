@@ -139,11 +139,7 @@ pub(crate) fn group_newton<const L: usize>(s: &[Rows; L], r0: &[Rows; L]) -> [Op
         let c12 = b * c - a * e;
         let c22 = a * d - b * b;
         let det = a * c00 + b * c01 + c * c02;
-        let mut inv = Lanes::splat(0.0);
         for (l, alive) in live.iter_mut().enumerate() {
-            if !*alive {
-                continue;
-            }
             let (al, dl, fl, detl) = (a.0[l], d.0[l], f.0[l], det.0[l]);
             let scale = al.abs().max(dl).max(fl);
             // Positive definiteness by the leading principal minors, with a relative floor: a
@@ -151,10 +147,10 @@ pub(crate) fn group_newton<const L: usize>(s: &[Rows; L], r0: &[Rows; L]) -> [Op
             if al.is_nan() || al <= 0.0 || c22.0[l] <= 0.0 || detl <= 1e-12 * scale * scale * scale
             {
                 *alive = false;
-            } else {
-                inv.0[l] = 1.0 / detl;
             }
         }
+        // Computed in every lane: lanes no longer live carry on with values nobody reads.
+        let inv = Lanes(std::array::from_fn(|l| 1.0 / det.0[l]));
         let x = (c00 * gx + c01 * gy + c02 * gz) * inv;
         let y = (c01 * gx + c11 * gy + c12 * gz) * inv;
         let z = (c02 * gx + c12 * gy + c22 * gz) * inv;

@@ -537,12 +537,25 @@ impl ArapSolver {
     fn global_step(&self, ws: &mut ArapWorkspace, fixed_targets: &[Point3]) {
         let cells = &self.cells;
         let rot = &ws.rot_prev;
-        for (e, out) in ws.edge_rhs.iter_mut().enumerate() {
-            let mut sum = Matrix3::zeros();
-            for &i in cells.cells_of_edge(e) {
-                sum += rot[i as usize];
+        if cells.edge_cells.len() == 2 * cells.edges.len() {
+            // Spokes: the cells of edge `[a, b]` are exactly `a` and `b`.
+            for (((out, &[a, b]), rest), &w) in ws
+                .edge_rhs
+                .iter_mut()
+                .zip(&cells.edges)
+                .zip(&cells.rest_edges)
+                .zip(&cells.weights)
+            {
+                *out = (rot[a as usize] + rot[b as usize]) * rest * (0.5 * w);
             }
-            *out = sum * cells.rest_edges[e] * (0.5 * cells.weights[e]);
+        } else {
+            for (e, out) in ws.edge_rhs.iter_mut().enumerate() {
+                let mut sum = Matrix3::zeros();
+                for &i in cells.cells_of_edge(e) {
+                    sum += rot[i as usize];
+                }
+                *out = sum * cells.rest_edges[e] * (0.5 * cells.weights[e]);
+            }
         }
         let sys = &self.system;
         for (u, &v) in sys.vertex_of.iter().enumerate() {
