@@ -72,6 +72,15 @@ pub enum SimError {
         /// z coordinate.
         z: Real,
     },
+    /// A finger's tendon schedule is invalid (the source says how).
+    #[error("actuation of finger {finger}: {source}")]
+    Actuation {
+        /// Index of the finger.
+        finger: usize,
+        /// What is wrong with its schedule.
+        #[source]
+        source: Box<SimError>,
+    },
     /// Two arrays that must have the same length do not (positions, commands, loads …).
     #[error("{what}: expected {expected} items, got {got}")]
     LengthMismatch {

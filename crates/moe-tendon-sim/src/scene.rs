@@ -305,8 +305,13 @@ impl Scene {
         for f in hand.fingers() {
             bodies.push(FingerBody::new(&f.model, &config.material, &config.voxel)?);
         }
-        for (schedule, body) in config.actuation.iter().zip(&bodies) {
-            schedule.validate(body.tendons().len())?;
+        for (finger, (schedule, body)) in config.actuation.iter().zip(&bodies).enumerate() {
+            schedule
+                .validate(body.tendons().len())
+                .map_err(|e| SimError::Actuation {
+                    finger,
+                    source: Box::new(e),
+                })?;
         }
         let obstacles = config
             .obstacles
@@ -401,6 +406,10 @@ impl Scene {
     }
 
     /// Advances `state` by one time step.
+    ///
+    /// On an error the state is left partly advanced (fingers before the failing one have
+    /// stepped, the failing one holds its diverged positions): it is for diagnosis only — restart
+    /// from a saved state or from [`Scene::initial_state`].
     ///
     /// # Errors
     /// [`SimError::StateMismatch`] for a foreign state; divergence as

@@ -201,14 +201,16 @@ fn bad_scene_input_gives_typed_errors() {
         }],
         ..SceneConfig::default()
     };
-    assert!(matches!(
-        Scene::new(c),
-        Err(SimError::LengthMismatch {
-            expected: 4,
-            got: 3,
-            ..
-        })
-    ));
+    let err = Scene::new(c).unwrap_err();
+    assert!(
+        matches!(&err, SimError::Actuation { finger: 0, source }
+            if matches!(**source, SimError::LengthMismatch { expected: 4, got: 3, .. })),
+        "{err}"
+    );
+    assert!(
+        err.to_string().starts_with("actuation of finger 0"),
+        "{err}"
+    );
     let c = SceneConfig {
         obstacles: vec![ObstacleConfig {
             shape: ObstacleShape::Ball { radius_m: 0.0 },
