@@ -438,11 +438,14 @@ impl ArapSolver {
                     - 2.0 * r_prev.transpose().dot(&s))
                 .max(0.0);
                 if coeff > 0.0 {
-                    let mut sum = Matrix3::zeros();
-                    for &j in self.cells.ring(i) {
+                    let ring = self.cells.ring(i);
+                    let mut sum = ring
+                        .first()
+                        .map_or_else(Matrix3::zeros, |&j| rot_prev[j as usize]);
+                    for &j in ring.iter().skip(1) {
                         sum += rot_prev[j as usize];
                     }
-                    energy += smoothing_energy(coeff, self.cells.ring(i).len(), r_prev, &sum);
+                    energy += smoothing_energy(coeff, ring.len(), r_prev, &sum);
                     s = s * 2.0 + sum.transpose() * (4.0 * coeff);
                 }
             }
