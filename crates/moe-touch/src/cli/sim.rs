@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_tendon_sim::{Frame, Scene, SceneConfig, SimState, StepInfo};
+use moe_tendon_sim::randomize::run_with;
+use moe_tendon_sim::{Frame, Scene, SceneConfig, SimState};
 use serde::Serialize;
 
 /// Mesh format of the saved frames.
@@ -147,21 +148,17 @@ pub(crate) fn run(args: SimArgs) -> Result<()> {
 
 fn simulate(mut scene: Scene, args: &SimArgs, staging: &Path) -> Result<SimSummary> {
     let steps = args.steps.unwrap_or_else(|| scene.num_steps());
-    let every = scene.config().save_every_steps;
-    let mut state = scene.initial_state();
-    let mut frames = vec![save_frame(&scene, &state, args, staging)?];
-    let mut last: Option<StepInfo> = None;
+    let mut frames = Vec::new();
     let start = Instant::now();
-    for _ in 0..steps {
-        let info = scene
-            .step(&mut state)
-            .with_context(|| format!("simulating {}", args.scene.display()))?;
-        last = Some(info);
-        if state.step.is_multiple_of(every) || state.step == steps {
-            frames.push(save_frame(&scene, &state, args, staging)?);
+    let outcome = run_with(&mut scene, steps, |scene, state| -> Result<()> {
+        frames.push(save_frame(scene, state, args, staging)?);
+        if state.step > 0 {
             eprintln!("step {}/{steps} (t = {:.3} s)", state.step, state.time_secs);
         }
-    }
+        Ok(())
+    })
+    .with_context(|| format!("simulating {}", args.scene.display()))?;
+    let (state, last) = (outcome.final_state, outcome.last_step);
     let wall_secs = start.elapsed().as_secs_f64();
     Ok(SimSummary {
         scene: args.scene.display().to_string(),
