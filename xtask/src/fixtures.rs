@@ -49,6 +49,11 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-3,
     },
     Fixture {
+        path: "fixtures/golden/sim_short_scene.json",
+        generate: golden_sim_short_scene,
+        tolerance: 1e-6,
+    },
+    Fixture {
         path: "fixtures/scenes/head_patting.toml",
         generate: scene_head_patting,
         tolerance: 1e-12,
@@ -69,6 +74,33 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-12,
     },
 ];
+
+/// The simulator's regression scene: its state digest (positions rounded to 1 nm) after all
+/// steps, and the contact labels and penetration of its last frame.
+fn golden_sim_short_scene() -> Result<Value> {
+    let mut scene = moe_tendon_sim::Scene::new(moe_tendon_sim::paper_scenes::golden_short_scene())?;
+    let mut state = scene.initial_state();
+    for _ in 0..scene.num_steps() {
+        scene.step(&mut state)?;
+    }
+    let frame = scene.frame(&state);
+    let contacts: Vec<usize> = frame
+        .fingers
+        .iter()
+        .map(|f| f.labels.iter().filter(|&&l| l).count())
+        .collect();
+    let penetration_mm: Vec<f64> = frame
+        .fingers
+        .iter()
+        .map(|f| (-1e3 * f.distances_m.iter().copied().fold(0.0_f64, f64::min)).max(0.0))
+        .collect();
+    Ok(serde_json::json!({
+        "steps": state.step,
+        "rounded_digest_1nm": format!("{:#018x}", state.rounded_digest(1e-9)),
+        "contact_vertices": contacts,
+        "max_penetration_mm": penetration_mm,
+    }))
+}
 
 fn scene_value(config: &moe_tendon_sim::SceneConfig) -> Result<Value> {
     Ok(serde_json::to_value(config)?)
