@@ -6,7 +6,7 @@ use moe_geom::{FingerModel, Point3, Real, Vector3};
 use crate::contact::{ContactParams, PosedObstacles, add_contact_terms};
 use crate::embedding::Embedding;
 use crate::error::SimError;
-use crate::fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport};
+use crate::fem::{Advance, FemModel, FemWorkspace, Integrator, StepContext, StepReport};
 use crate::material::Material;
 use crate::tendon::{Tendon, TendonCommand, TendonParams};
 use crate::terms::Terms;
@@ -106,6 +106,23 @@ impl FingerBody {
         self.stats
     }
 
+    /// The scratch memory for [`FingerBody::step`] with its term buffers sized for every tendon
+    /// term and one contact term per surface vertex and obstacle, so that no step among
+    /// `num_obstacles` obstacles allocates.
+    pub fn workspace(&self, num_obstacles: usize) -> FemWorkspace {
+        let mut ws = self.fem.workspace();
+        let route_points: usize = self.tendons.iter().map(|t| t.points().len()).sum();
+        let segments = route_points.saturating_sub(self.tendons.len());
+        let gradient_len = self.tendons.iter().map(Tendon::num_nodes).max();
+        ws.reserve_terms(
+            self.surface.points().len() * num_obstacles + route_points,
+            segments,
+            self.tendons.len(),
+            gradient_len.unwrap_or(0),
+        );
+        ws
+    }
+
     /// Advances the finger by one step.
     ///
     /// # Errors
@@ -120,19 +137,7 @@ impl FingerBody {
         v: &mut [Vector3],
         inputs: &FingerInputs<'_>,
     ) -> Result<StepReport, SimError> {
-        if inputs.commands.len() != self.tendons.len() {
-            return Err(SimError::LengthMismatch {
-                what: "tendon commands",
-                expected: self.tendons.len(),
-                got: inputs.commands.len(),
-            });
-        }
-        let mut build = |x: &[Point3], v: &[Vector3], terms: &mut Terms| {
-            for (tendon, &cmd) in self.tendons.iter().zip(inputs.commands) {
-                tendon.add_terms(x, cmd, inputs.tendon, terms);
-            }
-            add_contact_terms(&self.surface, x, v, inputs.obstacles, inputs.contact, terms);
-        };
+        self.check_commands(inputs)?;
         self.fem.step(
             ws,
             ctx,
@@ -141,7 +146,54 @@ impl FingerBody {
             v,
             inputs.targets,
             &inputs.gravity,
-            &mut build,
+            &mut self.terms_fn(inputs),
         )
+    }
+
+    /// [`FingerBody::step`] without allocating (the rank-one values stay in the workspace).
+    pub(crate) fn advance(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        integrator: Integrator,
+        x: &mut [Point3],
+        v: &mut [Vector3],
+        inputs: &FingerInputs<'_>,
+    ) -> Result<Advance, SimError> {
+        self.check_commands(inputs)?;
+        self.fem.advance(
+            ws,
+            ctx,
+            integrator,
+            x,
+            v,
+            inputs.targets,
+            &inputs.gravity,
+            &mut self.terms_fn(inputs),
+        )
+    }
+
+    /// The tendon and contact terms of a step.
+    fn terms_fn<'s>(
+        &'s self,
+        inputs: &'s FingerInputs<'_>,
+    ) -> impl FnMut(&[Point3], &[Vector3], &mut Terms) + 's {
+        move |x: &[Point3], v: &[Vector3], terms: &mut Terms| {
+            for (tendon, &cmd) in self.tendons.iter().zip(inputs.commands) {
+                tendon.add_terms(x, cmd, inputs.tendon, terms);
+            }
+            add_contact_terms(&self.surface, x, v, inputs.obstacles, inputs.contact, terms);
+        }
+    }
+
+    fn check_commands(&self, inputs: &FingerInputs<'_>) -> Result<(), SimError> {
+        if inputs.commands.len() != self.tendons.len() {
+            return Err(SimError::LengthMismatch {
+                what: "tendon commands",
+                expected: self.tendons.len(),
+                got: inputs.commands.len(),
+            });
+        }
+        Ok(())
     }
 }

@@ -77,10 +77,25 @@ pub struct PosedObstacles<'a> {
 impl<'a> PosedObstacles<'a> {
     /// Poses `obstacles` for the step from `t0` to `t1`.
     pub fn new(obstacles: &'a [Obstacle], t0: Real, t1: Real) -> Self {
+        Self::with_buffers(obstacles, t0, t1, Vec::new(), Vec::new())
+    }
+
+    /// [`PosedObstacles::new`] filling the given vectors (cleared first) instead of new ones.
+    pub(crate) fn with_buffers(
+        obstacles: &'a [Obstacle],
+        t0: Real,
+        t1: Real,
+        mut start: Vec<Iso3>,
+        mut end: Vec<Iso3>,
+    ) -> Self {
+        start.clear();
+        start.extend(obstacles.iter().map(|o| o.pose_at(t0)));
+        end.clear();
+        end.extend(obstacles.iter().map(|o| o.pose_at(t1)));
         Self {
             obstacles,
-            start: obstacles.iter().map(|o| o.pose_at(t0)).collect(),
-            end: obstacles.iter().map(|o| o.pose_at(t1)).collect(),
+            start,
+            end,
             dt_secs: t1 - t0,
         }
     }

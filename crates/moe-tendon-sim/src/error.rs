@@ -129,6 +129,19 @@ pub enum SimError {
         /// Finger index.
         finger: usize,
     },
+    /// The small dense system of the rank-one (tendon length) penalties' active set was
+    /// singular: neither its Cholesky nor its LU factorisation could solve it, so the step
+    /// cannot honour those penalties (an infinite or overflowing stiffness on a vanishing
+    /// gradient, for example). Check the tendon stiffness and the interaction terms.
+    #[error(
+        "step {step}, finger {finger}: the system of the rank-one (tendon) penalties is singular"
+    )]
+    SingularRankOneSystem {
+        /// Step index.
+        step: u64,
+        /// Finger index.
+        finger: usize,
+    },
     /// An element turned inside out (det F ≤ 0): the simulation diverged or the load is far too
     /// large for the resolution. Reduce the time step, the press depth or the contact stiffness.
     #[error("step {step}, finger {finger}: element {element} is inverted (det F = {det_f:e})")]

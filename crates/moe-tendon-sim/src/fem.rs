@@ -10,7 +10,7 @@ use crate::material::Material;
 use crate::polar::polar_rotation;
 use crate::terms::Terms;
 use crate::tetmesh::TetMesh;
-use crate::woodbury::woodbury;
+use crate::woodbury::Woodbury;
 
 /// Builds the interaction terms of a solve from the current positions and velocities.
 pub type TermsFn<'a> = dyn FnMut(&[Point3], &[Vector3], &mut Terms) + 'a;
@@ -68,15 +68,24 @@ pub struct FemModel {
     max_rank_ones: usize,
 }
 
-/// Reusable per-body scratch memory: keeping one per body makes the step allocation-free.
+/// Reusable per-body scratch memory: keeping one per body makes the step allocation-free
+/// (everything is sized by [`FemModel::workspace`]; only the interaction terms' buffers grow
+/// while a step needs more terms than any step before, unless reserved up front as
+/// [`FingerBody::workspace`](crate::FingerBody::workspace) does).
 pub struct FemWorkspace {
     buf: SystemBuffers,
     force: Vec<Vector3>,
     coupling: Vec<Vector3>,
     dx: Vec<Vector3>,
+    /// Static line search: positions along the Newton step.
+    trial: Vec<Point3>,
     slope: Real,
     terms: Terms,
+    /// Free-node gradients of the rank-one terms, one column of `3·n_free` per term.
     grads: Vec<Real>,
+    /// Rank-one values shifted by the prescribed motion of the fixed nodes.
+    shifted: Vec<Real>,
+    woodbury: Woodbury,
 }
 
 impl FemWorkspace {
@@ -84,6 +93,26 @@ impl FemWorkspace {
     fn force_dot_dx(&self) -> Real {
         self.slope
     }
+
+    /// Reserves room in the interaction-term buffers (see [`Terms::reserve`]).
+    pub(crate) fn reserve_terms(
+        &mut self,
+        points: usize,
+        pairs: usize,
+        rank_ones: usize,
+        gradient_len: usize,
+    ) {
+        self.terms.reserve(points, pairs, rank_ones, gradient_len);
+    }
+}
+
+/// Figures of one step without the rank-one values (those stay in the workspace).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Advance {
+    /// Kinetic energy at the end of the step, joules.
+    pub(crate) kinetic_energy_j: Real,
+    /// Linear solves.
+    pub(crate) iterations: usize,
 }
 
 impl std::fmt::Debug for FemWorkspace {
@@ -217,14 +246,20 @@ impl FemModel {
     /// Allocates the scratch memory for [`FemModel::step`].
     pub fn workspace(&self) -> FemWorkspace {
         let n = self.mesh.num_nodes();
+        let m = self.max_rank_ones;
+        let mut terms = Terms::default();
+        terms.reserve(0, 0, m, 0);
         FemWorkspace {
             buf: self.system.buffers(),
             force: vec![Vector3::zeros(); n],
             coupling: vec![Vector3::zeros(); n],
             dx: vec![Vector3::zeros(); n],
+            trial: vec![Point3::origin(); n],
             slope: 0.0,
-            terms: Terms::default(),
-            grads: Vec::new(),
+            terms,
+            grads: Vec::with_capacity(3 * self.system.n_free() * m),
+            shifted: Vec::with_capacity(m),
+            woodbury: Woodbury::new(m),
         }
     }
 
@@ -327,7 +362,8 @@ impl FemModel {
     /// # Errors
     /// Length mismatches, [`SimError::InvalidParameter`] for a bad time step or tolerance,
     /// [`SimError::InvertedElement`], [`SimError::NotPositiveDefinite`],
-    /// [`SimError::NonFinite`], [`SimError::StaticNotConverged`].
+    /// [`SimError::NonFinite`], [`SimError::StaticNotConverged`],
+    /// [`SimError::SingularRankOneSystem`].
     #[allow(clippy::too_many_arguments)]
     pub fn step(
         &self,
@@ -340,6 +376,27 @@ impl FemModel {
         gravity: &Vector3,
         terms: &mut TermsFn<'_>,
     ) -> Result<StepReport, SimError> {
+        let a = self.advance(ws, ctx, integrator, x, v, targets, gravity, terms)?;
+        Ok(StepReport {
+            kinetic_energy_j: a.kinetic_energy_j,
+            iterations: a.iterations,
+            rank_one_values: ws.woodbury.values.clone(),
+        })
+    }
+
+    /// [`FemModel::step`] without allocating: the rank-one values stay in the workspace.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn advance(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        integrator: Integrator,
+        x: &mut [Point3],
+        v: &mut [Vector3],
+        targets: &[Point3],
+        gravity: &Vector3,
+        terms: &mut TermsFn<'_>,
+    ) -> Result<Advance, SimError> {
         // The terms' buffers live in the workspace so that their allocations are reused.
         let mut t = std::mem::take(&mut ws.terms);
         let result = self.step_with(ws, ctx, integrator, x, v, targets, gravity, terms, &mut t);
@@ -359,7 +416,7 @@ impl FemModel {
         gravity: &Vector3,
         terms: &mut TermsFn<'_>,
         t: &mut Terms,
-    ) -> Result<StepReport, SimError> {
+    ) -> Result<Advance, SimError> {
         self.check_len("positions", x.len())?;
         self.check_len("velocities", v.len())?;
         self.check_len("fixed-node targets", targets.len())?;
@@ -380,17 +437,16 @@ impl FemModel {
                     momentum: h,
                 };
                 terms(x, v, t);
-                let values = self.solve(ws, ctx, c, x, v, targets, gravity, t, true)?;
+                self.solve(ws, ctx, c, x, v, targets, gravity, t, true)?;
                 for i in 0..x.len() {
                     x[i] += ws.dx[i];
                     v[i] = ws.dx[i] / h;
                 }
                 self.check_finite(x, v, ctx)?;
                 self.check_elements(x, ctx)?;
-                Ok(StepReport {
+                Ok(Advance {
                     kinetic_energy_j: self.kinetic_energy(v),
                     iterations: 1,
-                    rank_one_values: values,
                 })
             }
             Integrator::Static {
@@ -408,23 +464,22 @@ impl FemModel {
                 };
                 v.iter_mut().for_each(|v| *v = Vector3::zeros());
                 let mut update = Real::INFINITY;
-                let mut trial = x.to_vec();
                 for it in 0..max_iterations.max(1) {
                     t.clear();
                     terms(x, v, t);
                     let moves_fixed =
                         it == 0 && (0..x.len()).any(|i| self.fixed[i] && targets[i] != x[i]);
-                    let values = self.solve(ws, ctx, c, x, v, targets, gravity, t, it == 0)?;
+                    self.solve(ws, ctx, c, x, v, targets, gravity, t, it == 0)?;
                     // Backtracking line search on the total potential (exact elastic energy,
                     // quadratic models of the interaction terms): the corotational tangent omits
                     // the derivative of the rotations, so a full step can overshoot.
                     let mut alpha: Real = 1.0;
                     if !moves_fixed {
                         let slope: Real = ws.force_dot_dx();
-                        let e0 = self.potential(x, &ws.dx, 0.0, gravity, t, &mut trial)?;
+                        let e0 = self.potential(x, &ws.dx, 0.0, gravity, t, &mut ws.trial)?;
                         let mut accepted = false;
                         for _ in 0..30 {
-                            match self.potential(x, &ws.dx, alpha, gravity, t, &mut trial) {
+                            match self.potential(x, &ws.dx, alpha, gravity, t, &mut ws.trial) {
                                 Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => {
                                     accepted = true;
                                     break;
@@ -449,10 +504,9 @@ impl FemModel {
                     self.check_finite(x, v, ctx)?;
                     if update < tolerance_m {
                         self.check_elements(x, ctx)?;
-                        return Ok(StepReport {
+                        return Ok(Advance {
                             kinetic_energy_j: 0.0,
                             iterations: it + 1,
-                            rank_one_values: values,
                         });
                     }
                 }
@@ -537,8 +591,8 @@ impl FemModel {
         }
     }
 
-    /// Assembles and solves one linearised system; leaves `Δx` in `ws.dx` and returns the
-    /// linearised end values of the rank-one terms.
+    /// Assembles and solves one linearised system; leaves `Δx` in `ws.dx` and the linearised
+    /// end values of the rank-one terms in `ws.woodbury.values`.
     #[allow(clippy::too_many_arguments)]
     fn solve(
         &self,
@@ -551,7 +605,7 @@ impl FemModel {
         gravity: &Vector3,
         terms: &Terms,
         move_fixed: bool,
-    ) -> Result<Vec<Real>, SimError> {
+    ) -> Result<(), SimError> {
         let sys = &self.system;
         let m = terms.rank_ones.len();
         if m > self.max_rank_ones {
@@ -568,6 +622,8 @@ impl FemModel {
             dx,
             slope,
             grads,
+            shifted,
+            woodbury,
             ..
         } = ws;
         buf.values.fill(0.0);
@@ -685,7 +741,7 @@ impl FemModel {
             }
         }
         // Rank-one values shifted by the prescribed motion of fixed nodes.
-        let mut shifted = Vec::with_capacity(m);
+        shifted.clear();
         for (j, r) in terms.rank_ones.iter().enumerate() {
             let mut g = r.value;
             for &(n, grad) in &r.gradient {
@@ -712,7 +768,13 @@ impl FemModel {
                 finger: ctx.finger,
             })?;
         let nrows = buf.rhs.nrows();
-        let (combo, values) = woodbury(terms, &shifted, grads, buf, c.external);
+        woodbury
+            .solve(terms, shifted, grads, buf, c.external)
+            .map_err(|_| SimError::SingularRankOneSystem {
+                step: ctx.step,
+                finger: ctx.finger,
+            })?;
+        let combo = &woodbury.combo;
         // Δx_free = y₀ + Σ_j combo_j Y_j.
         for (i, dxi) in dx.iter_mut().enumerate() {
             let fi = sys.free_of(i as u32);
@@ -749,6 +811,6 @@ impl FemModel {
             }
         }
         *slope = s;
-        Ok(values)
+        Ok(())
     }
 }

@@ -201,7 +201,7 @@ impl Fnv {
 }
 
 /// Figures of one scene step.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
 pub struct StepInfo {
     /// Index of the step just taken (0-based).
     pub step: u64,
@@ -250,6 +250,10 @@ pub struct Scene {
     obstacles: Vec<Obstacle>,
     workspaces: Vec<FemWorkspace>,
     targets: Vec<Vec<Point3>>,
+    /// Per-step scratch: the tendon commands of a finger.
+    commands: Vec<TendonCommand>,
+    /// Per-step scratch: obstacle poses at the start and the end of the step.
+    poses: (Vec<Iso3>, Vec<Iso3>),
 }
 
 impl Scene {
@@ -319,7 +323,11 @@ impl Scene {
             .enumerate()
             .map(|(i, o)| Obstacle::new(i, o))
             .collect::<Result<Vec<_>, _>>()?;
-        let workspaces = bodies.iter().map(|b| b.fem().workspace()).collect();
+        let workspaces = bodies
+            .iter()
+            .map(|b| b.workspace(obstacles.len()))
+            .collect();
+        let max_tendons = bodies.iter().map(|b| b.tendons().len()).max();
         let targets = bodies
             .iter()
             .map(|b| b.fem().mesh().nodes().to_vec())
@@ -328,9 +336,14 @@ impl Scene {
             config,
             hand,
             bodies,
-            obstacles,
             workspaces,
             targets,
+            commands: Vec::with_capacity(max_tendons.unwrap_or(0)),
+            poses: (
+                Vec::with_capacity(obstacles.len()),
+                Vec::with_capacity(obstacles.len()),
+            ),
+            obstacles,
         })
     }
 
@@ -413,10 +426,26 @@ impl Scene {
     ///
     /// # Errors
     /// [`SimError::StateMismatch`] for a foreign state; divergence as
-    /// [`SimError::InvertedElement`], [`SimError::NonFinite`], [`SimError::ExplodingEnergy`]
-    /// or [`SimError::NotPositiveDefinite`], each naming the step and finger (and element or
-    /// node); [`SimError::StaticNotConverged`] in static mode.
+    /// [`SimError::InvertedElement`], [`SimError::NonFinite`], [`SimError::ExplodingEnergy`],
+    /// [`SimError::NotPositiveDefinite`] or [`SimError::SingularRankOneSystem`], each naming the
+    /// step and finger (and element or node); [`SimError::StaticNotConverged`] in static mode.
     pub fn step(&mut self, state: &mut SimState) -> Result<StepInfo, SimError> {
+        let fingers = self.bodies.len();
+        let mut info = StepInfo {
+            kinetic_energy_j: Vec::with_capacity(fingers),
+            iterations: Vec::with_capacity(fingers),
+            ..StepInfo::default()
+        };
+        self.step_into(state, &mut info)?;
+        Ok(info)
+    }
+
+    /// [`Scene::step`] writing the step's figures into `info`, reusing its vectors: once `info`
+    /// has held the figures of one step of this scene, a step does not allocate.
+    ///
+    /// # Errors
+    /// As [`Scene::step`]; `info` is then partly overwritten.
+    pub fn step_into(&mut self, state: &mut SimState, info: &mut StepInfo) -> Result<(), SimError> {
         self.check_state(state)?;
         let dt = self.config.solver.dt_secs;
         let (t0, t1) = (state.time_secs, state.time_secs + dt);
@@ -427,15 +456,16 @@ impl Scene {
                 max_iterations: self.config.solver.static_max_iterations,
             },
         };
-        let posed = PosedObstacles::new(&self.obstacles, t0, t1);
+        // The pose buffers are lent to the step's `PosedObstacles` and taken back afterwards.
+        let (start, end) = std::mem::take(&mut self.poses);
+        let posed = PosedObstacles::with_buffers(&self.obstacles, t0, t1, start, end);
         let gravity = Vector3::from(self.config.gravity_m_s2);
-        let mut info = StepInfo {
-            step: state.step,
-            time_secs: t1,
-            kinetic_energy_j: Vec::with_capacity(self.bodies.len()),
-            iterations: Vec::with_capacity(self.bodies.len()),
-            tendons: Vec::with_capacity(self.bodies.len()),
-        };
+        info.step = state.step;
+        info.time_secs = t1;
+        info.kinetic_energy_j.clear();
+        info.iterations.clear();
+        info.tendons.resize_with(self.bodies.len(), Vec::new);
+        let mut result = Ok(());
         for i in 0..self.bodies.len() {
             let pose = self.world_from_finger(i, t1);
             let body = &self.bodies[i];
@@ -443,13 +473,13 @@ impl Scene {
                 *t = pose * p;
             }
             let schedule = self.config.actuation.get(i);
-            let commands: Vec<TendonCommand> = (0..body.tendons().len())
-                .map(|j| command(schedule, j, t1))
-                .collect();
+            self.commands.clear();
+            self.commands
+                .extend((0..body.tendons().len()).map(|j| command(schedule, j, t1)));
             let inputs = FingerInputs {
                 targets: &self.targets[i],
                 gravity,
-                commands: &commands,
+                commands: &self.commands,
                 tendon: &self.config.tendon,
                 obstacles: &posed,
                 contact: &self.config.contact,
@@ -459,43 +489,53 @@ impl Scene {
                 finger: i,
             };
             let fs = &mut state.fingers[i];
-            let report = body.step(
+            let report = match body.advance(
                 &mut self.workspaces[i],
                 ctx,
                 integrator,
                 &mut fs.x,
                 &mut fs.v,
                 &inputs,
-            )?;
+            ) {
+                Ok(r) => r,
+                Err(e) => {
+                    result = Err(e);
+                    break;
+                }
+            };
             let limit = self.config.solver.max_kinetic_energy_j;
             if report.kinetic_energy_j > limit {
                 let node = (0..fs.v.len())
                     .max_by(|&a, &b| fs.v[a].norm().total_cmp(&fs.v[b].norm()))
                     .unwrap_or(0);
-                return Err(SimError::ExplodingEnergy {
+                result = Err(SimError::ExplodingEnergy {
                     step: state.step,
                     finger: i,
                     node,
                     energy_j: report.kinetic_energy_j,
                     limit_j: limit,
                 });
+                break;
             }
             info.kinetic_energy_j.push(report.kinetic_energy_j);
             info.iterations.push(report.iterations);
-            info.tendons.push(
+            let tendons = &mut info.tendons[i];
+            tendons.clear();
+            tendons.extend(
                 body.tendons()
                     .iter()
-                    .zip(&commands)
+                    .zip(&self.commands)
                     .map(|(t, &c)| TendonState {
                         length_m: t.length(&fs.x),
                         tension_n: t.tension(&fs.x, c, &self.config.tendon),
-                    })
-                    .collect(),
+                    }),
             );
         }
+        self.poses = (posed.start, posed.end);
+        result?;
         state.step += 1;
         state.time_secs = t1;
-        Ok(info)
+        Ok(())
     }
 
     /// The surfaces, distances and contact labels of `state`.

@@ -65,6 +65,11 @@ pub enum TendonCommand {
 pub struct Tendon {
     points: Vec<Embedded>,
     rest_length_m: Real,
+    /// The distinct nodes of the embedded points, in order of first appearance: the entries of
+    /// the length gradient.
+    nodes: Vec<u32>,
+    /// Per point and corner, the index in `nodes` of that corner's node.
+    slots: Vec<[u32; 4]>,
 }
 
 /// State of a tendon after a step.
@@ -93,9 +98,25 @@ impl Tendon {
                 z: p.z,
             });
         }
+        let points = emb.points().to_vec();
+        let mut nodes: Vec<u32> = Vec::new();
+        let mut slot_of = std::collections::HashMap::new();
+        let slots = points
+            .iter()
+            .map(|e| {
+                e.nodes.map(|node| {
+                    *slot_of.entry(node).or_insert_with(|| {
+                        nodes.push(node);
+                        (nodes.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
         Ok(Self {
-            points: emb.points().to_vec(),
+            points,
             rest_length_m: route.length(),
+            nodes,
+            slots,
         })
     }
 
@@ -107,6 +128,21 @@ impl Tendon {
     /// Rest path length, metres.
     pub fn rest_length_m(&self) -> Real {
         self.rest_length_m
+    }
+
+    /// Number of distinct nodes the tendon's points are embedded in (the length of its
+    /// rank-one gradient).
+    pub(crate) fn num_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Unit direction and length of segment `k` (from point `k` to point `k + 1`; a zero
+    /// direction for a zero-length segment).
+    #[inline]
+    fn segment(&self, x: &[Point3], k: usize) -> (Vector3, Real) {
+        let d = self.points[k + 1].position(x) - self.points[k].position(x);
+        let l = d.norm();
+        (if l > 0.0 { d / l } else { Vector3::zeros() }, l)
     }
 
     /// Node pairs coupled by consecutive route points (for the system pattern).
@@ -141,7 +177,8 @@ impl Tendon {
         }
     }
 
-    /// Adds this tendon's terms for positions `x` to `terms`.
+    /// Adds this tendon's terms for positions `x` to `terms` (without allocating once `terms`
+    /// has room: the segment directions are recomputed where needed instead of stored).
     pub(crate) fn add_terms(
         &self,
         x: &[Point3],
@@ -149,36 +186,33 @@ impl Tendon {
         params: &TendonParams,
         terms: &mut Terms,
     ) {
-        let p: Vec<Point3> = self.points.iter().map(|e| e.position(x)).collect();
-        let n = p.len();
-        let mut dirs = Vec::with_capacity(n - 1);
-        let mut lens = Vec::with_capacity(n - 1);
-        for w in p.windows(2) {
-            let d = w[1] - w[0];
-            let l = d.norm();
-            lens.push(l);
-            dirs.push(if l > 0.0 { d / l } else { Vector3::zeros() });
-        }
-        let length: Real = lens.iter().sum();
+        let n = self.points.len();
+        let length: Real = (0..n - 1).map(|k| self.segment(x, k).1).sum();
         // ∂L/∂p_k = u_{k−1} − u_k.
         let grad_point = |k: usize| {
-            let prev = if k > 0 { dirs[k - 1] } else { Vector3::zeros() };
-            let next = if k < n - 1 { dirs[k] } else { Vector3::zeros() };
+            let prev = if k > 0 {
+                self.segment(x, k - 1).0
+            } else {
+                Vector3::zeros()
+            };
+            let next = if k < n - 1 {
+                self.segment(x, k).0
+            } else {
+                Vector3::zeros()
+            };
             prev - next
         };
         let tension = match command {
             TendonCommand::Displacement { pull_m } => {
                 let excess = length - (self.rest_length_m - pull_m);
-                let mut gradient: Vec<(u32, Vector3)> = Vec::new();
-                for (k, e) in self.points.iter().enumerate() {
+                // Contributions are summed per node in point order; −0 is the exact identity of
+                // floating-point addition, so each sum starts from its first contribution.
+                let mut gradient = terms.gradient_buffer();
+                gradient.extend(self.nodes.iter().map(|&node| (node, Vector3::repeat(-0.0))));
+                for (k, (e, slots)) in self.points.iter().zip(&self.slots).enumerate() {
                     let g = grad_point(k);
                     for j in 0..4 {
-                        let node = e.nodes[j];
-                        let contrib = g * e.weights[j];
-                        match gradient.iter_mut().find(|(m, _)| *m == node) {
-                            Some((_, acc)) => *acc += contrib,
-                            None => gradient.push((node, contrib)),
-                        }
+                        gradient[slots[j] as usize].1 += g * e.weights[j];
                     }
                 }
                 terms.rank_ones.push(RankOneTerm {
@@ -207,12 +241,12 @@ impl Tendon {
         };
         if tension > 0.0 {
             for k in 0..n - 1 {
-                if lens[k] > 0.0 {
-                    let u = dirs[k];
+                let (u, len) = self.segment(x, k);
+                if len > 0.0 {
                     terms.pairs.push(PairTerm {
                         a: self.points[k],
                         b: self.points[k + 1],
-                        stiffness: (Matrix3::identity() - u * u.transpose()) * (tension / lens[k]),
+                        stiffness: (Matrix3::identity() - u * u.transpose()) * (tension / len),
                     });
                 }
             }

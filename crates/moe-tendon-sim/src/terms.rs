@@ -55,7 +55,11 @@ pub struct RankOneTerm {
 }
 
 /// All interaction terms of one step of one body.
-#[derive(Debug, Clone, Default, PartialEq)]
+///
+/// [`Terms::clear`] keeps every allocation, including the gradient vectors of the rank-one
+/// terms (handed out again by [`Terms::gradient_buffer`]), so that a workspace reused every step
+/// stops allocating once its buffers have grown to the step's needs.
+#[derive(Debug, Clone, Default)]
 pub struct Terms {
     /// Constant forces on nodes, newtons.
     pub nodal_forces: Vec<(u32, Vector3)>,
@@ -65,6 +69,18 @@ pub struct Terms {
     pub pairs: Vec<PairTerm>,
     /// Rank-one penalties.
     pub rank_ones: Vec<RankOneTerm>,
+    /// Emptied gradient vectors of cleared rank-one terms, for reuse.
+    spare_gradients: Vec<Vec<(u32, Vector3)>>,
+}
+
+impl PartialEq for Terms {
+    /// Compares the terms (not the spare buffers).
+    fn eq(&self, other: &Self) -> bool {
+        self.nodal_forces == other.nodal_forces
+            && self.points == other.points
+            && self.pairs == other.pairs
+            && self.rank_ones == other.rank_ones
+    }
 }
 
 impl Terms {
@@ -73,6 +89,79 @@ impl Terms {
         self.nodal_forces.clear();
         self.points.clear();
         self.pairs.clear();
-        self.rank_ones.clear();
+        for mut r in self.rank_ones.drain(..) {
+            r.gradient.clear();
+            self.spare_gradients.push(r.gradient);
+        }
+    }
+
+    /// An empty vector for a [`RankOneTerm::gradient`]: the allocation of a term removed by
+    /// [`Terms::clear`] when there is one (a new, empty vector otherwise).
+    pub fn gradient_buffer(&mut self) -> Vec<(u32, Vector3)> {
+        self.spare_gradients.pop().unwrap_or_default()
+    }
+
+    /// Reserves room for at least `points` point terms, `pairs` pair terms and `rank_ones`
+    /// rank-one terms of up to `gradient_len` nodes each, so that steps within these bounds do
+    /// not allocate.
+    pub fn reserve(&mut self, points: usize, pairs: usize, rank_ones: usize, gradient_len: usize) {
+        self.points.reserve(points);
+        self.pairs.reserve(pairs);
+        self.rank_ones.reserve(rank_ones);
+        let spares = rank_ones.saturating_sub(self.spare_gradients.len() + self.rank_ones.len());
+        self.spare_gradients.reserve(rank_ones);
+        for _ in 0..spares {
+            self.spare_gradients.push(Vec::new());
+        }
+        for g in &mut self.spare_gradients {
+            g.reserve(gradient_len);
+        }
+        for r in &mut self.rank_ones {
+            r.gradient
+                .reserve(gradient_len.saturating_sub(r.gradient.len()));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clearing_keeps_the_gradient_allocations_for_reuse() {
+        let mut terms = Terms::default();
+        terms.reserve(5, 3, 2, 16);
+        assert!(terms.points.capacity() >= 5 && terms.pairs.capacity() >= 3);
+        let mut ptrs = Vec::new();
+        for value in [1.0, 2.0] {
+            let mut g = terms.gradient_buffer();
+            assert!(g.is_empty() && g.capacity() >= 16);
+            g.push((3, Vector3::x()));
+            ptrs.push(g.as_ptr());
+            terms.rank_ones.push(RankOneTerm {
+                gradient: g,
+                stiffness: 1.0,
+                value,
+                unilateral: true,
+            });
+        }
+        let copy = terms.clone();
+        terms.clear();
+        assert!(terms.rank_ones.is_empty());
+        assert_ne!(terms, copy);
+        // The buffers come back emptied, in reverse order of clearing.
+        let a = terms.gradient_buffer();
+        let b = terms.gradient_buffer();
+        assert!(a.is_empty() && b.is_empty());
+        let mut got = vec![a.as_ptr(), b.as_ptr()];
+        got.sort();
+        ptrs.sort();
+        assert_eq!(got, ptrs);
+        assert!(terms.gradient_buffer().capacity() == 0);
+        assert_eq!(Terms::default(), {
+            let mut t = Terms::default();
+            t.reserve(1, 1, 1, 1);
+            t
+        });
     }
 }
