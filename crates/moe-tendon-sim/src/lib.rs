@@ -5,7 +5,11 @@
 //! Architecture invariant: depends only on `moe-geom`, faer and parry3d-f64. No file IO; scene
 //! files are parsed by `moe-io` (`moe_io::read_config::<SceneConfig>`), and results are returned
 //! as in-memory values. Every loop that feeds the state is sequential (faer runs with
-//! `Par::Seq`), so a scene is bit-for-bit deterministic on a given machine.
+//! `Par::Seq`), so a scene is bit-for-bit deterministic on a given machine. The per-step path
+//! does not allocate: [`Scene::step_into`] reuses per-scene, per-finger ([`FemWorkspace`]) and
+//! per-term scratch sized when the scene is built (tendon node maps are precomputed, contact
+//! buffers hold a term per surface vertex and obstacle); `tests/alloc.rs` counts the heap
+//! allocations of steps with a counting global allocator.
 //!
 //! # Pipeline
 //!
