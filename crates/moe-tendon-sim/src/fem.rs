@@ -71,7 +71,9 @@ pub struct FemModel {
 /// Reusable per-body scratch memory: keeping one per body makes the step allocation-free
 /// (everything is sized by [`FemModel::workspace`]; only the interaction terms' buffers grow
 /// while a step needs more terms than any step before, unless reserved up front as
-/// [`FingerBody::workspace`](crate::FingerBody::workspace) does).
+/// [`FingerBody::workspace`](crate::FingerBody::workspace) does). [`FemModel::step`] still
+/// allocates the [`StepReport::rank_one_values`] it returns when there are rank-one terms;
+/// [`Scene::step_into`](crate::Scene::step_into) does not.
 pub struct FemWorkspace {
     buf: SystemBuffers,
     force: Vec<Vector3>,
