@@ -13,6 +13,14 @@
 //! value a [`Lanes`] of `L` numbers: the lanes compile to packed instructions and interleave,
 //! while every lane performs exactly the operations of the one-cell iteration (same order, same
 //! rounding), so batching does not change any result.
+//!
+//! Measured on the two-finger bench workload (cycle counts with `perf stat`, one thread): two
+//! lanes inlined into the local step's loop cost ~13 % fewer cycles than the former one-cell call;
+//! four or three lanes, straight-line code taking exactly two steps in every lane (almost every
+//! cell converges in two), and lanes filled straight from the column-major matrices were all
+//! slower than the two-lane loop with early exits. In the from-rest solve the first step's length
+//! is 1e-3–1e-2 rad for most cells in every iteration, so the second step cannot be skipped at
+//! the 1e-12 accuracy kept here.
 
 use std::ops::{Add, Mul, Neg, Sub};
 

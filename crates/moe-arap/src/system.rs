@@ -258,6 +258,10 @@ impl SimplicialFactor {
     }
 
     /// Forward and backward substitution with three right-hand sides at once.
+    ///
+    /// Two variants were measured on the 1k-vertex finger (930 unknowns, 20k factor entries)
+    /// without gain: a supernodal forward pass (shared rows loaded once per run of columns) and
+    /// two accumulators in the backward dot products.
     fn solve3(&self, values: &[Real], rhs: &mut [[Real; 3]], y: &mut [[Real; 3]]) {
         let n = self.perm.len();
         for (yi, &p) in y.iter_mut().zip(&self.perm) {
