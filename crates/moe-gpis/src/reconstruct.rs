@@ -275,9 +275,24 @@ mod tests {
             .fold(0.0, Real::max);
         assert!(worst < 5e-4, "max deviation {worst} m, {:?}", rec.report);
         // Narrow-band values give exactly the dense-grid mesh.
+        assert_dense_grid_gives_the_same_mesh(&gpis, &rec);
+        // Variance is small on the data-covered surface.
+        let max_sd = rec
+            .vertex_variance
+            .iter()
+            .fold(0.0 as Real, |m, v| m.max(v.sqrt()));
+        assert!(max_sd < 2e-3, "{max_sd}");
+    }
+
+    /// Narrow-band values give exactly the mesh of dense-grid values: same faces, vertices within
+    /// 1e-9 m.
+    fn assert_dense_grid_gives_the_same_mesh<M: MeanFunction>(
+        gpis: &Gpis<M>,
+        rec: &Reconstruction,
+    ) {
         let dense = gpis.grid_values(&rec.grid);
         let dense_mesh = extract_surface(&rec.grid, &dense, &MeshingOptions::default()).unwrap();
-        assert_eq!(dense_mesh.num_faces(), rec.mesh.num_faces());
+        assert_eq!(dense_mesh.faces(), rec.mesh.faces());
         let max_diff = dense_mesh
             .vertices()
             .iter()
@@ -285,12 +300,6 @@ mod tests {
             .map(|(a, b)| (a - b).norm())
             .fold(0.0, Real::max);
         assert!(max_diff < 1e-9, "{max_diff}");
-        // Variance is small on the data-covered surface.
-        let max_sd = rec
-            .vertex_variance
-            .iter()
-            .fold(0.0 as Real, |m, v| m.max(v.sqrt()));
-        assert!(max_sd < 2e-3, "{max_sd}");
     }
 
     #[test]
@@ -312,16 +321,7 @@ mod tests {
             ..SurfaceConfig::default()
         };
         let (rec, gpis) = reconstruct(&prior, &obs, &b, &cfg).unwrap();
-        let dense = gpis.grid_values(&rec.grid);
-        let dense_mesh = extract_surface(&rec.grid, &dense, &MeshingOptions::default()).unwrap();
-        assert_eq!(dense_mesh.faces(), rec.mesh.faces());
-        let max_diff = dense_mesh
-            .vertices()
-            .iter()
-            .zip(rec.mesh.vertices())
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, Real::max);
-        assert!(max_diff < 1e-9, "{max_diff}");
+        assert_dense_grid_gives_the_same_mesh(&gpis, &rec);
     }
 
     #[test]

@@ -890,6 +890,12 @@ pub fn parse_episode_prefix(path: &Path, bytes: &[u8]) -> (Option<Episode>, Opti
     let mut frames = Vec::new();
     let mut pending: Vec<Option<Vec<u8>>> = vec![None; TOPICS.len()];
     let mut pending_time: Option<u64> = None;
+    let incomplete = |time: Option<u64>| {
+        format_err(
+            path,
+            format!("frame at {} ns is incomplete", time.unwrap_or_default()),
+        )
+    };
     for message in stream {
         let message = match message {
             Ok(m) => m,
@@ -931,13 +937,7 @@ pub fn parse_episode_prefix(path: &Path, bytes: &[u8]) -> (Option<Episode>, Opti
         };
         if pending_time != Some(message.log_time) {
             if pending.iter().any(Option::is_some) {
-                let err = format_err(
-                    path,
-                    format!(
-                        "frame at {} ns is incomplete",
-                        pending_time.unwrap_or_default()
-                    ),
-                );
+                let err = incomplete(pending_time);
                 return (info.map(|info| Episode { info, frames }), Some(err));
             }
             pending_time = Some(message.log_time);
@@ -955,13 +955,7 @@ pub fn parse_episode_prefix(path: &Path, bytes: &[u8]) -> (Option<Episode>, Opti
         }
     }
     if pending.iter().any(Option::is_some) {
-        let err = format_err(
-            path,
-            format!(
-                "frame at {} ns is incomplete",
-                pending_time.unwrap_or_default()
-            ),
-        );
+        let err = incomplete(pending_time);
         return (info.map(|info| Episode { info, frames }), Some(err));
     }
     if bytes.len() < 8 || bytes[bytes.len() - 8..] != mcap::MAGIC[..] {

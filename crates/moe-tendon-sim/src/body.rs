@@ -137,17 +137,7 @@ impl FingerBody {
         v: &mut [Vector3],
         inputs: &FingerInputs<'_>,
     ) -> Result<StepReport, SimError> {
-        self.check_commands(inputs)?;
-        self.fem.step(
-            ws,
-            ctx,
-            integrator,
-            x,
-            v,
-            inputs.targets,
-            &inputs.gravity,
-            &mut self.terms_fn(inputs),
-        )
+        Ok(self.advance(ws, ctx, integrator, x, v, inputs)?.report(ws))
     }
 
     /// [`FingerBody::step`] without allocating (the rank-one values stay in the workspace).

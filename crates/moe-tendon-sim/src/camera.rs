@@ -494,6 +494,14 @@ mod tests {
         (v.to_vec(), vec![[0, 1, 2], [0, 2, 3]])
     }
 
+    /// The default camera with an ideal (noise-free) sensor.
+    fn ideal_camera() -> RgbdCamera {
+        RgbdCamera {
+            noise: NoiseModel::ideal(),
+            ..RgbdCamera::default()
+        }
+    }
+
     fn item<'a>(v: &'a [Point3], f: &'a [[u32; 3]], markers: &'a [Point3]) -> RenderItem<'a> {
         RenderItem {
             vertices_in_hand: v,
@@ -506,10 +514,7 @@ mod tests {
 
     #[test]
     fn ideal_depth_of_a_fronto_parallel_plane_is_exact() {
-        let camera = RgbdCamera {
-            noise: NoiseModel::ideal(),
-            ..RgbdCamera::default()
-        };
+        let camera = ideal_camera();
         let (v, f) = plane_facing(&camera, 0.5, 2.0, 0.0);
         let img = camera.render(&[item(&v, &f, &[])], 1).unwrap();
         assert!(
@@ -521,10 +526,7 @@ mod tests {
 
     #[test]
     fn tilted_plane_depth_matches_ray_plane_intersection() {
-        let camera = RgbdCamera {
-            noise: NoiseModel::ideal(),
-            ..RgbdCamera::default()
-        };
+        let camera = ideal_camera();
         let tilt = 0.4;
         let (v, f) = plane_facing(&camera, 0.4, 2.0, tilt);
         let img = camera.render(&[item(&v, &f, &[])], 1).unwrap();
@@ -657,10 +659,7 @@ mod tests {
 
     #[test]
     fn a_marker_seen_head_on_is_centred_on_its_projection() {
-        let camera = RgbdCamera {
-            noise: NoiseModel::ideal(),
-            ..RgbdCamera::default()
-        };
+        let camera = ideal_camera();
         let (v, f) = plane_facing(&camera, 0.3, 1.0, 0.0);
         // Off-centre markers, in the hand frame, on the plane.
         let markers: Vec<Point3> = [(0.02, -0.01), (-0.05, 0.04)]
@@ -696,10 +695,7 @@ mod tests {
         // marker patch is foreshortened and partly behind the finger's curvature: its pixel
         // centroid lies within a fraction of the marker's projected radius of the projected
         // centre, and the centre pixel itself is red.
-        let camera = RgbdCamera {
-            noise: NoiseModel::ideal(),
-            ..RgbdCamera::default()
-        };
+        let camera = ideal_camera();
         let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
         let data = hand_items(&hand);
         let camera_from_hand = camera.hand_from_camera.inverse();
@@ -737,10 +733,7 @@ mod tests {
 
     #[test]
     fn an_object_in_front_of_a_marker_hides_it() {
-        let camera = RgbdCamera {
-            noise: NoiseModel::ideal(),
-            ..RgbdCamera::default()
-        };
+        let camera = ideal_camera();
         let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
         let data = hand_items(&hand);
         let camera_from_hand = camera.hand_from_camera.inverse();

@@ -117,6 +117,17 @@ pub(crate) struct Advance {
     pub(crate) iterations: usize,
 }
 
+impl Advance {
+    /// The public report of this step (copies the rank-one values out of the workspace).
+    pub(crate) fn report(&self, ws: &FemWorkspace) -> StepReport {
+        StepReport {
+            kinetic_energy_j: self.kinetic_energy_j,
+            iterations: self.iterations,
+            rank_one_values: ws.woodbury.values.clone(),
+        }
+    }
+}
+
 impl std::fmt::Debug for FemWorkspace {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("FemWorkspace")
@@ -379,11 +390,7 @@ impl FemModel {
         terms: &mut TermsFn<'_>,
     ) -> Result<StepReport, SimError> {
         let a = self.advance(ws, ctx, integrator, x, v, targets, gravity, terms)?;
-        Ok(StepReport {
-            kinetic_energy_j: a.kinetic_energy_j,
-            iterations: a.iterations,
-            rank_one_values: ws.woodbury.values.clone(),
-        })
+        Ok(a.report(ws))
     }
 
     /// [`FemModel::step`] without allocating: the rank-one values stay in the workspace.
