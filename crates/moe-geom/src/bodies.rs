@@ -30,6 +30,10 @@ impl Bump {
     }
 }
 
+/// Depth below the skull centre at which every head of the family is cropped (metres): the flat
+/// cut of the neck, common to all members like the crop of a head scan data set.
+pub const NECK_CROP_DEPTH: Real = 0.16;
+
 /// Parameters of one procedural head (metres, head frame: x left–right, y towards the face,
 /// z up, origin near the centre of the skull).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -48,7 +52,8 @@ pub struct HeadParams {
     pub jaw: Real,
     /// Radius of the neck cylinder.
     pub neck_radius: Real,
-    /// Depth of the neck's flat cut below the origin.
+    /// Depth of the neck's flat cut below the origin ([`NECK_CROP_DEPTH`] for the sampled
+    /// family).
     pub neck_depth: Real,
     /// Facial features (nose, chin, brow, eye sockets) and individual smooth bumps.
     pub bumps: Vec<Bump>,
@@ -75,8 +80,10 @@ impl HeadParams {
         let forehead = around(0.10, 0.3);
         let occiput = around(0.05, 0.3);
         let jaw = around(0.22, 0.2);
-        let neck_radius = around(0.055, 0.08);
-        let neck_depth = around(0.16, 0.05);
+        // Heads of a shape data set (and mannequins) are cropped by one rule: the neck is cut at
+        // the same level below the skull for everybody; its girth follows the head's breadth.
+        let neck_radius = half_width * around(0.72, 0.04);
+        let neck_depth = NECK_CROP_DEPTH;
         let mut face = |x: Real, y: Real, z: Real, amplitude: Real, width: Real| Bump {
             direction: Vector3::new(x, y, z).normalize(),
             amplitude: around(amplitude, 0.25),
@@ -220,6 +227,25 @@ mod tests {
         }
         assert_ne!(a.vertices(), b.vertices());
         assert_eq!(HeadParams::sample(1), HeadParams::sample(1));
+    }
+
+    #[test]
+    fn every_head_is_cropped_at_the_same_level() {
+        for seed in [1, 2, 3, 40] {
+            let p = HeadParams::sample(seed);
+            let m = p.mesh(3).unwrap();
+            let lowest = m
+                .vertices()
+                .iter()
+                .map(|v| v.z)
+                .fold(Real::INFINITY, Real::min);
+            assert!(
+                (lowest + NECK_CROP_DEPTH).abs() < 1e-9,
+                "seed {seed}: {lowest}"
+            );
+            let girth = p.neck_radius / p.half_width;
+            assert!((0.6..0.85).contains(&girth), "seed {seed}: {girth}");
+        }
     }
 
     #[test]

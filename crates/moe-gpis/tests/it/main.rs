@@ -1,3 +1,4 @@
 //! Integration tests of `moe-gpis` through its public API.
 
 mod bad_input;
+mod benchmark;
