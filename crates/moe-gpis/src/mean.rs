@@ -11,7 +11,7 @@
 
 use moe_geom::math::{from_parry, to_parry};
 use moe_geom::{Matrix3, Point3, Real, TriMesh, Vector3};
-use parry3d_f64::query::PointQuery;
+use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
 use parry3d_f64::shape::{TriMesh as ParryTriMesh, TriMeshFlags};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -271,6 +271,19 @@ impl MeshSdfMean {
     /// The closest point of the prior surface to `p`.
     pub fn closest_point(&self, p: &Point3) -> Point3 {
         from_parry(self.shape.project_local_point(to_parry(p), false).point)
+    }
+
+    /// The closest point of the prior surface to `p` and the outward unit normal of the
+    /// triangle it lies on (for a closest point on an edge or a vertex: one of the triangles
+    /// sharing it).
+    pub fn closest_point_and_normal(&self, p: &Point3) -> (Point3, Vector3) {
+        let (proj, (triangle, _)) = self
+            .shape
+            .project_local_point_and_get_location(to_parry(p), false);
+        let [a, b, c] =
+            self.mesh.faces()[triangle as usize].map(|i| self.mesh.vertices()[i as usize]);
+        let normal = (b - a).cross(&(c - a)).normalize();
+        (from_parry(proj.point), normal)
     }
 }
 
