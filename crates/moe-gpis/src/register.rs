@@ -497,20 +497,29 @@ mod tests {
     use super::*;
     use moe_geom::shapes::star_shaped;
 
-    #[test]
-    fn icp_recovers_a_known_pose_and_scale() {
-        // An egg-like shape has no rotational symmetry about most axes.
-        let prior = star_shaped(3, Point3::origin(), |d| {
+    /// An egg-like shape: no rotational symmetry about most axes.
+    fn egg() -> TriMesh {
+        star_shaped(3, Point3::origin(), |d| {
             0.08 + 0.02 * d.x + 0.015 * d.y * d.y - 0.01 * d.z * d.x
         })
-        .unwrap();
-        let truth = Similarity {
-            rotation: nalgebra_rotation(0.08, -0.05, 0.1)
+        .unwrap()
+    }
+
+    /// The similarity with the given Euler angles, translation and scale.
+    fn pose(angles: [Real; 3], translation: Vector3, scale: Real) -> Similarity {
+        Similarity {
+            rotation: nalgebra_rotation(angles[0], angles[1], angles[2])
                 .to_rotation_matrix()
                 .into_inner(),
-            translation: Vector3::new(0.006, -0.004, 0.003),
-            scale: 1.04,
-        };
+            translation,
+            scale,
+        }
+    }
+
+    #[test]
+    fn icp_recovers_a_known_pose_and_scale() {
+        let prior = egg();
+        let truth = pose([0.08, -0.05, 0.1], Vector3::new(0.006, -0.004, 0.003), 1.04);
         let contacts: Vec<Point3> = prior
             .vertices()
             .iter()
@@ -568,17 +577,8 @@ mod tests {
 
     #[test]
     fn point_to_plane_rigid_registration_ignores_an_outlier() {
-        let prior = star_shaped(3, Point3::origin(), |d| {
-            0.08 + 0.02 * d.x + 0.015 * d.y * d.y - 0.01 * d.z * d.x
-        })
-        .unwrap();
-        let truth = Similarity {
-            rotation: nalgebra_rotation(-0.06, 0.04, 0.05)
-                .to_rotation_matrix()
-                .into_inner(),
-            translation: Vector3::new(-0.004, 0.005, 0.002),
-            scale: 1.0,
-        };
+        let prior = egg();
+        let truth = pose([-0.06, 0.04, 0.05], Vector3::new(-0.004, 0.005, 0.002), 1.0);
         let mut contacts: Vec<Point3> = prior
             .vertices()
             .iter()

@@ -2,7 +2,7 @@
 //! sparse approximation one observation beyond it.
 
 use moe_geom::{Point3, Real, SeededRng, Vector3};
-use moe_gpis::{GpisConfig, Hyper, Observations, SphereMean, condition};
+use moe_gpis::{Gpis, GpisConfig, Hyper, Observations, SphereMean, condition};
 
 const SEMI_AXES: [Real; 3] = [0.09, 0.08, 0.07];
 
@@ -19,6 +19,14 @@ fn on_ellipsoid(n: usize, seed: u64) -> Vec<Point3> {
             Point3::from(d / s)
         })
         .collect()
+}
+
+/// The largest |posterior mean| (metres from the zero level set, to first order) at `points`.
+fn worst_abs_mean(gpis: &Gpis<SphereMean>, points: &[Point3]) -> Real {
+    points
+        .iter()
+        .map(|p| gpis.mean_at(p).abs())
+        .fold(0.0, Real::max)
 }
 
 fn config() -> GpisConfig {
@@ -48,18 +56,11 @@ fn five_thousand_observations_are_conditioned_exactly() {
     assert!(report.log_marginal_likelihood.unwrap().is_finite());
     // The posterior mean interpolates the (nearly noise-free) observations: the sphere mean is
     // off by up to 10 mm on this ellipsoid, the posterior by less than a micrometre.
-    let worst_obs = contacts
-        .iter()
-        .step_by(25)
-        .map(|p| gpis.mean_at(p).abs())
-        .fold(0.0, Real::max);
+    let every_25th: Vec<Point3> = contacts.iter().step_by(25).copied().collect();
+    let worst_obs = worst_abs_mean(&gpis, &every_25th);
     assert!(worst_obs < 1e-6, "{worst_obs} m at an observation");
     // And it lies on the ellipsoid between them.
-    let held_out = on_ellipsoid(200, 2);
-    let worst = held_out
-        .iter()
-        .map(|p| gpis.mean_at(p).abs())
-        .fold(0.0, Real::max);
+    let worst = worst_abs_mean(&gpis, &on_ellipsoid(200, 2));
     assert!(worst < 1e-5, "{worst} m at a held-out surface point");
 }
 
@@ -70,10 +71,6 @@ fn one_more_observation_switches_to_the_sparse_approximation() {
     let (gpis, report) = condition(sphere(), &obs, &config()).unwrap();
     assert!(report.sparse);
     assert!(report.log_marginal_likelihood.is_none());
-    let held_out = on_ellipsoid(200, 2);
-    let worst = held_out
-        .iter()
-        .map(|p| gpis.mean_at(p).abs())
-        .fold(0.0, Real::max);
+    let worst = worst_abs_mean(&gpis, &on_ellipsoid(200, 2));
     assert!(worst < 1e-4, "{worst} m at a held-out surface point");
 }
