@@ -1,5 +1,6 @@
 //! Criterion benches of `moe-gpis`: the head benchmark's GP-with-prior reconstruction (fit +
-//! 64³ narrow-band query + marching tetrahedra), its parts, and the per-vertex variance.
+//! 64³ narrow-band query + marching tetrahedra), its parts, the per-vertex variance, and the
+//! optional screened Poisson mesher on the head's GP mesh (`head_poisson`).
 //!
 //! Run: `cargo bench -p moe-gpis --bench bench_main`.
 
@@ -7,8 +8,8 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_gpis::{
-    MeshSdfMean, MeshingOptions, Observations, SceneConfig, SurfaceConfig, bounds_of, build_scene,
-    condition, extract_surface, reconstruct,
+    MeshSdfMean, MeshingOptions, Observations, PoissonOptions, SceneConfig, SurfaceConfig,
+    bounds_of, build_scene, condition, extract_surface, poisson_surface, reconstruct,
 };
 
 fn head_inputs() -> (moe_gpis::bench_scene::Scene, MeshSdfMean, Observations) {
@@ -59,5 +60,34 @@ fn bench_head(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_head);
+/// The Poisson step alone (solve, calibration, band evaluation, meshing) with the default
+/// options, from the head's marching-tetrahedra mesh and grid values.
+fn bench_head_poisson(c: &mut Criterion) {
+    let (scene, prior, obs) = head_inputs();
+    let bounds = bounds_of(&scene.contacts, Some(&scene.prior)).expect("bounds");
+    let no_variance = SurfaceConfig {
+        vertex_variance: false,
+        ..SurfaceConfig::default()
+    };
+    let (rec, gpis) = reconstruct(&prior, &obs, &bounds, &no_variance).expect("rec");
+    let values = gpis.grid_values_for_meshing(&rec.grid);
+    let mut group = c.benchmark_group("head_poisson");
+    group.sample_size(10);
+    group.bench_function("poisson_head", |b| {
+        b.iter(|| {
+            let mesh = poisson_surface(
+                black_box(&rec.mesh),
+                &rec.grid,
+                &values,
+                &PoissonOptions::default(),
+                &MeshingOptions::default(),
+            )
+            .expect("poisson");
+            black_box(mesh.num_faces())
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_head, bench_head_poisson);
 criterion_main!(benches);

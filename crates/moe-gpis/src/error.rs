@@ -95,6 +95,21 @@ pub enum GpisError {
         /// Grid nodes along z.
         nz: usize,
     },
+    /// A normal given to Poisson reconstruction is NaN, infinite or zero. Every oriented point
+    /// needs a usable outward direction.
+    #[error("normal {index} is not finite or has zero length")]
+    InvalidNormal {
+        /// Index of the oriented point.
+        index: usize,
+    },
+    /// Screened Poisson reconstruction gave no usable surface: degenerate samples (all points
+    /// coincide), a non-finite solution, or a function that does not change sign across the
+    /// samples (normals that disagree in orientation).
+    #[error("Poisson reconstruction failed: {reason}")]
+    PoissonFailed {
+        /// What went wrong.
+        reason: &'static str,
+    },
     /// A geometry routine rejected its input (mesh validation, k-d tree, ...).
     #[error(transparent)]
     Geom(#[from] GeomError),

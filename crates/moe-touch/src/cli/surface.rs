@@ -9,8 +9,8 @@ use clap::{Args, ValueEnum};
 use moe_geom::{Aabb, Point3, TriMesh, Vector3};
 use moe_gpis::{
     ConstantMean, FitConfig, GpisConfig, Hyper, IcpConfig, KernelKind, MeanFunction, MeshSdfMean,
-    NonProbConfig, Observations, RegistrationKind, SphereMean, SurfaceConfig, bounds_of, condition,
-    nonprobabilistic, reconstruct, register_prior,
+    Mesher, NonProbConfig, Observations, PoissonOptions, RegistrationKind, SphereMean,
+    SurfaceConfig, bounds_of, condition, nonprobabilistic, reconstruct, register_prior,
 };
 use serde_json::json;
 
@@ -43,6 +43,15 @@ enum Registration {
     Rigid,
     /// Rotation, translation and uniform scale.
     Similarity,
+}
+
+/// Final mesher of the GP methods.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MesherArg {
+    /// Marching tetrahedra on the query grid.
+    Marching,
+    /// Screened Poisson reconstruction from the marching-tetrahedra mesh (paper §6.1).
+    Poisson,
 }
 
 /// Arguments of `moe-touch surface`.
@@ -90,6 +99,14 @@ pub(crate) struct SurfaceArgs {
     /// Grid nodes along each axis of an equivalent cube (the grid has at most N³ nodes).
     #[arg(long, default_value_t = 64)]
     grid: usize,
+    /// Final mesher of the GP methods: marching tetrahedra, or screened Poisson reconstruction
+    /// from its points and normals (slower: seconds on a head at depth 4).
+    #[arg(long, value_enum, default_value = "marching")]
+    mesher: MesherArg,
+    /// Octree depth of `--mesher poisson` (finest cell = extent / 2^N; cost grows ~8x per
+    /// level). Defaults to 4.
+    #[arg(long, value_name = "N")]
+    poisson_depth: Option<usize>,
     /// Points (CSV `x,y,z`, metres) at which to query the posterior.
     #[arg(long, value_name = "FILE", requires = "query_out")]
     query: Option<PathBuf>,
@@ -158,6 +175,9 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
     }
     if args.variance_out.is_some() && args.out.is_none() {
         bail!("--variance-out needs --out (the variance is attached to the output surface)");
+    }
+    if args.poisson_depth.is_some() && args.mesher != MesherArg::Poisson {
+        bail!("--poisson-depth needs --mesher poisson");
     }
     if args.grid < 2 {
         bail!("--grid must be at least 2, got {}", args.grid);
@@ -260,10 +280,30 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
         fixed,
         ..GpisConfig::default()
     };
+    let mesher = match args.mesher {
+        MesherArg::Marching => Mesher::MarchingTetrahedra,
+        MesherArg::Poisson => {
+            let depth = args
+                .poisson_depth
+                .unwrap_or(PoissonOptions::default().depth);
+            let options = PoissonOptions {
+                depth,
+                density_depth: PoissonOptions::default().density_depth.min(depth),
+                ..PoissonOptions::default()
+            };
+            options.validate().context("--poisson-depth")?;
+            Mesher::Poisson(options)
+        }
+    };
+    report.insert(
+        "mesher".into(),
+        json!(format!("{:?}", args.mesher).to_lowercase()),
+    );
     let surface_cfg = SurfaceConfig {
         gpis: gpis_cfg,
         max_grid_nodes: args.grid.saturating_pow(3),
         vertex_variance: args.variance_out.is_some(),
+        mesher,
         ..SurfaceConfig::default()
     };
 

@@ -193,6 +193,55 @@ fn nonprob_baseline_writes_a_closed_mesh() {
 }
 
 #[test]
+fn poisson_mesher_writes_a_closed_sphere_and_reports_its_time() {
+    let dir = scratch("surface-poisson");
+    let contacts = dir.join("contacts.csv");
+    moe_io::write_csv(&contacts, &["x", "y", "z"], &sphere_points(0.05, 200, 1)).unwrap();
+    let out_path = dir.join("surface.ply");
+    let out = run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--grid",
+        "32",
+        "--mesher",
+        "poisson",
+        "--poisson-depth",
+        "4",
+        "--out",
+        out_path.to_str().unwrap(),
+        "--json",
+    ]);
+    let report = json_of(&out);
+    assert_eq!(report["mesher"], "poisson");
+    assert!(report["timings"]["poisson_secs"].as_f64().unwrap() > 0.0);
+    let mesh = moe_io::read_mesh(&out_path).unwrap();
+    mesh.require_closed().unwrap();
+    assert!(mesh.signed_volume() > 0.0, "outward oriented");
+    let worst = mesh
+        .vertices()
+        .iter()
+        .map(|p| (p.coords.norm() - 0.05).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1.5e-3, "{worst}");
+    // The depth option belongs to the Poisson mesher.
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--poisson-depth",
+        "4",
+        "--out",
+        out_path.to_str().unwrap(),
+    ]));
+    assert!(err.contains("--mesher poisson"), "{err}");
+}
+
+#[test]
 fn bad_inputs_give_one_line_errors() {
     let dir = scratch("surface-bad");
     let contacts = dir.join("c.csv");
