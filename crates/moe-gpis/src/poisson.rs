@@ -610,6 +610,48 @@ mod tests {
         ));
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        /// Arbitrary small oriented point sets — random, flattened to a plane or a line, far from
+        /// the origin — give a field or a typed error, never a panic; a field's values at the
+        /// samples are finite.
+        #[test]
+        fn arbitrary_small_inputs_give_a_field_or_a_typed_error(
+            seed in 0u64..1000,
+            n in 8usize..60,
+            flatten in 0usize..3,
+            offset in -1e3f64..1e3,
+            depth in 1usize..4,
+        ) {
+            let mut rng = moe_geom::SeededRng::new(seed);
+            let mut g = || rng.normal();
+            let points: Vec<Point3> = (0..n)
+                .map(|_| {
+                    let (x, y, z) = (g(), g(), g());
+                    let (y, z) = match flatten {
+                        0 => (y, z),
+                        1 => (y, 0.0),
+                        _ => (0.0, 0.0),
+                    };
+                    Point3::new(offset + 0.01 * x, 0.01 * y, 0.01 * z)
+                })
+                .collect();
+            let normals: Vec<Vector3> = (0..n).map(|_| Vector3::new(g(), g(), g())).collect();
+            let options = PoissonOptions { depth, density_depth: depth, ..PoissonOptions::default() };
+            match PoissonField::fit(&points, &normals, &options) {
+                Ok(f) => {
+                    for p in &points {
+                        proptest::prop_assert!(f.value(p).is_finite());
+                    }
+                }
+                Err(e) => {
+                    let typed = matches!(e, GpisError::PoissonFailed { .. });
+                    proptest::prop_assert!(typed, "{}", e);
+                }
+            }
+        }
+    }
+
     #[test]
     fn refined_grid_interpolates_linear_fields_exactly() {
         let grid = Grid3::new(Point3::new(-0.1, 0.0, 0.2), 0.05, [4, 3, 5]).unwrap();
