@@ -13,16 +13,19 @@
 //!    of the finite differences along the normals gives the slope `s` of `χ` across the surface.
 //!    `χ / s` then increases along the given (outward) normals — negative inside — and is close
 //!    to a signed distance in metres near the samples: the crate's sign convention and scale are
-//!    measured, not assumed. The samples enter the solve mapped into the unit box, so nothing
-//!    depends on the units.
+//!    measured, not assumed. The same samples check that the solve converged: the slope must
+//!    have the median's sign at ≥ 90 % of them and `χ / s` must vanish there to within half a
+//!    finest cell (median); otherwise [`GpisError::PoissonFailed`]. The samples enter the solve
+//!    mapped into the unit box, so nothing depends on the units.
 //!
-//! Cost: the crate's right-hand side visits, for every node of every level, all finest-level
-//! cells within its reach, so the solve grows about 8× per level of depth whatever the number of
-//! samples. Measured on the head benchmark (release, 2 cores): depth 3 / 4 / 5 take 1.1 / 3.0 /
-//! 13 s for 2.7 / 1.9 / 1.8 mm UCD (marching tetrahedra: 1.7 mm). Depth 5 and deeper also need
-//! more conjugate-gradient iterations than the crate's suggested 10 (20 gave a function without
-//! a zero crossing; 100 works), hence the default of 50 at depth 4. Screening multiplies the time
-//! by about 5 and did not improve the sphere test, so it is off by default.
+//! Cost: the crate's right-hand side and coarse-level corrections visit, for every node of every
+//! level, all cells of the other levels within its reach (hash lookups of empty cells take most
+//! of the time), so the solve grows about 8× per level of depth whatever the number of samples. Measured on the head benchmark (release, 2 cores): depth 3 / 4 / 5 take 1.1 / 3.0 /
+//! 14 s for 2.66 / 1.91 / 1.70 mm UCD to the hidden surface (marching tetrahedra: 1.73 mm).
+//! The conjugate-gradient iterations cost little but matter: at depth 4, 5 iterations gave a
+//! 20 mm UCD, 20–100 converge; at depth 5, 20 did not converge on the sphere test and 50 does —
+//! hence the default of 50. Screening multiplies the time by about 5 and did not improve the
+//! sphere test, so it is off by default.
 //! 2. **Band.** `χ` is only fully defined where the finest octree level has all its B-splines:
 //!    within one finest cell (`w = extent / 2^depth`, max norm) of a sample. Grid nodes in that
 //!    band take `χ / s`; every other node takes the caller's fallback field (the GP posterior
@@ -52,6 +55,12 @@ use crate::marching::{MeshingOptions, extract_surface};
 
 /// Fewest samples accepted by [`PoissonField::fit`].
 pub const MIN_POISSON_SAMPLES: usize = 8;
+
+/// Fewest calibration samples whose slope along the normal has the median's sign.
+const MIN_SLOPE_AGREEMENT: Real = 0.9;
+
+/// Largest median distance (in finest cells) of the samples from the zero level set.
+const MAX_SAMPLE_OFFSET_CELLS: Real = 0.5;
 
 /// Samples used to calibrate the sign and scale of the Poisson function (a stride of all).
 const CALIBRATION_SAMPLES: usize = 2000;
@@ -243,13 +252,16 @@ impl PoissonField {
         Ok(field)
     }
 
-    /// Median slope of the raw function along the normals at a stride of the samples.
+    /// Median slope of the raw function along the normals at a stride of the samples, checked
+    /// for a converged solve: the slope has the median's sign at nearly every sample, and the
+    /// calibrated function nearly vanishes there.
     fn calibrate_slope(&self, normals: &[Vector3]) -> Result<Real, GpisError> {
         let delta = 0.25 * self.leaf;
         let stride = self.samples.len().div_ceil(CALIBRATION_SAMPLES).max(1);
-        let mut slopes: Vec<Real> = (0..self.samples.len())
-            .step_by(stride)
-            .map(|i| {
+        let picked: Vec<usize> = (0..self.samples.len()).step_by(stride).collect();
+        let mut slopes: Vec<Real> = picked
+            .iter()
+            .map(|&i| {
                 let (p, n) = (self.samples[i], normals[i]);
                 (self.raw(&(p + n * delta)) - self.raw(&(p - n * delta))) / (2.0 * delta)
             })
@@ -265,6 +277,25 @@ impl PoissonField {
         if median.abs() <= 1e-9 * max || median == 0.0 {
             return Err(GpisError::PoissonFailed {
                 reason: "the function is flat across the samples (inconsistent normals?)",
+            });
+        }
+        let agree = slopes
+            .iter()
+            .filter(|s| s.signum() == median.signum())
+            .count() as Real
+            / slopes.len() as Real;
+        let mut offsets: Vec<Real> = picked
+            .iter()
+            .map(|&i| (self.raw(&self.samples[i]) / median).abs() / self.leaf)
+            .collect();
+        offsets.sort_by(Real::total_cmp);
+        let offset = offsets[offsets.len() / 2];
+        // Converged solves measured at 100 % agreement and 0.01–0.04 cells; unconverged ones
+        // (too few conjugate-gradient iterations) at 54–84 % and 3–20 cells.
+        if agree < MIN_SLOPE_AGREEMENT || offset > MAX_SAMPLE_OFFSET_CELLS {
+            return Err(GpisError::PoissonFailed {
+                reason: "the solve did not converge: the function does not vanish at the samples \
+                         or changes sign inconsistently (raise cg_iterations or lower depth)",
             });
         }
         Ok(median)
@@ -500,6 +531,17 @@ mod tests {
         assert!(worst < 5e-4, "worst deviation {worst} m");
         assert!(mean < 1.5e-4, "mean deviation {mean} m");
         assert!(vol.abs() < 0.01, "volume error {vol}");
+    }
+
+    #[test]
+    fn an_unconverged_solve_is_reported_not_meshed() {
+        let (mt, grid, values) = sphere_level_set(Point3::origin());
+        let options = PoissonOptions {
+            cg_iterations: 2,
+            ..PoissonOptions::default()
+        };
+        let r = poisson_surface(&mt, &grid, &values, &options, &MeshingOptions::default());
+        assert!(matches!(r, Err(GpisError::PoissonFailed { .. })), "{r:?}");
     }
 
     #[test]
