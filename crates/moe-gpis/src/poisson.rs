@@ -17,23 +17,24 @@
 //!    have the median's sign at ≥ 90 % of them and `χ / s` must vanish there to within half a
 //!    finest cell (median); otherwise [`GpisError::PoissonFailed`]. The samples enter the solve
 //!    mapped into the unit box, so nothing depends on the units.
-//!
-//! Cost: the crate's right-hand side and coarse-level corrections visit, for every node of every
-//! level, all cells of the other levels within its reach (hash lookups of empty cells take most
-//! of the time), so the solve grows about 8× per level of depth whatever the number of samples. Measured on the head benchmark (release, 2 cores): depth 3 / 4 / 5 take 1.1 / 3.0 /
-//! 14 s for 2.66 / 1.91 / 1.70 mm UCD to the hidden surface (marching tetrahedra: 1.73 mm).
-//! The conjugate-gradient iterations cost little but matter: at depth 4, 5 iterations gave a
-//! 20 mm UCD, 20–100 converge; at depth 5, 20 did not converge on the sphere test and 50 does —
-//! hence the default of 50. Screening multiplies the time by about 5 and did not improve the
-//! sphere test, so it is off by default.
 //! 2. **Band.** `χ` is only fully defined where the finest octree level has all its B-splines:
 //!    within one finest cell (`w = extent / 2^depth`, max norm) of a sample. Grid nodes in that
 //!    band take `χ / s`; every other node takes the caller's fallback field (the GP posterior
 //!    mean on the query grid, interpolated trilinearly on a refined grid), whose sign agrees with
 //!    `χ / s` away from the surface. Only signs matter there.
-//! 3. **Meshing** by the crate's marching tetrahedra ([`extract_surface`]), which is closed,
+//! 3. **Meshing** by this crate's marching tetrahedra ([`extract_surface`]), which is closed,
 //!    manifold and outward oriented by construction; the result is checked again
 //!    ([`moe_geom::TriMesh::require_closed`], positive enclosed volume).
+//!
+//! Cost: the crate's right-hand side and coarse-level corrections visit, for every node of every
+//! level, all cells of the other levels within its reach (hash lookups of empty cells take most
+//! of the time), so the solve grows about 8× per level of depth whatever the number of samples.
+//! Measured on the head benchmark (release, 2 cores): depth 3 / 4 / 5 take 1.1 / 3.0 / 14 s for
+//! 2.66 / 1.91 / 1.70 mm UCD to the hidden surface (marching tetrahedra: 1.73 mm). The
+//! conjugate-gradient iterations cost little but matter: at depth 4, 5 iterations gave a 20 mm
+//! UCD and 20–100 converge; at depth 5, 20 did not converge on the sphere test and 50 does —
+//! hence the default of 50. Screening multiplies the time by about 5 and did not improve the
+//! sphere test, so it is off by default.
 //!
 //! The normals are the area-weighted vertex normals of the marching-tetrahedra mesh: outward and
 //! consistent by construction, free (no extra GP queries) and, on a mesh whose triangles are a
@@ -69,14 +70,16 @@ const CALIBRATION_SAMPLES: usize = 2000;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PoissonOptions {
     /// Depth of the octree: the finest cell is the samples' largest extent over `2^depth`
-    /// (default 6: 3–4 mm on a head, close to the 64³ query grid's spacing).
+    /// (default 4: 10 mm on a 16 cm sphere). The solve's cost grows about 8× per level.
     pub depth: usize,
     /// Octree depth at which the sample density is estimated, at most `depth` (default 4):
     /// smaller values are more robust to uneven sampling.
     pub density_depth: usize,
-    /// Screening weight pulling the surface onto the samples; 0 disables screening (default 1).
+    /// Screening weight pulling the surface onto the samples; 0 disables screening (default 0:
+    /// it multiplies the time by about 5).
     pub screening: Real,
-    /// Conjugate-gradient iterations per octree level (default 20).
+    /// Conjugate-gradient iterations per octree level (default 50; too few leave an unconverged
+    /// function, reported as [`GpisError::PoissonFailed`]).
     pub cg_iterations: usize,
     /// Meshing grid = the query grid with its spacing divided by this integer (default 1).
     pub refine: usize,
