@@ -364,6 +364,9 @@ fn run_nonprob(
     if args.query.is_some() || args.variance_out.is_some() {
         bail!("--method nonprob has no posterior: --query and --variance-out need a GP method");
     }
+    if args.mesher != MesherArg::Marching {
+        bail!("--mesher applies to the GP methods, not to --method nonprob");
+    }
     let Some(out) = &args.out else {
         bail!("--method nonprob needs --out SURFACE.obj");
     };
