@@ -53,7 +53,8 @@
 //!   ([`posterior`]).
 //! - **Baselines**: the non-probabilistic method moves the prior vertices nearest to the contacts
 //!   onto them and smooths with a normalised cotangent Laplacian filter ([`nonprob`]); GP with a
-//!   sphere mean. Optional ICP registration (rigid or similarity) of the prior ([`register`]).
+//!   sphere mean. Optional ICP registration (rigid or similarity, point-to-plane with a Gaussian
+//!   pose prior by default) of the prior ([`register`]).
 //!
 //! The benchmark of [`bench_scene`] (procedural heads and 2:20:1 arms, patting contacts, UCD to
 //! the ground truth) is run by `cargo xtask eval surface`.
@@ -94,7 +95,10 @@ pub mod register;
 /// Subset-of-regressors sparse approximation for many observations.
 pub mod sparse;
 
-pub use bench_scene::{SceneConfig, SceneKind, SceneReport, build_scene, evaluate_scene};
+pub use bench_scene::{
+    FamilyReport, SceneConfig, SceneKind, SceneReport, build_scene, evaluate_family,
+    evaluate_scene,
+};
 pub use error::GpisError;
 pub use fit::{FitConfig, FitReport, HyperBounds, fit_hyper};
 pub use gp::{ExactGp, Jitter, log_marginal_likelihood_and_grad};
@@ -111,5 +115,7 @@ pub use reconstruct::{
     ConditionReport, GpisConfig, Mesher, Reconstruction, SurfaceConfig, Timings, bounds_of,
     condition, reconstruct,
 };
-pub use register::{IcpConfig, IcpReport, RegistrationKind, Similarity, register_prior};
+pub use register::{
+    IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity, register_prior,
+};
 pub use sparse::SparseGp;

@@ -19,7 +19,7 @@
 //! pin the pose: the cap slides along itself, and unregularised ICP happily rotates a head prior
 //! by tens of degrees to shave a millimetre off the fit (measured on the head benchmark: a 36°
 //! roll, GP + prior UCD 2.0 → 17.9 mm). "The pose is roughly known" is therefore part of the
-//! model: with a [`PosePrior`] (the default), the point-to-plane step minimises
+//! model: with a [`PosePrior`](crate::register::PosePrior) (the default), the point-to-plane step minimises
 //! `mean(dᵢ²)/σ_fit² + ‖θ‖²/σ_θ² + ‖g‖²/σ_t² + (s − 1)²/σ_s²`, where `θ` is the rotation vector
 //! of the accumulated transform, `g` the displacement of the contacts' centroid and `s` the
 //! scale — a maximum a posteriori registration in which the contacts count as *one*

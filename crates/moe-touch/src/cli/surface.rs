@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 use moe_geom::{Aabb, Point3, TriMesh, Vector3};
 use moe_gpis::{
     ConstantMean, FitConfig, GpisConfig, Hyper, IcpConfig, KernelKind, MeanFunction, MeshSdfMean,
-    Mesher, NonProbConfig, Observations, PoissonOptions, RegistrationKind, SphereMean,
+    Mesher, NonProbConfig, Observations, PoissonOptions, PosePrior, RegistrationKind, SphereMean,
     SurfaceConfig, bounds_of, condition, nonprobabilistic, reconstruct, register_prior,
 };
 use serde_json::json;
@@ -71,6 +71,27 @@ pub(crate) struct SurfaceArgs {
     /// given).
     #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "rigid", value_name = "KIND")]
     register: Option<Registration>,
+    /// Registration's pose prior: standard deviation of the rotation, degrees (default 5.7).
+    #[arg(
+        long,
+        value_name = "DEG",
+        requires = "register",
+        conflicts_with = "no_pose_prior"
+    )]
+    pose_sd_deg: Option<f64>,
+    /// Registration's pose prior: standard deviation of the contacts' centroid displacement, mm
+    /// (default 20).
+    #[arg(
+        long,
+        value_name = "MM",
+        requires = "register",
+        conflicts_with = "no_pose_prior"
+    )]
+    pose_sd_mm: Option<f64>,
+    /// Plain ICP without a pose prior (only when the contacts pin the pose: a patted cap does
+    /// not).
+    #[arg(long, requires = "register")]
+    no_pose_prior: bool,
     /// Output surface mesh (OBJ or PLY). May be omitted when only querying.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
@@ -197,11 +218,24 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
         Method::Prior => {
             let mut prior = read_prior(&args)?;
             if let Some(kind) = args.register {
+                let pose_prior = (!args.no_pose_prior).then(|| {
+                    let d = PosePrior::default();
+                    PosePrior {
+                        rotation_sd_rad: args
+                            .pose_sd_deg
+                            .map_or(d.rotation_sd_rad, f64::to_radians),
+                        translation_sd_m: args
+                            .pose_sd_mm
+                            .map_or(d.translation_sd_m, |mm| 1e-3 * mm),
+                        ..d
+                    }
+                });
                 let cfg = IcpConfig {
                     kind: match kind {
                         Registration::Rigid => RegistrationKind::Rigid,
                         Registration::Similarity => RegistrationKind::Similarity,
                     },
+                    pose_prior,
                     ..IcpConfig::default()
                 };
                 let (registered, icp) = register_prior(&prior, &contacts, &cfg)?;

@@ -242,6 +242,96 @@ fn poisson_mesher_writes_a_closed_sphere_and_reports_its_time() {
 }
 
 #[test]
+fn registration_moves_a_displaced_prior_onto_the_contacts() {
+    let dir = scratch("surface-register");
+    // An egg-like prior, and contacts all over the same egg shifted by 6 mm.
+    let egg = moe_geom::shapes::star_shaped(3, Point3::origin(), |d| {
+        0.06 + 0.012 * d.x + 0.01 * d.y * d.y
+    })
+    .unwrap();
+    let prior = dir.join("prior.obj");
+    moe_io::write_mesh(&prior, &egg).unwrap();
+    let shift = Vector3::new(0.006, -0.002, 0.001);
+    let pts: Vec<Vec<f64>> = egg
+        .vertices()
+        .iter()
+        .step_by(3)
+        .map(|p| {
+            let q = p + shift;
+            vec![q.x, q.y, q.z]
+        })
+        .collect();
+    let contacts = dir.join("contacts.csv");
+    moe_io::write_csv(&contacts, &["x", "y", "z"], &pts).unwrap();
+    let out_path = dir.join("surface.obj");
+    let registered = |extra: &[&str]| {
+        let mut args = vec![
+            "surface",
+            "--contacts",
+            contacts.to_str().unwrap(),
+            "--prior",
+            prior.to_str().unwrap(),
+            "--register",
+            "--lengthscale",
+            "0.03",
+            "--signal-variance",
+            "1e-5",
+            "--noise-variance",
+            "1e-8",
+            "--grid",
+            "24",
+            "--out",
+            out_path.to_str().unwrap(),
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let report = json_of(&run(&args));
+        let icp = report["registration"].clone();
+        let t = &icp["prior_to_contacts"]["translation"];
+        let found = Vector3::new(
+            t[0].as_f64().unwrap(),
+            t[1].as_f64().unwrap(),
+            t[2].as_f64().unwrap(),
+        );
+        (icp["rms_after_m"].as_f64().unwrap(), found)
+    };
+    // Contacts all around the body pin the pose: plain ICP recovers the shift exactly.
+    let (rms, found) = registered(&["--no-pose-prior"]);
+    assert!(rms < 1e-6, "{rms}");
+    assert!((found - shift).norm() < 1e-5, "{found}");
+    // The pose prior (σ 20 mm) pulls a little towards the given pose; a tight one (1 mm) more.
+    let (rms_map, found_map) = registered(&[]);
+    let (_, found_tight) = registered(&["--pose-sd-mm", "1"]);
+    assert!(
+        rms_map < 1e-3 && (found_map - shift).norm() < 1e-3,
+        "{found_map}"
+    );
+    assert!(
+        found_tight.norm() < 0.5 * found_map.norm(),
+        "{found_tight} vs {found_map}"
+    );
+    // The pose prior's options need --register.
+    let out = run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--prior",
+        prior.to_str().unwrap(),
+        "--no-pose-prior",
+        "--grid",
+        "24",
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--register"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
 fn bad_inputs_give_one_line_errors() {
     let dir = scratch("surface-bad");
     let contacts = dir.join("c.csv");
