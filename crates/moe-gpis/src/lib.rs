@@ -96,8 +96,7 @@ pub mod register;
 pub mod sparse;
 
 pub use bench_scene::{
-    FamilyReport, SceneConfig, SceneKind, SceneReport, build_scene, evaluate_family,
-    evaluate_scene,
+    FamilyReport, SceneConfig, SceneKind, SceneReport, build_scene, evaluate_family, evaluate_scene,
 };
 pub use error::GpisError;
 pub use fit::{FitConfig, FitReport, HyperBounds, fit_hyper};
