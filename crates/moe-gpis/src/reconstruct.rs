@@ -284,17 +284,22 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn reconstruction_from_sphere_points_lies_within_half_a_millimetre() {
+    /// 400 contacts on a sphere of radius `r` = 80 mm, and a deliberately wrong sphere mean
+    /// (offset centre, 10 mm too large), with the contacts' bounds.
+    fn points_on_a_sphere_and_a_wrong_sphere_mean() -> (Real, Observations, SphereMean, Aabb) {
         let r = 0.08;
         let pts = sphere_points(r, 400, 3);
         let obs = Observations::from_contacts(&pts).unwrap();
-        // Start from a deliberately wrong sphere (offset centre, 10 mm too large).
         let mean = SphereMean {
             center: Point3::new(0.005, 0.0, -0.004),
             radius: 0.09,
         };
-        let b = bounds_of(&pts, None).unwrap();
+        (r, obs, mean, bounds_of(&pts, None).unwrap())
+    }
+
+    #[test]
+    fn reconstruction_from_sphere_points_lies_within_half_a_millimetre() {
+        let (r, obs, mean, b) = points_on_a_sphere_and_a_wrong_sphere_mean();
         let (rec, gpis) = reconstruct(mean, &obs, &b, &SurfaceConfig::default()).unwrap();
         rec.mesh.require_closed().unwrap();
         assert_eq!(Topology::new(&rec.mesh).euler_characteristic(), 2);
@@ -357,14 +362,7 @@ mod tests {
 
     #[test]
     fn poisson_mesher_gives_a_closed_sphere_with_variance_on_its_vertices() {
-        let r = 0.08;
-        let pts = sphere_points(r, 400, 3);
-        let obs = Observations::from_contacts(&pts).unwrap();
-        let mean = SphereMean {
-            center: Point3::new(0.005, 0.0, -0.004),
-            radius: 0.09,
-        };
-        let b = bounds_of(&pts, None).unwrap();
+        let (r, obs, mean, b) = points_on_a_sphere_and_a_wrong_sphere_mean();
         let cfg = SurfaceConfig {
             max_grid_nodes: 40 * 40 * 40,
             mesher: Mesher::Poisson(PoissonOptions::default()),
