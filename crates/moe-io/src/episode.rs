@@ -17,9 +17,12 @@
 //! | `/obstacles` | `foxglove.SceneUpdate` (protobuf) | obstacle meshes in the world frame |
 //!
 //! Every frame writes one message per topic (except `/episode/info`) with the frame's time as
-//! log time. Messages are written unchunked, so a file cut short — a crashed recorder, a partial
-//! copy — still yields every frame written completely before the cut
-//! ([`parse_episode_prefix`]); [`read_episode`] insists on a complete file.
+//! log time. Each frame is one zstd-compressed chunk (the episode info another), closed as soon
+//! as the frame is written, so a file cut short — a crashed recorder, a partial copy — still
+//! yields every frame written completely before the cut ([`parse_episode_prefix`]);
+//! [`read_episode`] insists on a complete file. Compression takes a 640 × 480 frame from about
+//! 2.5 MB to 0.8 MB (the noisy depth image compresses least). Unchunked, uncompressed files (as
+//! written by earlier versions) read the same way.
 
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
@@ -179,11 +182,15 @@ impl<W: Write + Seek> EpisodeWriter<W> {
     /// `path` names the destination in errors (use [`crate::MEMORY`] for an in-memory sink).
     pub fn new(sink: W, info: &EpisodeInfo, path: &Path) -> Result<Self, IoError> {
         check_info(path, info)?;
+        // One chunk per frame (closed by `flush` after each frame, so no size limit), compressed
+        // on this thread: the output does not depend on the machine's core count.
         let options = mcap::WriteOptions::new()
             .profile("")
             .library("moe-touch")
-            .compression(None)
-            .use_chunks(false);
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_threads(0)
+            .use_chunks(true)
+            .chunk_size(None);
         let mut writer = options.create(sink).map_err(|e| mcap_err(path, e))?;
         let json_schema = br#"{"type":"object"}"#;
         let mut channel = |topic: &str,
@@ -225,6 +232,7 @@ impl<W: Write + Seek> EpisodeWriter<W> {
         writer
             .write_to_known_channel(&header, &body)
             .map_err(|e| mcap_err(path, e))?;
+        writer.flush().map_err(|e| mcap_err(path, e))?;
         Ok(Self {
             path: path.to_path_buf(),
             writer,
@@ -263,7 +271,8 @@ impl<W: Write + Seek> EpisodeWriter<W> {
                 .map_err(|e| mcap_err(path, e))?;
             self.sequence += 1;
         }
-        Ok(())
+        // Close the frame's chunk: everything up to here survives a cut.
+        self.writer.flush().map_err(|e| mcap_err(path, e))
     }
 
     /// Writes the summary and returns the sink.
@@ -1118,6 +1127,99 @@ mod tests {
             assert!(parse_episode(path, &data[..cut]).is_err());
         }
         assert!(seen_partial, "some cuts keep a proper prefix of the frames");
+    }
+
+    /// A sink whose bytes stay readable while a writer owns it.
+    #[derive(Clone, Default)]
+    struct SharedSink(std::rc::Rc<std::cell::RefCell<std::io::Cursor<Vec<u8>>>>);
+
+    impl Write for SharedSink {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            self.0.borrow_mut().write(buf)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl Seek for SharedSink {
+        fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+            self.0.borrow_mut().seek(pos)
+        }
+    }
+
+    #[test]
+    fn each_frame_is_one_compressed_chunk_and_a_cut_after_it_keeps_it() {
+        let frames: Vec<EpisodeFrame> = (0..4).map(frame).collect();
+        let sink = SharedSink::default();
+        let mut w = EpisodeWriter::new(sink.clone(), &info(), Path::new(crate::MEMORY)).unwrap();
+        // Where the file ends once the info, then each frame, is written (its chunk closed).
+        let mut ends = vec![sink.0.borrow().get_ref().len()];
+        for f in &frames {
+            w.write_frame(f).unwrap();
+            ends.push(sink.0.borrow().get_ref().len());
+        }
+        w.finish().unwrap();
+        let data = sink.0.borrow().get_ref().clone();
+        let path = Path::new("cut.mcap");
+        for (k, pair) in ends.windows(2).enumerate() {
+            let (start, end) = (pair[0], pair[1]);
+            // The cut is reported (no footer), and every frame up to it is read.
+            let (episode, err) = parse_episode_prefix(path, &data[..end]);
+            assert!(err.is_some());
+            assert_eq!(
+                episode.unwrap().frames[..],
+                frames[..=k],
+                "cut after frame {k}"
+            );
+            // A cut inside the frame's chunk (its middle: the chunk is most of the frame's
+            // bytes, the message index after it the rest) loses exactly that frame.
+            let (episode, err) = parse_episode_prefix(path, &data[..(start + end) / 2]);
+            assert!(err.is_some());
+            assert_eq!(
+                episode.unwrap().frames[..],
+                frames[..k],
+                "cut inside frame {k}"
+            );
+        }
+        // The info and every frame are zstd chunks.
+        let compressions: Vec<String> = mcap::read::LinearReader::new(&data)
+            .unwrap()
+            .filter_map(|r| match r.unwrap() {
+                mcap::records::Record::Chunk { header, .. } => Some(header.compression),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(compressions.len(), 1 + frames.len());
+        assert!(compressions.iter().all(|c| c == "zstd"), "{compressions:?}");
+    }
+
+    #[test]
+    fn unchunked_uncompressed_episodes_still_read() {
+        // The layout of earlier versions: every record in the data section, no compression.
+        let frames: Vec<EpisodeFrame> = (0..3).map(frame).collect();
+        let chunked = bytes(&frames);
+        let mut data = Vec::new();
+        {
+            let mut w = mcap::WriteOptions::new()
+                .use_chunks(false)
+                .compression(None)
+                .create(std::io::Cursor::new(&mut data))
+                .unwrap();
+            let stream = mcap::MessageStream::new(&chunked).unwrap();
+            for message in stream {
+                w.write(&message.unwrap()).unwrap();
+            }
+            w.finish().unwrap();
+        }
+        assert!(
+            mcap::read::LinearReader::new(&data)
+                .unwrap()
+                .all(|r| !matches!(r.unwrap(), mcap::records::Record::Chunk { .. }))
+        );
+        let episode = parse_episode(Path::new("old.mcap"), &data).unwrap();
+        assert_eq!(episode.info, info());
+        assert_eq!(episode.frames, frames);
     }
 
     #[test]
