@@ -8,10 +8,13 @@
 //! over the family and how often it was the best. `--size small` with one pair is the
 //! golden-checked configuration (coarser meshes and grid, fewer contacts).
 
-use anyhow::Result;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use moe_gpis::bench_scene::{FamilyReport, evaluate_family};
-use moe_gpis::{SceneConfig, SceneReport, SurfaceConfig};
+use moe_gpis::bench_scene::{FamilyReport, evaluate_family, evaluate_scene_with};
+use moe_gpis::{SceneConfig, SceneReport, SurfaceConfig, build_scene};
+use moe_io::PlyData;
 use serde_json::{Value, json};
 
 /// Arguments of `cargo xtask eval`.
@@ -47,6 +50,11 @@ pub(crate) struct SurfaceEvalArgs {
     /// 1 at small size.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub(crate) pairs: Option<u64>,
+    /// Also write the first scene of each family to `DIR/<scene>/`: the truth, the contacts and
+    /// every method's surface (PLY with the posterior `variance` and `std` for the GP methods),
+    /// to look at.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) out: Option<std::path::PathBuf>,
     /// Print one JSON object on stdout instead of a table.
     #[arg(long)]
     pub(crate) json: bool,
@@ -61,10 +69,11 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
 /// Offset of the ±d points along the mean's normals at each contact (metres).
 const NORMAL_OFFSET_M: f64 = 0.005;
 
-fn surface_reports(size: Size, pairs: usize) -> Result<Vec<FamilyReport>> {
-    let mut out = Vec::new();
-    for base in [SceneConfig::head(), SceneConfig::arm()] {
-        let (scene_cfg, surface) = match size {
+/// The scene and surface configurations of a benchmark size.
+fn configs(size: Size) -> Vec<(SceneConfig, SurfaceConfig)> {
+    [SceneConfig::head(), SceneConfig::arm()]
+        .into_iter()
+        .map(|base| match size {
             Size::Full => (base, SurfaceConfig::default()),
             Size::Small => (
                 SceneConfig {
@@ -78,15 +87,74 @@ fn surface_reports(size: Size, pairs: usize) -> Result<Vec<FamilyReport>> {
                     ..SurfaceConfig::default()
                 },
             ),
+        })
+        .collect()
+}
+
+fn surface_reports(size: Size, pairs: usize) -> Result<Vec<FamilyReport>> {
+    configs(size)
+        .iter()
+        .map(|(scene, surface)| {
+            Ok(evaluate_family(
+                scene,
+                pairs,
+                surface,
+                Some(NORMAL_OFFSET_M),
+            )?)
+        })
+        .collect()
+}
+
+/// Writes each family's first scene and every method's surface under `dir`; returns the files.
+fn write_surfaces(size: Size, dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for (config, surface) in configs(size) {
+        let scene = build_scene(&config)?;
+        let sub = dir.join(format!("{:?}", config.kind).to_lowercase());
+        std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
+        let mut put = |name: &str, ply: &PlyData| -> Result<()> {
+            let path = sub.join(format!("{name}.ply"));
+            moe_io::write_ply(&path, ply)?;
+            written.push(path);
+            Ok(())
         };
-        out.push(evaluate_family(
-            &scene_cfg,
-            pairs,
+        put("truth", &PlyData::from_mesh(&scene.truth))?;
+        put(
+            "contacts",
+            &PlyData {
+                points: scene.contacts.clone(),
+                faces: Vec::new(),
+                colors: None,
+                scalars: Vec::new(),
+            },
+        )?;
+        // The written surfaces carry their variance whatever the size.
+        let surface = SurfaceConfig {
+            vertex_variance: true,
+            ..surface
+        };
+        let mut failure = None;
+        evaluate_scene_with(
+            config.kind,
+            &scene,
             &surface,
             Some(NORMAL_OFFSET_M),
-        )?);
+            &mut |name, mesh, variance| {
+                let ply = if variance.is_empty() {
+                    PlyData::from_mesh(mesh)
+                } else {
+                    PlyData::with_variance(mesh, variance)
+                };
+                if let Err(e) = put(name, &ply) {
+                    failure.get_or_insert(e);
+                }
+            },
+        )?;
+        if let Some(e) = failure {
+            return Err(e);
+        }
     }
-    Ok(out)
+    Ok(written)
 }
 
 fn print_scene(r: &SceneReport) {
@@ -149,6 +217,14 @@ fn run_surface(args: &SurfaceEvalArgs) -> Result<()> {
         |p| p as usize,
     );
     let families = surface_reports(args.size, pairs)?;
+    if let Some(dir) = &args.out {
+        let files = write_surfaces(args.size, dir)?;
+        eprintln!(
+            "eval surface: wrote {} files under {}",
+            files.len(),
+            dir.display()
+        );
+    }
     if args.json {
         println!(
             "{}",
@@ -196,4 +272,28 @@ pub(crate) fn surface_fixture() -> Result<Value> {
         })
         .collect();
     Ok(json!({ "scenes": scenes }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn written_surfaces_read_back_closed_with_their_variance() {
+        let dir = std::env::temp_dir().join(format!("xtask-eval-out-{}", std::process::id()));
+        let files = write_surfaces(Size::Small, &dir).unwrap();
+        for scene in ["head", "arm"] {
+            for name in ["truth", "prior", "gp_prior", "nonprob"] {
+                let path = dir.join(scene).join(format!("{name}.ply"));
+                assert!(files.contains(&path), "{}", path.display());
+                let ply = moe_io::read_ply(&path).unwrap();
+                let has_variance = ply.scalar("variance").is_some();
+                assert_eq!(has_variance, name == "gp_prior", "{}", path.display());
+                ply.into_mesh().unwrap().require_closed().unwrap();
+            }
+            let contacts = moe_io::read_ply(&dir.join(scene).join("contacts.ply")).unwrap();
+            assert!(contacts.faces.is_empty() && contacts.points.len() >= 120);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -274,6 +274,7 @@ fn gp_result<M: MeanFunction>(
     surface: &SurfaceConfig,
     truth: &MeshSdfMean,
     extra_secs: Real,
+    sink: &mut MeshSink<'_>,
 ) -> Result<(MethodResult, usize), GpisError> {
     let t = Instant::now();
     let mut obs = contacts.clone();
@@ -282,6 +283,7 @@ fn gp_result<M: MeanFunction>(
     }
     let (rec, _) = reconstruct(mean, &obs, bounds, surface)?;
     let secs = t.elapsed().as_secs_f64() - rec.timings.variance_secs + extra_secs;
+    sink(name, &rec.mesh, &rec.vertex_variance);
     let h = rec.report.hyper;
     let ucd_mm = ucd_to_surface_mm(rec.mesh.vertices(), truth)?;
     let back = reverse_ucd_mm(truth.mesh(), &rec.mesh)?;
@@ -303,6 +305,11 @@ fn gp_result<M: MeanFunction>(
     ))
 }
 
+/// Receives each method's surface as [`evaluate_scene_with`] computes it: the method's name,
+/// the mesh and the posterior variance per vertex (empty for the prior and the
+/// non-probabilistic baseline, or when [`SurfaceConfig::vertex_variance`] is off).
+pub type MeshSink<'a> = dyn FnMut(&str, &TriMesh, &[Real]) + 'a;
+
 /// Runs the prior, GP + prior, GP + sphere and the non-probabilistic baseline on a scene.
 ///
 /// The GP methods condition on the contacts plus `±normal_offset_m` points along the mean's
@@ -317,11 +324,26 @@ pub fn evaluate_scene(
     surface: &SurfaceConfig,
     normal_offset_m: Option<Real>,
 ) -> Result<SceneReport, GpisError> {
+    evaluate_scene_with(kind, scene, surface, normal_offset_m, &mut |_, _, _| {})
+}
+
+/// [`evaluate_scene`], handing every method's surface to `sink` (to write or display it).
+///
+/// # Errors
+/// As [`evaluate_scene`].
+pub fn evaluate_scene_with(
+    kind: SceneKind,
+    scene: &Scene,
+    surface: &SurfaceConfig,
+    normal_offset_m: Option<Real>,
+    sink: &mut MeshSink<'_>,
+) -> Result<SceneReport, GpisError> {
     let truth = MeshSdfMean::new(&scene.truth)?;
     let obs = Observations::from_contacts(&scene.contacts)?;
     let mut methods = Vec::new();
     let ucd_mm = ucd_to_surface_mm(scene.prior.vertices(), &truth)?;
     let back = reverse_ucd_mm(&scene.truth, &scene.prior)?;
+    sink("prior", &scene.prior, &[]);
     methods.push(MethodResult {
         method: "prior".to_owned(),
         ucd_mm,
@@ -358,6 +380,7 @@ pub fn evaluate_scene(
         surface,
         &truth,
         build,
+        sink,
     ) {
         Ok((result, nodes)) => {
             methods.push(result);
@@ -371,7 +394,7 @@ pub fn evaluate_scene(
     // GP with a sphere fitted to the contacts, queried on the same grid as the task prior so that
     // both reconstructions cover the same region (a narrower box would clip the sphere where it
     // strays from the body and hide that error from the one-way distance).
-    let gp_sphere = || -> Result<MethodResult, GpisError> {
+    let mut gp_sphere = || -> Result<MethodResult, GpisError> {
         let t = Instant::now();
         let sphere = SphereMean::fit(&scene.contacts)?;
         let fit_secs = t.elapsed().as_secs_f64();
@@ -385,6 +408,7 @@ pub fn evaluate_scene(
             surface,
             &truth,
             fit_secs,
+            &mut *sink,
         )?;
         Ok(result)
     };
@@ -393,6 +417,7 @@ pub fn evaluate_scene(
     let t = Instant::now();
     let np = nonprobabilistic(&scene.prior, &scene.contacts, &NonProbConfig::default())?;
     let secs = t.elapsed().as_secs_f64();
+    sink("nonprob", &np, &[]);
     let ucd_mm = ucd_to_surface_mm(np.vertices(), &truth)?;
     let back = reverse_ucd_mm(&scene.truth, &np)?;
     methods.push(MethodResult {

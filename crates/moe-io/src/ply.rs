@@ -52,6 +52,24 @@ impl PlyData {
         }
     }
 
+    /// Adds a named per-vertex scalar (stored as f32, one value per point).
+    #[must_use]
+    pub fn with_scalar(mut self, name: &str, values: impl IntoIterator<Item = f64>) -> Self {
+        self.scalars.push((
+            name.to_owned(),
+            values.into_iter().map(|v| v as f32).collect(),
+        ));
+        self
+    }
+
+    /// A surface with its GP posterior `variance` (m²) and standard deviation `std` (m) per
+    /// vertex, as the `surface` command and the surface benchmark write it.
+    pub fn with_variance(mesh: &TriMesh, variance: &[f64]) -> Self {
+        Self::from_mesh(mesh)
+            .with_scalar("variance", variance.iter().copied())
+            .with_scalar("std", variance.iter().map(|v| v.sqrt()))
+    }
+
     /// The validated triangle mesh (colours and scalars are dropped).
     ///
     /// # Errors
@@ -445,6 +463,33 @@ mod tests {
             &[0.5, 0.25, 1.0, 0.0]
         );
         assert_eq!(d.into_mesh().unwrap().num_faces(), 2);
+    }
+
+    #[test]
+    fn variance_and_its_square_root_round_trip() {
+        let mesh = TriMesh::new(
+            vec![
+                Point3::new(0.0, 0.0, 0.0),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 1.0, 0.0),
+                Point3::new(0.0, 0.0, 1.0),
+            ],
+            vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        )
+        .unwrap();
+        let dir = std::env::temp_dir().join(format!("moe-io-ply-var-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("v.ply");
+        write_ply(
+            &path,
+            &PlyData::with_variance(&mesh, &[0.25, 4e-6, 0.0, 1.0]),
+        )
+        .unwrap();
+        let back = read_ply(&path).unwrap();
+        assert_eq!(back.scalar("variance").unwrap(), &[0.25, 4e-6, 0.0, 1.0]);
+        assert_eq!(back.scalar("std").unwrap(), &[0.5, 2e-3, 0.0, 1.0]);
+        assert_eq!(back.into_mesh().unwrap(), mesh);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -346,18 +346,7 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
         let (rec, gpis) = reconstruct(mean, &obs, &bounds, &surface_cfg)?;
         moe_io::write_mesh(out, &rec.mesh)?;
         if let Some(vpath) = &args.variance_out {
-            let mut ply = moe_io::PlyData::from_mesh(&rec.mesh);
-            ply.scalars.push((
-                "variance".into(),
-                rec.vertex_variance.iter().map(|&v| v as f32).collect(),
-            ));
-            ply.scalars.push((
-                "std".into(),
-                rec.vertex_variance
-                    .iter()
-                    .map(|&v| v.sqrt() as f32)
-                    .collect(),
-            ));
+            let ply = moe_io::PlyData::with_variance(&rec.mesh, &rec.vertex_variance);
             moe_io::write_ply(vpath, &ply)?;
         }
         insert_condition(&mut report, &rec.report)?;
