@@ -284,6 +284,14 @@ mod tests {
             .collect()
     }
 
+    /// The largest distance of a vertex of `mesh` from the origin-centred sphere of radius `r`.
+    fn max_radial_deviation(mesh: &TriMesh, r: Real) -> Real {
+        mesh.vertices()
+            .iter()
+            .map(|p| (p.coords.norm() - r).abs())
+            .fold(0.0, Real::max)
+    }
+
     /// 400 contacts on a sphere of radius `r` = 80 mm, and a deliberately wrong sphere mean
     /// (offset centre, 10 mm too large), with the contacts' bounds.
     fn points_on_a_sphere_and_a_wrong_sphere_mean() -> (Real, Observations, SphereMean, Aabb) {
@@ -303,12 +311,7 @@ mod tests {
         let (rec, gpis) = reconstruct(mean, &obs, &b, &SurfaceConfig::default()).unwrap();
         rec.mesh.require_closed().unwrap();
         assert_eq!(Topology::new(&rec.mesh).euler_characteristic(), 2);
-        let worst = rec
-            .mesh
-            .vertices()
-            .iter()
-            .map(|p| (p.coords.norm() - r).abs())
-            .fold(0.0, Real::max);
+        let worst = max_radial_deviation(&rec.mesh, r);
         assert!(worst < 5e-4, "max deviation {worst} m, {:?}", rec.report);
         // Narrow-band values give exactly the dense-grid mesh.
         assert_dense_grid_gives_the_same_mesh(&gpis, &rec);
@@ -373,12 +376,7 @@ mod tests {
         assert_eq!(Topology::new(&rec.mesh).euler_characteristic(), 2);
         assert_eq!(rec.vertex_variance.len(), rec.mesh.num_vertices());
         assert!(rec.timings.poisson_secs > 0.0);
-        let worst = rec
-            .mesh
-            .vertices()
-            .iter()
-            .map(|p| (p.coords.norm() - r).abs())
-            .fold(0.0, Real::max);
+        let worst = max_radial_deviation(&rec.mesh, r);
         assert!(worst < 1e-3, "max deviation {worst} m");
     }
 
