@@ -50,6 +50,10 @@ pub(crate) struct SurfaceEvalArgs {
     /// 1 at small size.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub(crate) pairs: Option<u64>,
+    /// Standard deviation of the contact noise, mm (default 1; the paper's estimated contacts
+    /// were 3–6 mm from the true surface).
+    #[arg(long, value_name = "MM", value_parser = parse_noise_mm)]
+    pub(crate) noise_mm: Option<f64>,
     /// Also write the first scene of each family to `DIR/<scene>/`: the truth, the contacts and
     /// every method's surface (PLY with the posterior `variance` and `std` for the GP methods),
     /// to look at.
@@ -69,10 +73,24 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
 /// Offset of the ±d points along the mean's normals at each contact (metres).
 const NORMAL_OFFSET_M: f64 = 0.005;
 
-/// The scene and surface configurations of a benchmark size.
-fn configs(size: Size) -> Vec<(SceneConfig, SurfaceConfig)> {
+fn parse_noise_mm(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && (0.0..=50.0).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "expected a noise level in mm between 0 and 50, got '{s}'"
+        )),
+    }
+}
+
+/// The scene and surface configurations of a benchmark size, with the contact noise (metres)
+/// overridden when given.
+fn configs(size: Size, noise_m: Option<f64>) -> Vec<(SceneConfig, SurfaceConfig)> {
     [SceneConfig::head(), SceneConfig::arm()]
         .into_iter()
+        .map(|base| SceneConfig {
+            noise_m: noise_m.unwrap_or(base.noise_m),
+            ..base
+        })
         .map(|base| match size {
             Size::Full => (base, SurfaceConfig::default()),
             Size::Small => (
@@ -91,8 +109,8 @@ fn configs(size: Size) -> Vec<(SceneConfig, SurfaceConfig)> {
         .collect()
 }
 
-fn surface_reports(size: Size, pairs: usize) -> Result<Vec<FamilyReport>> {
-    configs(size)
+fn surface_reports(size: Size, pairs: usize, noise_m: Option<f64>) -> Result<Vec<FamilyReport>> {
+    configs(size, noise_m)
         .iter()
         .map(|(scene, surface)| {
             Ok(evaluate_family(
@@ -106,9 +124,9 @@ fn surface_reports(size: Size, pairs: usize) -> Result<Vec<FamilyReport>> {
 }
 
 /// Writes each family's first scene and every method's surface under `dir`; returns the files.
-fn write_surfaces(size: Size, dir: &Path) -> Result<Vec<PathBuf>> {
+fn write_surfaces(size: Size, noise_m: Option<f64>, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    for (config, surface) in configs(size) {
+    for (config, surface) in configs(size, noise_m) {
         let scene = build_scene(&config)?;
         let sub = dir.join(format!("{:?}", config.kind).to_lowercase());
         std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
@@ -216,9 +234,10 @@ fn run_surface(args: &SurfaceEvalArgs) -> Result<()> {
         },
         |p| p as usize,
     );
-    let families = surface_reports(args.size, pairs)?;
+    let noise_m = args.noise_mm.map(|mm| 1e-3 * mm);
+    let families = surface_reports(args.size, pairs, noise_m)?;
     if let Some(dir) = &args.out {
-        let files = write_surfaces(args.size, dir)?;
+        let files = write_surfaces(args.size, noise_m, dir)?;
         eprintln!(
             "eval surface: wrote {} files under {}",
             files.len(),
@@ -251,7 +270,7 @@ fn round3(v: f64) -> f64 {
 /// The golden content of `eval surface --size small`: Chamfer figures rounded to µm (timings and
 /// vertex counts are left out: they depend on the machine).
 pub(crate) fn surface_fixture() -> Result<Value> {
-    let families = surface_reports(Size::Small, 1)?;
+    let families = surface_reports(Size::Small, 1, None)?;
     let scenes: Vec<Value> = families
         .iter()
         .map(|f| {
@@ -281,7 +300,7 @@ mod tests {
     #[test]
     fn written_surfaces_read_back_closed_with_their_variance() {
         let dir = std::env::temp_dir().join(format!("xtask-eval-out-{}", std::process::id()));
-        let files = write_surfaces(Size::Small, &dir).unwrap();
+        let files = write_surfaces(Size::Small, None, &dir).unwrap();
         for scene in ["head", "arm"] {
             for name in ["truth", "prior", "gp_prior", "nonprob"] {
                 let path = dir.join(scene).join(format!("{name}.ply"));
