@@ -21,7 +21,7 @@
 //! as the frame is written, so a file cut short — a crashed recorder, a partial copy — still
 //! yields every frame written completely before the cut ([`parse_episode_prefix`]);
 //! [`read_episode`] insists on a complete file. Compression takes a 640 × 480 frame from about
-//! 2.5 MB to 0.8 MB (the noisy depth image compresses least). Unchunked, uncompressed files (as
+//! 2.5 MB to 0.9 MB (the noisy depth image compresses least). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
 use std::collections::BTreeMap;
