@@ -146,15 +146,7 @@ impl SphereMean {
                 got: points.len(),
             });
         }
-        if let Some(index) = points
-            .iter()
-            .position(|p| !moe_geom::math::is_finite_point(p))
-        {
-            return Err(GpisError::NonFiniteObservation {
-                what: "contact",
-                index,
-            });
-        }
+        crate::observations::check_finite(points, "contact")?;
         let n = points.len() as Real;
         let c0 = Point3::from(points.iter().map(|p| p.coords).sum::<Vector3>() / n);
         let r0 = points.iter().map(|p| (p - c0).norm()).sum::<Real>() / n;

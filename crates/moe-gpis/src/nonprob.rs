@@ -48,15 +48,7 @@ pub fn nonprobabilistic(
             got: 0,
         });
     }
-    if let Some(index) = contacts
-        .iter()
-        .position(|p| !moe_geom::math::is_finite_point(p))
-    {
-        return Err(GpisError::NonFiniteObservation {
-            what: "contact",
-            index,
-        });
-    }
+    crate::observations::check_finite(contacts, "contact")?;
     if !(config.lambda > 0.0 && config.lambda <= 1.0) {
         return Err(GpisError::InvalidParameter {
             name: "lambda",

@@ -31,7 +31,8 @@ pub struct Observations {
     kinds: Vec<ObservationKind>,
 }
 
-fn check_finite(points: &[Point3], what: &'static str) -> Result<(), GpisError> {
+/// [`GpisError::NonFiniteObservation`] naming the first non-finite point of `points` as `what`.
+pub(crate) fn check_finite(points: &[Point3], what: &'static str) -> Result<(), GpisError> {
     match points
         .iter()
         .position(|p| !moe_geom::math::is_finite_point(p))

@@ -204,15 +204,7 @@ impl PoissonField {
                 got: points.len(),
             });
         }
-        if let Some(index) = points
-            .iter()
-            .position(|p| !moe_geom::math::is_finite_point(p))
-        {
-            return Err(GpisError::NonFiniteObservation {
-                what: "poisson point",
-                index,
-            });
-        }
+        crate::observations::check_finite(points, "poisson point")?;
         let mut unit = Vec::with_capacity(normals.len());
         for (index, n) in normals.iter().enumerate() {
             let len = n.norm();

@@ -138,15 +138,7 @@ impl<M: MeanFunction> Gpis<M> {
     /// # Errors
     /// [`GpisError::NonFiniteObservation`] naming the first non-finite query.
     pub fn query(&self, points: &[Point3]) -> Result<Vec<(Real, Real)>, GpisError> {
-        if let Some(index) = points
-            .iter()
-            .position(|p| !moe_geom::math::is_finite_point(p))
-        {
-            return Err(GpisError::NonFiniteObservation {
-                what: "query point",
-                index,
-            });
-        }
+        crate::observations::check_finite(points, "query point")?;
         let means: Vec<Real> = points.par_iter().map(|p| self.mean_at(p)).collect();
         let vars = self.gp.variances(points);
         Ok(means

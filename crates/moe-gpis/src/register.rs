@@ -374,15 +374,7 @@ pub fn register_prior(
             got: contacts.len(),
         });
     }
-    if let Some(index) = contacts
-        .iter()
-        .position(|p| !moe_geom::math::is_finite_point(p))
-    {
-        return Err(GpisError::NonFiniteObservation {
-            what: "contact",
-            index,
-        });
-    }
+    crate::observations::check_finite(contacts, "contact")?;
     if let Some(pp) = &config.pose_prior {
         pp.validate()?;
     }
