@@ -85,18 +85,7 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8], path: &Path) -> Result<T, I
 /// # Errors
 /// [`IoError::Parse`] (with line and column when the parser knows the span).
 pub fn parse_toml<T: DeserializeOwned>(bytes: &[u8], path: &Path) -> Result<T, IoError> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let (line, column) = line_column(
-            &String::from_utf8_lossy(&bytes[..e.valid_up_to()]),
-            e.valid_up_to(),
-        );
-        IoError::Parse {
-            path: path.to_path_buf(),
-            line: Some(line),
-            column: Some(column),
-            message: "not valid UTF-8 text".into(),
-        }
-    })?;
+    let text = crate::files::utf8_text(bytes, path)?;
     toml::from_str(text).map_err(|e| {
         let (line, column) = match e.span() {
             Some(span) => {

@@ -131,14 +131,7 @@ pub fn csv_bytes(header: &[&str], rows: &[Vec<f64>], path: &Path) -> Result<Vec<
 
 /// Parses CSV bytes; `path` only names the source in errors.
 pub(crate) fn parse_csv(bytes: &[u8], path: &Path) -> Result<CsvTable, IoError> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        IoError::parse(path, Some(line), "not valid UTF-8 text")
-    })?;
+    let text = crate::files::utf8_text(bytes, path)?;
     let mut table = CsvTable::default();
     let mut width = None;
     let mut row_number = 0;

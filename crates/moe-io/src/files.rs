@@ -46,6 +46,21 @@ pub(crate) fn guarded<T>(
     })
 }
 
+/// `bytes` as UTF-8 text, or [`IoError::Parse`] at the line and column of the first invalid byte.
+pub(crate) fn utf8_text<'a>(bytes: &'a [u8], path: &Path) -> Result<&'a str, IoError> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        // The prefix before the first invalid byte is valid UTF-8 by definition.
+        let valid = std::str::from_utf8(&bytes[..e.valid_up_to()]).unwrap_or_default();
+        let (line, column) = line_column(valid, valid.len());
+        IoError::Parse {
+            path: path.to_path_buf(),
+            line: Some(line),
+            column: Some(column),
+            message: "not valid UTF-8 text".into(),
+        }
+    })
+}
+
 /// 1-based line and column of a byte offset in `text`.
 pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let offset = offset.min(text.len());
@@ -61,6 +76,20 @@ pub(crate) fn line_column(text: &str, offset: usize) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn invalid_utf8_is_located() {
+        assert_eq!(utf8_text(b"ok\nfine", Path::new("t")).unwrap(), "ok\nfine");
+        let err = utf8_text(b"ok\nab\xffc", Path::new("t.csv")).unwrap_err();
+        assert!(
+            matches!(
+                &err,
+                IoError::Parse { line: Some(2), column: Some(3), message, .. }
+                    if message == "not valid UTF-8 text"
+            ),
+            "{err:?}"
+        );
+    }
 
     #[test]
     fn line_column_counts_from_one() {

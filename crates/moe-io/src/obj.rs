@@ -69,14 +69,7 @@ pub fn obj_bytes(mesh: &TriMesh) -> Vec<u8> {
 
 /// Parses OBJ bytes; `path` only names the source in errors.
 pub(crate) fn parse_obj(bytes: &[u8], path: &Path) -> Result<TriMesh, IoError> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        IoError::parse(path, Some(line), "not valid UTF-8 text")
-    })?;
+    let text = crate::files::utf8_text(bytes, path)?;
     let (models, num_vertices) = match run_tobj(text, path)? {
         Ok(parsed) => parsed,
         Err(e) => return Err(locate_error(text, path, e)),
