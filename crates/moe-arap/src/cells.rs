@@ -213,31 +213,9 @@ impl Cells {
 mod tests {
     use super::*;
 
-    fn octahedron() -> TriMesh {
-        let v = vec![
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(-1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
-            Point3::new(0.0, -1.0, 0.0),
-            Point3::new(0.0, 0.0, 1.0),
-            Point3::new(0.0, 0.0, -1.0),
-        ];
-        let f = vec![
-            [0, 2, 4],
-            [2, 1, 4],
-            [1, 3, 4],
-            [3, 0, 4],
-            [2, 0, 5],
-            [1, 2, 5],
-            [3, 1, 5],
-            [0, 3, 5],
-        ];
-        TriMesh::new(v, f).unwrap()
-    }
-
     #[test]
     fn spokes_cells_are_one_rings_and_edges_have_two_cells() {
-        let m = octahedron();
+        let m = moe_geom::shapes::octahedron(1.0);
         let topo = Topology::new(&m);
         let cells = Cells::new(&m, &topo, ArapEnergy::Smoothed);
         for v in 0..6 {
@@ -257,7 +235,7 @@ mod tests {
 
     #[test]
     fn rims_add_opposite_edges_and_opposite_corners() {
-        let m = octahedron();
+        let m = moe_geom::shapes::octahedron(1.0);
         let topo = Topology::new(&m);
         let cells = Cells::new(&m, &topo, ArapEnergy::SpokesAndRims);
         // Vertex 4 (the top) has 4 spokes and 4 rim edges (the equator).

@@ -21,6 +21,35 @@ pub fn icosphere(level: u32, radius: Real) -> TriMesh {
     TriMesh::new(vertices, faces).expect("icosphere is a valid closed mesh")
 }
 
+/// The regular octahedron with vertices `±radius` on the axes, in the order `+x, −x, +y, −y, +z,
+/// −z`: the smallest closed surface on which every vertex has the same valence (4), handy for
+/// tests that count cells, edges and one-rings by hand.
+///
+/// # Panics
+/// Never (the mesh is valid by construction) for a finite, non-zero radius.
+pub fn octahedron(radius: Real) -> TriMesh {
+    let r = radius;
+    let vertices = vec![
+        Point3::new(r, 0.0, 0.0),
+        Point3::new(-r, 0.0, 0.0),
+        Point3::new(0.0, r, 0.0),
+        Point3::new(0.0, -r, 0.0),
+        Point3::new(0.0, 0.0, r),
+        Point3::new(0.0, 0.0, -r),
+    ];
+    let faces = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    TriMesh::new(vertices, faces).expect("the octahedron is a valid closed mesh")
+}
+
 /// Unit directions and faces of a subdivided icosahedron (faces counter-clockwise from outside).
 pub fn unit_icosphere(level: u32) -> (Vec<Vector3>, Vec<[u32; 3]>) {
     let t = (1.0 + (5.0 as Real).sqrt()) / 2.0;
@@ -158,6 +187,15 @@ impl Superquadric {
 mod tests {
     use super::*;
     use crate::topology::Topology;
+
+    #[test]
+    fn octahedron_is_closed_outward_and_of_the_right_volume() {
+        let m = octahedron(2.0);
+        m.require_closed().unwrap();
+        assert_eq!(Topology::new(&m).euler_characteristic(), 2);
+        // Eight tetrahedra of volume r³/6 each.
+        assert!((m.signed_volume() - 8.0 * 8.0 / 6.0).abs() < 1e-12);
+    }
 
     #[test]
     fn icosphere_is_closed_with_euler_characteristic_two() {

@@ -48,25 +48,7 @@ pub(crate) fn finger_mesh(budget: usize) -> TriMesh {
 
 /// A regular octahedron of circumradius `r`, outward-oriented.
 pub(crate) fn octahedron(r: f64) -> TriMesh {
-    let v = vec![
-        Point3::new(r, 0.0, 0.0),
-        Point3::new(-r, 0.0, 0.0),
-        Point3::new(0.0, r, 0.0),
-        Point3::new(0.0, -r, 0.0),
-        Point3::new(0.0, 0.0, r),
-        Point3::new(0.0, 0.0, -r),
-    ];
-    let f = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    TriMesh::new(v, f).expect("valid octahedron")
+    moe_geom::shapes::octahedron(r)
 }
 
 /// The workspace's seeded generator, with a `usize` range helper for the fuzz loops.
