@@ -398,13 +398,12 @@ pub fn evaluate_scene_with(
         let t = Instant::now();
         let sphere = SphereMean::fit(&scene.contacts)?;
         let fit_secs = t.elapsed().as_secs_f64();
-        let bounds_s = bounds;
         let (result, _) = gp_result(
             "gp_sphere",
             sphere,
             &obs,
             normal_offset_m,
-            &bounds_s,
+            &bounds,
             surface,
             &truth,
             fit_secs,

@@ -37,7 +37,7 @@ use moe_geom::{Matrix3, Point3, Real, TriMesh, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::GpisError;
-use crate::mean::{MeanFunction, MeshSdfMean};
+use crate::mean::MeshSdfMean;
 
 /// Which transforms registration may use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -398,6 +398,12 @@ pub fn register_prior(
     let mut last = rms_before;
     let mut iterations = 0;
     let mut lambda = 1e-6;
+    let c0 =
+        Point3::from(contacts.iter().map(|p| p.coords).sum::<Vector3>() / contacts.len() as Real);
+    let prior_energy = |t: &Similarity| match (config.metric, &config.pose_prior) {
+        (IcpMetric::PointToPlane, Some(pp)) => pp.energy(t, &c0, config.kind),
+        _ => 0.0,
+    };
     for it in 0..config.max_iterations {
         iterations = it + 1;
         let d: Vec<Real> = moved
@@ -418,13 +424,6 @@ pub fn register_prior(
         let kept_ms = |dist: &dyn Fn(usize) -> Real| {
             keep.iter().map(|&i| dist(i).powi(2)).sum::<Real>() / keep.len() as Real
         };
-        let c0 = Point3::from(
-            contacts.iter().map(|p| p.coords).sum::<Vector3>() / contacts.len() as Real,
-        );
-        let prior_energy = |t: &Similarity| match (config.metric, &config.pose_prior) {
-            (IcpMetric::PointToPlane, Some(pp)) => pp.energy(t, &c0, config.kind),
-            _ => 0.0,
-        };
         let before = kept_ms(&|i| d[i]) + prior_energy(&acc);
         // Damped steps until one reduces the kept pairs' distances (module docs).
         let mut accepted = None;
@@ -442,10 +441,13 @@ pub fn register_prior(
             };
             let trial = step.compose(&acc);
             let trial_moved: Vec<Point3> = contacts.iter().map(|p| trial.apply(p)).collect();
-            let after = kept_ms(&|i| sdf.value(&trial_moved[i]).abs()) + prior_energy(&trial);
+            // The trial's closest points serve the next iteration when it is accepted.
+            let (trial_closest, trial_normals) = project(&trial_moved);
+            let after =
+                kept_ms(&|i| (trial_moved[i] - trial_closest[i]).norm()) + prior_energy(&trial);
             if after < before {
                 lambda = (lambda * 0.1).max(1e-9);
-                accepted = Some((trial, trial_moved));
+                accepted = Some((trial, trial_moved, trial_closest, trial_normals));
                 break;
             }
             if config.metric == IcpMetric::PointToPoint {
@@ -453,12 +455,13 @@ pub fn register_prior(
             }
             lambda *= 10.0;
         }
-        let Some((trial, trial_moved)) = accepted else {
+        let Some((trial, trial_moved, trial_closest, trial_normals)) = accepted else {
             break;
         };
         acc = trial;
         moved = trial_moved;
-        (closest, normals) = project(&moved);
+        closest = trial_closest;
+        normals = trial_normals;
         let now = rms(&moved, &closest);
         if (last - now).abs() < config.tolerance_m {
             last = now;
