@@ -90,6 +90,7 @@ mod testmesh;
 
 pub use config::{ArapConfig, ArapEnergy};
 pub use error::ArapError;
-pub use multi::{FingerReport, HandShape, MultiShapeEstimator, ShapeEstimate, ShapeOptions};
+pub use moe_geom::HandShape;
+pub use multi::{FingerReport, MultiShapeEstimator, ShapeEstimate, ShapeOptions};
 pub use solver::{ArapInfo, ArapSolution, ArapSolver, ArapWorkspace, Start};
 pub use targets::HandleTargets;

@@ -8,7 +8,7 @@
 //! it is when a camera stream starts; a marker first seen on a strongly bent finger would be
 //! attached to the wrong vertex. Missing markers are dropped for the frame without refactorising.
 
-use moe_geom::{HandKeypoints, HandModel, Point3, PointIndex, Real};
+use moe_geom::{HandKeypoints, HandModel, HandShape, Point3, PointIndex, Real};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -43,13 +43,6 @@ impl Default for ShapeOptions {
             warm_start: false,
         }
     }
-}
-
-/// Deformed vertices of every finger, in the hand frame (metres).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct HandShape {
-    /// `fingers[f][v]`: vertex `v` of finger `f`'s mesh.
-    pub fingers: Vec<Vec<Point3>>,
 }
 
 /// How one finger was solved in one frame.

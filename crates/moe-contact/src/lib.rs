@@ -1,12 +1,43 @@
 //! Contact estimation on deformed soft-finger meshes.
 //!
-//! This crate will hold the contact estimators behind one `ContactEstimator` trait: the DGCNN of
-//! the paper (§4.3.2, App. D; three EdgeConv layers of widths 64/128/256 with k = 30, a shared MLP
-//! 512 → 256 → 2, weighted cross-entropy), built on candle, and a k-nearest-neighbour baseline
-//! that looks up the training example with the closest keypoints (paper §5.1). Training and
-//! evaluation live here as library code; `xtask train` is a thin command over them.
+//! A [`ContactEstimator`] takes a hand's deformed shape (and, where it needs them, its
+//! keypoints) and returns a [`moe_geom::ContactMap`]: per vertex, the probability that it
+//! touches the world. The DGCNN of the paper (§4.3.2, App. D) is [`Dgcnn`], a candle module
+//! with fused CPU kernels (a partial-selection kNN and EdgeConv reductions that never form the
+//! per-edge tensor), and [`DgcnnEstimator`] puts it behind the trait for one hand.
 //!
 //! Architecture invariant: this is the only crate that depends on candle. It takes and returns
-//! in-memory values (meshes in the hand frame, per-vertex probabilities) and does no file IO;
-//! dataset shards and model files are read and written by `moe-io`. It depends on `moe-geom` for
-//! vocabulary types and on nothing else of this workspace.
+//! in-memory values (shapes in the hand frame, model-file bytes, per-vertex probabilities) and
+//! does no file IO; files are read and written by the caller. It depends on `moe-geom` for
+//! the vocabulary types and on nothing else of this workspace.
+
+/// The architecture, input features and the model card.
+pub mod config;
+/// Choosing the device.
+pub mod device;
+/// The crate's error type.
+pub mod error;
+/// The estimator trait and the DGCNN estimator.
+pub mod estimator;
+/// The network.
+pub mod network;
+/// Custom CPU kernels (kNN selection, EdgeConv reductions).
+mod ops;
+/// Model files.
+pub mod weights;
+
+/// candle, re-exported so that users name the same version.
+pub use candle_core;
+pub use candle_nn;
+
+pub use config::{
+    Aggregation, CardHand, DgcnnConfig, FeatureFrame, InputFeature, InputSpec, ModelCard,
+    Normalisation, PointSet,
+};
+pub use device::{DeviceKind, open_device};
+pub use error::ContactError;
+pub use estimator::{ContactEstimator, ContactInput, DgcnnEstimator};
+pub use network::{
+    Dgcnn, ForwardOutput, Mode, StageTimings, contact_probability, tensor_names, tensor_shapes,
+};
+pub use weights::ModelWeights;

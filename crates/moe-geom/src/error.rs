@@ -98,6 +98,29 @@ pub enum GeomError {
         /// Length given.
         got: usize,
     },
+    /// A per-finger array has the wrong length for that finger (for example a deformed shape
+    /// of another hand). Supply one item per vertex (or marker) of the finger's mesh.
+    #[error("finger {finger}: expected {expected} {what}, got {got}")]
+    FingerLengthMismatch {
+        /// What was counted.
+        what: &'static str,
+        /// Finger index.
+        finger: usize,
+        /// Expected length.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+    /// A point of one finger has a NaN or infinite coordinate.
+    #[error("finger {finger}: {what} {index} has a non-finite coordinate")]
+    NonFiniteFingerPoint {
+        /// Which point set.
+        what: &'static str,
+        /// Finger index.
+        finger: usize,
+        /// Index of the point within the finger.
+        index: usize,
+    },
     /// A point set that must be non-empty is empty.
     #[error("point set '{what}' is empty")]
     EmptyPointSet {

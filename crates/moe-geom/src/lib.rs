@@ -16,6 +16,8 @@ pub mod error;
 pub mod finger;
 /// Multi-finger hands and their keypoints.
 pub mod hand;
+/// One instant of a hand: deformed shape, contact map, labelled frame.
+pub mod instant;
 /// Scalar and linear-algebra aliases, and the seam to parry's glam types.
 pub mod math;
 /// Validated triangle meshes, welding, areas, normals, bounding boxes.
@@ -37,6 +39,7 @@ pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;
 pub use finger::{FingerModel, FingerParams, TendonRoute};
 pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
+pub use instant::{ContactMap, ContactPoint, HandShape, LabelledFrame};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
 pub use rng::SeededRng;

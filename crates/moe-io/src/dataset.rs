@@ -42,6 +42,10 @@ use std::path::{Path, PathBuf};
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use serde::{Deserialize, Serialize};
 
+use moe_geom::math::{Translation3, UnitQuat};
+use moe_geom::nalgebra::Quaternion;
+use moe_geom::{GeomError, HandKeypoints, HandShape, Iso3, LabelledFrame, Point3, WorldFromHand};
+
 use crate::error::IoError;
 
 /// Metadata key under which a shard stores its layout.
@@ -109,6 +113,83 @@ impl DatasetFrame {
     /// Number of vertices labelled as in contact.
     pub fn contact_count(&self) -> usize {
         self.contact.iter().filter(|&&c| c != 0).count()
+    }
+
+    /// The frame as the in-memory vocabulary speaks it: vertices, labels and markers split per
+    /// finger (in `f64`), the wrist pose as a typed transform.
+    ///
+    /// # Errors
+    /// [`GeomError::LengthMismatch`] when the frame does not fit `layout`, and
+    /// [`GeomError::NonFinitePoint`] for a wrist pose whose quaternion is not a unit quaternion
+    /// (norm off by more than 1e-3) or not finite.
+    pub fn to_labelled(&self, layout: &DatasetLayout) -> Result<LabelledFrame, GeomError> {
+        let sizes = [
+            (
+                "frame vertices",
+                self.vertices.len(),
+                layout.total_vertices(),
+            ),
+            (
+                "frame contact labels",
+                self.contact.len(),
+                layout.total_vertices(),
+            ),
+            ("frame markers", self.markers.len(), layout.total_markers()),
+        ];
+        for (what, got, expected) in sizes {
+            if got != expected {
+                return Err(GeomError::LengthMismatch {
+                    what,
+                    expected,
+                    got,
+                });
+            }
+        }
+        let point = |p: &[f32; 3]| Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+        let mut fingers = Vec::with_capacity(layout.finger_num_vertices.len());
+        let mut contact = Vec::with_capacity(layout.finger_num_vertices.len());
+        let mut start = 0;
+        for &n in &layout.finger_num_vertices {
+            fingers.push(self.vertices[start..start + n].iter().map(point).collect());
+            contact.push(
+                self.contact[start..start + n]
+                    .iter()
+                    .map(|&c| c != 0)
+                    .collect(),
+            );
+            start += n;
+        }
+        let mut markers = Vec::with_capacity(layout.markers_per_finger.len());
+        let mut start = 0;
+        for &m in &layout.markers_per_finger {
+            markers.push(
+                self.markers[start..start + m]
+                    .iter()
+                    .map(|p| Some(point(p)))
+                    .collect(),
+            );
+            start += m;
+        }
+        let [x, y, z, qx, qy, qz, qw] = self.world_from_hand;
+        let q = Quaternion::new(qw, qx, qy, qz);
+        if !(q.norm() - 1.0).abs().le(&1e-3) || ![x, y, z].iter().all(|v| v.is_finite()) {
+            return Err(GeomError::NonFinitePoint {
+                what: "wrist pose (translation, unit quaternion)",
+                index: 0,
+            });
+        }
+        let world_from_hand = WorldFromHand::new(Iso3::from_parts(
+            Translation3::new(x, y, z),
+            UnitQuat::new_normalize(q),
+        ));
+        Ok(LabelledFrame {
+            trajectory_id: self.trajectory_id,
+            frame_index: self.frame_index,
+            shape: HandShape { fingers },
+            contact,
+            markers: HandKeypoints { fingers: markers },
+            world_from_hand,
+        })
     }
 }
 
@@ -637,6 +718,18 @@ impl DatasetReader {
         &self.card
     }
 
+    /// Like [`DatasetReader::frames`], as the in-memory vocabulary ([`LabelledFrame`]: per-finger
+    /// vertices, labels and markers, typed wrist pose).
+    pub fn labelled_frames(
+        &self,
+        split: Option<Split>,
+        fractions: SplitFractions,
+    ) -> LabelledFrames<'_> {
+        LabelledFrames {
+            frames: self.frames(split, fractions),
+        }
+    }
+
     /// Frames of `split` (all frames for `None`), shard by shard in card order; each item is a
     /// frame or the error that stopped reading a shard.
     pub fn frames(&self, split: Option<Split>, fractions: SplitFractions) -> DatasetFrames<'_> {
@@ -648,6 +741,36 @@ impl DatasetReader {
             buffer: Vec::new().into_iter(),
             failed: false,
         }
+    }
+}
+
+/// Iterator over a data set's frames as [`LabelledFrame`]s; see
+/// [`DatasetReader::labelled_frames`].
+#[derive(Debug)]
+pub struct LabelledFrames<'a> {
+    frames: DatasetFrames<'a>,
+}
+
+impl Iterator for LabelledFrames<'_> {
+    type Item = Result<LabelledFrame, IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let frame = match self.frames.next()? {
+            Ok(frame) => frame,
+            Err(e) => return Some(Err(e)),
+        };
+        let reader = self.frames.reader;
+        Some(frame.to_labelled(&reader.card.layout).map_err(|e| {
+            self.frames.failed = true;
+            IoError::invalid(
+                &reader.dir,
+                format!(
+                    "trajectory {}, frame {}",
+                    frame.trajectory_id, frame.frame_index
+                ),
+                e.to_string(),
+            )
+        }))
     }
 }
 
@@ -738,6 +861,49 @@ mod tests {
             object_family: (traj % 2) as u8,
             object_params: vec![0.02, s, 1.0 / 3.0],
         }
+    }
+
+    #[test]
+    fn frames_split_per_finger_as_labelled_frames() {
+        let f = frame(3, 2);
+        let l = f.to_labelled(&layout()).unwrap();
+        assert_eq!((l.trajectory_id, l.frame_index), (3, 2));
+        assert_eq!(l.shape.fingers.len(), 2);
+        assert_eq!(l.shape.fingers[0].len(), 3);
+        assert_eq!(
+            l.shape.fingers[1][1],
+            Point3::new(4.0, 3.2f32 as f64, -1.6f32 as f64)
+        );
+        assert_eq!(l.contact, vec![vec![false, true, true], vec![false, true]]);
+        assert_eq!(l.contact_count(), f.contact_count());
+        assert_eq!(
+            l.markers.fingers[1],
+            vec![Some(Point3::new(
+                0.3f32 as f64,
+                0.4f32 as f64,
+                3.2f32 as f64
+            ))]
+        );
+        let t = l.world_from_hand.iso().translation.vector;
+        assert_eq!([t.x, t.y, t.z], [0.1, 0.2, 0.3]);
+        let q = l.world_from_hand.iso().rotation.quaternion();
+        assert!((q.k - 0.3f64.sin()).abs() < 1e-12 && (q.w - 0.3f64.cos()).abs() < 1e-12);
+        let mut bad = f.clone();
+        bad.world_from_hand[6] = 0.0;
+        bad.world_from_hand[5] = 0.0;
+        assert!(matches!(
+            bad.to_labelled(&layout()),
+            Err(GeomError::NonFinitePoint { .. })
+        ));
+        let mut short = f;
+        short.markers.pop();
+        assert!(matches!(
+            short.to_labelled(&layout()),
+            Err(GeomError::LengthMismatch {
+                what: "frame markers",
+                ..
+            })
+        ));
     }
 
     #[test]

@@ -77,8 +77,8 @@ pub use csv::{
     CsvTable, csv_bytes, read_csv, read_csv_from, read_points_csv, read_points_csv_from, write_csv,
 };
 pub use dataset::{
-    DatasetCard, DatasetFrame, DatasetLayout, DatasetReader, Split, SplitFractions, read_shard,
-    split_of, write_shard,
+    DatasetCard, DatasetFrame, DatasetLayout, DatasetReader, LabelledFrames, Split, SplitFractions,
+    read_shard, split_of, write_shard,
 };
 pub use episode::{
     CameraInfo, Episode, EpisodeFrame, EpisodeInfo, EpisodeWriter, ObstacleMesh, create_episode,

@@ -1,0 +1,273 @@
+//! The contact-estimator seam, and the DGCNN behind it.
+
+use candle_core::{DType, Device, Tensor};
+use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3};
+
+use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
+use crate::error::ContactError;
+use crate::network::{Dgcnn, Mode, StageTimings, contact_probability};
+
+/// One observation of a hand: its deformed shape (hand frame) and, for estimators that use
+/// them, its keypoints.
+#[derive(Debug, Clone, Copy)]
+pub struct ContactInput<'a> {
+    /// The deformed surface of every finger, hand frame.
+    pub shape: &'a HandShape,
+    /// The observed markers, hand frame (`None` where the caller has none).
+    pub keypoints: Option<&'a HandKeypoints>,
+}
+
+/// Something that says, for every vertex of a deformed hand, how likely it is to touch the
+/// world.
+pub trait ContactEstimator {
+    /// The contact map of one observation.
+    ///
+    /// # Errors
+    /// An observation that does not fit the estimator's hand, non-finite input, or what the
+    /// estimator needs and was not given (keypoints for a keypoint-based estimator).
+    fn estimate(
+        &self,
+        shape: &HandShape,
+        keypoints: Option<&HandKeypoints>,
+    ) -> Result<ContactMap, ContactError>;
+
+    /// The contact maps of several observations, in order. Estimators that gain from batching
+    /// override it; the result equals calling [`ContactEstimator::estimate`] on each.
+    ///
+    /// # Errors
+    /// The first observation's error.
+    fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
+        inputs
+            .iter()
+            .map(|i| self.estimate(i.shape, i.keypoints))
+            .collect()
+    }
+}
+
+/// Where one point set's rows come from: a list of (finger, vertex count) in order.
+#[derive(Debug, Clone)]
+struct SetPlan {
+    fingers: Vec<usize>,
+    len: usize,
+}
+
+/// The DGCNN as a [`ContactEstimator`] for one hand: turns a hand shape into the network's input
+/// features (as the model card says: which features, in which frame, which point sets) and the
+/// logits back into a contact map.
+#[derive(Debug, Clone)]
+pub struct DgcnnEstimator {
+    net: Dgcnn,
+    card: ModelCard,
+    finger_from_hand: Vec<Iso3>,
+    rest_in_hand: Vec<Vec<Point3>>,
+    plans: Vec<SetPlan>,
+}
+
+impl DgcnnEstimator {
+    /// An estimator for `hand` running `net`, with the card's input spec and threshold.
+    ///
+    /// # Errors
+    /// [`ContactError::CardMismatch`] when the card's input features do not give the network's
+    /// input width, [`ContactError::TooFewPoints`] when a point set of the hand has fewer
+    /// points than `k`.
+    pub fn new(net: Dgcnn, card: ModelCard, hand: &HandModel) -> Result<Self, ContactError> {
+        card.validate()?;
+        let spec = &card.architecture.input;
+        if spec.channels() != net.in_channels() {
+            return Err(ContactError::CardMismatch {
+                field: "architecture.input.features",
+                card: format!("{} ({} channels)", spec.describe(), spec.channels()),
+                weights: format!("{} input channels", net.in_channels()),
+            });
+        }
+        let counts: Vec<usize> = hand
+            .fingers()
+            .iter()
+            .map(|f| f.model.mesh().num_vertices())
+            .collect();
+        let plans = match spec.point_set {
+            PointSet::WholeHand => vec![SetPlan {
+                fingers: (0..counts.len()).collect(),
+                len: counts.iter().sum(),
+            }],
+            PointSet::PerFinger => counts
+                .iter()
+                .enumerate()
+                .map(|(f, &len)| SetPlan {
+                    fingers: vec![f],
+                    len,
+                })
+                .collect(),
+        };
+        let k = net.config().k;
+        if let Some((set, p)) = plans.iter().enumerate().find(|(_, p)| p.len < k) {
+            return Err(ContactError::TooFewPoints {
+                set,
+                points: p.len,
+                k,
+            });
+        }
+        Ok(Self {
+            finger_from_hand: hand
+                .fingers()
+                .iter()
+                .map(|f| f.hand_from_finger.iso().inverse())
+                .collect(),
+            rest_in_hand: (0..hand.num_fingers())
+                .map(|f| hand.rest_vertices_in_hand(f))
+                .collect(),
+            net,
+            card,
+            plans,
+        })
+    }
+
+    /// The network.
+    pub fn network(&self) -> &Dgcnn {
+        &self.net
+    }
+
+    /// The model card.
+    pub fn card(&self) -> &ModelCard {
+        &self.card
+    }
+
+    /// The card's contact threshold.
+    pub fn threshold(&self) -> f64 {
+        self.card.threshold
+    }
+
+    /// The input features of one finger's vertices, row after row.
+    fn finger_features(&self, shape: &HandShape, f: usize, out: &mut Vec<f64>) {
+        let spec: &InputSpec = &self.card.architecture.input;
+        let to_frame = |p: &Point3| match spec.frame {
+            FeatureFrame::Hand => *p,
+            FeatureFrame::Finger => self.finger_from_hand[f] * p,
+        };
+        for (v, p) in shape.fingers[f].iter().enumerate() {
+            let mut c = 0;
+            for feature in &spec.features {
+                let q = match feature {
+                    InputFeature::Xyz => to_frame(p),
+                    InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]),
+                };
+                for x in [q.x, q.y, q.z] {
+                    let x = match &spec.normalisation {
+                        Some(n) => (x - n.mean[c]) / n.std[c],
+                        None => x,
+                    };
+                    out.push(x);
+                    c += 1;
+                }
+            }
+        }
+    }
+
+    /// Contact maps of several shapes, and the network's stage timings summed over its passes.
+    ///
+    /// # Errors
+    /// A shape that does not fit the hand (naming the finger and vertex), or a failing tensor
+    /// operation.
+    pub fn estimate_shapes(
+        &self,
+        shapes: &[&HandShape],
+    ) -> Result<(Vec<ContactMap>, StageTimings), ContactError> {
+        if shapes.is_empty() {
+            return Ok((Vec::new(), StageTimings::default()));
+        }
+        let num_fingers = self.finger_from_hand.len();
+        for shape in shapes {
+            if shape.fingers.len() != num_fingers {
+                return Err(moe_geom::GeomError::LengthMismatch {
+                    what: "fingers of the hand shape",
+                    expected: num_fingers,
+                    got: shape.fingers.len(),
+                }
+                .into());
+            }
+            for (f, rest) in self.rest_in_hand.iter().enumerate() {
+                if shape.fingers[f].len() != rest.len() {
+                    return Err(moe_geom::GeomError::FingerLengthMismatch {
+                        what: "vertices",
+                        finger: f,
+                        expected: rest.len(),
+                        got: shape.fingers[f].len(),
+                    }
+                    .into());
+                }
+            }
+            shape.check_finite()?;
+        }
+        let mut maps: Vec<ContactMap> = shapes
+            .iter()
+            .map(|s| ContactMap {
+                fingers: s.fingers.iter().map(|f| vec![0.0; f.len()]).collect(),
+            })
+            .collect();
+        let mut timings = StageTimings::default();
+        let channels = self.net.in_channels();
+        // Point sets of equal length go through the network together.
+        let mut lengths: Vec<usize> = self.plans.iter().map(|p| p.len).collect();
+        lengths.sort_unstable();
+        lengths.dedup();
+        for len in lengths {
+            let plans: Vec<&SetPlan> = self.plans.iter().filter(|p| p.len == len).collect();
+            let mut values = Vec::with_capacity(shapes.len() * plans.len() * len * channels);
+            for shape in shapes {
+                for plan in &plans {
+                    for &f in &plan.fingers {
+                        self.finger_features(shape, f, &mut values);
+                    }
+                }
+            }
+            let sets = shapes.len() * plans.len();
+            let x = Tensor::from_vec(values, (sets, len, channels), &Device::Cpu)?;
+            let out = self.net.forward_with(&x, Mode::Eval)?;
+            let t = out.timings;
+            timings.knn_s += t.knn_s;
+            timings.edgeconv_s += t.edgeconv_s;
+            timings.head_s += t.head_s;
+            let p = contact_probability(&out.logits)?
+                .to_dtype(DType::F64)?
+                .to_device(&Device::Cpu)?
+                .flatten_all()?
+                .to_vec1::<f64>()?;
+            let mut rows = p.chunks_exact(len);
+            for map in &mut maps {
+                for plan in &plans {
+                    let Some(row) = rows.next() else {
+                        return Err(ContactError::InvalidBatch {
+                            message: "the network returned fewer point sets than it was given"
+                                .into(),
+                        });
+                    };
+                    let mut start = 0;
+                    for &f in &plan.fingers {
+                        let n = map.fingers[f].len();
+                        map.fingers[f].copy_from_slice(&row[start..start + n]);
+                        start += n;
+                    }
+                }
+            }
+        }
+        Ok((maps, timings))
+    }
+}
+
+impl ContactEstimator for DgcnnEstimator {
+    fn estimate(
+        &self,
+        shape: &HandShape,
+        _keypoints: Option<&HandKeypoints>,
+    ) -> Result<ContactMap, ContactError> {
+        let (mut maps, _) = self.estimate_shapes(&[shape])?;
+        maps.pop().ok_or_else(|| ContactError::InvalidBatch {
+            message: "no contact map returned".into(),
+        })
+    }
+
+    fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
+        let shapes: Vec<&HandShape> = inputs.iter().map(|i| i.shape).collect();
+        Ok(self.estimate_shapes(&shapes)?.0)
+    }
+}

@@ -1,0 +1,459 @@
+//! The DGCNN contact network on candle: three EdgeConv layers and the per-point head.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use candle_core::{D, DType, Device, Module, Tensor};
+use candle_nn::{Init, VarBuilder};
+use moe_geom::SeededRng;
+
+use crate::config::{Aggregation, DgcnnConfig};
+use crate::error::ContactError;
+use crate::ops::{EdgeGraph, EdgeMax, EdgeSum, KnnSelect};
+
+/// Names of the tensors of a model file, in the order of the network.
+pub fn tensor_names() -> Vec<String> {
+    let mut names = Vec::with_capacity(15);
+    for l in 1..=3 {
+        names.push(format!("edge{l}.theta"));
+        names.push(format!("edge{l}.phi.weight"));
+        names.push(format!("edge{l}.phi.bias"));
+    }
+    for h in 0..3 {
+        names.push(format!("head.{h}.weight"));
+        names.push(format!("head.{h}.bias"));
+    }
+    names
+}
+
+/// The shape of every tensor of a network with `config` and `in_channels` input channels, in
+/// [`tensor_names`] order.
+pub fn tensor_shapes(config: &DgcnnConfig, in_channels: usize) -> Vec<(String, Vec<usize>)> {
+    let mut shapes = Vec::with_capacity(15);
+    let mut width_in = in_channels;
+    for (l, &w) in config.edge_widths.iter().enumerate() {
+        shapes.push((format!("edge{}.theta", l + 1), vec![w, width_in]));
+        shapes.push((format!("edge{}.phi.weight", l + 1), vec![w, width_in]));
+        shapes.push((format!("edge{}.phi.bias", l + 1), vec![w]));
+        width_in = w;
+    }
+    let [h0, h1] = config.head_widths;
+    for (h, (out, inp)) in [(h0, 2 * config.local_width()), (h1, h0), (2, h1)]
+        .into_iter()
+        .enumerate()
+    {
+        shapes.push((format!("head.{h}.weight"), vec![out, inp]));
+        shapes.push((format!("head.{h}.bias"), vec![out]));
+    }
+    shapes
+}
+
+/// Wall time of each stage of one forward pass, seconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimings {
+    /// The three kNN searches.
+    pub knn_s: f64,
+    /// The three EdgeConv products and reductions.
+    pub edgeconv_s: f64,
+    /// Global pooling and the per-point head.
+    pub head_s: f64,
+}
+
+impl StageTimings {
+    /// Sum of the stages.
+    pub fn total_s(&self) -> f64 {
+        self.knn_s + self.edgeconv_s + self.head_s
+    }
+}
+
+/// Everything one forward pass produces.
+#[derive(Debug, Clone)]
+pub struct ForwardOutput {
+    /// `(B, N, 2)` logits: no contact, contact.
+    pub logits: Tensor,
+    /// Per layer, the `(B, N, k)` neighbour table (point indices within each set, nearest first),
+    /// flattened row-major.
+    pub neighbours: [Vec<u32>; 3],
+    /// Wall time per stage.
+    pub timings: StageTimings,
+}
+
+/// Whether a forward pass trains (dropout on, drawn from a seeded generator) or evaluates.
+#[derive(Debug)]
+pub enum Mode<'a> {
+    /// Inference: no dropout.
+    Eval,
+    /// Training: dropout masks drawn from `rng`, so a run is reproducible.
+    Train(&'a mut SeededRng),
+}
+
+/// One EdgeConv layer: `h'_i = AGG_j ReLU(Θ(h_i − h_j) + Φh_i + b)`.
+#[derive(Debug, Clone)]
+struct EdgeConv {
+    theta: Tensor,
+    phi_weight: Tensor,
+    phi_bias: Tensor,
+    width: usize,
+}
+
+fn edge_conv(width_in: usize, width: usize, vb: VarBuilder<'_>) -> candle_core::Result<EdgeConv> {
+    // PyTorch nn.Linear's initialisation (training reseeds every tensor from its own generator).
+    let bound = 1.0 / (width_in as f64).sqrt();
+    let uniform = Init::Uniform {
+        lo: -bound,
+        up: bound,
+    };
+    Ok(EdgeConv {
+        theta: vb.get_with_hints((width, width_in), "theta", uniform)?,
+        phi_weight: vb.get_with_hints((width, width_in), "phi.weight", uniform)?,
+        phi_bias: vb.get_with_hints(width, "phi.bias", uniform)?,
+        width,
+    })
+}
+
+#[derive(Debug, Clone)]
+struct Linear {
+    weight: Tensor,
+    bias: Tensor,
+}
+
+fn linear(width_in: usize, width: usize, vb: VarBuilder<'_>) -> candle_core::Result<Linear> {
+    let bound = 1.0 / (width_in as f64).sqrt();
+    let uniform = Init::Uniform {
+        lo: -bound,
+        up: bound,
+    };
+    Ok(Linear {
+        weight: vb.get_with_hints((width, width_in), "weight", uniform)?,
+        bias: vb.get_with_hints(width, "bias", uniform)?,
+    })
+}
+
+impl Linear {
+    /// `(M, in)` → `(M, out)`.
+    fn forward_2d(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        x.matmul(&self.weight.t()?)?.broadcast_add(&self.bias)
+    }
+}
+
+/// The DGCNN of the paper (§4.3.2, App. D) with the architecture of a [`DgcnnConfig`].
+///
+/// Input `(B, N, C)`: `B` point sets of `N` points with `C` channels; output `(B, N, 2)` logits.
+/// The same module runs forward and backward: build it from a [`candle_nn::VarMap`] to train.
+#[derive(Debug, Clone)]
+pub struct Dgcnn {
+    config: DgcnnConfig,
+    in_channels: usize,
+    layers: [EdgeConv; 3],
+    head: [Linear; 3],
+    dtype: DType,
+    device: Device,
+}
+
+impl Dgcnn {
+    /// Builds the network from `vb` under the model file's names (`edge1.theta`, ...,
+    /// `head.2.bias`); with a `VarMap`-backed builder the tensors are created as trainable
+    /// variables.
+    ///
+    /// # Errors
+    /// An invalid config, or a tensor of `vb` of the wrong shape.
+    pub fn new(
+        config: DgcnnConfig,
+        in_channels: usize,
+        vb: VarBuilder<'_>,
+    ) -> Result<Self, ContactError> {
+        config.validate()?;
+        if in_channels == 0 {
+            return Err(ContactError::InvalidConfig {
+                field: "input channels",
+                message: "the network needs at least one input channel".into(),
+            });
+        }
+        let [w1, w2, w3] = config.edge_widths;
+        let layers = [
+            edge_conv(in_channels, w1, vb.pp("edge1"))?,
+            edge_conv(w1, w2, vb.pp("edge2"))?,
+            edge_conv(w2, w3, vb.pp("edge3"))?,
+        ];
+        let [h0, h1] = config.head_widths;
+        let head = [
+            linear(2 * config.local_width(), h0, vb.pp("head").pp("0"))?,
+            linear(h0, h1, vb.pp("head").pp("1"))?,
+            linear(h1, 2, vb.pp("head").pp("2"))?,
+        ];
+        Ok(Self {
+            config,
+            in_channels,
+            layers,
+            head,
+            dtype: vb.dtype(),
+            device: vb.device().clone(),
+        })
+    }
+
+    /// The architecture.
+    pub fn config(&self) -> &DgcnnConfig {
+        &self.config
+    }
+
+    /// Input channels per point.
+    pub fn in_channels(&self) -> usize {
+        self.in_channels
+    }
+
+    /// The float type the network computes in.
+    pub fn dtype(&self) -> DType {
+        self.dtype
+    }
+
+    /// The device the network runs on.
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
+    /// Sets the edge aggregation (the weights do not depend on it).
+    pub fn set_aggregation(&mut self, aggregation: Aggregation) {
+        self.config.aggregation = aggregation;
+    }
+
+    /// Every tensor by its model-file name, in [`tensor_names`] order.
+    pub fn named_tensors(&self) -> Vec<(String, Tensor)> {
+        let mut out = Vec::with_capacity(15);
+        for (l, e) in self.layers.iter().enumerate() {
+            out.push((format!("edge{}.theta", l + 1), e.theta.clone()));
+            out.push((format!("edge{}.phi.weight", l + 1), e.phi_weight.clone()));
+            out.push((format!("edge{}.phi.bias", l + 1), e.phi_bias.clone()));
+        }
+        for (h, lin) in self.head.iter().enumerate() {
+            out.push((format!("head.{h}.weight"), lin.weight.clone()));
+            out.push((format!("head.{h}.bias"), lin.bias.clone()));
+        }
+        out
+    }
+
+    /// Checks an input batch: `(B, N, C)` with `C` the network's input width, `N ≥ k`, every
+    /// value finite.
+    ///
+    /// # Errors
+    /// [`ContactError::InputWidth`], [`ContactError::TooFewPoints`],
+    /// [`ContactError::NonFinitePoint`], [`ContactError::InvalidBatch`].
+    pub fn check_input(&self, x: &Tensor) -> Result<(), ContactError> {
+        let (b, n, c) = x.dims3().map_err(|_| ContactError::InvalidBatch {
+            message: format!("input must be (sets, points, channels), got {:?}", x.dims()),
+        })?;
+        if b == 0 {
+            return Err(ContactError::InvalidBatch {
+                message: "the batch has no point sets".into(),
+            });
+        }
+        if c != self.in_channels {
+            return Err(ContactError::InputWidth {
+                expected: self.in_channels,
+                got: c,
+            });
+        }
+        if n < self.config.k {
+            return Err(ContactError::TooFewPoints {
+                set: 0,
+                points: n,
+                k: self.config.k,
+            });
+        }
+        let values = x.to_dtype(DType::F64)?.flatten_all()?.to_vec1::<f64>()?;
+        if let Some(flat) = values.iter().position(|v| !v.is_finite()) {
+            let point = flat / c;
+            return Err(ContactError::NonFinitePoint {
+                set: point / n,
+                index: point % n,
+            });
+        }
+        Ok(())
+    }
+
+    /// Runs the network on `x` `(B, N, C)` after checking it; see [`Dgcnn::check_input`].
+    ///
+    /// # Errors
+    /// Bad input (see [`Dgcnn::check_input`]) or a failing tensor operation.
+    pub fn forward_with(&self, x: &Tensor, mode: Mode<'_>) -> Result<ForwardOutput, ContactError> {
+        self.check_input(x)?;
+        Ok(self.forward_unchecked(x, mode)?)
+    }
+
+    fn forward_unchecked(
+        &self,
+        x: &Tensor,
+        mut mode: Mode<'_>,
+    ) -> candle_core::Result<ForwardOutput> {
+        let x = x
+            .to_dtype(self.dtype)?
+            .to_device(&self.device)?
+            .contiguous()?;
+        let n = x.dim(1)?;
+        let k = self.config.k;
+        let mut timings = StageTimings::default();
+        let mut features = Vec::with_capacity(3);
+        let mut neighbours: [Vec<u32>; 3] = Default::default();
+        let mut h = x;
+        for (l, layer) in self.layers.iter().enumerate() {
+            let t0 = Instant::now();
+            let local = knn(&h, k)?;
+            timings.knn_s += t0.elapsed().as_secs_f64();
+            let t0 = Instant::now();
+            h = self.edge_conv(layer, &h, &local, n)?;
+            timings.edgeconv_s += t0.elapsed().as_secs_f64();
+            features.push(h.clone());
+            neighbours[l] = local;
+        }
+        let t0 = Instant::now();
+        let logits = self.head_forward(&features, &mut mode)?;
+        timings.head_s = t0.elapsed().as_secs_f64();
+        Ok(ForwardOutput {
+            logits,
+            neighbours,
+            timings,
+        })
+    }
+
+    fn edge_conv(
+        &self,
+        layer: &EdgeConv,
+        h: &Tensor,
+        local: &[u32],
+        n: usize,
+    ) -> candle_core::Result<Tensor> {
+        let (b, _, c_in) = h.dims3()?;
+        let k = self.config.k;
+        // Two per-point products side by side: [h(Θ+Φ)ᵀ | hΘᵀ].
+        let w = Tensor::cat(&[&(&layer.theta + &layer.phi_weight)?, &layer.theta], 0)?;
+        let ab = h.reshape((b * n, c_in))?.matmul(&w.t()?)?;
+        let global: Vec<u32> = local
+            .iter()
+            .enumerate()
+            .map(|(e, &j)| j + ((e / (n * k)) * n) as u32)
+            .collect();
+        let out = if self.device.is_cpu() {
+            let graph = EdgeGraph {
+                idx: Arc::new(global),
+                k,
+                set_len: n,
+            };
+            match self.config.aggregation {
+                Aggregation::Max => ab.apply_op2(&layer.phi_bias, EdgeMax(graph))?,
+                Aggregation::Sum => ab.apply_op2(&layer.phi_bias, EdgeSum(graph))?,
+            }
+        } else {
+            edge_reduce_gathered(&ab, &layer.phi_bias, &global, k, self.config.aggregation)?
+        };
+        out.reshape((b, n, layer.width))
+    }
+
+    fn head_forward(
+        &self,
+        features: &[Tensor],
+        mode: &mut Mode<'_>,
+    ) -> candle_core::Result<Tensor> {
+        let (b, n, _) = features[0].dims3()?;
+        let width = self.config.local_width();
+        let loc = Tensor::cat(features, 2)?; // (B, N, 448)
+        let glob = loc.max_keepdim(1)?.reshape((b, width))?; // max over the points of each set
+        let [l0, l1, l2] = &self.head;
+        // head.0 on [loc | glob]: the global half is one row per set, added to every point.
+        let w_loc = l0.weight.narrow(1, 0, width)?.contiguous()?;
+        let w_glob = l0.weight.narrow(1, width, width)?.contiguous()?;
+        let g = glob.matmul(&w_glob.t()?)?.broadcast_add(&l0.bias)?; // (B, H0)
+        let h0 = l0.weight.dim(0)?;
+        let z = loc
+            .reshape((b * n, width))?
+            .matmul(&w_loc.t()?)?
+            .reshape((b, n, h0))?
+            .broadcast_add(&g.unsqueeze(1)?)?
+            .relu()?
+            .reshape((b * n, h0))?;
+        let z = self.dropout(&z, mode)?;
+        let z = l1.forward_2d(&z)?.relu()?;
+        let z = self.dropout(&z, mode)?;
+        l2.forward_2d(&z)?.reshape((b, n, 2))
+    }
+
+    fn dropout(&self, x: &Tensor, mode: &mut Mode<'_>) -> candle_core::Result<Tensor> {
+        let Mode::Train(rng) = mode else {
+            return Ok(x.clone());
+        };
+        let p = self.config.dropout;
+        if p == 0.0 {
+            return Ok(x.clone());
+        }
+        let scale = 1.0 / (1.0 - p);
+        let mask: Vec<f32> = (0..x.elem_count())
+            .map(|_| if rng.uniform() < p { 0.0 } else { scale as f32 })
+            .collect();
+        let mask = Tensor::from_vec(mask, x.shape(), &self.device)?.to_dtype(self.dtype)?;
+        x * mask
+    }
+}
+
+impl Module for Dgcnn {
+    /// Inference on `(B, N, C)` without the input checks of [`Dgcnn::forward_with`]: logits
+    /// `(B, N, 2)`.
+    fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        Ok(self.forward_unchecked(x, Mode::Eval)?.logits)
+    }
+}
+
+/// Softmax probability of the contact class, `(B, N, 2)` logits → `(B, N)`.
+///
+/// # Errors
+/// A tensor of the wrong shape.
+pub fn contact_probability(logits: &Tensor) -> Result<Tensor, ContactError> {
+    Ok(candle_nn::ops::softmax_last_dim(logits)?
+        .narrow(D::Minus1, 1, 1)?
+        .squeeze(D::Minus1)?)
+}
+
+/// The k nearest neighbours of every point of every set in `h` `(B, N, C)`, in the features'
+/// own space: a `(B, N, k)` table of indices within each set, nearest first, flattened. Outside
+/// the autograd graph.
+pub(crate) fn knn(h: &Tensor, k: usize) -> candle_core::Result<Vec<u32>> {
+    let h = h.detach();
+    let (b, n, _) = h.dims3()?;
+    let norms = h.sqr()?.sum(D::Minus1)?; // (B, N)
+    let mut out = Vec::with_capacity(b * n * k);
+    for s in 0..b {
+        let hs = h.get(s)?;
+        let inner = hs.matmul(&hs.t()?)?; // (N, N)
+        let ns = norms.get(s)?;
+        let idx = if h.device().is_cpu() {
+            inner.apply_op2_no_bwd(&ns, &KnnSelect { k })?
+        } else {
+            // Devices without the selection kernel: a full sort (ties in the device's order).
+            let d = ns
+                .unsqueeze(1)?
+                .broadcast_add(&ns.unsqueeze(0)?)?
+                .sub(&(inner * 2.0)?)?;
+            d.arg_sort_last_dim(true)?.narrow(1, 0, k)?.contiguous()?
+        };
+        out.extend(idx.flatten_all()?.to_vec1::<u32>()?);
+    }
+    Ok(out)
+}
+
+/// The EdgeConv reduction by gathering the neighbours' `B` rows with standard tensor ops: the
+/// form for devices without the fused CPU kernels (also differentiable).
+pub(crate) fn edge_reduce_gathered(
+    ab: &Tensor,
+    bias: &Tensor,
+    global: &[u32],
+    k: usize,
+    aggregation: Aggregation,
+) -> candle_core::Result<Tensor> {
+    let (rows, two_c) = ab.dims2()?;
+    let c = two_c / 2;
+    let a = ab.narrow(1, 0, c)?.broadcast_add(bias)?; // (rows, C)
+    let bmat = ab.narrow(1, c, c)?.contiguous()?;
+    let idx = Tensor::from_slice(global, rows * k, ab.device())?;
+    let nb = bmat.index_select(&idx, 0)?.reshape((rows, k, c))?;
+    match aggregation {
+        Aggregation::Max => a.sub(&nb.min(1)?)?.relu(),
+        Aggregation::Sum => a.unsqueeze(1)?.broadcast_sub(&nb)?.relu()?.sum(1),
+    }
+}

@@ -1,0 +1,498 @@
+//! CPU kernels of the DGCNN as candle custom ops: the partial-selection kNN and the fused
+//! EdgeConv reductions with their backward passes.
+//!
+//! An EdgeConv layer's edge value is `ReLU(Θ(h_i − h_j) + Φh_i + b) = ReLU(A_i − B_j)` with
+//! `A = h(Θ + Φ)ᵀ + b` and `B = hΘᵀ`, two per-point products. The reductions here take the
+//! products side by side as one `(rows, 2C)` tensor `[A − b | B]` plus the bias, and never form
+//! the `(rows, k, C)` edge tensor:
+//! - max: `max_j ReLU(A_i − B_j) = ReLU(A_i − min_j B_j)` (ReLU and rounded subtraction are both
+//!   monotone, so the two sides are equal in floating point), a gather-min per point;
+//! - sum: `Σ_j ReLU(A_i − B_j)`, the paper's equation as written.
+//!
+//! Rows are the points of all point sets of a batch, set after set; neighbour indices are global
+//! row numbers, so a set's neighbours stay within the set. Backward passes scatter into the
+//! neighbours' rows, one point set per task, so results do not depend on the thread count.
+
+use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
+use std::sync::Arc;
+
+use candle_core::backend::BackendStorage;
+use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Shape, Tensor};
+use rayon::prelude::*;
+
+/// The float types the kernels run in.
+pub(crate) trait Elem:
+    Copy
+    + Send
+    + Sync
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + AddAssign
+    + SubAssign
+    + 'static
+{
+    const ZERO: Self;
+    const TWO: Self;
+    const INFINITY: Self;
+    fn min(self, other: Self) -> Self;
+    fn slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [Self]>;
+    fn storage(v: Vec<Self>) -> CpuStorage;
+}
+
+macro_rules! elem {
+    ($t:ty, $variant:ident) => {
+        impl Elem for $t {
+            const ZERO: Self = 0.0;
+            const TWO: Self = 2.0;
+            const INFINITY: Self = <$t>::INFINITY;
+            #[inline(always)]
+            fn min(self, other: Self) -> Self {
+                if other < self { other } else { self }
+            }
+            fn slice<'a>(
+                s: &'a CpuStorage,
+                l: &Layout,
+                what: &str,
+            ) -> candle_core::Result<&'a [Self]> {
+                let CpuStorage::$variant(v) = s else {
+                    candle_core::bail!("{what}: expected {}", stringify!($t))
+                };
+                let Some((start, end)) = l.contiguous_offsets() else {
+                    candle_core::bail!("{what}: input must be contiguous")
+                };
+                Ok(&v[start..end])
+            }
+            fn storage(v: Vec<Self>) -> CpuStorage {
+                CpuStorage::$variant(v)
+            }
+        }
+    };
+}
+elem!(f32, F32);
+elem!(f64, F64);
+
+/// Runs `$body` with `$T` bound to the storage's float type.
+macro_rules! dispatch {
+    ($storage:expr, $T:ident => $body:expr) => {
+        match $storage {
+            CpuStorage::F32(_) => {
+                type $T = f32;
+                $body
+            }
+            CpuStorage::F64(_) => {
+                type $T = f64;
+                $body
+            }
+            other => candle_core::bail!("unsupported dtype {:?}", other.dtype()),
+        }
+    };
+}
+
+// ---------------------------------------------------------------------------------------------
+// kNN
+
+/// Selects, for each row `i` of a point set, the `k` points `j` with the smallest squared
+/// distance `|h_i|² + |h_j|² − 2⟨h_i, h_j⟩` (clamped at 0; exactly 0 for `j = i`), ties broken
+/// by the lower index, nearest first. Inputs: the inner products `(N, N)` and the squared norms
+/// `(N)`; output `(N, k)` u32. A bounded insertion list per row: most candidates cost one
+/// comparison against the current k-th distance, so there is no sort of the row.
+pub(crate) struct KnnSelect {
+    pub(crate) k: usize,
+}
+
+fn knn_select<T: Elem>(inner: &[T], norms: &[T], n: usize, k: usize) -> Vec<u32> {
+    let mut out = vec![0u32; n * k];
+    out.par_chunks_mut(k).enumerate().for_each_init(
+        || Vec::<(T, u32)>::with_capacity(k + 1),
+        |best, (i, out)| {
+            best.clear();
+            let row = &inner[i * n..(i + 1) * n];
+            let ni = norms[i];
+            for (j, (&dot, &nj)) in row.iter().zip(norms).enumerate() {
+                let d = if j == i {
+                    T::ZERO
+                } else {
+                    // Clamped at 0; NaN (from overflowing huge coordinates) sorts last.
+                    match ((ni + nj) - T::TWO * dot).partial_cmp(&T::ZERO) {
+                        Some(std::cmp::Ordering::Less) => T::ZERO,
+                        Some(_) => (ni + nj) - T::TWO * dot,
+                        None => T::INFINITY,
+                    }
+                };
+                if best.len() == k {
+                    // Strictly closer only: an equal distance at a higher index loses the tie.
+                    if d >= best[k - 1].0 {
+                        continue;
+                    }
+                    best.pop();
+                }
+                // After every entry whose distance is <= d (those have lower indices).
+                let at = best.partition_point(|&(bd, _)| bd <= d);
+                best.insert(at, (d, j as u32));
+            }
+            for (o, &(_, j)) in out.iter_mut().zip(best.iter()) {
+                *o = j;
+            }
+        },
+    );
+    out
+}
+
+impl CustomOp2 for KnnSelect {
+    fn name(&self) -> &'static str {
+        "knn-select"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (n, n2) = l1.shape().dims2()?;
+        if n != n2 || l2.shape().dims1()? != n {
+            candle_core::bail!("knn-select: inner products must be (N, N) and norms (N)");
+        }
+        if self.k > n {
+            candle_core::bail!("knn-select: k = {} exceeds the {n} points", self.k);
+        }
+        let idx = dispatch!(s1, T => {
+            let inner = T::slice(s1, l1, "inner products")?;
+            let norms = T::slice(s2, l2, "norms")?;
+            knn_select::<T>(inner, norms, n, self.k)
+        });
+        Ok((CpuStorage::U32(idx), Shape::from((n, self.k))))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// EdgeConv reductions
+
+/// The shared geometry of an EdgeConv reduction: `rows` points in sets of `set_len`, `c` output
+/// channels, `k` neighbours per point as global row numbers.
+#[derive(Debug, Clone)]
+pub(crate) struct EdgeGraph {
+    pub(crate) idx: Arc<Vec<u32>>,
+    pub(crate) k: usize,
+    pub(crate) set_len: usize,
+}
+
+impl EdgeGraph {
+    fn check(&self, l_ab: &Layout, l_bias: &Layout) -> candle_core::Result<(usize, usize)> {
+        let (rows, two_c) = l_ab.shape().dims2()?;
+        let c = two_c / 2;
+        if two_c % 2 != 0 || l_bias.shape().dims1()? != c {
+            candle_core::bail!("edgeconv: products must be (rows, 2C) and the bias (C)");
+        }
+        if self.idx.len() != rows * self.k || self.set_len == 0 || rows % self.set_len != 0 {
+            candle_core::bail!("edgeconv: neighbour table does not fit the products");
+        }
+        Ok((rows, c))
+    }
+}
+
+/// `out_i = ReLU(A_i + b − min_{j ∈ N(i)} B_j)` per channel; `(rows, 2C)`, `(C)` → `(rows, C)`.
+pub(crate) struct EdgeMax(pub(crate) EdgeGraph);
+
+/// `out_i = Σ_{j ∈ N(i)} ReLU(A_i + b − B_j)` per channel; `(rows, 2C)`, `(C)` → `(rows, C)`.
+pub(crate) struct EdgeSum(pub(crate) EdgeGraph);
+
+/// Gradient of [`EdgeMax`] or [`EdgeSum`] with respect to the products: `(rows, 2C)`.
+struct EdgeBackward {
+    graph: EdgeGraph,
+    sum: bool,
+}
+
+/// Minimum of `B` over row `i`'s neighbours, per channel, into `acc`; `arg` gets the first
+/// neighbour (in table order) that attains it.
+#[inline]
+fn neighbour_min<T: Elem>(
+    ab: &[T],
+    nbrs: &[u32],
+    c: usize,
+    acc: &mut [T],
+    mut arg: Option<&mut [u32]>,
+) {
+    let first = nbrs[0] as usize;
+    acc.copy_from_slice(&ab[first * 2 * c + c..first * 2 * c + 2 * c]);
+    if let Some(arg) = arg.as_deref_mut() {
+        arg.fill(nbrs[0]);
+    }
+    for &j in &nbrs[1..] {
+        let b = &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
+        match arg.as_deref_mut() {
+            None => {
+                for (a, &v) in acc.iter_mut().zip(b) {
+                    *a = a.min(v);
+                }
+            }
+            Some(arg) => {
+                for ((a, &v), g) in acc.iter_mut().zip(b).zip(arg.iter_mut()) {
+                    if v < *a {
+                        *a = v;
+                        *g = j;
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn edge_forward<T: Elem>(
+    ab: &[T],
+    bias: &[T],
+    g: &EdgeGraph,
+    rows: usize,
+    c: usize,
+    sum: bool,
+) -> Vec<T> {
+    let k = g.k;
+    let mut out = vec![T::ZERO; rows * c];
+    out.par_chunks_mut(c).enumerate().for_each_init(
+        || vec![T::ZERO; c],
+        |acc, (i, out)| {
+            let nbrs = &g.idx[i * k..(i + 1) * k];
+            let a = &ab[i * 2 * c..i * 2 * c + c];
+            if sum {
+                for &j in nbrs {
+                    let b = &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
+                    for (((o, &a), &bias), &b) in out.iter_mut().zip(a).zip(bias).zip(b) {
+                        let e = (a + bias) - b;
+                        if e > T::ZERO {
+                            *o += e;
+                        }
+                    }
+                }
+            } else {
+                neighbour_min(ab, nbrs, c, acc, None);
+                for (((o, &a), &bias), &m) in out.iter_mut().zip(a).zip(bias).zip(acc.iter()) {
+                    let e = (a + bias) - m;
+                    *o = if e > T::ZERO { e } else { T::ZERO };
+                }
+            }
+        },
+    );
+    out
+}
+
+fn edge_backward<T: Elem>(
+    ab: &[T],
+    bias: &[T],
+    grad: &[T],
+    g: &EdgeGraph,
+    rows: usize,
+    c: usize,
+    sum: bool,
+) -> Vec<T> {
+    let k = g.k;
+    let set = g.set_len;
+    let mut d_ab = vec![T::ZERO; rows * 2 * c];
+    // One point set per task: the scatter into B's rows stays within the set.
+    d_ab.par_chunks_mut(set * 2 * c)
+        .enumerate()
+        .for_each(|(s, d_set)| {
+            let base = s * set;
+            let mut acc = vec![T::ZERO; c];
+            let mut arg = vec![0u32; c];
+            for li in 0..set {
+                let i = base + li;
+                let nbrs = &g.idx[i * k..(i + 1) * k];
+                let a = &ab[i * 2 * c..i * 2 * c + c];
+                let gi = &grad[i * c..(i + 1) * c];
+                if sum {
+                    for &j in nbrs {
+                        let lj = j as usize - base;
+                        let b = &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
+                        for ch in 0..c {
+                            if (a[ch] + bias[ch]) - b[ch] > T::ZERO {
+                                d_set[li * 2 * c + ch] += gi[ch];
+                                d_set[lj * 2 * c + c + ch] -= gi[ch];
+                            }
+                        }
+                    }
+                } else {
+                    neighbour_min(ab, nbrs, c, &mut acc, Some(&mut arg));
+                    for ch in 0..c {
+                        if (a[ch] + bias[ch]) - acc[ch] > T::ZERO {
+                            d_set[li * 2 * c + ch] += gi[ch];
+                            let lj = arg[ch] as usize - base;
+                            d_set[lj * 2 * c + c + ch] -= gi[ch];
+                        }
+                    }
+                }
+            }
+        });
+    d_ab
+}
+
+fn edge_cpu_fwd(
+    g: &EdgeGraph,
+    sum: bool,
+    s1: &CpuStorage,
+    l1: &Layout,
+    s2: &CpuStorage,
+    l2: &Layout,
+) -> candle_core::Result<(CpuStorage, Shape)> {
+    let (rows, c) = g.check(l1, l2)?;
+    let out = dispatch!(s1, T => {
+        let ab = T::slice(s1, l1, "edge products")?;
+        let bias = T::slice(s2, l2, "edge bias")?;
+        T::storage(edge_forward::<T>(ab, bias, g, rows, c, sum))
+    });
+    Ok((out, Shape::from((rows, c))))
+}
+
+fn edge_bwd(
+    g: &EdgeGraph,
+    sum: bool,
+    ab: &Tensor,
+    bias: &Tensor,
+    grad: &Tensor,
+) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
+    let c = bias.dim(0)?;
+    let d_ab = ab.apply_op3_no_bwd(
+        bias,
+        &grad.contiguous()?,
+        &EdgeBackward {
+            graph: g.clone(),
+            sum,
+        },
+    )?;
+    // The bias enters beside A, so its gradient is A's summed over the rows.
+    let d_bias = d_ab.narrow(1, 0, c)?.sum(0)?;
+    Ok((Some(d_ab), Some(d_bias)))
+}
+
+impl CustomOp2 for EdgeMax {
+    fn name(&self) -> &'static str {
+        "edgeconv-max"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        edge_cpu_fwd(&self.0, false, s1, l1, s2, l2)
+    }
+
+    fn bwd(
+        &self,
+        ab: &Tensor,
+        bias: &Tensor,
+        _res: &Tensor,
+        grad: &Tensor,
+    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
+        edge_bwd(&self.0, false, ab, bias, grad)
+    }
+}
+
+impl CustomOp2 for EdgeSum {
+    fn name(&self) -> &'static str {
+        "edgeconv-sum"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        edge_cpu_fwd(&self.0, true, s1, l1, s2, l2)
+    }
+
+    fn bwd(
+        &self,
+        ab: &Tensor,
+        bias: &Tensor,
+        _res: &Tensor,
+        grad: &Tensor,
+    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
+        edge_bwd(&self.0, true, ab, bias, grad)
+    }
+}
+
+impl CustomOp3 for EdgeBackward {
+    fn name(&self) -> &'static str {
+        "edgeconv-backward"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (rows, c) = self.graph.check(l1, l2)?;
+        if l3.shape().dims2()? != (rows, c) {
+            candle_core::bail!("edgeconv-backward: gradient must be (rows, C)");
+        }
+        let out = dispatch!(s1, T => {
+            let ab = T::slice(s1, l1, "edge products")?;
+            let bias = T::slice(s2, l2, "edge bias")?;
+            let grad = T::slice(s3, l3, "edge gradient")?;
+            T::storage(edge_backward::<T>(ab, bias, grad, &self.graph, rows, c, self.sum))
+        });
+        Ok((out, Shape::from((rows, 2 * c))))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The k nearest by a full stable sort of (distance, index): the definition.
+    fn knn_by_sort(points: &[[f64; 2]], k: usize) -> Vec<Vec<u32>> {
+        points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let mut d: Vec<(f64, u32)> = points
+                    .iter()
+                    .enumerate()
+                    .map(|(j, q)| {
+                        let d = if i == j {
+                            0.0
+                        } else {
+                            (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)
+                        };
+                        (d, j as u32)
+                    })
+                    .collect();
+                d.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                d[..k].iter().map(|x| x.1).collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn selection_equals_a_full_sort_with_ties_to_the_lower_index() {
+        // Integer grid points: many exactly equal distances, and a duplicated point.
+        let mut points: Vec<[f64; 2]> = (0..7)
+            .flat_map(|x| (0..6).map(move |y| [f64::from(x), f64::from(y)]))
+            .collect();
+        points.push([3.0, 2.0]);
+        let n = points.len();
+        let inner: Vec<f64> = points
+            .iter()
+            .flat_map(|p| points.iter().map(move |q| p[0] * q[0] + p[1] * q[1]))
+            .collect();
+        let norms: Vec<f64> = points.iter().map(|p| p[0] * p[0] + p[1] * p[1]).collect();
+        for k in [1, 5, 9, n] {
+            let got = knn_select(&inner, &norms, n, k);
+            let want = knn_by_sort(&points, k);
+            for (i, w) in want.iter().enumerate() {
+                assert_eq!(&got[i * k..(i + 1) * k], &w[..], "k = {k}, point {i}");
+            }
+        }
+    }
+}

@@ -1,0 +1,178 @@
+//! The DGCNN behind the `ContactEstimator` trait, on hands.
+
+use moe_contact::candle_core::{DType, Device};
+use moe_contact::{
+    ContactError, ContactEstimator, ContactInput, DgcnnEstimator, FeatureFrame, InputFeature,
+    ModelCard, ModelWeights, PointSet,
+};
+use moe_geom::{FingerParams, GeomError, HandModel, HandPreset, HandShape, Vector3};
+
+use crate::common::small_config;
+
+fn hand(preset: HandPreset) -> HandModel {
+    let params = FingerParams {
+        vertex_budget: 160,
+        ..FingerParams::default()
+    };
+    HandModel::preset(preset, &params).unwrap()
+}
+
+fn estimator(
+    hand: &HandModel,
+    point_set: PointSet,
+    frame: FeatureFrame,
+    rest: bool,
+) -> DgcnnEstimator {
+    let mut config = small_config(Default::default());
+    config.input.point_set = point_set;
+    config.input.frame = frame;
+    if rest {
+        config.input.features.push(InputFeature::RestXyz);
+    }
+    let c = config.input.channels();
+    let card = ModelCard::new(config.clone());
+    let net = ModelWeights::seeded(&config, c, 31)
+        .unwrap()
+        .build(Some(&card), DType::F64, &Device::Cpu)
+        .unwrap();
+    DgcnnEstimator::new(net, card, hand).unwrap()
+}
+
+/// Every finger pushed in along its own x by a bump near the tip, and jittered by up to 20 µm
+/// (the same jitter per vertex on every finger), so that no two neighbour distances tie: the
+/// finger mesh is a surface of revolution, whose rings give many exactly equal distances that
+/// rounding would break differently on each finger.
+fn pressed(hand: &HandModel) -> HandShape {
+    let jitter: Vec<Vector3> = {
+        let mut rng = moe_geom::SeededRng::new(77);
+        (0..hand.fingers()[0].model.mesh().num_vertices())
+            .map(|_| {
+                Vector3::new(
+                    rng.uniform_range(-2e-5, 2e-5),
+                    rng.uniform_range(-2e-5, 2e-5),
+                    rng.uniform_range(-2e-5, 2e-5),
+                )
+            })
+            .collect()
+    };
+    let mut shape = HandShape::rest(hand);
+    for (f, finger) in hand.fingers().iter().enumerate() {
+        for (v, p) in finger.model.mesh().vertices().iter().enumerate() {
+            let bump = (-((p.z - 0.06).powi(2) + p.y.powi(2)) / 1e-4).exp();
+            let moved = p - Vector3::x() * (0.002 * bump * p.x.max(0.0) / 0.01) + jitter[v];
+            shape.fingers[f][v] = finger.hand_from_finger.transform_point(&moved);
+        }
+    }
+    shape
+}
+
+#[test]
+fn identical_fingers_in_their_own_frames_get_identical_maps() {
+    let hand = hand(HandPreset::ThreeFinger);
+    let est = estimator(&hand, PointSet::PerFinger, FeatureFrame::Finger, true);
+    let map = est.estimate(&pressed(&hand), None).unwrap();
+    for f in 1..3 {
+        let diff = map.fingers[0]
+            .iter()
+            .zip(&map.fingers[f])
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-9, "finger {f}: {diff:e}");
+    }
+    assert!(
+        map.fingers
+            .iter()
+            .flatten()
+            .all(|p| (0.0..=1.0).contains(p))
+    );
+}
+
+#[test]
+fn a_batch_equals_one_estimate_at_a_time() {
+    let hand = hand(HandPreset::TwoFinger);
+    for (set, frame) in [
+        (PointSet::WholeHand, FeatureFrame::Hand),
+        (PointSet::PerFinger, FeatureFrame::Finger),
+    ] {
+        let est = estimator(&hand, set, frame, false);
+        let a = HandShape::rest(&hand);
+        let b = pressed(&hand);
+        let batch = est
+            .estimate_batch(&[
+                ContactInput {
+                    shape: &a,
+                    keypoints: None,
+                },
+                ContactInput {
+                    shape: &b,
+                    keypoints: None,
+                },
+            ])
+            .unwrap();
+        for (got, shape) in batch.iter().zip([&a, &b]) {
+            let one = est.estimate(shape, None).unwrap();
+            for (x, y) in got
+                .fingers
+                .iter()
+                .flatten()
+                .zip(one.fingers.iter().flatten())
+            {
+                assert!((x - y).abs() < 1e-12, "{set:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_shape_of_another_hand_is_refused_naming_the_finger() {
+    let hand = hand(HandPreset::TwoFinger);
+    let est = estimator(&hand, PointSet::WholeHand, FeatureFrame::Hand, false);
+    let mut shape = HandShape::rest(&hand);
+    shape.fingers[1].truncate(100);
+    match est.estimate(&shape, None) {
+        Err(ContactError::Geometry(GeomError::FingerLengthMismatch {
+            finger: 1,
+            got: 100,
+            ..
+        })) => {}
+        other => panic!("{other:?}"),
+    }
+    let mut shape = HandShape::rest(&hand);
+    shape.fingers[0][12].z = f64::INFINITY;
+    match est.estimate(&shape, None) {
+        Err(ContactError::Geometry(GeomError::NonFiniteFingerPoint {
+            finger: 0,
+            index: 12,
+            ..
+        })) => {}
+        other => panic!("{other:?}"),
+    }
+    let three = HandShape::rest(&self::hand(HandPreset::ThreeFinger));
+    assert!(matches!(
+        est.estimate(&three, None),
+        Err(ContactError::Geometry(GeomError::LengthMismatch {
+            expected: 2,
+            got: 3,
+            ..
+        }))
+    ));
+}
+
+#[test]
+fn a_card_whose_features_do_not_fit_the_network_is_refused() {
+    let hand = hand(HandPreset::TwoFinger);
+    let config = small_config(Default::default());
+    let net = ModelWeights::seeded(&config, 3, 1)
+        .unwrap()
+        .build(None, DType::F64, &Device::Cpu)
+        .unwrap();
+    let mut card = ModelCard::new(config);
+    card.architecture.input.features.push(InputFeature::RestXyz);
+    assert!(matches!(
+        DgcnnEstimator::new(net, card, &hand),
+        Err(ContactError::CardMismatch {
+            field: "architecture.input.features",
+            ..
+        })
+    ));
+}

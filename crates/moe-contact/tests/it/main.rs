@@ -1,0 +1,8 @@
+//! Integration tests of `moe-contact`: one binary, one module per concern.
+
+mod common;
+mod estimator;
+mod fast_form;
+mod gradients;
+mod model_files;
+mod reference;
