@@ -9,7 +9,7 @@ use moe_geom::SeededRng;
 
 use crate::config::{Aggregation, DgcnnConfig};
 use crate::error::ContactError;
-use crate::ops::{EdgeGraph, EdgeMax, EdgeSum, KnnSelect};
+use crate::ops::{EdgeGraph, EdgeMax, EdgeSum, KnnSelect, MaxOverPoints};
 
 /// Names of the tensors of a model file, in the order of the network.
 pub fn tensor_names() -> Vec<String> {
@@ -276,12 +276,53 @@ impl Dgcnn {
     /// Bad input (see [`Dgcnn::check_input`]) or a failing tensor operation.
     pub fn forward_with(&self, x: &Tensor, mode: Mode<'_>) -> Result<ForwardOutput, ContactError> {
         self.check_input(x)?;
-        Ok(self.forward_unchecked(x, mode)?)
+        Ok(self.forward_unchecked(x, None, mode)?)
+    }
+
+    /// Runs the network with given neighbour tables instead of its own kNN searches: per layer
+    /// a `(B, N, k)` table of indices within each set, flattened (as
+    /// [`ForwardOutput::neighbours`] returns them). For fixed graphs (a mesh's own neighbourhoods)
+    /// and for comparing two implementations on identical graphs.
+    ///
+    /// # Errors
+    /// Bad input (see [`Dgcnn::check_input`]), a table of the wrong length or with an index
+    /// outside its set.
+    pub fn forward_with_graphs(
+        &self,
+        x: &Tensor,
+        graphs: &[Vec<u32>; 3],
+        mode: Mode<'_>,
+    ) -> Result<ForwardOutput, ContactError> {
+        self.check_input(x)?;
+        let (b, n, _) = x.dims3()?;
+        for (l, g) in graphs.iter().enumerate() {
+            if g.len() != b * n * self.config.k {
+                return Err(ContactError::InvalidBatch {
+                    message: format!(
+                        "neighbour table of layer {} has {} entries, expected {b} × {n} × {}",
+                        l + 1,
+                        g.len(),
+                        self.config.k
+                    ),
+                });
+            }
+            if let Some(e) = g.iter().position(|&j| j as usize >= n) {
+                return Err(ContactError::InvalidBatch {
+                    message: format!(
+                        "neighbour table of layer {}: entry {e} is {} but sets have {n} points",
+                        l + 1,
+                        g[e]
+                    ),
+                });
+            }
+        }
+        Ok(self.forward_unchecked(x, Some(graphs), mode)?)
     }
 
     fn forward_unchecked(
         &self,
         x: &Tensor,
+        graphs: Option<&[Vec<u32>; 3]>,
         mut mode: Mode<'_>,
     ) -> candle_core::Result<ForwardOutput> {
         let x = x
@@ -296,7 +337,10 @@ impl Dgcnn {
         let mut h = x;
         for (l, layer) in self.layers.iter().enumerate() {
             let t0 = Instant::now();
-            let local = knn(&h, k)?;
+            let local = match graphs {
+                Some(g) => g[l].clone(),
+                None => knn(&h, k)?,
+            };
             timings.knn_s += t0.elapsed().as_secs_f64();
             let t0 = Instant::now();
             h = self.edge_conv(layer, &h, &local, n)?;
@@ -354,21 +398,35 @@ impl Dgcnn {
     ) -> candle_core::Result<Tensor> {
         let (b, n, _) = features[0].dims3()?;
         let width = self.config.local_width();
-        let loc = Tensor::cat(features, 2)?; // (B, N, 448)
-        let glob = loc.max_keepdim(1)?.reshape((b, width))?; // max over the points of each set
         let [l0, l1, l2] = &self.head;
-        // head.0 on [loc | glob]: the global half is one row per set, added to every point.
-        let w_loc = l0.weight.narrow(1, 0, width)?.contiguous()?;
+        let h0 = l0.weight.dim(0)?;
+        // The max over the points of each set, per layer: (B, 448).
+        let mut pooled = Vec::with_capacity(features.len());
+        for f in features {
+            pooled.push(if self.device.is_cpu() {
+                f.apply_op1(MaxOverPoints)?
+            } else {
+                f.max(1)?
+            });
+        }
+        let glob = Tensor::cat(&pooled, 1)?;
+        // head.0 on [loc | glob]: the global half is one row per set, G = glob W_globᵀ + b. It
+        // reaches every point of its set through a one-hot column per set appended to loc, so
+        // one matrix product [loc | onehot] [W_loc | Gᵀ]ᵀ does both halves (no broadcast over
+        // the points).
+        let w_loc = l0.weight.narrow(1, 0, width)?;
         let w_glob = l0.weight.narrow(1, width, width)?.contiguous()?;
         let g = glob.matmul(&w_glob.t()?)?.broadcast_add(&l0.bias)?; // (B, H0)
-        let h0 = l0.weight.dim(0)?;
-        let z = loc
-            .reshape((b * n, width))?
-            .matmul(&w_loc.t()?)?
-            .reshape((b, n, h0))?
-            .broadcast_add(&g.unsqueeze(1)?)?
-            .relu()?
-            .reshape((b * n, h0))?;
+        let onehot: Vec<f64> = (0..b * n * b)
+            .map(|e| if (e / b) / n == e % b { 1.0 } else { 0.0 })
+            .collect();
+        let onehot = Tensor::from_vec(onehot, (b, n, b), &self.device)?.to_dtype(self.dtype)?;
+        let mut loc = features.to_vec();
+        loc.push(onehot);
+        let loc = Tensor::cat(&loc, 2)?.reshape((b * n, width + b))?;
+        let w = Tensor::cat(&[&w_loc, &g.t()?], 1)?; // (H0, 448 + B)
+        let z = loc.matmul(&w.t()?)?.relu()?;
+        debug_assert_eq!(z.dims(), &[b * n, h0]);
         let z = self.dropout(&z, mode)?;
         let z = l1.forward_2d(&z)?.relu()?;
         let z = self.dropout(&z, mode)?;
@@ -396,7 +454,7 @@ impl Module for Dgcnn {
     /// Inference on `(B, N, C)` without the input checks of [`Dgcnn::forward_with`]: logits
     /// `(B, N, 2)`.
     fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
-        Ok(self.forward_unchecked(x, Mode::Eval)?.logits)
+        Ok(self.forward_unchecked(x, None, Mode::Eval)?.logits)
     }
 }
 
@@ -416,16 +474,15 @@ pub fn contact_probability(logits: &Tensor) -> Result<Tensor, ContactError> {
 pub(crate) fn knn(h: &Tensor, k: usize) -> candle_core::Result<Vec<u32>> {
     let h = h.detach();
     let (b, n, _) = h.dims3()?;
-    let norms = h.sqr()?.sum(D::Minus1)?; // (B, N)
     let mut out = Vec::with_capacity(b * n * k);
     for s in 0..b {
-        let hs = h.get(s)?;
-        let inner = hs.matmul(&hs.t()?)?; // (N, N)
-        let ns = norms.get(s)?;
+        let hs = h.get(s)?.contiguous()?;
         let idx = if h.device().is_cpu() {
-            inner.apply_op2_no_bwd(&ns, &KnnSelect { k })?
+            hs.apply_op1_no_bwd(&KnnSelect { k })?
         } else {
             // Devices without the selection kernel: a full sort (ties in the device's order).
+            let ns = hs.sqr()?.sum(D::Minus1)?;
+            let inner = hs.matmul(&hs.t()?)?;
             let d = ns
                 .unsqueeze(1)?
                 .broadcast_add(&ns.unsqueeze(0)?)?

@@ -17,7 +17,9 @@ use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
 use std::sync::Arc;
 
 use candle_core::backend::BackendStorage;
-use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Shape, Tensor};
+use candle_core::{CpuStorage, CustomOp1, CustomOp2, CustomOp3, Layout, Shape, Tensor};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 /// The float types the kernels run in.
@@ -31,12 +33,15 @@ pub(crate) trait Elem:
     + Mul<Output = Self>
     + AddAssign
     + SubAssign
+    + faer::traits::ComplexField
     + 'static
 {
     const ZERO: Self;
+    const ONE: Self;
     const TWO: Self;
-    const INFINITY: Self;
     fn min(self, other: Self) -> Self;
+    /// `max(d, 0)`, with NaN as 0.
+    fn positive_part(d: Self) -> Self;
     fn slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [Self]>;
     fn storage(v: Vec<Self>) -> CpuStorage;
 }
@@ -45,11 +50,15 @@ macro_rules! elem {
     ($t:ty, $variant:ident) => {
         impl Elem for $t {
             const ZERO: Self = 0.0;
+            const ONE: Self = 1.0;
             const TWO: Self = 2.0;
-            const INFINITY: Self = <$t>::INFINITY;
             #[inline(always)]
             fn min(self, other: Self) -> Self {
                 if other < self { other } else { self }
+            }
+            #[inline(always)]
+            fn positive_part(d: Self) -> Self {
+                if d > 0.0 { d } else { 0.0 }
             }
             fn slice<'a>(
                 s: &'a CpuStorage,
@@ -93,76 +102,119 @@ macro_rules! dispatch {
 // ---------------------------------------------------------------------------------------------
 // kNN
 
-/// Selects, for each row `i` of a point set, the `k` points `j` with the smallest squared
-/// distance `|h_i|² + |h_j|² − 2⟨h_i, h_j⟩` (clamped at 0; exactly 0 for `j = i`), ties broken
-/// by the lower index, nearest first. Inputs: the inner products `(N, N)` and the squared norms
-/// `(N)`; output `(N, k)` u32. A bounded insertion list per row: most candidates cost one
-/// comparison against the current k-th distance, so there is no sort of the row.
+/// Selects, for each point `i` of a set of features `(N, C)`, the `k` points `j` with the
+/// smallest squared distance (exactly 0 for `j = i`), ties broken by the lower index, nearest
+/// first; output `(N, k)` u32. Distances are `|h_i|² + |h_j|² − 2⟨h_i, h_j⟩` (clamped at 0),
+/// the inner products a block of rows at a time (never the whole `N × N` matrix). Each row's `k`
+/// nearest are selected among the points within a bound, not sorted whole.
 pub(crate) struct KnnSelect {
     pub(crate) k: usize,
 }
 
-fn knn_select<T: Elem>(inner: &[T], norms: &[T], n: usize, k: usize) -> Vec<u32> {
+/// Rows selected one after another by one task: each row starts from the previous row's
+/// neighbours, which are mostly near the new row too, so the bound is tight from the start and
+/// the scan of the row is a vectorised comparison that rarely finds a candidate. Starting empty
+/// would make a row whose candidates arrive in decreasing distance (mesh vertices stored ring by
+/// ring) insert nearly all of them.
+const ROWS_PER_TASK: usize = 64;
+/// Candidates compared at once in the scan.
+const LANES: usize = 16;
+
+fn knn_select<T: Elem>(h: &[T], n: usize, c: usize, k: usize) -> Vec<u32> {
+    let norms: Vec<T> = h
+        .chunks_exact(c)
+        .map(|r| r.iter().fold(T::ZERO, |s, &x| s + x * x))
+        .collect();
+    let all = MatRef::from_row_major_slice(h, n, c);
     let mut out = vec![0u32; n * k];
-    out.par_chunks_mut(k).enumerate().for_each_init(
-        || Vec::<(T, u32)>::with_capacity(k + 1),
-        |best, (i, out)| {
-            best.clear();
-            let row = &inner[i * n..(i + 1) * n];
-            let ni = norms[i];
-            for (j, (&dot, &nj)) in row.iter().zip(norms).enumerate() {
-                let d = if j == i {
-                    T::ZERO
-                } else {
-                    // Clamped at 0; NaN (from overflowing huge coordinates) sorts last.
-                    match ((ni + nj) - T::TWO * dot).partial_cmp(&T::ZERO) {
-                        Some(std::cmp::Ordering::Less) => T::ZERO,
-                        Some(_) => (ni + nj) - T::TWO * dot,
-                        None => T::INFINITY,
+    out.par_chunks_mut(k * ROWS_PER_TASK)
+        .enumerate()
+        .for_each(|(task, block)| {
+            // This task's rows of the inner-product matrix, one block in cache (never N × N).
+            let first = task * ROWS_PER_TASK;
+            let rows = block.len() / k;
+            let mut inner = vec![T::ZERO; rows * n];
+            matmul(
+                MatMut::from_row_major_slice_mut(&mut inner, rows, n),
+                Accum::Replace,
+                MatRef::from_row_major_slice(&h[first * c..(first + rows) * c], rows, c),
+                all.transpose(),
+                T::ONE,
+                Par::Seq,
+            );
+            let mut prime: Vec<u32> = Vec::with_capacity(k);
+            let mut candidates: Vec<(T, u32)> = Vec::with_capacity(4 * k);
+            for (r, out_row) in block.chunks_mut(k).enumerate() {
+                let i = first + r;
+                let ni = norms[i];
+                // Squared distances in place of the inner products, clamped at 0 (a select, so
+                // the loop vectorises; a NaN from overflowing features becomes 0).
+                let dist = &mut inner[r * n..(r + 1) * n];
+                for (d, &nj) in dist.iter_mut().zip(&norms) {
+                    *d = T::positive_part((ni + nj) - T::TWO * *d);
+                }
+                dist[i] = T::ZERO;
+                let dist = &*dist;
+                if r == 0 {
+                    // The first row of a task starts from the indices around it.
+                    let lo = i.saturating_sub(k / 2).min(n - k);
+                    prime.clear();
+                    prime.extend((lo..lo + k).map(|j| j as u32));
+                }
+                // Any k points bound the k-th smallest distance from above: the k nearest are
+                // among the points within the largest distance of the primed ones.
+                let bound = prime.iter().fold(T::ZERO, |m, &j| {
+                    if dist[j as usize] > m {
+                        dist[j as usize]
+                    } else {
+                        m
                     }
-                };
-                if best.len() == k {
-                    // Strictly closer only: an equal distance at a higher index loses the tie.
-                    if d >= best[k - 1].0 {
+                });
+                candidates.clear();
+                for (c, chunk) in dist.chunks(LANES).enumerate() {
+                    let lowest = chunk.iter().fold(chunk[0], |m, &d| m.min(d));
+                    if lowest > bound {
                         continue;
                     }
-                    best.pop();
+                    for (l, &d) in chunk.iter().enumerate() {
+                        if d <= bound {
+                            candidates.push((d, (c * LANES + l) as u32));
+                        }
+                    }
                 }
-                // After every entry whose distance is <= d (those have lower indices).
-                let at = best.partition_point(|&(bd, _)| bd <= d);
-                best.insert(at, (d, j as u32));
+                // Distances are never NaN here (clamped above), so the order is total.
+                let by_order = |a: &(T, u32), b: &(T, u32)| {
+                    a.0.partial_cmp(&b.0)
+                        .unwrap_or(std::cmp::Ordering::Equal)
+                        .then(a.1.cmp(&b.1))
+                };
+                if candidates.len() > k {
+                    candidates.select_nth_unstable_by(k - 1, by_order);
+                    candidates.truncate(k);
+                }
+                candidates.sort_unstable_by(by_order);
+                prime.clear();
+                for (o, &(_, j)) in out_row.iter_mut().zip(candidates.iter()) {
+                    *o = j;
+                    prime.push(j);
+                }
             }
-            for (o, &(_, j)) in out.iter_mut().zip(best.iter()) {
-                *o = j;
-            }
-        },
-    );
+        });
     out
 }
 
-impl CustomOp2 for KnnSelect {
+impl CustomOp1 for KnnSelect {
     fn name(&self) -> &'static str {
         "knn-select"
     }
 
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-    ) -> candle_core::Result<(CpuStorage, Shape)> {
-        let (n, n2) = l1.shape().dims2()?;
-        if n != n2 || l2.shape().dims1()? != n {
-            candle_core::bail!("knn-select: inner products must be (N, N) and norms (N)");
+    fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (n, c) = l.shape().dims2()?;
+        if self.k == 0 || self.k > n || c == 0 {
+            candle_core::bail!("knn-select: k = {} for {n} points of {c} channels", self.k);
         }
-        if self.k > n {
-            candle_core::bail!("knn-select: k = {} exceeds the {n} points", self.k);
-        }
-        let idx = dispatch!(s1, T => {
-            let inner = T::slice(s1, l1, "inner products")?;
-            let norms = T::slice(s2, l2, "norms")?;
-            knn_select::<T>(inner, norms, n, self.k)
+        let idx = dispatch!(s, T => {
+            knn_select::<T>(T::slice(s, l, "features")?, n, c, self.k)
         });
         Ok((CpuStorage::U32(idx), Shape::from((n, self.k))))
     }
@@ -446,6 +498,105 @@ impl CustomOp3 for EdgeBackward {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Global pooling
+
+/// The maximum over the points of each set: `(B, N, C)` → `(B, C)`. The gradient goes to the
+/// first point (lowest index) that attains each maximum.
+pub(crate) struct MaxOverPoints;
+
+/// Gradient of [`MaxOverPoints`]: `(B, N, C)` input and `(B, C)` gradient → `(B, N, C)`.
+struct MaxOverPointsBackward;
+
+fn argmax_over_points<T: Elem>(x: &[T], n: usize, c: usize, set: usize) -> Vec<usize> {
+    let base = set * n * c;
+    let mut arg = vec![0usize; c];
+    let mut best: Vec<T> = x[base..base + c].to_vec();
+    for p in 1..n {
+        let row = &x[base + p * c..base + (p + 1) * c];
+        for ((b, a), &v) in best.iter_mut().zip(arg.iter_mut()).zip(row) {
+            if v > *b {
+                *b = v;
+                *a = p;
+            }
+        }
+    }
+    arg
+}
+
+impl CustomOp1 for MaxOverPoints {
+    fn name(&self) -> &'static str {
+        "max-over-points"
+    }
+
+    fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (b, n, c) = l.shape().dims3()?;
+        if n == 0 {
+            candle_core::bail!("max-over-points: empty point sets");
+        }
+        let out = dispatch!(s, T => {
+            let x = T::slice(s, l, "features")?;
+            let mut out = vec![T::ZERO; b * c];
+            out.par_chunks_mut(c).enumerate().for_each(|(set, o)| {
+                o.copy_from_slice(&x[set * n * c..set * n * c + c]);
+                for p in 1..n {
+                    let row = &x[(set * n + p) * c..(set * n + p + 1) * c];
+                    for (m, &v) in o.iter_mut().zip(row) {
+                        if v > *m {
+                            *m = v;
+                        }
+                    }
+                }
+            });
+            T::storage(out)
+        });
+        Ok((out, Shape::from((b, c))))
+    }
+
+    fn bwd(
+        &self,
+        arg: &Tensor,
+        _res: &Tensor,
+        grad: &Tensor,
+    ) -> candle_core::Result<Option<Tensor>> {
+        Ok(Some(arg.apply_op2_no_bwd(
+            &grad.contiguous()?,
+            &MaxOverPointsBackward,
+        )?))
+    }
+}
+
+impl CustomOp2 for MaxOverPointsBackward {
+    fn name(&self) -> &'static str {
+        "max-over-points-backward"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (b, n, c) = l1.shape().dims3()?;
+        if l2.shape().dims2()? != (b, c) {
+            candle_core::bail!("max-over-points-backward: gradient must be (B, C)");
+        }
+        let out = dispatch!(s1, T => {
+            let x = T::slice(s1, l1, "features")?;
+            let g = T::slice(s2, l2, "gradient")?;
+            let mut out = vec![T::ZERO; b * n * c];
+            out.par_chunks_mut(n * c).enumerate().for_each(|(set, o)| {
+                for (ch, p) in argmax_over_points(x, n, c, set).into_iter().enumerate() {
+                    o[p * c + ch] = g[set * c + ch];
+                }
+            });
+            T::storage(out)
+        });
+        Ok((out, Shape::from((b, n, c))))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -482,13 +633,9 @@ mod tests {
             .collect();
         points.push([3.0, 2.0]);
         let n = points.len();
-        let inner: Vec<f64> = points
-            .iter()
-            .flat_map(|p| points.iter().map(move |q| p[0] * q[0] + p[1] * q[1]))
-            .collect();
-        let norms: Vec<f64> = points.iter().map(|p| p[0] * p[0] + p[1] * p[1]).collect();
+        let flat: Vec<f64> = points.iter().flatten().copied().collect();
         for k in [1, 5, 9, n] {
-            let got = knn_select(&inner, &norms, n, k);
+            let got = knn_select(&flat, n, 2, k);
             let want = knn_by_sort(&points, k);
             for (i, w) in want.iter().enumerate() {
                 assert_eq!(&got[i * k..(i + 1) * k], &w[..], "k = {k}, point {i}");

@@ -8,7 +8,7 @@ use moe_contact::{Aggregation, Dgcnn, Mode};
 use safetensors::SafeTensors;
 use safetensors::tensor::Dtype;
 
-use crate::common::values;
+use crate::common::{max_abs_diff, values};
 
 fn fixture(name: &str) -> Vec<u8> {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -68,7 +68,12 @@ struct Run {
     tables: Vec<Vec<Vec<u32>>>,
 }
 
-fn run(reference: &Reference, aggregation: Aggregation, dtype: DType) -> Run {
+fn run(
+    reference: &Reference,
+    aggregation: Aggregation,
+    dtype: DType,
+    graphs: Option<&[Vec<u32>; 3]>,
+) -> Run {
     let mut net = Dgcnn::from_safetensors(
         &fixture("reference_weights.safetensors"),
         None,
@@ -79,7 +84,10 @@ fn run(reference: &Reference, aggregation: Aggregation, dtype: DType) -> Run {
     net.set_aggregation(aggregation);
     let n = reference.input.len() / 3;
     let x = Tensor::from_slice(&reference.input, (1, n, 3), &Device::Cpu).unwrap();
-    let out = net.forward_with(&x, Mode::Eval).unwrap();
+    let out = match graphs {
+        Some(g) => net.forward_with_graphs(&x, g, Mode::Eval).unwrap(),
+        None => net.forward_with(&x, Mode::Eval).unwrap(),
+    };
     let k = net.config().k;
     Run {
         logits: values(&out.logits),
@@ -96,29 +104,11 @@ fn sorted(mut v: Vec<u32>) -> Vec<u32> {
     v
 }
 
-/// Rows whose neighbour sets equal the reference's in every layer.
-fn agreeing_rows(
-    reference: &Reference,
-    aggregation: Aggregation,
-    tag: &str,
-    run: &Run,
-) -> Vec<bool> {
-    let n = run.tables[0].len();
-    let mut agree = vec![true; n];
-    for layer in 1..=3 {
-        let want = reference.knn(aggregation, tag, layer);
-        for (i, ok) in agree.iter_mut().enumerate() {
-            *ok &= sorted(run.tables[layer - 1][i].clone()) == sorted(want[i].clone());
-        }
-    }
-    agree
-}
-
 #[test]
 fn f64_logits_and_every_knn_table_equal_pytorch() {
     let reference = Reference::load();
     for aggregation in [Aggregation::Max, Aggregation::Sum] {
-        let run = run(&reference, aggregation, DType::F64);
+        let run = run(&reference, aggregation, DType::F64, None);
         for layer in 1..=3 {
             let want = reference.knn(aggregation, "f64", layer);
             for (i, (got, want)) in run.tables[layer - 1].iter().zip(&want).enumerate() {
@@ -137,6 +127,7 @@ fn f64_logits_and_every_knn_table_equal_pytorch() {
             .zip(&want)
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
+        eprintln!("f64 {aggregation}: logits within {worst:e} (scale {scale:.3})");
         match aggregation {
             Aggregation::Max => assert!(worst <= 1e-9, "max: {worst:e}"),
             Aggregation::Sum => assert!(worst <= 1e-10 * scale, "sum: {worst:e} of {scale}"),
@@ -145,49 +136,36 @@ fn f64_logits_and_every_knn_table_equal_pytorch() {
 }
 
 #[test]
-fn f32_logits_agree_with_pytorch_where_the_neighbourhoods_do() {
+fn f32_logits_agree_with_pytorch_on_the_same_neighbourhoods() {
     let reference = Reference::load();
     for aggregation in [Aggregation::Max, Aggregation::Sum] {
-        let run = run(&reference, aggregation, DType::F32);
-        let want = reference.logits(aggregation, "f32");
-        let scale = want.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
-        let agree = agreeing_rows(&reference, aggregation, "f32", &run);
-        let agreeing = agree.iter().filter(|&&a| a).count();
+        // Our own kNN in f32: the tables differ from PyTorch's only where rounding reorders
+        // near-equal distances (measured: 94-96 % of the rows agree in layer 2, 89-93 % in layer 3).
+        let own = run(&reference, aggregation, DType::F32, None);
         for layer in 1..=3 {
             let want = reference.knn(aggregation, "f32", layer);
             let same = (0..want.len())
-                .filter(|&i| sorted(run.tables[layer - 1][i].clone()) == sorted(want[i].clone()))
+                .filter(|&i| sorted(own.tables[layer - 1][i].clone()) == sorted(want[i].clone()))
                 .count();
-            eprintln!("{aggregation} layer {layer}: {same} rows agree");
+            eprintln!(
+                "f32 {aggregation}: layer {layer}: {same} of {} rows agree",
+                want.len()
+            );
+            assert!(
+                same * 10 >= want.len() * 8,
+                "{aggregation}: layer {layer}: {same} rows agree"
+            );
         }
-        let mut worst = 0.0_f64;
-        let mut flips = 0;
-        for (i, ok) in agree.iter().enumerate() {
-            let (a, b) = (&run.logits[2 * i..2 * i + 2], &want[2 * i..2 * i + 2]);
-            if *ok {
-                for (x, y) in a.iter().zip(b) {
-                    worst = worst.max((x - y).abs());
-                }
-            }
-            if (a[1] > a[0]) != (b[1] > b[0]) {
-                flips += 1;
-            }
-        }
-        eprintln!("{aggregation}: scale {scale} worst {worst:e} flips {flips}");
-        assert!(
-            agreeing * 10 >= agree.len() * 8,
-            "{aggregation}: {agreeing} rows agree"
-        );
-        for (i, ok) in agree.iter().enumerate() {
-            let (a, b) = (&run.logits[2 * i..2 * i + 2], &want[2 * i..2 * i + 2]);
-            if *ok {
-                for (x, y) in a.iter().zip(b) {
-                    assert!(
-                        (x - y).abs() <= 1e-4 * scale,
-                        "{aggregation}: point {i}: {x} vs {y}"
-                    );
-                }
-            }
+        // On PyTorch's tables, the logits agree everywhere.
+        let tables: [Vec<u32>; 3] =
+            std::array::from_fn(|l| reference.knn(aggregation, "f32", l + 1).concat());
+        let same = run(&reference, aggregation, DType::F32, Some(&tables));
+        let want = reference.logits(aggregation, "f32");
+        let scale = want.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
+        let worst = max_abs_diff(&same.logits, &want);
+        eprintln!("f32 {aggregation}: logits within {worst:e} (scale {scale:.3})");
+        assert!(worst <= 1e-4 * scale, "{aggregation}: {worst:e} of {scale}");
+        for (i, (a, b)) in own.logits.chunks(2).zip(want.chunks(2)).enumerate() {
             assert_eq!(
                 a[1] > a[0],
                 b[1] > b[0],

@@ -1,0 +1,87 @@
+//! Benchmarks of the contact network on the paper's workload: the default two-finger hand
+//! (2 × 1024 vertices), k = 30, batch 1, f32; and the five-finger hand.
+//!
+//! Besides criterion's figures, each case prints the median split of one frame into the kNN
+//! searches, the EdgeConv layers and the head (from the network's own stage timings).
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use moe_contact::candle_core::{DType, Device};
+use moe_contact::{
+    ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, ModelCard,
+    ModelWeights, PointSet, StageTimings,
+};
+use moe_geom::{FingerParams, HandModel, HandPreset, HandShape, Vector3};
+
+/// Every finger bent toward its +x side (deterministic).
+fn bent(hand: &HandModel) -> HandShape {
+    let mut shape = HandShape::rest(hand);
+    for (f, finger) in hand.fingers().iter().enumerate() {
+        for (v, p) in finger.model.mesh().vertices().iter().enumerate() {
+            let s = p.z / 0.08;
+            let moved = p + Vector3::new(0.01 * s * s, 0.0, -0.003 * s * s * s);
+            shape.fingers[f][v] = finger.hand_from_finger.transform_point(&moved);
+        }
+    }
+    shape
+}
+
+fn estimator(hand: &HandModel, point_set: PointSet) -> DgcnnEstimator {
+    let mut config = DgcnnConfig::default();
+    config.input.point_set = point_set;
+    if point_set == PointSet::PerFinger {
+        config.input.frame = FeatureFrame::Finger;
+        config.input.features.push(InputFeature::RestXyz);
+    }
+    let card = ModelCard::new(config.clone());
+    let net = ModelWeights::seeded(&config, config.input.channels(), 1)
+        .expect("weights")
+        .build(Some(&card), DType::F32, &Device::Cpu)
+        .expect("network");
+    DgcnnEstimator::new(net, card, hand).expect("estimator")
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn print_split(name: &str, est: &DgcnnEstimator, shape: &HandShape) {
+    let runs: Vec<StageTimings> = (0..30)
+        .map(|_| est.estimate_shapes(&[shape]).expect("estimate").1)
+        .collect();
+    let ms = |f: fn(&StageTimings) -> f64| median(runs.iter().map(f).collect()) * 1e3;
+    eprintln!(
+        "{name}: median split kNN {:.2} ms, EdgeConv {:.2} ms, head {:.2} ms, total {:.2} ms",
+        ms(|t| t.knn_s),
+        ms(|t| t.edgeconv_s),
+        ms(|t| t.head_s),
+        ms(StageTimings::total_s)
+    );
+}
+
+fn contact(c: &mut Criterion) {
+    for preset in [HandPreset::TwoFinger, HandPreset::FiveFinger] {
+        let hand = HandModel::preset(preset, &FingerParams::default()).expect("preset");
+        let shape = bent(&hand);
+        for (set, label) in [
+            (PointSet::WholeHand, "whole-hand"),
+            (PointSet::PerFinger, "per-finger"),
+        ] {
+            let est = estimator(&hand, set);
+            let name = format!("contact/{preset}/{label}");
+            print_split(&name, &est, &shape);
+            c.bench_function(&name, |b| {
+                b.iter(|| black_box(est.estimate(black_box(&shape), None).expect("estimate")))
+            });
+        }
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30);
+    targets = contact
+}
+criterion_main!(benches);
