@@ -126,6 +126,17 @@ impl InputSpec {
         3 * self.features.len()
     }
 
+    /// Applies the normalisation (if any) to rows of [`InputSpec::channels`] values, in place.
+    pub fn normalise(&self, rows: &mut [f64]) {
+        if let Some(n) = &self.normalisation {
+            for row in rows.chunks_exact_mut(self.channels()) {
+                for ((x, m), s) in row.iter_mut().zip(&n.mean).zip(&n.std) {
+                    *x = (*x - m) / s;
+                }
+            }
+        }
+    }
+
     /// The features as text, e.g. `"xyz + rest-xyz"`.
     pub fn describe(&self) -> String {
         self.features

@@ -144,23 +144,17 @@ impl DgcnnEstimator {
             FeatureFrame::Hand => *p,
             FeatureFrame::Finger => self.finger_from_hand[f] * p,
         };
+        let start = out.len();
         for (v, p) in shape.fingers[f].iter().enumerate() {
-            let mut c = 0;
             for feature in &spec.features {
                 let q = match feature {
                     InputFeature::Xyz => to_frame(p),
                     InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]),
                 };
-                for x in [q.x, q.y, q.z] {
-                    let x = match &spec.normalisation {
-                        Some(n) => (x - n.mean[c]) / n.std[c],
-                        None => x,
-                    };
-                    out.push(x);
-                    c += 1;
-                }
+                out.extend([q.x, q.y, q.z]);
             }
         }
+        spec.normalise(&mut out[start..]);
     }
 
     /// Contact maps of several shapes, and the network's stage timings summed over its passes.

@@ -64,6 +64,8 @@ pub mod files;
 pub mod hand_config;
 /// Mesh reading and writing by extension.
 pub mod mesh_io;
+/// Contact model files (weights and card) as bytes and text.
+pub mod model;
 /// Wavefront OBJ.
 pub mod obj;
 /// Stanford PLY.
@@ -88,6 +90,7 @@ pub use error::IoError;
 pub use files::MEMORY;
 pub use hand_config::{FingerConfig, HandConfig, TendonConfig, load_hand_config};
 pub use mesh_io::{read_mesh, write_mesh};
+pub use model::{ModelFiles, read_model_files, write_model_files};
 pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
 pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
 pub use stl::{STL_WELD_RELATIVE_TOLERANCE, read_stl, read_stl_from};

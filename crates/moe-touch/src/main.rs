@@ -30,6 +30,9 @@ enum Command {
     Arap(cli::arap::ArapArgs),
     /// Estimate a hand's deformed finger meshes from one frame of marker keypoints (SR-ARAP).
     Shape(cli::shape::ShapeArgs),
+    /// Estimate per-vertex contact with the DGCNN: on a point cloud, or on a hand shape as
+    /// `moe-touch shape` writes it (meshes coloured by contact probability, contact points).
+    Contact(cli::contact::ContactArgs),
     /// Run a scripted tendon-FEM scene; write surface meshes per saved frame and a summary.
     Sim(cli::sim::SimArgs),
     /// Reconstruct an occluded surface from contact points (GPIS with a prior, sphere or constant
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Hand(args) => cli::hand::run(args),
         Command::Arap(args) => cli::arap::run(args),
         Command::Shape(args) => cli::shape::run(args),
+        Command::Contact(args) => cli::contact::run(args),
         Command::Sim(args) => cli::sim::run(args),
         Command::Surface(args) => cli::surface::run(args),
     };

@@ -2,10 +2,30 @@
 //! function. Figures go to stdout (one JSON object with `--json`), progress and logs to stderr.
 
 pub(crate) mod arap;
+pub(crate) mod contact;
 pub(crate) mod hand;
 pub(crate) mod shape;
 pub(crate) mod sim;
 pub(crate) mod surface;
+
+/// A hand from `--hand`: a preset name (two-finger, three-finger, five-finger) or a hand config
+/// file.
+pub(crate) fn load_hand(spec: &str) -> anyhow::Result<moe_geom::HandModel> {
+    use anyhow::Context;
+    use moe_geom::{FingerParams, HandModel, HandPreset};
+    if let Ok(preset) = spec.parse::<HandPreset>() {
+        return HandModel::preset(preset, &FingerParams::default())
+            .with_context(|| format!("building the {preset} preset"));
+    }
+    let path = std::path::PathBuf::from(spec);
+    if !path.exists() {
+        anyhow::bail!(
+            "--hand '{spec}' is neither a preset (two-finger, three-finger, five-finger) nor an \
+             existing config file"
+        );
+    }
+    Ok(moe_io::load_hand_config(&path)?)
+}
 
 /// Formats an error and its causes on one line (`outer: inner: root`), without backtraces.
 pub(crate) fn one_line(err: &anyhow::Error) -> String {

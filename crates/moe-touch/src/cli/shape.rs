@@ -2,10 +2,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::{ArapEnergy, MultiShapeEstimator, ShapeOptions};
-use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset};
+use moe_geom::HandKeypoints;
 use serde::Serialize;
 
 /// Arguments of `moe-touch shape`.
@@ -62,23 +62,8 @@ struct ShapeRecord {
     fingers: Vec<FingerShapeRecord>,
 }
 
-fn load_hand(spec: &str) -> Result<HandModel> {
-    if let Ok(preset) = spec.parse::<HandPreset>() {
-        return HandModel::preset(preset, &FingerParams::default())
-            .with_context(|| format!("building the {preset} preset"));
-    }
-    let path = PathBuf::from(spec);
-    if !path.exists() {
-        bail!(
-            "--hand '{spec}' is neither a preset (two-finger, three-finger, five-finger) nor an \
-             existing config file"
-        );
-    }
-    Ok(moe_io::load_hand_config(&path)?)
-}
-
 pub(crate) fn run(args: ShapeArgs) -> Result<()> {
-    let hand = load_hand(&args.hand)?;
+    let hand = super::load_hand(&args.hand)?;
     let keypoints: HandKeypoints = moe_io::read_json(&args.keypoints)?;
     let options = ShapeOptions {
         iterations: args.iterations,

@@ -2,6 +2,7 @@
 
 mod arap;
 mod common;
+mod contact;
 mod episode;
 mod hand;
 mod sim;
