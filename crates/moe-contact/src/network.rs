@@ -9,7 +9,7 @@ use moe_geom::SeededRng;
 
 use crate::config::{Aggregation, DgcnnConfig};
 use crate::error::ContactError;
-use crate::ops::{EdgeGraph, EdgeMax, EdgeSum, KnnSelect, MaxOverPoints};
+use crate::ops::{EdgeGraph, EdgeReduce, KnnSelect, MaxOverPoints};
 
 /// Names of the tensors of a model file, in the order of the network.
 pub fn tensor_names() -> Vec<String> {
@@ -96,13 +96,18 @@ struct EdgeConv {
     width: usize,
 }
 
-fn edge_conv(width_in: usize, width: usize, vb: VarBuilder<'_>) -> candle_core::Result<EdgeConv> {
-    // PyTorch nn.Linear's initialisation (training reseeds every tensor from its own generator).
+/// PyTorch `nn.Linear`'s initialisation, uniform in ±1/√fan_in (training reseeds every tensor
+/// from its own generator; candle's cannot be seeded).
+fn linear_init(width_in: usize) -> Init {
     let bound = 1.0 / (width_in as f64).sqrt();
-    let uniform = Init::Uniform {
+    Init::Uniform {
         lo: -bound,
         up: bound,
-    };
+    }
+}
+
+fn edge_conv(width_in: usize, width: usize, vb: VarBuilder<'_>) -> candle_core::Result<EdgeConv> {
+    let uniform = linear_init(width_in);
     Ok(EdgeConv {
         theta: vb.get_with_hints((width, width_in), "theta", uniform)?,
         phi_weight: vb.get_with_hints((width, width_in), "phi.weight", uniform)?,
@@ -118,11 +123,7 @@ struct Linear {
 }
 
 fn linear(width_in: usize, width: usize, vb: VarBuilder<'_>) -> candle_core::Result<Linear> {
-    let bound = 1.0 / (width_in as f64).sqrt();
-    let uniform = Init::Uniform {
-        lo: -bound,
-        up: bound,
-    };
+    let uniform = linear_init(width_in);
     Ok(Linear {
         weight: vb.get_with_hints((width, width_in), "weight", uniform)?,
         bias: vb.get_with_hints(width, "bias", uniform)?,
@@ -381,10 +382,13 @@ impl Dgcnn {
                 k,
                 set_len: n,
             };
-            match self.config.aggregation {
-                Aggregation::Max => ab.apply_op2(&layer.phi_bias, EdgeMax(graph))?,
-                Aggregation::Sum => ab.apply_op2(&layer.phi_bias, EdgeSum(graph))?,
-            }
+            ab.apply_op2(
+                &layer.phi_bias,
+                EdgeReduce {
+                    graph,
+                    aggregation: self.config.aggregation,
+                },
+            )?
         } else {
             edge_reduce_gathered(&ab, &layer.phi_bias, &global, k, self.config.aggregation)?
         };

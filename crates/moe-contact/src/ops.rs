@@ -22,6 +22,8 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
+use crate::config::Aggregation;
+
 /// The float types the kernels run in.
 pub(crate) trait Elem:
     Copy
@@ -246,13 +248,21 @@ impl EdgeGraph {
     }
 }
 
-/// `out_i = ReLU(A_i + b − min_{j ∈ N(i)} B_j)` per channel; `(rows, 2C)`, `(C)` → `(rows, C)`.
-pub(crate) struct EdgeMax(pub(crate) EdgeGraph);
+/// The EdgeConv reduction, `(rows, 2C)` products and `(C)` bias → `(rows, C)`: for max
+/// `out_i = ReLU(A_i + b − min_{j ∈ N(i)} B_j)`, for sum `out_i = Σ_{j ∈ N(i)} ReLU(A_i + b − B_j)`,
+/// per channel.
+pub(crate) struct EdgeReduce {
+    pub(crate) graph: EdgeGraph,
+    pub(crate) aggregation: Aggregation,
+}
 
-/// `out_i = Σ_{j ∈ N(i)} ReLU(A_i + b − B_j)` per channel; `(rows, 2C)`, `(C)` → `(rows, C)`.
-pub(crate) struct EdgeSum(pub(crate) EdgeGraph);
+impl EdgeReduce {
+    fn is_sum(&self) -> bool {
+        self.aggregation == Aggregation::Sum
+    }
+}
 
-/// Gradient of [`EdgeMax`] or [`EdgeSum`] with respect to the products: `(rows, 2C)`.
+/// Gradient of [`EdgeReduce`] with respect to the products: `(rows, 2C)`.
 struct EdgeBackward {
     graph: EdgeGraph,
     sum: bool,
@@ -418,9 +428,12 @@ fn edge_bwd(
     Ok((Some(d_ab), Some(d_bias)))
 }
 
-impl CustomOp2 for EdgeMax {
+impl CustomOp2 for EdgeReduce {
     fn name(&self) -> &'static str {
-        "edgeconv-max"
+        match self.aggregation {
+            Aggregation::Max => "edgeconv-max",
+            Aggregation::Sum => "edgeconv-sum",
+        }
     }
 
     fn cpu_fwd(
@@ -430,7 +443,7 @@ impl CustomOp2 for EdgeMax {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> candle_core::Result<(CpuStorage, Shape)> {
-        edge_cpu_fwd(&self.0, false, s1, l1, s2, l2)
+        edge_cpu_fwd(&self.graph, self.is_sum(), s1, l1, s2, l2)
     }
 
     fn bwd(
@@ -440,33 +453,7 @@ impl CustomOp2 for EdgeMax {
         _res: &Tensor,
         grad: &Tensor,
     ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
-        edge_bwd(&self.0, false, ab, bias, grad)
-    }
-}
-
-impl CustomOp2 for EdgeSum {
-    fn name(&self) -> &'static str {
-        "edgeconv-sum"
-    }
-
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-    ) -> candle_core::Result<(CpuStorage, Shape)> {
-        edge_cpu_fwd(&self.0, true, s1, l1, s2, l2)
-    }
-
-    fn bwd(
-        &self,
-        ab: &Tensor,
-        bias: &Tensor,
-        _res: &Tensor,
-        grad: &Tensor,
-    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
-        edge_bwd(&self.0, true, ab, bias, grad)
+        edge_bwd(&self.graph, self.is_sum(), ab, bias, grad)
     }
 }
 

@@ -120,24 +120,35 @@ fn shape_dir(dir: &Path) -> PathBuf {
     shape
 }
 
+/// `moe-touch contact` on a two-finger hand shape.
+fn contact_on_shape(
+    shape: &Path,
+    model: &Path,
+    out_dir: &Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = vec![
+        "contact",
+        "--hand",
+        "two-finger",
+        "--shape",
+        path(shape),
+        "--model",
+        path(model),
+        "--out",
+        path(out_dir),
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
 #[test]
 fn contact_on_a_hand_shape_writes_coloured_meshes_contacts_and_a_summary() {
     let dir = scratch("contact-shape");
     let model = per_finger_model(&dir);
     let shape = shape_dir(&dir);
     let out_dir = dir.join("out");
-    let out = run(&[
-        "contact",
-        "--hand",
-        "two-finger",
-        "--shape",
-        path(&shape),
-        "--model",
-        path(&model),
-        "--out",
-        path(&out_dir),
-        "--json",
-    ]);
+    let out = contact_on_shape(&shape, &model, &out_dir, &["--json"]);
     assert!(
         out.status.success(),
         "{}",
@@ -269,17 +280,7 @@ fn contact_refuses_bad_models_and_inputs_with_one_line_and_writes_nothing() {
     .unwrap();
     moe_io::write_mesh(&shape.join("finger_1.obj"), small.mesh()).unwrap();
     let out_dir = dir.join("out");
-    let out = run(&[
-        "contact",
-        "--hand",
-        "two-finger",
-        "--shape",
-        path(&shape),
-        "--model",
-        path(&model),
-        "--out",
-        path(&out_dir),
-    ]);
+    let out = contact_on_shape(&shape, &model, &out_dir, &[]);
     let line = assert_one_line_error(&out);
     assert!(line.contains("finger 1"), "{line}");
     assert!(!out_dir.exists(), "nothing written");
