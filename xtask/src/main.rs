@@ -8,6 +8,7 @@ mod ci;
 mod eval;
 mod fixtures;
 mod gen_data;
+mod train;
 
 #[derive(Debug, Parser)]
 #[command(name = "xtask", about = "MOE-Touch project automation")]
@@ -24,6 +25,8 @@ enum Command {
     Eval(eval::EvalArgs),
     /// Generate a labelled training set with the tendon FEM simulator (sharded, resumable).
     GenData(gen_data::GenDataArgs),
+    /// Train the contact network on a generated data set (checkpoints every epoch, resumable).
+    Train(train::TrainArgs),
     /// Check the golden fixtures against freshly computed results, or rewrite them.
     Fixtures(fixtures::FixturesArgs),
 }
@@ -35,6 +38,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(&args),
         Command::GenData(args) => gen_data::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
+        Command::Train(args) => train::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,6 +3,7 @@
 //!
 //! Besides criterion's figures, each case prints the median split of one frame into the kNN
 //! searches, the EdgeConv layers and the head (from the network's own stage timings).
+//! `train_step` measures one optimiser step on a batch of four frames.
 
 use std::hint::black_box;
 
@@ -10,7 +11,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
     ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, ModelCard,
-    ModelWeights, PointSet, StageTimings,
+    ModelWeights, PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
 };
 use moe_geom::{FingerParams, HandModel, HandPreset, HandShape, Vector3};
 
@@ -79,9 +80,54 @@ fn contact(c: &mut Criterion) {
     }
 }
 
+/// One training step (forward with dropout, weighted cross-entropy, backward, AdamW) on a
+/// batch of 4 frames of the two-finger hand: 8 per-finger sets of 1024 points (xyz + rest xyz),
+/// or 4 whole-hand sets of 2048 points (xyz), as PyTorch's figure is measured.
+fn train_step(c: &mut Criterion) {
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("preset");
+    let shape = bent(&hand);
+    for (set, label) in [
+        (PointSet::PerFinger, "per-finger"),
+        (PointSet::WholeHand, "whole-hand"),
+    ] {
+        let est = estimator(&hand, set);
+        let features = est.features();
+        let mut sets = TrainingSets::new(features.point_sets()[0].1, features.channels());
+        for _ in 0..4 {
+            let labels: Vec<Vec<bool>> = shape
+                .fingers
+                .iter()
+                .map(|f| (0..f.len()).map(|v| v % 97 == 0).collect())
+                .collect();
+            for (x, y) in features
+                .input_sets(&shape)
+                .expect("features")
+                .iter()
+                .zip(features.arrange(&labels))
+            {
+                sets.push(x, &y).expect("set");
+            }
+        }
+        let config = TrainConfig {
+            batch_size: sets.len(),
+            ..TrainConfig::default()
+        };
+        let mut trainer =
+            Trainer::new(est.card().architecture.clone(), config, &sets).expect("trainer");
+        c.bench_function(&format!("train_step/two-finger/{label}/4-frames"), |b| {
+            b.iter(|| black_box(trainer.run_epoch(&sets, &mut |_, _, _| {}).expect("step")))
+        });
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30);
     targets = contact
 }
-criterion_main!(benches);
+criterion_group! {
+    name = training;
+    config = Criterion::default().sample_size(10);
+    targets = train_step
+}
+criterion_main!(benches, training);

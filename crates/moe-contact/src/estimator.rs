@@ -44,42 +44,30 @@ pub trait ContactEstimator {
     }
 }
 
-/// Where one point set's rows come from: a list of (finger, vertex count) in order.
+/// Where one point set's rows come from: its fingers in order, and its length.
 #[derive(Debug, Clone)]
 struct SetPlan {
     fingers: Vec<usize>,
     len: usize,
 }
 
-/// The DGCNN as a [`ContactEstimator`] for one hand: turns a hand shape into the network's input
-/// features (as the model card says: which features, in which frame, which point sets) and the
-/// logits back into a contact map.
+/// Turns a hand shape into the network's input as an [`InputSpec`] says: which features, in
+/// which frame, grouped into which point sets. Shared by inference and training.
 #[derive(Debug, Clone)]
-pub struct DgcnnEstimator {
-    net: Dgcnn,
-    card: ModelCard,
+pub struct FeatureBuilder {
+    spec: InputSpec,
     finger_from_hand: Vec<Iso3>,
     rest_in_hand: Vec<Vec<Point3>>,
     plans: Vec<SetPlan>,
 }
 
-impl DgcnnEstimator {
-    /// An estimator for `hand` running `net`, with the card's input spec and threshold.
+impl FeatureBuilder {
+    /// Features of `spec` for the shapes of `hand`.
     ///
     /// # Errors
-    /// [`ContactError::CardMismatch`] when the card's input features do not give the network's
-    /// input width, [`ContactError::TooFewPoints`] when a point set of the hand has fewer
-    /// points than `k`.
-    pub fn new(net: Dgcnn, card: ModelCard, hand: &HandModel) -> Result<Self, ContactError> {
-        card.validate()?;
-        let spec = &card.architecture.input;
-        if spec.channels() != net.in_channels() {
-            return Err(ContactError::CardMismatch {
-                field: "architecture.input.features",
-                card: format!("{} ({} channels)", spec.describe(), spec.channels()),
-                weights: format!("{} input channels", net.in_channels()),
-            });
-        }
+    /// An invalid spec.
+    pub fn new(spec: &InputSpec, hand: &HandModel) -> Result<Self, ContactError> {
+        spec.validate()?;
         let counts: Vec<usize> = hand
             .fingers()
             .iter()
@@ -99,15 +87,8 @@ impl DgcnnEstimator {
                 })
                 .collect(),
         };
-        let k = net.config().k;
-        if let Some((set, p)) = plans.iter().enumerate().find(|(_, p)| p.len < k) {
-            return Err(ContactError::TooFewPoints {
-                set,
-                points: p.len,
-                k,
-            });
-        }
         Ok(Self {
+            spec: spec.clone(),
             finger_from_hand: hand
                 .fingers()
                 .iter()
@@ -116,9 +97,149 @@ impl DgcnnEstimator {
             rest_in_hand: (0..hand.num_fingers())
                 .map(|f| hand.rest_vertices_in_hand(f))
                 .collect(),
+            plans,
+        })
+    }
+
+    /// The input spec.
+    pub fn spec(&self) -> &InputSpec {
+        &self.spec
+    }
+
+    /// Channels per point.
+    pub fn channels(&self) -> usize {
+        self.spec.channels()
+    }
+
+    /// The point sets of one shape, in order: the fingers of each set and its number of points.
+    pub fn point_sets(&self) -> Vec<(Vec<usize>, usize)> {
+        self.plans
+            .iter()
+            .map(|p| (p.fingers.clone(), p.len))
+            .collect()
+    }
+
+    /// The input features of one finger's vertices, row after row.
+    fn finger_features(&self, shape: &HandShape, f: usize, out: &mut Vec<f64>) {
+        let to_frame = |p: &Point3| match self.spec.frame {
+            FeatureFrame::Hand => *p,
+            FeatureFrame::Finger => self.finger_from_hand[f] * p,
+        };
+        let start = out.len();
+        for (v, p) in shape.fingers[f].iter().enumerate() {
+            for feature in &self.spec.features {
+                let q = match feature {
+                    InputFeature::Xyz => to_frame(p),
+                    InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]),
+                };
+                out.extend([q.x, q.y, q.z]);
+            }
+        }
+        self.spec.normalise(&mut out[start..]);
+    }
+
+    /// The features of one shape, one row-major `(points, channels)` block per point set (see
+    /// [`FeatureBuilder::point_sets`]).
+    ///
+    /// # Errors
+    /// A shape that does not fit the hand, naming the finger and vertex.
+    pub fn input_sets(&self, shape: &HandShape) -> Result<Vec<Vec<f64>>, ContactError> {
+        self.check_shape(shape)?;
+        Ok(self
+            .plans
+            .iter()
+            .map(|plan| {
+                let mut v = Vec::with_capacity(plan.len * self.channels());
+                for &f in &plan.fingers {
+                    self.finger_features(shape, f, &mut v);
+                }
+                v
+            })
+            .collect())
+    }
+
+    /// Per-vertex values of every finger (labels, for instance) arranged like
+    /// [`FeatureBuilder::input_sets`]: one vector per point set.
+    pub fn arrange<T: Copy>(&self, per_finger: &[Vec<T>]) -> Vec<Vec<T>> {
+        self.plans
+            .iter()
+            .map(|plan| {
+                plan.fingers
+                    .iter()
+                    .flat_map(|&f| per_finger[f].iter().copied())
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Checks that `shape` fits the hand and is finite.
+    ///
+    /// # Errors
+    /// [`moe_geom::GeomError`] naming the finger and vertex.
+    pub fn check_shape(&self, shape: &HandShape) -> Result<(), ContactError> {
+        let num_fingers = self.finger_from_hand.len();
+        if shape.fingers.len() != num_fingers {
+            return Err(moe_geom::GeomError::LengthMismatch {
+                what: "fingers of the hand shape",
+                expected: num_fingers,
+                got: shape.fingers.len(),
+            }
+            .into());
+        }
+        for (f, rest) in self.rest_in_hand.iter().enumerate() {
+            if shape.fingers[f].len() != rest.len() {
+                return Err(moe_geom::GeomError::FingerLengthMismatch {
+                    what: "vertices",
+                    finger: f,
+                    expected: rest.len(),
+                    got: shape.fingers[f].len(),
+                }
+                .into());
+            }
+        }
+        Ok(shape.check_finite()?)
+    }
+}
+
+/// The DGCNN as a [`ContactEstimator`] for one hand: turns a hand shape into the network's input
+/// features (as the model card says) and the logits back into a contact map.
+#[derive(Debug, Clone)]
+pub struct DgcnnEstimator {
+    net: Dgcnn,
+    card: ModelCard,
+    features: FeatureBuilder,
+}
+
+impl DgcnnEstimator {
+    /// An estimator for `hand` running `net`, with the card's input spec and threshold.
+    ///
+    /// # Errors
+    /// [`ContactError::CardMismatch`] when the card's input features do not give the network's
+    /// input width, [`ContactError::TooFewPoints`] when a point set of the hand has fewer
+    /// points than `k`.
+    pub fn new(net: Dgcnn, card: ModelCard, hand: &HandModel) -> Result<Self, ContactError> {
+        card.validate()?;
+        let spec = &card.architecture.input;
+        if spec.channels() != net.in_channels() {
+            return Err(ContactError::CardMismatch {
+                field: "architecture.input.features",
+                card: format!("{} ({} channels)", spec.describe(), spec.channels()),
+                weights: format!("{} input channels", net.in_channels()),
+            });
+        }
+        let features = FeatureBuilder::new(spec, hand)?;
+        let k = net.config().k;
+        if let Some((set, p)) = features.plans.iter().enumerate().find(|(_, p)| p.len < k) {
+            return Err(ContactError::TooFewPoints {
+                set,
+                points: p.len,
+                k,
+            });
+        }
+        Ok(Self {
             net,
             card,
-            plans,
+            features,
         })
     }
 
@@ -137,24 +258,9 @@ impl DgcnnEstimator {
         self.card.threshold
     }
 
-    /// The input features of one finger's vertices, row after row.
-    fn finger_features(&self, shape: &HandShape, f: usize, out: &mut Vec<f64>) {
-        let spec: &InputSpec = &self.card.architecture.input;
-        let to_frame = |p: &Point3| match spec.frame {
-            FeatureFrame::Hand => *p,
-            FeatureFrame::Finger => self.finger_from_hand[f] * p,
-        };
-        let start = out.len();
-        for (v, p) in shape.fingers[f].iter().enumerate() {
-            for feature in &spec.features {
-                let q = match feature {
-                    InputFeature::Xyz => to_frame(p),
-                    InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]),
-                };
-                out.extend([q.x, q.y, q.z]);
-            }
-        }
-        spec.normalise(&mut out[start..]);
+    /// How shapes become the network's input.
+    pub fn features(&self) -> &FeatureBuilder {
+        &self.features
     }
 
     /// Contact maps of several shapes, and the network's stage timings summed over its passes.
@@ -169,28 +275,8 @@ impl DgcnnEstimator {
         if shapes.is_empty() {
             return Ok((Vec::new(), StageTimings::default()));
         }
-        let num_fingers = self.finger_from_hand.len();
         for shape in shapes {
-            if shape.fingers.len() != num_fingers {
-                return Err(moe_geom::GeomError::LengthMismatch {
-                    what: "fingers of the hand shape",
-                    expected: num_fingers,
-                    got: shape.fingers.len(),
-                }
-                .into());
-            }
-            for (f, rest) in self.rest_in_hand.iter().enumerate() {
-                if shape.fingers[f].len() != rest.len() {
-                    return Err(moe_geom::GeomError::FingerLengthMismatch {
-                        what: "vertices",
-                        finger: f,
-                        expected: rest.len(),
-                        got: shape.fingers[f].len(),
-                    }
-                    .into());
-                }
-            }
-            shape.check_finite()?;
+            self.features.check_shape(shape)?;
         }
         let mut maps: Vec<ContactMap> = shapes
             .iter()
@@ -201,16 +287,17 @@ impl DgcnnEstimator {
         let mut timings = StageTimings::default();
         let channels = self.net.in_channels();
         // Point sets of equal length go through the network together.
-        let mut lengths: Vec<usize> = self.plans.iter().map(|p| p.len).collect();
+        let plans_all = &self.features.plans;
+        let mut lengths: Vec<usize> = plans_all.iter().map(|p| p.len).collect();
         lengths.sort_unstable();
         lengths.dedup();
         for len in lengths {
-            let plans: Vec<&SetPlan> = self.plans.iter().filter(|p| p.len == len).collect();
+            let plans: Vec<&SetPlan> = plans_all.iter().filter(|p| p.len == len).collect();
             let mut values = Vec::with_capacity(shapes.len() * plans.len() * len * channels);
             for shape in shapes {
                 for plan in &plans {
                     for &f in &plan.fingers {
-                        self.finger_features(shape, f, &mut values);
+                        self.features.finger_features(shape, f, &mut values);
                     }
                 }
             }

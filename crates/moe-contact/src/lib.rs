@@ -23,6 +23,8 @@ pub mod estimator;
 pub mod network;
 /// Custom CPU kernels (kNN selection, EdgeConv reductions).
 mod ops;
+/// Training on labelled point sets in memory.
+pub mod train;
 /// Model files.
 pub mod weights;
 
@@ -36,8 +38,12 @@ pub use config::{
 };
 pub use device::{DeviceKind, open_device};
 pub use error::ContactError;
-pub use estimator::{ContactEstimator, ContactInput, DgcnnEstimator};
+pub use estimator::{ContactEstimator, ContactInput, DgcnnEstimator, FeatureBuilder};
 pub use network::{
     Dgcnn, ForwardOutput, Mode, StageTimings, contact_probability, tensor_names, tensor_shapes,
+};
+pub use train::{
+    Checkpoint, Confusion, Evaluation, OptimizerConfig, THRESHOLDS, TrainConfig, Trainer,
+    TrainingSets, evaluate, weighted_cross_entropy,
 };
 pub use weights::ModelWeights;

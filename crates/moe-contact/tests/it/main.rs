@@ -6,3 +6,4 @@ mod fast_form;
 mod gradients;
 mod model_files;
 mod reference;
+mod training;

@@ -1,0 +1,388 @@
+//! `cargo xtask train`: trains the contact network on a generated data set — a thin command over
+//! `moe_contact::train`, with data loading, checkpoints, progress and the model card.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use moe_contact::{
+    Aggregation, CardHand, Checkpoint, DgcnnConfig, FeatureBuilder, FeatureFrame, InputFeature,
+    InputSpec, ModelCard, ModelWeights, Normalisation, OptimizerConfig, PointSet, TrainConfig,
+    Trainer, TrainingSets,
+};
+use moe_geom::{HandModel, LabelledFrame};
+use moe_io::{DatasetReader, Split, SplitFractions};
+use moe_tendon_sim::randomize::RandomSceneParams;
+use serde::Serialize;
+
+/// Arguments of `cargo xtask train`.
+#[derive(Debug, Args)]
+pub(crate) struct TrainArgs {
+    /// Data set directory (as `cargo xtask gen-data` writes it). Trajectories are split into
+    /// training, validation and test sets by the data set's seed.
+    #[arg(long)]
+    data: PathBuf,
+    /// Output model path without extension: writes NAME.safetensors and the card NAME.json, and
+    /// keeps NAME.checkpoint.safetensors while training.
+    #[arg(long, value_name = "models/NAME")]
+    out: PathBuf,
+    /// Epochs in the whole run (a resumed run continues up to this many).
+    #[arg(long, default_value_t = 10)]
+    epochs: usize,
+    /// Seed of the weights, the order and the dropout.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Continue from NAME.checkpoint.safetensors.
+    #[arg(long)]
+    resume: bool,
+    /// Point sets per step.
+    #[arg(long, default_value_t = 32)]
+    batch_size: usize,
+    /// Optimiser: adamw, or sgd (the paper's: momentum 0.3).
+    #[arg(long, value_enum, default_value = "adamw")]
+    optimizer: OptimizerArg,
+    /// Learning rate at epoch 0 (halved every 20 epochs).
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    /// Contact class weight of the loss (default: non-contact / contact points in training).
+    #[arg(long)]
+    contact_weight: Option<f64>,
+    /// Point sets: per-finger (finger frame) or whole-hand (hand frame).
+    #[arg(long, value_enum, default_value = "per-finger")]
+    point_set: PointSetArg,
+    /// Feed xyz only (no rest-pose xyz).
+    #[arg(long)]
+    xyz_only: bool,
+    /// Edge aggregation.
+    #[arg(long, value_enum, default_value = "max")]
+    aggregation: AggregationArg,
+    /// Use at most this many training frames (the first ones, in data set order).
+    #[arg(long)]
+    max_frames: Option<usize>,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum OptimizerArg {
+    Adamw,
+    Sgd,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum PointSetArg {
+    PerFinger,
+    WholeHand,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum AggregationArg {
+    Max,
+    Sum,
+}
+
+/// One epoch of the card's metrics.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+struct EpochRecord {
+    epoch: usize,
+    learning_rate: f64,
+    train_loss: f64,
+    validation_loss: f64,
+    validation_threshold: f64,
+    validation_f1: f64,
+    validation_precision: f64,
+    validation_recall: f64,
+    validation_iou: f64,
+    validation_f1_at_half: f64,
+    seconds: f64,
+}
+
+/// The hand a data set was simulated with, from its card.
+fn dataset_hand(reader: &DatasetReader) -> Result<HandModel> {
+    let params: RandomSceneParams = serde_json::from_value(
+        reader
+            .card()
+            .generator
+            .get("params")
+            .cloned()
+            .context("the data set card records no simulator parameters")?,
+    )
+    .context("the data set card's simulator parameters")?;
+    let hand = HandModel::preset(params.preset, &params.finger)?;
+    let counts: Vec<usize> = hand
+        .fingers()
+        .iter()
+        .map(|f| f.model.mesh().num_vertices())
+        .collect();
+    if counts != reader.card().layout.finger_num_vertices {
+        bail!(
+            "the data set's layout ({:?} vertices per finger) is not its recorded hand's ({counts:?})",
+            reader.card().layout.finger_num_vertices
+        );
+    }
+    Ok(hand)
+}
+
+fn frames(reader: &DatasetReader, split: Split, max: Option<usize>) -> Result<Vec<LabelledFrame>> {
+    let mut out = Vec::new();
+    for frame in reader.labelled_frames(Some(split), SplitFractions::default()) {
+        out.push(frame?);
+        if max.is_some_and(|m| out.len() >= m) {
+            break;
+        }
+    }
+    Ok(out)
+}
+
+/// Per-channel mean and standard deviation of the training features.
+fn normalisation_of(c: usize, raw: &[Vec<f64>]) -> Normalisation {
+    let mut sum = vec![0.0; c];
+    let mut sq = vec![0.0; c];
+    let mut count = 0.0;
+    for set in raw {
+        for row in set.chunks_exact(c) {
+            for (ch, &x) in row.iter().enumerate() {
+                sum[ch] += x;
+                sq[ch] += x * x;
+            }
+            count += 1.0;
+        }
+    }
+    let mean: Vec<f64> = sum.iter().map(|s| s / count).collect();
+    let std = sq
+        .iter()
+        .zip(&mean)
+        .map(|(q, m)| (q / count - m * m).max(0.0).sqrt().max(1e-6))
+        .collect();
+    Normalisation { mean, std }
+}
+
+fn checkpoint_path(out: &Path) -> PathBuf {
+    out.with_extension("checkpoint.safetensors")
+}
+
+pub(crate) fn run(args: &TrainArgs) -> Result<()> {
+    let started = Instant::now();
+    let reader = DatasetReader::open(&args.data)?;
+    let hand = dataset_hand(&reader)?;
+    let train_frames = frames(&reader, Split::Train, args.max_frames)?;
+    let validation_frames = frames(
+        &reader,
+        Split::Validation,
+        args.max_frames.map(|m| m / 4 + 1),
+    )?;
+    if train_frames.is_empty() {
+        bail!("{}: no training frames", args.data.display());
+    }
+    if validation_frames.is_empty() {
+        bail!(
+            "{}: no validation frames (too few trajectories)",
+            args.data.display()
+        );
+    }
+    let mut spec = InputSpec {
+        features: if args.xyz_only {
+            vec![InputFeature::Xyz]
+        } else {
+            vec![InputFeature::Xyz, InputFeature::RestXyz]
+        },
+        frame: match args.point_set {
+            PointSetArg::PerFinger => FeatureFrame::Finger,
+            PointSetArg::WholeHand => FeatureFrame::Hand,
+        },
+        point_set: match args.point_set {
+            PointSetArg::PerFinger => PointSet::PerFinger,
+            PointSetArg::WholeHand => PointSet::WholeHand,
+        },
+        normalisation: None,
+    };
+    // Normalise every channel by the training frames' statistics.
+    let raw: Vec<Vec<f64>> = {
+        let builder = FeatureBuilder::new(&spec, &hand)?;
+        let mut raw = Vec::new();
+        for f in &train_frames {
+            raw.extend(builder.input_sets(&f.shape)?);
+        }
+        raw
+    };
+    spec.normalisation = Some(normalisation_of(spec.channels(), &raw));
+    drop(raw);
+    let builder = FeatureBuilder::new(&spec, &hand)?;
+    let train = TrainingSets::from_frames(&builder, &train_frames)?;
+    let validation = TrainingSets::from_frames(&builder, &validation_frames)?;
+    let arch = DgcnnConfig {
+        aggregation: match args.aggregation {
+            AggregationArg::Max => Aggregation::Max,
+            AggregationArg::Sum => Aggregation::Sum,
+        },
+        input: spec,
+        ..DgcnnConfig::default()
+    };
+    let config = TrainConfig {
+        epochs: args.epochs,
+        batch_size: args.batch_size,
+        optimizer: match args.optimizer {
+            OptimizerArg::Adamw => match TrainConfig::default().optimizer {
+                OptimizerConfig::AdamW {
+                    weight_decay,
+                    beta1,
+                    beta2,
+                    eps,
+                    ..
+                } => OptimizerConfig::AdamW {
+                    learning_rate: args.lr,
+                    weight_decay,
+                    beta1,
+                    beta2,
+                    eps,
+                },
+                other => other,
+            },
+            OptimizerArg::Sgd => OptimizerConfig::Sgd {
+                learning_rate: args.lr,
+                momentum: 0.3,
+                weight_decay: 1e-4,
+            },
+        },
+        contact_weight: args.contact_weight,
+        seed: args.seed,
+        ..TrainConfig::default()
+    };
+    let ckpt_path = checkpoint_path(&args.out);
+    let history_path = args.out.with_extension("history.json");
+    let (mut trainer, mut history): (Trainer, Vec<EpochRecord>) =
+        if args.resume && ckpt_path.exists() {
+            let bytes = std::fs::read(&ckpt_path)
+                .with_context(|| format!("reading {}", ckpt_path.display()))?;
+            let checkpoint = Checkpoint {
+                epochs_done: 0,
+                bytes,
+            };
+            let trainer = Trainer::resume(arch.clone(), config.clone(), &train, &checkpoint)
+                .with_context(|| format!("resuming from {}", ckpt_path.display()))?;
+            let history: Vec<EpochRecord> = if history_path.exists() {
+                moe_io::read_json(&history_path)?
+            } else {
+                Vec::new()
+            };
+            eprintln!("train: resumed after epoch {}", trainer.epochs_done());
+            (trainer, history)
+        } else {
+            (
+                Trainer::new(arch.clone(), config.clone(), &train)?,
+                Vec::new(),
+            )
+        };
+    history.truncate(trainer.epochs_done());
+    eprintln!(
+        "train: {} training sets ({} frames), {} validation sets, {} points × {} channels, \
+         contact weight {:.1}",
+        train.len(),
+        train_frames.len(),
+        validation.len(),
+        train.points(),
+        train.channels(),
+        trainer.contact_weight()
+    );
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} epoch {prefix} [{elapsed_precise}] {bar:30} {pos}/{len} steps  {msg}  ETA {eta}",
+        )
+        .context("progress template")?,
+    );
+    bar.enable_steady_tick(Duration::from_millis(500));
+    let mut train_seconds = 0.0;
+    let mut sets_trained = 0usize;
+    while trainer.epochs_done() < args.epochs {
+        let epoch = trainer.epochs_done();
+        bar.set_prefix(format!("{}/{}", epoch + 1, args.epochs));
+        bar.set_position(0);
+        let t0 = Instant::now();
+        let batch = args.batch_size;
+        let train_loss = trainer.run_epoch(&train, &mut |step, steps, loss| {
+            bar.set_length(steps as u64);
+            bar.set_position(step as u64);
+            let rate = (step * batch) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+            bar.set_message(format!("loss {loss:.4}  {rate:.1} sets/s"));
+        })?;
+        let epoch_seconds = t0.elapsed().as_secs_f64();
+        train_seconds += epoch_seconds;
+        sets_trained += train.len();
+        let eval = trainer.evaluate(&validation)?;
+        let (threshold, best) = eval.best();
+        let half = eval.at(0.5).unwrap_or_default();
+        let record = EpochRecord {
+            epoch: epoch + 1,
+            learning_rate: config.learning_rate_at(epoch),
+            train_loss,
+            validation_loss: eval.loss,
+            validation_threshold: threshold,
+            validation_f1: best.f1(),
+            validation_precision: best.precision(),
+            validation_recall: best.recall(),
+            validation_iou: best.iou(),
+            validation_f1_at_half: half.f1(),
+            seconds: t0.elapsed().as_secs_f64(),
+        };
+        bar.println(format!(
+            "epoch {}: train loss {:.4}, validation loss {:.4}, F1 {:.3} at {:.2} (P {:.3}, R \
+             {:.3}), F1 {:.3} at 0.5, {:.0} s",
+            record.epoch,
+            record.train_loss,
+            record.validation_loss,
+            record.validation_f1,
+            record.validation_threshold,
+            record.validation_precision,
+            record.validation_recall,
+            record.validation_f1_at_half,
+            record.seconds
+        ));
+        history.push(record);
+        // A checkpoint after every epoch, so an interrupted run resumes here.
+        let checkpoint = trainer.checkpoint()?;
+        moe_io::write_atomic(&ckpt_path, &checkpoint.bytes)?;
+        moe_io::write_json(&history_path, &history)?;
+    }
+    bar.finish_and_clear();
+    let last = history.last().context("no epoch was trained")?;
+    let mut card = ModelCard::new(arch);
+    card.threshold = last.validation_threshold;
+    card.hand = Some(CardHand {
+        name: reader.card().generator["params"]["preset"]
+            .as_str()
+            .unwrap_or("unknown")
+            .to_string(),
+        finger_num_vertices: reader.card().layout.finger_num_vertices.clone(),
+    });
+    card.training = Some(serde_json::json!({
+        "config": config,
+        "contact_weight": trainer.contact_weight(),
+        "train_sets": train.len(),
+        "validation_sets": validation.len(),
+        "sets_per_second": sets_trained as f64 / train_seconds.max(1e-9),
+        "wall_time_s": started.elapsed().as_secs_f64(),
+        "command": std::env::args().collect::<Vec<_>>().join(" "),
+    }));
+    card.dataset = Some(serde_json::json!({
+        "dir": args.data.display().to_string(),
+        "seed": reader.card().seed,
+        "frames": reader.card().totals.frames,
+        "trajectories": reader.card().totals.trajectories,
+        "train_frames": train_frames.len(),
+        "validation_frames": validation_frames.len(),
+        "generator": reader.card().generator,
+    }));
+    card.metrics = Some(serde_json::json!({ "epochs": history }));
+    let weights = ModelWeights::of(trainer.network())?.to_bytes()?;
+    let weights_path = args.out.with_extension("safetensors");
+    moe_io::write_model_files(&weights_path, &weights, Some(&card.to_json()?))?;
+    eprintln!(
+        "train: wrote {} and its card ({} epochs, validation F1 {:.3} at threshold {:.2})",
+        weights_path.display(),
+        history.len(),
+        last.validation_f1,
+        last.validation_threshold
+    );
+    Ok(())
+}
