@@ -325,7 +325,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             validation_f1_at_half: half.f1(),
             seconds: t0.elapsed().as_secs_f64(),
         };
-        bar.println(format!(
+        let line = format!(
             "epoch {}: train loss {:.4}, validation loss {:.4}, F1 {:.3} at {:.2} (P {:.3}, R \
              {:.3}), F1 {:.3} at 0.5, {:.0} s",
             record.epoch,
@@ -337,7 +337,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             record.validation_recall,
             record.validation_f1_at_half,
             record.seconds
-        ));
+        );
+        // Also when stderr is not a terminal (the bar is hidden then, and its println with it).
+        bar.suspend(|| eprintln!("train: {line}"));
         history.push(record);
         // A checkpoint after every epoch, so an interrupted run resumes here.
         let checkpoint = trainer.checkpoint()?;
