@@ -348,3 +348,11 @@ impl FingerState {
         Ok(())
     }
 }
+
+impl moe_geom::ShapeEstimator for MultiShapeEstimator {
+    type Error = ArapError;
+
+    fn estimate_shape(&mut self, keypoints: &HandKeypoints) -> Result<HandShape, ArapError> {
+        Ok(self.estimate(keypoints)?.shape)
+    }
+}

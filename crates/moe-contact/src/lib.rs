@@ -19,6 +19,8 @@ pub mod device;
 pub mod error;
 /// The estimator trait and the DGCNN estimator.
 pub mod estimator;
+/// The KNN baselines.
+pub mod knn;
 /// The network.
 pub mod network;
 /// Custom CPU kernels (kNN selection, EdgeConv reductions).
@@ -39,6 +41,7 @@ pub use config::{
 pub use device::{DeviceKind, open_device};
 pub use error::ContactError;
 pub use estimator::{ContactEstimator, ContactInput, DgcnnEstimator, FeatureBuilder};
+pub use knn::{KnnIndex, KnnMatch};
 pub use network::{
     Dgcnn, ForwardOutput, Mode, StageTimings, contact_probability, tensor_names, tensor_shapes,
 };

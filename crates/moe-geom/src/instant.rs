@@ -83,6 +83,20 @@ impl HandShape {
     }
 }
 
+/// Something that estimates a hand's deformed shape from one frame of keypoints (SR-ARAP, or
+/// the shape of the nearest training frame).
+pub trait ShapeEstimator {
+    /// What can go wrong.
+    type Error: std::error::Error + Send + Sync + 'static;
+
+    /// The shape of one frame. Estimators that track (warm starts, marker identities) keep their
+    /// state between calls, hence `&mut self`.
+    ///
+    /// # Errors
+    /// Keypoints that do not fit the estimator's hand, or a failed estimate.
+    fn estimate_shape(&mut self, keypoints: &HandKeypoints) -> Result<HandShape, Self::Error>;
+}
+
 /// A vertex estimated to be in contact.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ContactPoint {

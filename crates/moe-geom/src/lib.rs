@@ -39,7 +39,7 @@ pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;
 pub use finger::{FingerModel, FingerParams, TendonRoute};
 pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
-pub use instant::{ContactMap, ContactPoint, HandShape, LabelledFrame};
+pub use instant::{ContactMap, ContactPoint, HandShape, LabelledFrame, ShapeEstimator};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
 pub use rng::SeededRng;

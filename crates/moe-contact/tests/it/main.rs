@@ -4,6 +4,7 @@ mod common;
 mod estimator;
 mod fast_form;
 mod gradients;
+mod knn;
 mod model_files;
 mod reference;
 mod training;
