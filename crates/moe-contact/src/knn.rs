@@ -3,7 +3,7 @@
 //!
 //! The distance is the Euclidean distance between the stacked marker positions of the whole hand
 //! in the hand frame, over the markers observed in the query (an occluded marker is left out).
-//! KNN[All] searches every training frame; KNN[Sub] a seeded random subset.
+//! KNN\[All\] searches every training frame; KNN\[Sub\] a seeded random subset.
 
 use std::collections::HashMap;
 
@@ -96,7 +96,7 @@ impl KnnIndex {
         })
     }
 
-    /// A seeded random subset of about `fraction` of the frames (KNN[Sub]; at least one frame).
+    /// A seeded random subset of about `fraction` of the frames (KNN\[Sub\]; at least one frame).
     ///
     /// # Errors
     /// A fraction outside (0, 1].
