@@ -1023,6 +1023,21 @@ mod tests {
             }
         }
         assert_eq!(union, 36);
+        // The same frames as the in-memory vocabulary, split for split.
+        for split in [None, Some(Split::Validation)] {
+            let labelled: Vec<LabelledFrame> = reader
+                .labelled_frames(split, SplitFractions::default())
+                .map(Result::unwrap)
+                .collect();
+            let plain: Vec<DatasetFrame> = reader
+                .frames(split, SplitFractions::default())
+                .map(Result::unwrap)
+                .collect();
+            assert_eq!(labelled.len(), plain.len());
+            for (l, p) in labelled.iter().zip(&plain) {
+                assert_eq!(l, &p.to_labelled(&layout()).unwrap());
+            }
+        }
         // A damaged shard stops the iteration with an error naming it.
         std::fs::write(dir.join(shard_file_name(1, 3)), b"garbage").unwrap();
         let results: Vec<_> = reader.frames(None, SplitFractions::default()).collect();
