@@ -55,9 +55,9 @@ pub(crate) struct TrainArgs {
     /// Feed xyz only (no rest-pose xyz).
     #[arg(long)]
     xyz_only: bool,
-    /// Edge aggregation.
-    #[arg(long, value_enum, default_value = "max")]
-    aggregation: AggregationArg,
+    /// Edge aggregation: max or sum.
+    #[arg(long, default_value = "max")]
+    aggregation: Aggregation,
     /// Use at most this many training frames (the first ones, in data set order).
     #[arg(long)]
     max_frames: Option<usize>,
@@ -73,12 +73,6 @@ enum OptimizerArg {
 enum PointSetArg {
     PerFinger,
     WholeHand,
-}
-
-#[derive(Debug, Clone, Copy, ValueEnum)]
-enum AggregationArg {
-    Max,
-    Sum,
 }
 
 /// One epoch of the card's metrics.
@@ -134,18 +128,22 @@ fn frames(reader: &DatasetReader, split: Split, max: Option<usize>) -> Result<Ve
     Ok(out)
 }
 
-/// Per-channel mean and standard deviation of the training features.
-fn normalisation_of(c: usize, raw: &[Vec<f64>]) -> Normalisation {
+/// Per-channel mean and standard deviation of the features of `frames`, accumulated frame by
+/// frame (the raw features of a whole data set are not kept).
+fn normalisation_of(builder: &FeatureBuilder, frames: &[LabelledFrame]) -> Result<Normalisation> {
+    let c = builder.channels();
     let mut sum = vec![0.0; c];
     let mut sq = vec![0.0; c];
     let mut count = 0.0;
-    for set in raw {
-        for row in set.chunks_exact(c) {
-            for (ch, &x) in row.iter().enumerate() {
-                sum[ch] += x;
-                sq[ch] += x * x;
+    for f in frames {
+        for set in builder.input_sets(&f.shape)? {
+            for row in set.chunks_exact(c) {
+                for (ch, &x) in row.iter().enumerate() {
+                    sum[ch] += x;
+                    sq[ch] += x * x;
+                }
+                count += 1.0;
             }
-            count += 1.0;
         }
     }
     let mean: Vec<f64> = sum.iter().map(|s| s / count).collect();
@@ -154,7 +152,7 @@ fn normalisation_of(c: usize, raw: &[Vec<f64>]) -> Normalisation {
         .zip(&mean)
         .map(|(q, m)| (q / count - m * m).max(0.0).sqrt().max(1e-6))
         .collect();
-    Normalisation { mean, std }
+    Ok(Normalisation { mean, std })
 }
 
 fn checkpoint_path(out: &Path) -> PathBuf {
@@ -197,24 +195,15 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         normalisation: None,
     };
     // Normalise every channel by the training frames' statistics.
-    let raw: Vec<Vec<f64>> = {
-        let builder = FeatureBuilder::new(&spec, &hand)?;
-        let mut raw = Vec::new();
-        for f in &train_frames {
-            raw.extend(builder.input_sets(&f.shape)?);
-        }
-        raw
-    };
-    spec.normalisation = Some(normalisation_of(spec.channels(), &raw));
-    drop(raw);
+    spec.normalisation = Some(normalisation_of(
+        &FeatureBuilder::new(&spec, &hand)?,
+        &train_frames,
+    )?);
     let builder = FeatureBuilder::new(&spec, &hand)?;
     let train = TrainingSets::from_frames(&builder, &train_frames)?;
     let validation = TrainingSets::from_frames(&builder, &validation_frames)?;
     let arch = DgcnnConfig {
-        aggregation: match args.aggregation {
-            AggregationArg::Max => Aggregation::Max,
-            AggregationArg::Sum => Aggregation::Sum,
-        },
+        aggregation: args.aggregation,
         input: spec,
         ..DgcnnConfig::default()
     };
@@ -254,10 +243,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         if args.resume && ckpt_path.exists() {
             let bytes = std::fs::read(&ckpt_path)
                 .with_context(|| format!("reading {}", ckpt_path.display()))?;
-            let checkpoint = Checkpoint {
-                epochs_done: 0,
-                bytes,
-            };
+            let checkpoint = Checkpoint { bytes };
             let trainer = Trainer::resume(arch.clone(), config.clone(), &train, &checkpoint)
                 .with_context(|| format!("resuming from {}", ckpt_path.display()))?;
             let history: Vec<EpochRecord> = if history_path.exists() {

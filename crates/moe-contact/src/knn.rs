@@ -8,10 +8,11 @@
 use std::collections::HashMap;
 
 use moe_geom::{ContactMap, HandKeypoints, HandShape, LabelledFrame, Point3, SeededRng};
-use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use safetensors::tensor::Dtype;
 
 use crate::error::ContactError;
 use crate::estimator::ContactEstimator;
+use crate::tensor_file::{self, Entry};
 
 /// The training frames' keypoints, contact vertices and (optionally) shapes.
 #[derive(Debug, Clone, PartialEq)]
@@ -266,47 +267,14 @@ impl KnnIndex {
         }
         let km = self.total_markers() * 3;
         let kv = self.total_vertices() * 3;
-        let mut raw: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
-            (
-                "keypoints",
-                Dtype::F64,
-                vec![self.len(), km],
-                self.keypoints
-                    .iter()
-                    .flat_map(|v| v.to_le_bytes())
-                    .collect(),
-            ),
-            (
-                "contact_ids",
-                Dtype::U32,
-                vec![ids.len()],
-                ids.iter().flat_map(|v| v.to_le_bytes()).collect(),
-            ),
-            (
-                "contact_offsets",
-                Dtype::U32,
-                vec![offsets.len()],
-                offsets.iter().flat_map(|v| v.to_le_bytes()).collect(),
-            ),
+        let mut entries = vec![
+            Entry::f64("keypoints", vec![self.len(), km], &self.keypoints),
+            Entry::u32("contact_ids", vec![ids.len()], &ids),
+            Entry::u32("contact_offsets", vec![offsets.len()], &offsets),
         ];
         if let Some(s) = &self.shapes {
-            raw.push((
-                "shapes",
-                Dtype::F32,
-                vec![self.len(), kv],
-                s.iter().flat_map(|v| v.to_le_bytes()).collect(),
-            ));
+            entries.push(Entry::f32("shapes", vec![self.len(), kv], s));
         }
-        let views = raw
-            .iter()
-            .map(|(n, d, s, b)| {
-                TensorView::new(*d, s.clone(), b)
-                    .map(|v| (n.to_string(), v))
-                    .map_err(|e| ContactError::MalformedWeights {
-                        message: e.to_string(),
-                    })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
         let mut meta = HashMap::new();
         meta.insert(
             "markers_per_finger".to_string(),
@@ -316,9 +284,7 @@ impl KnnIndex {
             "vertices_per_finger".to_string(),
             serde_json::to_string(&self.vertices_per_finger).unwrap_or_default(),
         );
-        safetensors::serialize(views, Some(meta)).map_err(|e| ContactError::MalformedWeights {
-            message: e.to_string(),
-        })
+        tensor_file::serialize(&entries, Some(meta))
     }
 
     /// Reads an index written by [`KnnIndex::to_bytes`].
@@ -327,11 +293,7 @@ impl KnnIndex {
     /// [`ContactError::MalformedWeights`] naming what is wrong.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, ContactError> {
         let bad = |message: String| ContactError::MalformedWeights { message };
-        let st = std::panic::catch_unwind(|| SafeTensors::deserialize(bytes))
-            .map_err(|_| bad("the safetensors parser failed on these bytes".into()))?
-            .map_err(|e| bad(format!("KNN index: {e}")))?;
-        let (_, meta) = SafeTensors::read_metadata(bytes).map_err(|e| bad(e.to_string()))?;
-        let meta = meta.metadata().clone().unwrap_or_default();
+        let (st, meta) = tensor_file::parse(bytes, "KNN index")?;
         let layout = |key: &str| -> Result<Vec<usize>, ContactError> {
             let text = meta
                 .get(key)
@@ -356,20 +318,12 @@ impl KnnIndex {
             return Err(bad(format!("KNN index: keypoints of shape {kshape:?}")));
         }
         let frames = kshape[0];
-        let keypoints: Vec<f64> = kbytes
-            .chunks_exact(8)
-            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or_default()))
-            .collect();
+        let keypoints = tensor_file::f64s(&kbytes);
         if keypoints.iter().any(|v| !v.is_finite()) {
             return Err(bad("KNN index: non-finite keypoint".into()));
         }
-        let u32s = |b: Vec<u8>| -> Vec<u32> {
-            b.chunks_exact(4)
-                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                .collect()
-        };
-        let ids = u32s(tensor("contact_ids", Dtype::U32)?.1);
-        let offsets = u32s(tensor("contact_offsets", Dtype::U32)?.1);
+        let ids = tensor_file::u32s(&tensor("contact_ids", Dtype::U32)?.1);
+        let offsets = tensor_file::u32s(&tensor("contact_offsets", Dtype::U32)?.1);
         let fingers = vertices_per_finger.len();
         if offsets.len() != frames * fingers + 1
             || offsets.first() != Some(&0)
@@ -402,11 +356,7 @@ impl KnnIndex {
                 if shape != [frames, kv] {
                     return Err(bad(format!("KNN index: shapes of shape {shape:?}")));
                 }
-                Some(
-                    b.chunks_exact(4)
-                        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                        .collect(),
-                )
+                Some(tensor_file::f32s(&b))
             }
             Err(_) => None,
         };

@@ -4,7 +4,10 @@
 //! keypoints) and returns a [`moe_geom::ContactMap`]: per vertex, the probability that it
 //! touches the world. The DGCNN of the paper (§4.3.2, App. D) is [`Dgcnn`], a candle module
 //! with fused CPU kernels (a partial-selection kNN and EdgeConv reductions that never form the
-//! per-edge tensor), and [`DgcnnEstimator`] puts it behind the trait for one hand.
+//! per-edge tensor), and [`DgcnnEstimator`] puts it behind the trait for one hand; [`KnnIndex`]
+//! is the paper's nearest-keypoints baseline behind the same trait. [`Trainer`] trains the
+//! network on labelled point sets in memory ([`TrainingSets`]), with checkpoints that resume to
+//! the same weights.
 //!
 //! Architecture invariant: this is the only crate that depends on candle. It takes and returns
 //! in-memory values (shapes in the hand frame, model-file bytes, per-vertex probabilities) and
@@ -25,6 +28,8 @@ pub mod knn;
 pub mod network;
 /// Custom CPU kernels (kNN selection, EdgeConv reductions).
 mod ops;
+/// Safetensors reading and writing shared by the crate's files.
+mod tensor_file;
 /// Training on labelled point sets in memory.
 pub mod train;
 /// Model files.

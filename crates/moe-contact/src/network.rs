@@ -13,17 +13,10 @@ use crate::ops::{EdgeGraph, EdgeReduce, KnnSelect, MaxOverPoints};
 
 /// Names of the tensors of a model file, in the order of the network.
 pub fn tensor_names() -> Vec<String> {
-    let mut names = Vec::with_capacity(15);
-    for l in 1..=3 {
-        names.push(format!("edge{l}.theta"));
-        names.push(format!("edge{l}.phi.weight"));
-        names.push(format!("edge{l}.phi.bias"));
-    }
-    for h in 0..3 {
-        names.push(format!("head.{h}.weight"));
-        names.push(format!("head.{h}.bias"));
-    }
-    names
+    tensor_shapes(&DgcnnConfig::default(), 3)
+        .into_iter()
+        .map(|(name, _)| name)
+        .collect()
 }
 
 /// The shape of every tensor of a network with `config` and `in_channels` input channels, in
@@ -219,17 +212,12 @@ impl Dgcnn {
 
     /// Every tensor by its model-file name, in [`tensor_names`] order.
     pub fn named_tensors(&self) -> Vec<(String, Tensor)> {
-        let mut out = Vec::with_capacity(15);
-        for (l, e) in self.layers.iter().enumerate() {
-            out.push((format!("edge{}.theta", l + 1), e.theta.clone()));
-            out.push((format!("edge{}.phi.weight", l + 1), e.phi_weight.clone()));
-            out.push((format!("edge{}.phi.bias", l + 1), e.phi_bias.clone()));
-        }
-        for (h, lin) in self.head.iter().enumerate() {
-            out.push((format!("head.{h}.weight"), lin.weight.clone()));
-            out.push((format!("head.{h}.bias"), lin.bias.clone()));
-        }
-        out
+        let tensors = self
+            .layers
+            .iter()
+            .flat_map(|e| [&e.theta, &e.phi_weight, &e.phi_bias])
+            .chain(self.head.iter().flat_map(|l| [&l.weight, &l.bias]));
+        tensor_names().into_iter().zip(tensors.cloned()).collect()
     }
 
     /// Checks an input batch: `(B, N, C)` with `C` the network's input width, `N ≥ k`, every

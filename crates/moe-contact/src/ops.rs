@@ -525,14 +525,8 @@ impl CustomOp1 for MaxOverPoints {
             let x = T::slice(s, l, "features")?;
             let mut out = vec![T::ZERO; b * c];
             out.par_chunks_mut(c).enumerate().for_each(|(set, o)| {
-                o.copy_from_slice(&x[set * n * c..set * n * c + c]);
-                for p in 1..n {
-                    let row = &x[(set * n + p) * c..(set * n + p + 1) * c];
-                    for (m, &v) in o.iter_mut().zip(row) {
-                        if v > *m {
-                            *m = v;
-                        }
-                    }
+                for (ch, p) in argmax_over_points(x, n, c, set).into_iter().enumerate() {
+                    o[ch] = x[(set * n + p) * c + ch];
                 }
             });
             T::storage(out)

@@ -8,13 +8,14 @@ use candle_core::backprop::GradStore;
 use candle_core::{D, DType, Device, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
 use moe_geom::{LabelledFrame, SeededRng};
-use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use safetensors::tensor::Dtype;
 use serde::{Deserialize, Serialize};
 
 use crate::config::DgcnnConfig;
 use crate::error::ContactError;
 use crate::estimator::FeatureBuilder;
 use crate::network::{Dgcnn, Mode};
+use crate::tensor_file::{self, Entry};
 use crate::weights::ModelWeights;
 
 /// The optimiser and its hyper-parameters.
@@ -388,11 +389,18 @@ enum OptimizerState {
     },
 }
 
+impl OptimizerState {
+    fn kind(&self) -> &'static str {
+        match self {
+            Self::AdamW { .. } => "adamw",
+            Self::Sgd { .. } => "sgd",
+        }
+    }
+}
+
 /// Everything needed to continue a run: the epochs done, the weights and the optimiser state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Checkpoint {
-    /// Epochs completed.
-    pub epochs_done: usize,
     /// Safetensors bytes: the weights under their model-file names, the optimiser state under
     /// `opt.<kind>.<name>`, and the counters in the metadata.
     pub bytes: Vec<u8>,
@@ -610,6 +618,7 @@ impl Trainer {
             .collect();
         let mut meta = HashMap::new();
         meta.insert("epochs_done".to_string(), self.epochs_done.to_string());
+        meta.insert("optimizer".to_string(), self.state.kind().to_string());
         meta.insert(
             "contact_weight".to_string(),
             format!("{:?}", self.contact_weight),
@@ -630,35 +639,15 @@ impl Trainer {
                 }
             }
         }
-        let raw: Vec<(String, Vec<usize>, Vec<u8>)> = tensors
+        let entries = tensors
             .iter()
-            .map(|(n, t)| -> Result<_, ContactError> {
+            .map(|(n, t)| -> Result<Entry, ContactError> {
                 let v = t.flatten_all()?.to_vec1::<f32>()?;
-                Ok((
-                    n.clone(),
-                    t.dims().to_vec(),
-                    v.iter().flat_map(|x| x.to_le_bytes()).collect(),
-                ))
-            })
-            .collect::<Result<_, _>>()?;
-        let views = raw
-            .iter()
-            .map(|(n, s, b)| {
-                TensorView::new(Dtype::F32, s.clone(), b)
-                    .map(|v| (n.clone(), v))
-                    .map_err(|e| ContactError::MalformedWeights {
-                        message: e.to_string(),
-                    })
+                Ok(Entry::f32(n.clone(), t.dims().to_vec(), &v))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let bytes = safetensors::serialize(views, Some(meta)).map_err(|e| {
-            ContactError::MalformedWeights {
-                message: e.to_string(),
-            }
-        })?;
         Ok(Checkpoint {
-            epochs_done: self.epochs_done,
-            bytes,
+            bytes: tensor_file::serialize(&entries, Some(meta))?,
         })
     }
 
@@ -674,17 +663,7 @@ impl Trainer {
         checkpoint: &Checkpoint,
     ) -> Result<Self, ContactError> {
         let mut trainer = Self::new(arch, config, train)?;
-        let st = SafeTensors::deserialize(&checkpoint.bytes).map_err(|e| {
-            ContactError::MalformedWeights {
-                message: format!("checkpoint: {e}"),
-            }
-        })?;
-        let (_, meta) = SafeTensors::read_metadata(&checkpoint.bytes).map_err(|e| {
-            ContactError::MalformedWeights {
-                message: format!("checkpoint: {e}"),
-            }
-        })?;
-        let meta = meta.metadata().clone().unwrap_or_default();
+        let (st, meta) = tensor_file::parse(&checkpoint.bytes, "checkpoint")?;
         let number = |key: &str| -> Result<String, ContactError> {
             meta.get(key)
                 .cloned()
@@ -695,6 +674,16 @@ impl Trainer {
         let parse_err = |key: &str| ContactError::MalformedWeights {
             message: format!("checkpoint: '{key}' is not a number"),
         };
+        let kind = number("optimizer")?;
+        if kind != trainer.state.kind() {
+            return Err(ContactError::InvalidConfig {
+                field: "optimizer",
+                message: format!(
+                    "the checkpoint was written by {kind}, the run is configured for {}",
+                    trainer.state.kind()
+                ),
+            });
+        }
         trainer.epochs_done = number("epochs_done")?
             .parse()
             .map_err(|_| parse_err("epochs_done"))?;
@@ -712,12 +701,11 @@ impl Trainer {
                     got: view.shape().to_vec(),
                 });
             }
-            let v: Vec<f32> = view
-                .data()
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect();
-            Ok(Tensor::from_vec(v, like.dims(), &Device::Cpu)?)
+            Ok(Tensor::from_vec(
+                tensor_file::f32s(view.data()),
+                like.dims(),
+                &Device::Cpu,
+            )?)
         };
         for (n, var) in &trainer.vars {
             var.set(&load(n, var.as_tensor())?)?;

@@ -8,11 +8,12 @@ use std::collections::HashMap;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
-use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use safetensors::tensor::Dtype;
 
 use crate::config::{DgcnnConfig, ModelCard};
 use crate::error::ContactError;
 use crate::network::{Dgcnn, tensor_names, tensor_shapes};
+use crate::tensor_file::{self, Entry};
 
 /// The float32 tensors of a model file by name, validated for finiteness.
 #[derive(Debug, Clone, PartialEq)]
@@ -28,16 +29,7 @@ impl ModelWeights {
     /// [`ContactError::MalformedWeights`], [`ContactError::TensorDtype`],
     /// [`ContactError::NonFiniteWeight`].
     pub fn parse(bytes: &[u8]) -> Result<Self, ContactError> {
-        // The parser is a dependency: a panic inside it on hostile bytes is reported, not raised.
-        let parsed =
-            std::panic::catch_unwind(|| SafeTensors::deserialize(bytes)).map_err(|_| {
-                ContactError::MalformedWeights {
-                    message: "the safetensors parser failed on these bytes".into(),
-                }
-            })?;
-        let st = parsed.map_err(|e| ContactError::MalformedWeights {
-            message: e.to_string(),
-        })?;
+        let (st, _) = tensor_file::parse(bytes, "model file")?;
         let mut tensors = BTreeMap::new();
         for (name, view) in st.tensors() {
             if view.dtype() != Dtype::F32 {
@@ -46,11 +38,7 @@ impl ModelWeights {
                     got: format!("{:?}", view.dtype()).to_lowercase(),
                 });
             }
-            let values: Vec<f32> = view
-                .data()
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect();
+            let values = tensor_file::f32s(view.data());
             if let Some(index) = values.iter().position(|v| !v.is_finite()) {
                 return Err(ContactError::NonFiniteWeight { name, index });
             }
@@ -276,26 +264,12 @@ impl ModelWeights {
     /// [`ContactError::MalformedWeights`] if the serialiser refuses (it does not for valid
     /// shapes).
     pub fn to_bytes(&self) -> Result<Vec<u8>, ContactError> {
-        let raw: Vec<(String, Vec<usize>, Vec<u8>)> = self
+        let entries: Vec<Entry> = self
             .tensors
             .iter()
-            .map(|(name, (shape, values))| {
-                let bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-                (name.clone(), shape.clone(), bytes)
-            })
+            .map(|(name, (shape, values))| Entry::f32(name.clone(), shape.clone(), values))
             .collect();
-        let mut views = Vec::with_capacity(raw.len());
-        for (name, shape, bytes) in &raw {
-            let view = TensorView::new(Dtype::F32, shape.clone(), bytes).map_err(|e| {
-                ContactError::MalformedWeights {
-                    message: format!("{name}: {e}"),
-                }
-            })?;
-            views.push((name.clone(), view));
-        }
-        safetensors::serialize(views, None).map_err(|e| ContactError::MalformedWeights {
-            message: e.to_string(),
-        })
+        tensor_file::serialize(&entries, None)
     }
 }
 

@@ -44,9 +44,9 @@ pub(crate) struct ContactArgs {
     /// The model: `NAME.safetensors`, with its card `NAME.json` beside it if there is one.
     #[arg(long, value_name = "M.safetensors")]
     model: PathBuf,
-    /// Edge aggregation, overriding the card's (the weights do not depend on it).
-    #[arg(long, value_enum)]
-    aggregation: Option<AggregationArg>,
+    /// Edge aggregation, max or sum, overriding the card's (the weights do not depend on it).
+    #[arg(long)]
+    aggregation: Option<Aggregation>,
     /// Float type of the computation.
     #[arg(long, value_enum, default_value = "f32")]
     dtype: Precision,
@@ -62,24 +62,6 @@ pub(crate) struct ContactArgs {
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
-}
-
-/// `--aggregation` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub(crate) enum AggregationArg {
-    /// Maximum over the neighbours.
-    Max,
-    /// Sum over the neighbours (the paper's equation).
-    Sum,
-}
-
-impl From<AggregationArg> for Aggregation {
-    fn from(a: AggregationArg) -> Self {
-        match a {
-            AggregationArg::Max => Self::Max,
-            AggregationArg::Sum => Self::Sum,
-        }
-    }
 }
 
 /// A loaded model: the network and its card (the defaults, widened to the weights, without one).
@@ -194,12 +176,7 @@ fn check_threshold(t: f64) -> Result<f64> {
 
 pub(crate) fn run(args: ContactArgs) -> Result<()> {
     let t0 = Instant::now();
-    let model = load_model(
-        &args.model,
-        args.dtype,
-        args.device,
-        args.aggregation.map(Aggregation::from),
-    )?;
+    let model = load_model(&args.model, args.dtype, args.device, args.aggregation)?;
     let threshold = check_threshold(args.threshold.unwrap_or(model.card.threshold))?;
     match (&args.points, &args.hand, &args.shape) {
         (Some(points), None, None) => run_points(&args, points, &model, threshold, t0),
