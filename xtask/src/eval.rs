@@ -29,6 +29,10 @@ pub(crate) struct EvalArgs {
 pub(crate) enum EvalTarget {
     /// Occluded-surface reconstruction (GPIS) on procedural head and arm scenes.
     Surface(SurfaceEvalArgs),
+    /// Contact estimation on held-out trajectories and the plate scenes (paper Tables 1–2).
+    Contact(crate::eval_contact::ContactEvalArgs),
+    /// Contact-label rules on simulated trajectories against their obstacle-free twins.
+    Labels(crate::eval_labels::LabelsEvalArgs),
 }
 
 /// Benchmark size.
@@ -67,6 +71,8 @@ pub(crate) struct SurfaceEvalArgs {
 pub(crate) fn run(args: &EvalArgs) -> Result<()> {
     match &args.target {
         EvalTarget::Surface(a) => run_surface(a),
+        EvalTarget::Contact(a) => crate::eval_contact::run(a),
+        EvalTarget::Labels(a) => crate::eval_labels::run(a),
     }
 }
 

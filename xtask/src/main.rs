@@ -6,6 +6,9 @@ use clap::{Parser, Subcommand};
 
 mod ci;
 mod eval;
+mod eval_contact;
+mod eval_labels;
+mod figure;
 mod fixtures;
 mod gen_data;
 mod train;

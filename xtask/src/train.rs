@@ -8,9 +8,9 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use moe_contact::{
-    Aggregation, CardHand, Checkpoint, DgcnnConfig, FeatureBuilder, FeatureFrame, InputFeature,
+    Aggregation, CardHand, Checkpoint, ContactMetrics, ContactReport, DgcnnConfig, FeatureBuilder, FeatureFrame, InputFeature,
     InputSpec, ModelCard, ModelWeights, Normalisation, OptimizerConfig, PointSet, TrainConfig,
-    Trainer, TrainingSets,
+    Trainer, TrainingSets, evaluation_of,
 };
 use moe_geom::{HandModel, LabelledFrame};
 use moe_io::{DatasetReader, Split, SplitFractions};
@@ -61,6 +61,10 @@ pub(crate) struct TrainArgs {
     /// Use at most this many training frames (the first ones, in data set order).
     #[arg(long)]
     max_frames: Option<usize>,
+    /// Fraction of the point sets without contact that each epoch trains on (a fresh draw
+    /// every epoch; sets with contact are always used).
+    #[arg(long, default_value_t = 1.0)]
+    negative_fraction: f64,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -88,11 +92,20 @@ struct EpochRecord {
     validation_recall: f64,
     validation_iou: f64,
     validation_f1_at_half: f64,
+    /// Contact BCD on the validation frames at the chosen threshold, mm.
+    #[serde(default)]
+    validation_contact_bcd_mm: f64,
+    /// Validation contact frames with no predicted contact.
+    #[serde(default)]
+    validation_miss_rate: f64,
+    /// Validation frames without contact but with a prediction.
+    #[serde(default)]
+    validation_false_alarm_rate: f64,
     seconds: f64,
 }
 
 /// The hand a data set was simulated with, from its card.
-fn dataset_hand(reader: &DatasetReader) -> Result<HandModel> {
+pub(crate) fn dataset_hand(reader: &DatasetReader) -> Result<HandModel> {
     let params: RandomSceneParams = serde_json::from_value(
         reader
             .card()
@@ -115,6 +128,15 @@ fn dataset_hand(reader: &DatasetReader) -> Result<HandModel> {
         );
     }
     Ok(hand)
+}
+
+/// Name of the label rule of a data set's frames, from its card (`proximity` for data sets made
+/// before the rule was recorded).
+pub(crate) fn label_rule_of(reader: &DatasetReader) -> String {
+    reader.card().generator["params"]["contact"]["label_rule"]
+        .as_str()
+        .unwrap_or("proximity")
+        .to_owned()
 }
 
 fn frames(reader: &DatasetReader, split: Split, max: Option<usize>) -> Result<Vec<LabelledFrame>> {
@@ -153,6 +175,92 @@ fn normalisation_of(builder: &FeatureBuilder, frames: &[LabelledFrame]) -> Resul
         .map(|(q, m)| (q / count - m * m).max(0.0).sqrt().max(1e-6))
         .collect();
     Ok(Normalisation { mean, std })
+}
+
+/// Contact metrics of the validation frames from the probabilities `p` of their point sets
+/// (frame after frame), contacts at `threshold`.
+fn contact_report(
+    builder: &FeatureBuilder,
+    frames: &[LabelledFrame],
+    p: &[f64],
+    threshold: f64,
+) -> Result<ContactReport> {
+    let per_frame: usize = builder.point_sets().iter().map(|s| s.1).sum();
+    if p.len() != per_frame * frames.len() {
+        bail!(
+            "{} probabilities for {} frames of {per_frame} points",
+            p.len(),
+            frames.len()
+        );
+    }
+    let mut metrics = ContactMetrics::default();
+    for (frame, values) in frames.iter().zip(p.chunks_exact(per_frame.max(1))) {
+        let predicted: Vec<Vec<bool>> = builder
+            .per_finger(values)?
+            .into_iter()
+            .map(|f| f.into_iter().map(|v| v >= threshold).collect())
+            .collect();
+        metrics.add(&frame.shape, &frame.contact, &predicted)?;
+    }
+    Ok(metrics.report())
+}
+
+/// Counters of a run, for the card.
+struct RunRecord {
+    started: Instant,
+    train_seconds: f64,
+    sets_trained: usize,
+    train_sets: usize,
+    validation_sets: usize,
+    train_frames: usize,
+    validation_frames: usize,
+}
+
+/// Writes `NAME.safetensors` and its card from the trainer's current weights.
+fn write_model(
+    args: &TrainArgs,
+    reader: &DatasetReader,
+    arch: &DgcnnConfig,
+    config: &TrainConfig,
+    trainer: &Trainer,
+    history: &[EpochRecord],
+    run: &RunRecord,
+) -> Result<()> {
+    let last = history.last().context("no epoch was trained")?;
+    let mut card = ModelCard::new(arch.clone());
+    card.threshold = last.validation_threshold;
+    card.hand = Some(CardHand {
+        name: reader.card().generator["params"]["preset"]
+            .as_str()
+            .unwrap_or("unknown")
+            .to_string(),
+        finger_num_vertices: reader.card().layout.finger_num_vertices.clone(),
+    });
+    card.training = Some(serde_json::json!({
+        "config": config,
+        "contact_weight": trainer.contact_weight(),
+        "train_sets": run.train_sets,
+        "validation_sets": run.validation_sets,
+        "sets_per_second": run.sets_trained as f64 / run.train_seconds.max(1e-9),
+        "train_seconds": run.train_seconds,
+        "wall_time_s": run.started.elapsed().as_secs_f64(),
+        "command": std::env::args().collect::<Vec<_>>().join(" "),
+    }));
+    card.dataset = Some(serde_json::json!({
+        "dir": args.data.display().to_string(),
+        "seed": reader.card().seed,
+        "frames": reader.card().totals.frames,
+        "trajectories": reader.card().totals.trajectories,
+        "label_rule": label_rule_of(reader),
+        "train_frames": run.train_frames,
+        "validation_frames": run.validation_frames,
+        "generator": reader.card().generator,
+    }));
+    card.metrics = Some(serde_json::json!({ "epochs": history }));
+    let weights = ModelWeights::of(trainer.network())?.to_bytes()?;
+    let weights_path = args.out.with_extension("safetensors");
+    moe_io::write_model_files(&weights_path, &weights, Some(&card.to_json()?))?;
+    Ok(())
 }
 
 fn checkpoint_path(out: &Path) -> PathBuf {
@@ -235,6 +343,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         },
         contact_weight: args.contact_weight,
         seed: args.seed,
+        negative_fraction: args.negative_fraction,
         ..TrainConfig::default()
     };
     let ckpt_path = checkpoint_path(&args.out);
@@ -295,9 +404,15 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         let epoch_seconds = t0.elapsed().as_secs_f64();
         train_seconds += epoch_seconds;
         sets_trained += train.len();
-        let eval = trainer.evaluate(&validation)?;
+        let p = moe_contact::predict(trainer.network(), &validation, args.batch_size)?;
+        let eval = evaluation_of(
+            &p,
+            (0..validation.len()).flat_map(|s| validation.labels_of(s)),
+            trainer.contact_weight(),
+        );
         let (threshold, best) = eval.best();
         let half = eval.at(0.5).unwrap_or_default();
+        let contact = contact_report(&builder, &validation_frames, &p, threshold)?;
         let record = EpochRecord {
             epoch: epoch + 1,
             learning_rate: config.learning_rate_at(epoch),
@@ -309,11 +424,15 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             validation_recall: best.recall(),
             validation_iou: best.iou(),
             validation_f1_at_half: half.f1(),
+            validation_contact_bcd_mm: contact.bcd_mm,
+            validation_miss_rate: contact.miss_rate,
+            validation_false_alarm_rate: contact.false_alarm_rate,
             seconds: t0.elapsed().as_secs_f64(),
         };
         let line = format!(
             "epoch {}: train loss {:.4}, validation loss {:.4}, F1 {:.3} at {:.2} (P {:.3}, R \
-             {:.3}), F1 {:.3} at 0.5, {:.0} s",
+             {:.3}), F1 {:.3} at 0.5, contact BCD {:.2} mm, missed {:.1} %, false alarms {:.1} %, \
+             {:.0} s",
             record.epoch,
             record.train_loss,
             record.validation_loss,
@@ -322,6 +441,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             record.validation_precision,
             record.validation_recall,
             record.validation_f1_at_half,
+            record.validation_contact_bcd_mm,
+            100.0 * record.validation_miss_rate,
+            100.0 * record.validation_false_alarm_rate,
             record.seconds
         );
         // Also when stderr is not a terminal (the bar is hidden then, and its println with it).
@@ -331,40 +453,21 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         let checkpoint = trainer.checkpoint()?;
         moe_io::write_atomic(&ckpt_path, &checkpoint.bytes)?;
         moe_io::write_json(&history_path, &history)?;
+        // The model and its card after every epoch, so that a stopped run leaves a usable model.
+        let run = RunRecord {
+            started,
+            train_seconds,
+            sets_trained,
+            train_sets: train.len(),
+            validation_sets: validation.len(),
+            train_frames: train_frames.len(),
+            validation_frames: validation_frames.len(),
+        };
+        write_model(args, &reader, &arch, &config, &trainer, &history, &run)?;
     }
     bar.finish_and_clear();
     let last = history.last().context("no epoch was trained")?;
-    let mut card = ModelCard::new(arch);
-    card.threshold = last.validation_threshold;
-    card.hand = Some(CardHand {
-        name: reader.card().generator["params"]["preset"]
-            .as_str()
-            .unwrap_or("unknown")
-            .to_string(),
-        finger_num_vertices: reader.card().layout.finger_num_vertices.clone(),
-    });
-    card.training = Some(serde_json::json!({
-        "config": config,
-        "contact_weight": trainer.contact_weight(),
-        "train_sets": train.len(),
-        "validation_sets": validation.len(),
-        "sets_per_second": sets_trained as f64 / train_seconds.max(1e-9),
-        "wall_time_s": started.elapsed().as_secs_f64(),
-        "command": std::env::args().collect::<Vec<_>>().join(" "),
-    }));
-    card.dataset = Some(serde_json::json!({
-        "dir": args.data.display().to_string(),
-        "seed": reader.card().seed,
-        "frames": reader.card().totals.frames,
-        "trajectories": reader.card().totals.trajectories,
-        "train_frames": train_frames.len(),
-        "validation_frames": validation_frames.len(),
-        "generator": reader.card().generator,
-    }));
-    card.metrics = Some(serde_json::json!({ "epochs": history }));
-    let weights = ModelWeights::of(trainer.network())?.to_bytes()?;
     let weights_path = args.out.with_extension("safetensors");
-    moe_io::write_model_files(&weights_path, &weights, Some(&card.to_json()?))?;
     eprintln!(
         "train: wrote {} and its card ({} epochs, validation F1 {:.3} at threshold {:.2})",
         weights_path.display(),

@@ -172,6 +172,37 @@ impl FeatureBuilder {
             .collect()
     }
 
+    /// The inverse of [`FeatureBuilder::arrange`]: the values of one shape's point sets, set
+    /// after set as the network returns them, back per finger and vertex.
+    ///
+    /// # Errors
+    /// [`ContactError::InvalidBatch`] when `values` is not as long as the shape's point sets.
+    pub fn per_finger<T: Copy + Default>(&self, values: &[T]) -> Result<Vec<Vec<T>>, ContactError> {
+        let total: usize = self.plans.iter().map(|p| p.len).sum();
+        if values.len() != total {
+            return Err(ContactError::InvalidBatch {
+                message: format!(
+                    "{} values for point sets of {total} points in all",
+                    values.len()
+                ),
+            });
+        }
+        let mut out: Vec<Vec<T>> = self
+            .rest_in_hand
+            .iter()
+            .map(|r| vec![T::default(); r.len()])
+            .collect();
+        let mut start = 0;
+        for plan in &self.plans {
+            for &f in &plan.fingers {
+                let n = out[f].len();
+                out[f].copy_from_slice(&values[start..start + n]);
+                start += n;
+            }
+        }
+        Ok(out)
+    }
+
     /// Checks that `shape` fits the hand and is finite.
     ///
     /// # Errors

@@ -149,6 +149,11 @@ impl KnnIndex {
         self.markers_per_finger.iter().sum()
     }
 
+    /// Surface vertices of every finger of the indexed hand.
+    pub fn vertices_per_finger(&self) -> &[usize] {
+        &self.vertices_per_finger
+    }
+
     fn total_vertices(&self) -> usize {
         self.vertices_per_finger.iter().sum()
     }

@@ -24,6 +24,8 @@ pub mod error;
 pub mod estimator;
 /// The KNN baselines.
 pub mod knn;
+/// Contact metrics: BCD, UCD, misses, false alarms, pooled per-vertex scores.
+pub mod metrics;
 /// The network.
 pub mod network;
 /// Custom CPU kernels (kNN selection, EdgeConv reductions).
@@ -47,11 +49,12 @@ pub use device::{DeviceKind, open_device};
 pub use error::ContactError;
 pub use estimator::{ContactEstimator, ContactInput, DgcnnEstimator, FeatureBuilder};
 pub use knn::{KnnIndex, KnnMatch};
+pub use metrics::{ContactMetrics, ContactReport};
 pub use network::{
     Dgcnn, ForwardOutput, Mode, StageTimings, contact_probability, tensor_names, tensor_shapes,
 };
 pub use train::{
     Checkpoint, Confusion, Evaluation, OptimizerConfig, THRESHOLDS, TrainConfig, Trainer,
-    TrainingSets, evaluate, weighted_cross_entropy,
+    TrainingSets, evaluate, evaluation_of, predict, weighted_cross_entropy,
 };
 pub use weights::ModelWeights;

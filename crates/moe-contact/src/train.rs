@@ -82,6 +82,14 @@ pub struct TrainConfig {
     pub contact_weight: Option<f64>,
     /// Seed of the initial weights, the shuffling and the dropout masks.
     pub seed: u64,
+    /// Fraction of the sets without any contact point that an epoch trains on (a fresh seeded
+    /// draw every epoch; sets with contact are always used). 1 uses every set.
+    #[serde(default = "one")]
+    pub negative_fraction: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 impl Default for TrainConfig {
@@ -102,6 +110,7 @@ impl Default for TrainConfig {
             lr_gamma: 0.5,
             contact_weight: None,
             seed: 0,
+            negative_fraction: 1.0,
         }
     }
 }
@@ -131,6 +140,12 @@ impl TrainConfig {
             && !(w.is_finite() && w > 0.0)
         {
             return bad("contact_weight", format!("{w} must be finite and positive"));
+        }
+        if !(self.negative_fraction > 0.0 && self.negative_fraction <= 1.0) {
+            return bad(
+                "negative_fraction",
+                format!("{} is not in (0, 1]", self.negative_fraction),
+            );
         }
         let lr = self.optimizer.learning_rate();
         if !(lr.is_finite() && lr > 0.0) {
@@ -252,6 +267,20 @@ impl TrainingSets {
     /// Number of contact points over all sets.
     pub fn contact_points(&self) -> usize {
         self.labels.iter().filter(|&&l| l == 1).count()
+    }
+
+    /// Whether set `s` has at least one contact point.
+    pub fn has_contact(&self, s: usize) -> bool {
+        self.labels[s * self.points..(s + 1) * self.points]
+            .iter()
+            .any(|&l| l == 1)
+    }
+
+    /// The labels of set `s`.
+    pub fn labels_of(&self, s: usize) -> impl Iterator<Item = bool> + '_ {
+        self.labels[s * self.points..(s + 1) * self.points]
+            .iter()
+            .map(|&l| l == 1)
     }
 
     fn batch(&self, sets: &[usize]) -> candle_core::Result<(Tensor, Tensor)> {
@@ -514,7 +543,11 @@ impl Trainer {
         let epoch = self.epochs_done;
         let stream = SeededRng::new(self.config.seed).split(1 + epoch as u64);
         let mut order_rng = stream.split(0);
-        let mut order: Vec<usize> = (0..train.len()).collect();
+        let mut keep_rng = stream.split(u64::MAX);
+        let fraction = self.config.negative_fraction;
+        let mut order: Vec<usize> = (0..train.len())
+            .filter(|&s| fraction >= 1.0 || train.has_contact(s) || keep_rng.uniform() < fraction)
+            .collect();
         for i in (1..order.len()).rev() {
             order.swap(i, order_rng.below(i as u64 + 1) as usize);
         }
@@ -734,6 +767,28 @@ impl Trainer {
     }
 }
 
+/// Contact probability of every point of every set (`sets.len() × sets.points()`, set after
+/// set), the network run without dropout, `batch_size` sets at a time.
+///
+/// # Errors
+/// A failing tensor operation, or sets of another width.
+pub fn predict(
+    net: &Dgcnn,
+    sets: &TrainingSets,
+    batch_size: usize,
+) -> Result<Vec<f64>, ContactError> {
+    let mut out = Vec::with_capacity(sets.labels.len());
+    let all: Vec<usize> = (0..sets.len()).collect();
+    for chunk in all.chunks(batch_size.max(1)) {
+        let (x, y) = sets.batch(chunk)?;
+        let logits = net.forward_with(&x, Mode::Eval)?.logits;
+        let logits = logits.reshape((y.dim(0)?, 2))?.to_dtype(DType::F64)?;
+        let logp = candle_nn::ops::log_softmax(&logits, D::Minus1)?.to_vec2::<f64>()?;
+        out.extend(logp.iter().map(|lp| lp[1].exp()));
+    }
+    Ok(out)
+}
+
 /// Loss and counts of `net` (no dropout) on `sets`.
 ///
 /// # Errors
@@ -744,39 +799,43 @@ pub fn evaluate(
     contact_weight: f64,
     batch_size: usize,
 ) -> Result<Evaluation, ContactError> {
+    Ok(evaluation_of(
+        &predict(net, sets, batch_size)?,
+        sets.labels.iter().map(|&l| l == 1),
+        contact_weight,
+    ))
+}
+
+/// Loss and counts of contact probabilities `p` against `labels`, point by point.
+pub fn evaluation_of(
+    p: &[f64],
+    labels: impl IntoIterator<Item = bool>,
+    contact_weight: f64,
+) -> Evaluation {
     let mut confusion = vec![Confusion::default(); THRESHOLDS.len()];
     let (mut weighted_nll, mut weight) = (0.0, 0.0);
-    let all: Vec<usize> = (0..sets.len()).collect();
-    for chunk in all.chunks(batch_size.max(1)) {
-        let (x, y) = sets.batch(chunk)?;
-        let logits = net.forward_with(&x, Mode::Eval)?.logits;
-        let m = y.dim(0)?;
-        let logits = logits.reshape((m, 2))?.to_dtype(DType::F64)?;
-        let logp = candle_nn::ops::log_softmax(&logits, D::Minus1)?.to_vec2::<f64>()?;
-        let labels = y.to_vec1::<u32>()?;
-        for (lp, &l) in logp.iter().zip(&labels) {
-            let w = if l == 1 { contact_weight } else { 1.0 };
-            weighted_nll -= w * lp[l as usize];
-            weight += w;
-            let p = lp[1].exp();
-            for (c, &t) in confusion.iter_mut().zip(&THRESHOLDS) {
-                match (p >= t, l == 1) {
-                    (true, true) => c.true_positives += 1,
-                    (true, false) => c.false_positives += 1,
-                    (false, true) => c.false_negatives += 1,
-                    (false, false) => {}
-                }
+    for (&p, l) in p.iter().zip(labels) {
+        let w = if l { contact_weight } else { 1.0 };
+        let py = if l { p } else { 1.0 - p };
+        weighted_nll -= w * py.max(f64::MIN_POSITIVE).ln();
+        weight += w;
+        for (c, &t) in confusion.iter_mut().zip(&THRESHOLDS) {
+            match (p >= t, l) {
+                (true, true) => c.true_positives += 1,
+                (true, false) => c.false_positives += 1,
+                (false, true) => c.false_negatives += 1,
+                (false, false) => {}
             }
         }
     }
-    Ok(Evaluation {
+    Evaluation {
         loss: if weight > 0.0 {
             weighted_nll / weight
         } else {
             0.0
         },
         confusion,
-    })
+    }
 }
 
 fn sorted_vars(varmap: &VarMap) -> Result<Vec<(String, Var)>, ContactError> {

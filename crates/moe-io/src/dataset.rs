@@ -16,7 +16,9 @@
 //! | `trajectory_id` | U64 | `[F]` | trajectory the frame belongs to |
 //! | `frame_index` | U32 | `[F]` | frame number within its trajectory |
 //! | `vertices` | F32 | `[F, V, 3]` | deformed surface vertices, hand frame, metres, fingers concatenated |
-//! | `contact` | U8 | `[F, V]` | 1 where the vertex touches an obstacle |
+//! | `contact` | U8 | `[F, V]` | 1 where the vertex is in contact, by the card's label rule |
+//! | `contact_force_n` | F32 | `[F, V]` | normal magnitude of the obstacles' penalty force on the vertex, newtons |
+//! | `obstacle_distance_m` | F32 | `[F, V]` | smallest signed distance to an obstacle, metres (+∞ without one) |
 //! | `markers` | F32 | `[F, M, 3]` | ground-truth marker centres, hand frame |
 //! | `world_from_hand` | F64 | `[F, 7]` | wrist pose: translation xyz, quaternion xyzw |
 //! | `tendon_pull_m` | F32 | `[F, T]` | pulled length of every tendon, fingers concatenated |
@@ -97,6 +99,10 @@ pub struct DatasetFrame {
     pub vertices: Vec<[f32; 3]>,
     /// Contact label per vertex (0 or 1).
     pub contact: Vec<u8>,
+    /// Penalty force per vertex (normal magnitude, summed over obstacles), newtons.
+    pub contact_force_n: Vec<f32>,
+    /// Smallest signed distance per vertex to any obstacle, metres (`+∞` without obstacles).
+    pub obstacle_distance_m: Vec<f32>,
     /// Ground-truth marker centres, hand frame, metres.
     pub markers: Vec<[f32; 3]>,
     /// Wrist pose: translation xyz (metres), then quaternion xyzw.
@@ -208,6 +214,12 @@ fn check_frame(
     let sizes = [
         ("vertices", f.vertices.len(), layout.total_vertices()),
         ("contact labels", f.contact.len(), layout.total_vertices()),
+        ("contact forces", f.contact_force_n.len(), layout.total_vertices()),
+        (
+            "obstacle distances",
+            f.obstacle_distance_m.len(),
+            layout.total_vertices(),
+        ),
         ("markers", f.markers.len(), layout.total_markers()),
         (
             "tendon pulls",
@@ -256,6 +268,34 @@ fn check_frame(
         && f.world_from_hand.iter().all(|v| v.is_finite());
     if !finite {
         return Err(IoError::invalid(path, item(), "non-finite value"));
+    }
+    if let Some(i) = f
+        .contact_force_n
+        .iter()
+        .position(|v| !(v.is_finite() && *v >= 0.0))
+    {
+        return Err(IoError::invalid(
+            path,
+            item(),
+            format!(
+                "contact force of vertex {i} is {}, must be finite and ≥ 0",
+                f.contact_force_n[i]
+            ),
+        ));
+    }
+    if let Some(i) = f
+        .obstacle_distance_m
+        .iter()
+        .position(|v| v.is_nan() || *v == f32::NEG_INFINITY)
+    {
+        return Err(IoError::invalid(
+            path,
+            item(),
+            format!(
+                "obstacle distance of vertex {i} is {}, must be a number or +∞",
+                f.obstacle_distance_m[i]
+            ),
+        ));
     }
     Ok(())
 }
@@ -325,6 +365,26 @@ pub fn shard_bytes(
                 .iter()
                 .flat_map(|f| f.contact.iter().copied())
                 .collect(),
+        ),
+        (
+            "contact_force_n",
+            Dtype::F32,
+            vec![n, v],
+            bytes_of(
+                frames.iter().flat_map(|f| f.contact_force_n.iter().copied()),
+                f32::to_le_bytes,
+            ),
+        ),
+        (
+            "obstacle_distance_m",
+            Dtype::F32,
+            vec![n, v],
+            bytes_of(
+                frames
+                    .iter()
+                    .flat_map(|f| f.obstacle_distance_m.iter().copied()),
+                f32::to_le_bytes,
+            ),
         ),
         (
             "markers",
@@ -445,11 +505,19 @@ fn f32s(b: &[u8]) -> Vec<f32> {
         .collect()
 }
 
-/// Parses shard bytes (`path` names the source in errors).
+/// Parses shard bytes (`path` names the source in errors). The safetensors parser runs under
+/// the same panic guard as the mesh readers.
 ///
 /// # Errors
 /// As [`read_shard`].
 pub fn parse_shard(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<(DatasetLayout, Vec<DatasetFrame>), IoError> {
+    crate::files::guarded(path, "safetensors", || parse_shard_unguarded(path, bytes))
+}
+
+fn parse_shard_unguarded(
     path: &Path,
     bytes: &[u8],
 ) -> Result<(DatasetLayout, Vec<DatasetFrame>), IoError> {
@@ -480,6 +548,14 @@ pub fn parse_shard(
     let index = tensor(path, &st, "frame_index", Dtype::U32, &[n])?;
     let verts = f32s(tensor(path, &st, "vertices", Dtype::F32, &[n, v, 3])?);
     let contact = tensor(path, &st, "contact", Dtype::U8, &[n, v])?;
+    let force = f32s(tensor(path, &st, "contact_force_n", Dtype::F32, &[n, v])?);
+    let distance = f32s(tensor(
+        path,
+        &st,
+        "obstacle_distance_m",
+        Dtype::F32,
+        &[n, v],
+    )?);
     let markers = f32s(tensor(path, &st, "markers", Dtype::F32, &[n, m, 3])?);
     let pose = tensor(path, &st, "world_from_hand", Dtype::F64, &[n, 7])?;
     let tendons = f32s(tensor(path, &st, "tendon_pull_m", Dtype::F32, &[n, t])?);
@@ -500,6 +576,8 @@ pub fn parse_shard(
             frame_index: u32::from_le_bytes(index[4 * k..4 * k + 4].try_into().expect("4 bytes")),
             vertices: triples(&verts[3 * v * k..3 * v * (k + 1)]),
             contact: contact[v * k..v * (k + 1)].to_vec(),
+            contact_force_n: force[v * k..v * (k + 1)].to_vec(),
+            obstacle_distance_m: distance[v * k..v * (k + 1)].to_vec(),
             markers: triples(&markers[3 * m * k..3 * m * (k + 1)]),
             world_from_hand,
             tendon_pull_m: tendons[t * k..t * (k + 1)].to_vec(),
@@ -847,6 +925,8 @@ mod tests {
             frame_index: k,
             vertices: (0..5).map(|i| [i as f32, s, -0.5 * s]).collect(),
             contact: vec![0, 1, u8::from(k.is_multiple_of(2)), 0, 1],
+            contact_force_n: vec![0.0, 0.25, 0.01 * s, 0.0, 1.5],
+            obstacle_distance_m: vec![0.01, -1e-5, -1e-6 * s, f32::INFINITY, -2e-4],
             markers: vec![[0.1, 0.2, s], [0.3, 0.4, s]],
             world_from_hand: [
                 0.1,
@@ -956,6 +1036,18 @@ mod tests {
         let mut f = frame(1, 2);
         f.vertices[0][1] = f32::NAN;
         assert!(shard_bytes(path, &layout(), &[f]).is_err());
+        let mut f = frame(1, 2);
+        f.contact_force_n[3] = -0.5;
+        let err = shard_bytes(path, &layout(), &[f]).unwrap_err().to_string();
+        assert!(err.contains("contact force of vertex 3"), "{err}");
+        let mut f = frame(1, 2);
+        f.obstacle_distance_m[2] = f32::NAN;
+        let err = shard_bytes(path, &layout(), &[f]).unwrap_err().to_string();
+        assert!(err.contains("obstacle distance of vertex 2"), "{err}");
+        let mut f = frame(1, 2);
+        f.contact_force_n.pop();
+        let err = shard_bytes(path, &layout(), &[f]).unwrap_err().to_string();
+        assert!(err.contains("contact forces"), "{err}");
         assert!(shard_bytes(path, &layout(), &[]).is_err());
     }
 

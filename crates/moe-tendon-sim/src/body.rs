@@ -96,6 +96,22 @@ impl FingerBody {
         &self.surface
     }
 
+    /// Per surface vertex: whether it can move, i.e. at least one node of its element with a
+    /// non-zero weight is free. A vertex held by the fixed base alone cannot.
+    pub fn movable_surface_vertices(&self) -> Vec<bool> {
+        let fixed = self.fem.fixed();
+        self.surface
+            .points()
+            .iter()
+            .map(|e| {
+                e.nodes
+                    .iter()
+                    .zip(&e.weights)
+                    .any(|(&n, &w)| w != 0.0 && !fixed[n as usize])
+            })
+            .collect()
+    }
+
     /// The tendons.
     pub fn tendons(&self) -> &[Tendon] {
         &self.tendons

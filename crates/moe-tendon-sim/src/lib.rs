@@ -59,8 +59,9 @@
 //! 6. **Contact** ([`contact`]): implicit penalty on each surface vertex inside an obstacle at
 //!    its end-of-step pose: force `−k d n` with stiffness `k n nᵀ` in the system matrix
 //!    (k = 1e4 N/m per vertex), optional regularised Coulomb friction as an implicit tangential
-//!    damping. **Label rule:** a vertex is in contact when its signed distance to an obstacle
-//!    at the end of the step is below `contact_distance_m` (1 mm).
+//!    damping. Every saved frame reports each vertex's penalty force (N). **Label rule** (default,
+//!    [`LabelRule::Press`]): a vertex that can move is in contact when it is within 1 mm of an
+//!    obstacle while its finger carries at least 10 mN of contact force.
 //! 7. **Scene** ([`Scene`]): a `HandModel` on a wrist trajectory, per-finger tendon schedules,
 //!    kinematic obstacles; `step(&mut state)` with the state explicit ([`SimState`]);
 //!    divergence (NaN, inverted element, kinetic energy above a limit) stops with a
@@ -108,7 +109,10 @@ pub mod voxelize;
 mod woodbury;
 
 pub use body::{BASE_TOLERANCE_M, FingerBody, FingerInputs};
-pub use contact::{ContactParams, PosedObstacles, contact_labels, surface_distances};
+pub use contact::{
+    ContactParams, LabelRule, PosedObstacles, SurfaceContact, contact_labels, surface_contact,
+    surface_distances,
+};
 pub use embedding::{Embedded, Embedding};
 pub use error::SimError;
 pub use fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn};

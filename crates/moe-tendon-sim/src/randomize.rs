@@ -22,6 +22,7 @@ use moe_geom::shapes::Superquadric;
 use moe_geom::{FingerParams, HandModel, HandPreset, Iso3, Point3, Real, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::contact::ContactParams;
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
 use crate::scene::{Frame, HandConfig, Scene, SceneConfig, SimState, StepInfo};
@@ -136,6 +137,9 @@ pub struct RandomSceneParams {
     pub dt_secs: Real,
     /// A frame is kept every this many steps. Default 5.
     pub save_every_steps: u64,
+    /// Contact model and label rule of the scenes. Default [`ContactParams::default`]
+    /// (the force rule).
+    pub contact: ContactParams,
 }
 
 impl Default for RandomSceneParams {
@@ -152,6 +156,7 @@ impl Default for RandomSceneParams {
             retract_secs: 0.3,
             dt_secs: 0.01,
             save_every_steps: 5,
+            contact: ContactParams::default(),
         }
     }
 }
@@ -276,6 +281,7 @@ fn validate(params: &RandomSceneParams) -> Result<(), SimError> {
     if params.families.is_empty() {
         return bad("families", 0.0, "at least one object family is needed");
     }
+    params.contact.validate()?;
     let [lo, hi] = params.press_depth_m;
     if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
         return bad("press_depth_m", hi, "must be a non-negative range [lo, hi]");
@@ -498,6 +504,7 @@ fn build_config(
         wrist: PoseTrajectory { keyframes: wrist },
         actuation,
         obstacles: vec![obstacle],
+        contact: params.contact.clone(),
         ..SceneConfig::default()
     };
     config.solver.dt_secs = params.dt_secs;

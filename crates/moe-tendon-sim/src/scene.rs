@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::body::{FingerBody, FingerInputs};
 use crate::camera::RgbdCamera;
-use crate::contact::{ContactParams, PosedObstacles, contact_labels, surface_distances};
+use crate::contact::{ContactParams, PosedObstacles, contact_labels, surface_contact};
 use crate::error::{SimError, require_non_negative, require_positive};
 use crate::fem::{FemWorkspace, Integrator, StepContext};
 use crate::material::Material;
@@ -224,7 +224,9 @@ pub struct FingerFrame {
     pub vertices_in_world: Vec<Point3>,
     /// Smallest signed distance of each vertex to any obstacle, metres (+∞ without obstacles).
     pub distances_m: Vec<Real>,
-    /// Contact label per vertex (`distance < contact.contact_distance_m`).
+    /// Normal magnitude of the obstacles' penalty force on each vertex, newtons.
+    pub contact_force_n: Vec<Real>,
+    /// Contact label per vertex, by the scene's [`ContactParams::label_rule`].
     pub labels: Vec<bool>,
 }
 
@@ -550,12 +552,22 @@ impl Scene {
             .zip(&state.fingers)
             .map(|(b, fs)| {
                 let world = b.surface().positions(&fs.x);
-                let distances_m = surface_distances(&world, &self.obstacles, &poses);
-                let labels = contact_labels(&distances_m, &self.config.contact);
+                let contact = surface_contact(
+                    &world,
+                    &self.obstacles,
+                    &poses,
+                    self.config.contact.stiffness_n_per_m,
+                );
+                let labels = contact_labels(
+                    &contact,
+                    &b.movable_surface_vertices(),
+                    &self.config.contact,
+                );
                 FingerFrame {
                     vertices_in_hand: world.iter().map(|p| hand_from_world * p).collect(),
                     vertices_in_world: world,
-                    distances_m,
+                    distances_m: contact.distances_m,
+                    contact_force_n: contact.forces_n,
                     labels,
                 }
             })

@@ -83,7 +83,7 @@ fn contact_scene(mode: ActuationMode, solver: SolverMode) -> SceneConfig {
     let x0 = -0.025 - p.radius_at(0.03) - 0.0015;
     let values = match mode {
         ActuationMode::Displacement => vec![0.002, -0.002, 0.001, -0.001],
-        ActuationMode::Force => vec![1.0, 0.0, 0.5, 0.0],
+        ActuationMode::Force => vec![0.0, 1.0, 0.0, 0.5],
     };
     let schedule = ActuationSchedule {
         mode,
@@ -150,8 +150,8 @@ fn allocations_per_step(config: SceneConfig, warm_up: usize, counted: usize) -> 
     let tension: f64 = info.tendons[1].iter().map(|t| t.tension_n).sum();
     assert!(tension > 0.0, "the tendons of finger 1 are slack");
     let frame = scene.frame(&state);
-    let touching = frame.fingers[1].labels.iter().filter(|&&l| l).count();
-    assert!(touching > 0, "the plate does not touch finger 1");
+    let force: f64 = frame.fingers[1].contact_force_n.iter().sum();
+    assert!(force > 0.0, "the plate does not press finger 1");
     // `Scene::step` allocates only the vectors of the `StepInfo` it returns: the kinetic
     // energies, the iteration counts, the tendon states and one vector of them per finger.
     let (n, result) = count_allocations(|| scene.step(&mut state));

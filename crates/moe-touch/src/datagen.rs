@@ -341,6 +341,18 @@ pub fn simulated_frames(
                 .iter()
                 .flat_map(|g| g.labels.iter().map(|&l| u8::from(l)))
                 .collect();
+            let contact_force_n = f
+                .frame
+                .fingers
+                .iter()
+                .flat_map(|g| g.contact_force_n.iter().map(|&v| v as f32))
+                .collect();
+            let obstacle_distance_m = f
+                .frame
+                .fingers
+                .iter()
+                .flat_map(|g| g.distances_m.iter().map(|&v| v as f32))
+                .collect();
             let markers = f
                 .frame
                 .fingers
@@ -360,6 +372,8 @@ pub fn simulated_frames(
                 frame_index: k as u32,
                 vertices,
                 contact,
+                contact_force_n,
+                obstacle_distance_m,
                 markers,
                 world_from_hand: [t.x, t.y, t.z, q.i, q.j, q.k, q.w],
                 tendon_pull_m: f
@@ -401,6 +415,8 @@ mod tests {
                     frame_index: k,
                     vertices: (0..4).map(|_| [rng.uniform() as f32; 3]).collect(),
                     contact: (0..4).map(|_| u8::from(rng.uniform() < 0.3)).collect(),
+                    contact_force_n: (0..4).map(|_| rng.uniform() as f32).collect(),
+                    obstacle_distance_m: vec![f32::INFINITY; 4],
                     markers: vec![[0.0, 0.0, rng.uniform() as f32]],
                     world_from_hand: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
                     tendon_pull_m: vec![rng.uniform() as f32],

@@ -23,4 +23,22 @@ pub enum TouchError {
         /// What went wrong (e.g. the simulator's error, which names the step and element).
         message: String,
     },
+    /// A simulation failed (the error names the step, finger and element).
+    #[error(transparent)]
+    Simulation(#[from] moe_tendon_sim::SimError),
+    /// Shape estimation failed.
+    #[error(transparent)]
+    Shape(#[from] moe_arap::ArapError),
+    /// Contact estimation failed.
+    #[error(transparent)]
+    Contact(#[from] moe_contact::ContactError),
+    /// A geometric input is malformed.
+    #[error(transparent)]
+    Geometry(#[from] moe_geom::GeomError),
+    /// An evaluation's inputs do not fit together.
+    #[error("evaluation: {reason}")]
+    InvalidEvaluation {
+        /// What is wrong.
+        reason: String,
+    },
 }

@@ -5,6 +5,8 @@
 //! (file access goes through `moe-io`); the binary only parses arguments, reads and writes files,
 //! and reports.
 
+/// The simulation study of contact estimation (paper Tables 1–2).
+pub mod contact_eval;
 /// Sharded, resumable, deterministic data set generation.
 pub mod datagen;
 /// Recording simulated episodes (rendered camera frames with ground truth).

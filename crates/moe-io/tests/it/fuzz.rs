@@ -7,6 +7,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
 use moe_geom::{Point3, TriMesh};
+use moe_io::dataset::{DatasetFrame, DatasetLayout};
 use moe_io::{HandConfig, IoError, PlyData};
 
 use crate::{Fuzz, fixture_configs, octahedron};
@@ -68,6 +69,48 @@ fn read_csv(b: &[u8]) -> Outcome {
             (!ok).then(|| "invalid rows returned".to_string())
         },
     )
+}
+
+fn read_shard(b: &[u8]) -> Outcome {
+    let path = Path::new("fuzz.safetensors");
+    from_result(
+        moe_io::dataset::parse_shard(path, b),
+        |(layout, frames): &(DatasetLayout, Vec<DatasetFrame>)| {
+            moe_io::dataset::shard_bytes(path, layout, frames)
+                .err()
+                .map(|e| format!("a shard that does not re-serialise was returned: {e}"))
+        },
+    )
+}
+
+/// A valid shard of three frames of a small layout.
+fn shard_sample() -> Vec<u8> {
+    let layout = DatasetLayout {
+        finger_num_vertices: vec![3, 2],
+        markers_per_finger: vec![1, 1],
+        tendons_per_finger: 1,
+        object_param_len: 2,
+        object_families: vec!["sphere".into(), "plate".into()],
+    };
+    let frames: Vec<DatasetFrame> = (0..3u32)
+        .map(|k| {
+            let s = k as f32 * 0.01;
+            DatasetFrame {
+                trajectory_id: 7,
+                frame_index: k,
+                vertices: (0..5).map(|i| [i as f32 * 0.01, s, 0.0]).collect(),
+                contact: vec![0, 1, 0, 0, u8::from(k == 1)],
+                contact_force_n: vec![0.0, 0.02, 0.0, 0.0, 0.5 * s],
+                obstacle_distance_m: vec![0.01, -1e-5, 2e-3, f32::INFINITY, 0.0],
+                markers: vec![[0.0, 0.0, s], [0.01, 0.0, s]],
+                world_from_hand: [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0],
+                tendon_pull_m: vec![0.001 * k as f32, 0.0],
+                object_family: 1,
+                object_params: vec![0.02, 0.003],
+            }
+        })
+        .collect();
+    moe_io::dataset::shard_bytes(Path::new("s.safetensors"), &layout, &frames).unwrap()
 }
 
 fn config_path() -> std::path::PathBuf {
@@ -162,6 +205,7 @@ fn samples() -> Vec<(&'static str, Reader, Vec<u8>)> {
         ),
         ("hand-json", read_hand_json, hand_json),
         ("csv", read_csv, csv),
+        ("shard", read_shard, shard_sample()),
     ]
 }
 
@@ -369,7 +413,17 @@ fn adversarial_sizes_and_nesting_are_errors() {
     let deep_toml = format!("a = {}{}", "[".repeat(100_000), "]".repeat(100_000)).into_bytes();
     let deep_inline = format!("a = {}{}", "{ b = ".repeat(50_000), "}".repeat(50_000)).into_bytes();
     let deep_json = format!("{}{}", "[".repeat(100_000), "]".repeat(100_000)).into_bytes();
+    // A safetensors header that declares 2^63 bytes of JSON, and one whose tensor claims a
+    // shape of 2^40 frames over the few bytes that follow.
+    let mut huge_header = (1u64 << 63).to_le_bytes().to_vec();
+    huge_header.extend_from_slice(b"{}");
+    let json = r#"{"trajectory_id":{"dtype":"U64","shape":[1099511627776],"data_offsets":[0,8]}}"#;
+    let mut huge_shape = (json.len() as u64).to_le_bytes().to_vec();
+    huge_shape.extend_from_slice(json.as_bytes());
+    huge_shape.extend_from_slice(&[0u8; 8]);
     let cases: Vec<(&str, Reader, Vec<u8>)> = vec![
+        ("shard 2^63 header", read_shard, huge_header),
+        ("shard 2^40 frames", read_shard, huge_shape),
         ("ply 1e12 vertices", read_ply, huge_ply),
         ("ply 2^32-1 list", read_ply, huge_list),
         ("stl 2^32-1 facets", read_stl, huge_stl),

@@ -5,7 +5,7 @@ use moe_geom::{FingerParams, Point3, Real, Topology, Vector3};
 use moe_tendon_sim::{
     ContactParams, FingerBody, FingerInputs, Integrator, Obstacle, ObstacleConfig, ObstacleShape,
     PoseKeyframe, PoseTrajectory, PosedObstacles, StepContext, TendonCommand, TendonParams,
-    contact_labels, surface_distances,
+    contact_labels, surface_contact,
 };
 
 use crate::tendons::default_finger;
@@ -59,9 +59,14 @@ fn press_with(
     }
     let surface = body.surface().positions(&x);
     let t_end = steps as Real * DT;
-    let d = surface_distances(&surface, obstacles, &[obstacle.pose_at(t_end)]);
-    let labels = contact_labels(&d, contact);
-    (surface, d, labels)
+    let c = surface_contact(
+        &surface,
+        obstacles,
+        &[obstacle.pose_at(t_end)],
+        contact.stiffness_n_per_m,
+    );
+    let labels = contact_labels(&c, &body.movable_surface_vertices(), contact);
+    (surface, c.distances_m, labels)
 }
 
 fn moving(shape: ObstacleShape, from: [Real; 3], to: [Real; 3], t_press: Real) -> Obstacle {

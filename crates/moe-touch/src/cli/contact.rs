@@ -12,7 +12,6 @@ use moe_contact::{
     contact_probability, open_device,
 };
 use moe_geom::{ContactMap, HandModel, HandShape};
-use moe_io::PlyData;
 use serde::Serialize;
 
 /// The float type the network computes in.
@@ -262,16 +261,6 @@ fn run_points(
     Ok(())
 }
 
-/// Blue (0) to red (1) through purple, so that any mesh viewer shows the probability.
-fn ramp(p: f64) -> [u8; 3] {
-    let p = p.clamp(0.0, 1.0);
-    [
-        (255.0 * p).round() as u8,
-        40,
-        (255.0 * (1.0 - p)).round() as u8,
-    ]
-}
-
 fn read_shape(hand: &HandModel, dir: &Path) -> Result<HandShape> {
     let mut fingers = Vec::with_capacity(hand.num_fingers());
     for i in 0..hand.num_fingers() {
@@ -304,12 +293,7 @@ fn run_shape(
     let mut plys = Vec::with_capacity(hand.num_fingers());
     let mut fingers = Vec::with_capacity(hand.num_fingers());
     for (i, probs) in map.fingers.iter().enumerate() {
-        let mesh = hand.fingers()[i]
-            .model
-            .mesh()
-            .with_vertices(shape.fingers[i].clone())?;
-        let mut ply = PlyData::from_mesh(&mesh).with_scalar("contact_probability", probs.clone());
-        ply.colors = Some(probs.iter().map(|&p| ramp(p)).collect());
+        let ply = moe_touch::contact_eval::contact_ply(&hand, i, &shape.fingers[i], probs)?;
         let name = format!("finger_{i}.ply");
         fingers.push(FingerContactRecord {
             mesh: name.clone(),

@@ -1,0 +1,590 @@
+//! The paper's simulation study of contact estimation (§5.1–5.2) as library code: Table 1 on
+//! held-out frames of a data set, and the controlled plate experiment of Table 2.
+//!
+//! Table 1 compares, frame by frame on the same frames:
+//!
+//! - shape estimation: SR-ARAP from the frame's markers (all 7 per finger, and a seeded random
+//!   4 of 7 per finger), the KNN baselines' shapes (the matched training frame's surface), and the
+//!   rest shape for reference; each by BCD against the simulated surface and by the per-vertex
+//!   error (vertex i against vertex i), which BCD hides;
+//! - contact estimation: the DGCNN on the true shape, the DGCNN on the SR-ARAP shape (the
+//!   paper's setting), KNN[All] and KNN[Sub], by [`moe_contact::metrics`]'s definitions, against
+//!   the data set's labels and optionally a second labelling of the same frames;
+//! - the runtime per observation of each (one frame at a time, as a robot runs them).
+//!
+//! Table 2 simulates each plate scene a few times with the plate's pose perturbed by a seeded
+//! small offset and tilt, and reports the UCD from the predicted to the true contact points over
+//! the frames that have contact, for the DGCNN on SR-ARAP shapes and for KNN[All].
+
+use std::time::Instant;
+
+use moe_arap::{MultiShapeEstimator, ShapeOptions};
+use moe_contact::{ContactEstimator, ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex};
+use moe_geom::math::UnitQuat;
+use moe_geom::{
+    HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng, Vector3,
+    WorldFromHand, bcd,
+};
+use moe_tendon_sim::randomize::run_saving;
+use moe_tendon_sim::{Scene, SceneConfig};
+use serde::Serialize;
+
+use crate::error::TouchError;
+
+/// Options of the Table 1 evaluation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactEvalOptions {
+    /// Markers per finger kept in the reduced-marker shape rows (4 in the paper).
+    pub subset_markers: usize,
+    /// Seed of the marker subsets.
+    pub seed: u64,
+    /// SR-ARAP options (the paper's: 50 iterations, α = 0.01, cold start).
+    pub shape: ShapeOptions,
+}
+
+impl Default for ContactEvalOptions {
+    fn default() -> Self {
+        Self {
+            subset_markers: 4,
+            seed: 0,
+            shape: ShapeOptions::default(),
+        }
+    }
+}
+
+/// One shape-estimation row.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ShapeRow {
+    /// Estimator (`SR-ARAP`, `KNN[All]`, `KNN[Sub]`, `rest`).
+    pub method: String,
+    /// Markers per finger it saw (0 for the rest shape).
+    pub markers: usize,
+    /// Frames evaluated.
+    pub frames: u64,
+    /// Mean BCD between the estimated and the true surface, mm.
+    pub bcd_mm: Real,
+    /// Standard deviation of the frames' BCD, mm.
+    pub bcd_sd_mm: Real,
+    /// Mean distance between vertex i of the estimate and vertex i of the truth, mm.
+    pub vertex_mean_mm: Real,
+    /// Largest such distance over all frames, mm.
+    pub vertex_max_mm: Real,
+    /// Mean time per observation, ms.
+    pub ms_per_frame: Real,
+}
+
+/// One contact-estimation row.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ContactRow {
+    /// Estimator (`DGCNN (true shape)`, `DGCNN (SR-ARAP)`, `KNN[All]`, `KNN[Sub]`).
+    pub method: String,
+    /// Label rule of the ground truth the row is scored against.
+    pub labels: String,
+    /// The figures.
+    pub report: ContactReport,
+    /// Mean time per observation, ms (for DGCNN on SR-ARAP: the network only; add the
+    /// SR-ARAP row's time for the whole chain).
+    pub ms_per_frame: Real,
+}
+
+/// Table 1.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ContactTable {
+    /// Frames evaluated.
+    pub frames: usize,
+    /// Trajectories they come from.
+    pub trajectories: usize,
+    /// Contact threshold of the DGCNN.
+    pub threshold: Real,
+    /// Shape rows.
+    pub shape: Vec<ShapeRow>,
+    /// Contact rows, for every label rule.
+    pub contact: Vec<ContactRow>,
+}
+
+/// Ground-truth labels of the evaluated frames under a named rule.
+#[derive(Debug, Clone, Copy)]
+pub struct TruthLabels<'a> {
+    /// Rule name.
+    pub rule: &'a str,
+    /// Per frame, per finger, per vertex.
+    pub labels: &'a [Vec<Vec<bool>>],
+}
+
+/// The estimators of the study.
+#[derive(Debug, Clone, Copy)]
+pub struct Estimators<'a> {
+    /// The trained network.
+    pub dgcnn: &'a DgcnnEstimator,
+    /// KNN[All] (every training frame; must keep shapes for its shape row).
+    pub knn_all: &'a KnnIndex,
+    /// KNN[Sub] (a seeded 10 % of them).
+    pub knn_sub: &'a KnnIndex,
+}
+
+/// What every estimator made of one frame, for a person to look at.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FramePrediction {
+    /// Index of the frame in the evaluated list.
+    pub frame: usize,
+    /// SR-ARAP shape from every marker.
+    pub arap_shape: HandShape,
+    /// DGCNN contact probabilities on the SR-ARAP shape.
+    pub dgcnn_on_arap: Vec<Vec<Real>>,
+    /// KNN[All] contact labels.
+    pub knn_all: Vec<Vec<bool>>,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct ShapeAcc {
+    frames: u64,
+    bcd_sum: Real,
+    bcd_sq: Real,
+    vertex_sum: Real,
+    vertex_count: u64,
+    vertex_max: Real,
+    seconds: Real,
+}
+
+impl ShapeAcc {
+    fn add(&mut self, estimate: &HandShape, truth: &HandShape, seconds: Real) -> Result<(), TouchError> {
+        let a: Vec<Point3> = estimate.fingers.iter().flatten().copied().collect();
+        let b: Vec<Point3> = truth.fingers.iter().flatten().copied().collect();
+        if a.len() != b.len() {
+            return Err(TouchError::InvalidEvaluation {
+                reason: format!(
+                    "an estimated shape of {} vertices for a true one of {}",
+                    a.len(),
+                    b.len()
+                ),
+            });
+        }
+        let d = bcd(&a, &b)?;
+        self.frames += 1;
+        self.bcd_sum += d;
+        self.bcd_sq += d * d;
+        for (p, q) in a.iter().zip(&b) {
+            let e = (p - q).norm();
+            self.vertex_sum += e;
+            self.vertex_max = self.vertex_max.max(e);
+        }
+        self.vertex_count += a.len() as u64;
+        self.seconds += seconds;
+        Ok(())
+    }
+
+    fn row(&self, method: &str, markers: usize) -> ShapeRow {
+        let n = self.frames.max(1) as Real;
+        let mean = self.bcd_sum / n;
+        ShapeRow {
+            method: method.to_owned(),
+            markers,
+            frames: self.frames,
+            bcd_mm: 1e3 * mean,
+            bcd_sd_mm: 1e3 * (self.bcd_sq / n - mean * mean).max(0.0).sqrt(),
+            vertex_mean_mm: 1e3 * self.vertex_sum / self.vertex_count.max(1) as Real,
+            vertex_max_mm: 1e3 * self.vertex_max,
+            ms_per_frame: 1e3 * self.seconds / n,
+        }
+    }
+}
+
+/// `keypoints` with all but `keep` markers of every finger dropped (a seeded choice).
+pub fn marker_subset(keypoints: &HandKeypoints, keep: usize, rng: &mut SeededRng) -> HandKeypoints {
+    HandKeypoints {
+        fingers: keypoints
+            .fingers
+            .iter()
+            .map(|f| {
+                let mut ids: Vec<usize> = (0..f.len()).collect();
+                for i in (1..ids.len()).rev() {
+                    ids.swap(i, rng.below(i as u64 + 1) as usize);
+                }
+                let kept = &ids[..keep.min(ids.len())];
+                f.iter()
+                    .enumerate()
+                    .map(|(i, p)| if kept.contains(&i) { *p } else { None })
+                    .collect()
+            })
+            .collect(),
+    }
+}
+
+fn labels_above(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
+    map.iter()
+        .map(|f| f.iter().map(|&p| p >= threshold).collect())
+        .collect()
+}
+
+/// A shape estimator for the study: SR-ARAP with every marker attached at rest.
+///
+/// # Errors
+/// The solver's refusal of the hand's meshes or of the options.
+pub fn study_shape_estimator(
+    hand: &HandModel,
+    options: &ShapeOptions,
+) -> Result<MultiShapeEstimator, TouchError> {
+    let mut arap = MultiShapeEstimator::new(hand.clone(), options.clone())?;
+    arap.assign_handles(&hand.rest_keypoints())?;
+    Ok(arap)
+}
+
+/// Table 1 on `frames` (held-out frames of one hand), scored against the frames' own labels
+/// (`rule` names their rule) and, if given, against `other` labels of the same frames.
+/// `keep(k)` selects the frames whose predictions are returned for display.
+///
+/// # Errors
+/// Frames that do not fit the hand or the estimators, a failing solve or network pass, or
+/// `other` labels for another number of frames.
+pub fn evaluate_table1(
+    hand: &HandModel,
+    frames: &[LabelledFrame],
+    rule: &str,
+    other: Option<TruthLabels<'_>>,
+    estimators: Estimators<'_>,
+    options: &ContactEvalOptions,
+    keep: &dyn Fn(usize) -> bool,
+) -> Result<(ContactTable, Vec<FramePrediction>), TouchError> {
+    if frames.is_empty() {
+        return Err(TouchError::InvalidEvaluation {
+            reason: "no frames to evaluate".into(),
+        });
+    }
+    if let Some(o) = other
+        && o.labels.len() != frames.len()
+    {
+        return Err(TouchError::InvalidEvaluation {
+            reason: format!(
+                "{} '{}' label sets for {} frames",
+                o.labels.len(),
+                o.rule,
+                frames.len()
+            ),
+        });
+    }
+    let mut arap = study_shape_estimator(hand, &options.shape)?;
+    let rest = HandShape::rest(hand);
+    let threshold = estimators.dgcnn.threshold();
+    let rng = SeededRng::new(options.seed);
+    // Shape accumulators: rest, SR-ARAP all, SR-ARAP subset, KNN[All], KNN[Sub].
+    let mut shapes = [ShapeAcc::default(); 5];
+    // Contact methods: DGCNN true, DGCNN SR-ARAP, KNN[All], KNN[Sub]; per truth.
+    let truths = 1 + usize::from(other.is_some());
+    let mut metrics = vec![[ContactMetrics::default(); 4]; truths];
+    let mut seconds = [0.0; 4];
+    let mut kept = Vec::new();
+    let mut trajectories: Vec<u64> = frames.iter().map(|f| f.trajectory_id).collect();
+    trajectories.sort_unstable();
+    trajectories.dedup();
+    for (k, frame) in frames.iter().enumerate() {
+        frame.shape.check_against(hand)?;
+        shapes[0].add(&rest, &frame.shape, 0.0)?;
+        let t = Instant::now();
+        let arap_shape = arap.estimate(&frame.markers)?.shape;
+        shapes[1].add(&arap_shape, &frame.shape, t.elapsed().as_secs_f64())?;
+        let subset = marker_subset(&frame.markers, options.subset_markers, &mut rng.split(k as u64));
+        let t = Instant::now();
+        let subset_shape = arap.estimate(&subset)?.shape;
+        shapes[2].add(&subset_shape, &frame.shape, t.elapsed().as_secs_f64())?;
+
+        let mut predictions: [Vec<Vec<bool>>; 4] = Default::default();
+        let t = Instant::now();
+        let on_true = estimators.dgcnn.estimate(&frame.shape, Some(&frame.markers))?;
+        seconds[0] += t.elapsed().as_secs_f64();
+        predictions[0] = labels_above(&on_true.fingers, threshold);
+        let t = Instant::now();
+        let on_arap = estimators.dgcnn.estimate(&arap_shape, Some(&frame.markers))?;
+        seconds[1] += t.elapsed().as_secs_f64();
+        predictions[1] = labels_above(&on_arap.fingers, threshold);
+        for (slot, (index, acc)) in [
+            (2usize, (estimators.knn_all, 3usize)),
+            (3, (estimators.knn_sub, 4)),
+        ] {
+            let t = Instant::now();
+            let m = index.nearest(&frame.markers)?;
+            let map = index.contact_map(m);
+            let elapsed = t.elapsed().as_secs_f64();
+            seconds[slot] += elapsed;
+            predictions[slot] = labels_above(&map.fingers, 0.5);
+            if let Some(shape) = index.shape_of(m.frame) {
+                shapes[acc].add(&shape, &frame.shape, elapsed)?;
+            }
+        }
+        for (p, m) in predictions.iter().zip(metrics[0].iter_mut()) {
+            m.add(&frame.shape, &frame.contact, p)?;
+        }
+        if let Some(o) = other {
+            for (p, m) in predictions.iter().zip(metrics[1].iter_mut()) {
+                m.add(&frame.shape, &o.labels[k], p)?;
+            }
+        }
+        if keep(k) {
+            kept.push(FramePrediction {
+                frame: k,
+                arap_shape,
+                dgcnn_on_arap: on_arap.fingers,
+                knn_all: std::mem::take(&mut predictions[2]),
+            });
+        }
+    }
+    let markers = hand
+        .fingers()
+        .first()
+        .map_or(0, |f| f.model.marker_vertices().len());
+    let mut shape_rows = vec![
+        shapes[0].row("rest", 0),
+        shapes[1].row("SR-ARAP", markers),
+        shapes[2].row("SR-ARAP", options.subset_markers.min(markers)),
+    ];
+    for (acc, name) in [(&shapes[3], "KNN[All]"), (&shapes[4], "KNN[Sub]")] {
+        if acc.frames > 0 {
+            shape_rows.push(acc.row(name, markers));
+        }
+    }
+    let names = ["DGCNN (true shape)", "DGCNN (SR-ARAP)", "KNN[All]", "KNN[Sub]"];
+    let n = frames.len() as Real;
+    let mut contact = Vec::new();
+    for (t, per_method) in metrics.iter().enumerate() {
+        let label_rule = if t == 0 {
+            rule
+        } else {
+            other.map_or("", |o| o.rule)
+        };
+        for (i, m) in per_method.iter().enumerate() {
+            contact.push(ContactRow {
+                method: names[i].to_owned(),
+                labels: label_rule.to_owned(),
+                report: m.report(),
+                ms_per_frame: 1e3 * seconds[i] / n,
+            });
+        }
+    }
+    Ok((
+        ContactTable {
+            frames: frames.len(),
+            trajectories: trajectories.len(),
+            threshold,
+            shape: shape_rows,
+            contact,
+        },
+        kept,
+    ))
+}
+
+/// A plate scene of Table 2.
+#[derive(Debug, Clone)]
+pub struct PlateScene {
+    /// Name (`plate_tip_front`, ...).
+    pub name: String,
+    /// Region pressed (`tip`, `middle`, `base`).
+    pub region: String,
+    /// The scene.
+    pub config: SceneConfig,
+}
+
+/// One trial of one plate scene.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlateTrial {
+    /// Scene name.
+    pub scene: String,
+    /// Region pressed.
+    pub region: String,
+    /// Trial number (0-based).
+    pub trial: u64,
+    /// Offset of the plate, metres.
+    pub offset_m: [Real; 3],
+    /// Tilt of the plate, degrees.
+    pub tilt_deg: Real,
+    /// Frames with true contact.
+    pub contact_frames: u64,
+    /// DGCNN on SR-ARAP shapes over those frames.
+    pub dgcnn: ContactReport,
+    /// KNN[All] over those frames.
+    pub knn_all: ContactReport,
+}
+
+/// Largest offset of the plate in a trial, metres (uniform per axis).
+pub const PLATE_OFFSET_M: Real = 5e-4;
+/// Largest tilt of the plate in a trial, degrees (about a random axis).
+pub const PLATE_TILT_DEG: Real = 3.0;
+
+/// `config` with its obstacles moved by a seeded offset of up to [`PLATE_OFFSET_M`] per axis
+/// and tilted by up to [`PLATE_TILT_DEG`] about a random axis through their first keyframe;
+/// trial 0 of any seed is the scene as given.
+pub fn perturbed_plate(config: &SceneConfig, seed: u64, trial: u64) -> (SceneConfig, [Real; 3], Real) {
+    if trial == 0 {
+        return (config.clone(), [0.0; 3], 0.0);
+    }
+    let mut rng = SeededRng::new(seed).split(trial);
+    let offset = [
+        rng.uniform_range(-PLATE_OFFSET_M, PLATE_OFFSET_M),
+        rng.uniform_range(-PLATE_OFFSET_M, PLATE_OFFSET_M),
+        rng.uniform_range(-PLATE_OFFSET_M, PLATE_OFFSET_M),
+    ];
+    let tilt = rng.uniform_range(-PLATE_TILT_DEG, PLATE_TILT_DEG);
+    let axis = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+    let axis = if axis.norm() > 1e-9 {
+        axis.normalize()
+    } else {
+        Vector3::x()
+    };
+    let rotation = UnitQuat::from_scaled_axis(axis * tilt.to_radians());
+    let mut out = config.clone();
+    for o in &mut out.obstacles {
+        let Some(pivot) = o
+            .trajectory
+            .keyframes
+            .first()
+            .map(|k| Vector3::from(k.translation_m))
+        else {
+            continue;
+        };
+        for k in &mut o.trajectory.keyframes {
+            let r = rotation * UnitQuat::from_scaled_axis(Vector3::from(k.rotation_rad));
+            let t = pivot + rotation * (Vector3::from(k.translation_m) - pivot) + Vector3::from(offset);
+            k.translation_m = [t.x, t.y, t.z];
+            let a = r.scaled_axis();
+            k.rotation_rad = [a.x, a.y, a.z];
+        }
+    }
+    (out, offset, tilt)
+}
+
+/// The labelled frames of a simulated scene (markers are the marker vertices of the surface).
+///
+/// # Errors
+/// Divergence of the simulation, or a scene whose hand is not `hand`'s layout.
+pub fn simulate_labelled(config: &SceneConfig, hand: &HandModel) -> Result<Vec<LabelledFrame>, TouchError> {
+    let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
+    let steps = scene.num_steps();
+    let frames = run_saving(&mut scene, steps)?;
+    Ok(frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let fingers: Vec<Vec<Point3>> = f
+                .frame
+                .fingers
+                .iter()
+                .map(|g| g.vertices_in_hand.clone())
+                .collect();
+            let markers = HandKeypoints {
+                fingers: hand
+                    .fingers()
+                    .iter()
+                    .zip(&fingers)
+                    .map(|(hf, v)| {
+                        hf.model
+                            .marker_vertices()
+                            .iter()
+                            .map(|&m| Some(v[m as usize]))
+                            .collect()
+                    })
+                    .collect(),
+            };
+            LabelledFrame {
+                trajectory_id: 0,
+                frame_index: k as u32,
+                shape: HandShape { fingers },
+                contact: f.frame.fingers.iter().map(|g| g.labels.clone()).collect(),
+                markers,
+                world_from_hand: WorldFromHand::new(f.frame.world_from_hand),
+            }
+        })
+        .collect())
+}
+
+/// Table 2: every plate scene, `trials` trials each (trial 0 unperturbed), UCD from predicted to
+/// true contact points over the frames with true contact, for the DGCNN on SR-ARAP shapes and
+/// KNN[All].
+///
+/// # Errors
+/// As [`simulate_labelled`] and the estimators.
+pub fn evaluate_plates(
+    hand: &HandModel,
+    scenes: &[PlateScene],
+    trials: u64,
+    seed: u64,
+    dgcnn: &DgcnnEstimator,
+    knn_all: &KnnIndex,
+    shape: &ShapeOptions,
+) -> Result<Vec<PlateTrial>, TouchError> {
+    let mut arap = study_shape_estimator(hand, shape)?;
+    let threshold = dgcnn.threshold();
+    let mut out = Vec::new();
+    for (s, scene) in scenes.iter().enumerate() {
+        for trial in 0..trials {
+            let (config, offset_m, tilt_deg) =
+                perturbed_plate(&scene.config, seed ^ (s as u64) << 32, trial);
+            let frames = simulate_labelled(&config, hand)?;
+            let (mut d, mut k) = (ContactMetrics::default(), ContactMetrics::default());
+            let mut contact_frames = 0;
+            for frame in frames.iter().filter(|f| f.contact_count() > 0) {
+                contact_frames += 1;
+                let estimated = arap.estimate(&frame.markers)?.shape;
+                let p = dgcnn.estimate(&estimated, Some(&frame.markers))?;
+                d.add(&frame.shape, &frame.contact, &labels_above(&p.fingers, threshold))?;
+                let m = knn_all.nearest(&frame.markers)?;
+                k.add(
+                    &frame.shape,
+                    &frame.contact,
+                    &labels_above(&knn_all.contact_map(m).fingers, 0.5),
+                )?;
+            }
+            out.push(PlateTrial {
+                scene: scene.name.clone(),
+                region: scene.region.clone(),
+                trial,
+                offset_m,
+                tilt_deg,
+                contact_frames,
+                dgcnn: d.report(),
+                knn_all: k.report(),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Blue (0) to red (1) colour of a contact probability, for meshes a person looks at.
+pub fn probability_colour(p: Real) -> [u8; 3] {
+    let p = p.clamp(0.0, 1.0);
+    [
+        (255.0 * p).round() as u8,
+        40,
+        (255.0 * (1.0 - p)).round() as u8,
+    ]
+}
+
+/// Finger `finger` of `hand` deformed to `vertices`, as PLY with the per-vertex scalar
+/// `contact_probability` and colours from [`probability_colour`].
+///
+/// # Errors
+/// `vertices` or `probabilities` of another length than the finger's mesh, or non-finite
+/// vertices.
+pub fn contact_ply(
+    hand: &HandModel,
+    finger: usize,
+    vertices: &[Point3],
+    probabilities: &[Real],
+) -> Result<moe_io::PlyData, TouchError> {
+    let Some(f) = hand.fingers().get(finger) else {
+        return Err(TouchError::InvalidEvaluation {
+            reason: format!("finger {finger} of a {}-finger hand", hand.num_fingers()),
+        });
+    };
+    let mesh = f.model.mesh().with_vertices(vertices.to_vec())?;
+    if probabilities.len() != vertices.len() {
+        return Err(TouchError::InvalidEvaluation {
+            reason: format!(
+                "{} contact probabilities for finger {finger}'s {} vertices",
+                probabilities.len(),
+                vertices.len()
+            ),
+        });
+    }
+    let mut ply = moe_io::PlyData::from_mesh(&mesh)
+        .with_scalar("contact_probability", probabilities.iter().copied());
+    ply.colors = Some(probabilities.iter().map(|&p| probability_colour(p)).collect());
+    Ok(ply)
+}

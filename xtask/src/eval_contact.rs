@@ -1,0 +1,425 @@
+//! `cargo xtask eval contact`: the paper's simulation study of contact estimation (Tables 1–2)
+//! on held-out trajectories of a data set — a thin command over `moe_touch::contact_eval`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use moe_contact::{Dgcnn, DgcnnEstimator, KnnIndex, ModelCard};
+use moe_geom::{HandModel, LabelledFrame, Real};
+use moe_io::{DatasetReader, Split, SplitFractions};
+use moe_tendon_sim::SceneConfig;
+use moe_touch::contact_eval::{
+    ContactEvalOptions, ContactTable, Estimators, PlateScene, PlateTrial, TruthLabels,
+    contact_ply, evaluate_plates, evaluate_table1,
+};
+use serde_json::json;
+
+use crate::ci::workspace_root;
+use crate::train::{dataset_hand, label_rule_of};
+
+/// Arguments of `cargo xtask eval contact`.
+#[derive(Debug, Args)]
+pub(crate) struct ContactEvalArgs {
+    /// Data set directory; its test trajectories are evaluated (its training trajectories make
+    /// the KNN index).
+    #[arg(long)]
+    pub(crate) data: PathBuf,
+    /// The contact model (`NAME.safetensors` with its card `NAME.json`).
+    #[arg(long)]
+    pub(crate) model: PathBuf,
+    /// KNN[All] index file: loaded when it exists, otherwise built from the training
+    /// trajectories and written there, so that the next evaluation does not rebuild it.
+    #[arg(long, value_name = "K.safetensors")]
+    pub(crate) knn_index: Option<PathBuf>,
+    /// Evaluate at most this many test frames (the first ones, in data set order).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+    pub(crate) max_frames: Option<u64>,
+    /// Trials per plate scene (Table 2; trial 0 is the scene as committed). 0 skips Table 2.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(0..=100))]
+    pub(crate) trials: u64,
+    /// Seed of the marker subsets, KNN[Sub] and the plate perturbations.
+    #[arg(long, default_value_t = 0)]
+    pub(crate) seed: u64,
+    /// Print one JSON object on stdout instead of tables.
+    #[arg(long)]
+    pub(crate) json: bool,
+    /// Write, for a few test frames with contact, the true and estimated meshes as PLY coloured
+    /// by contact, and a figure of the per-region plate errors (SVG) to this directory.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) out: Option<PathBuf>,
+}
+
+/// The six plate scenes of Table 2, in the paper's order.
+const PLATES: [(&str, &str); 6] = [
+    ("plate_tip_front", "tip"),
+    ("plate_tip_side", "tip"),
+    ("plate_middle_front", "middle"),
+    ("plate_middle_side", "middle"),
+    ("plate_base_front", "base"),
+    ("plate_base_side", "base"),
+];
+
+/// Frames whose estimates `--out` writes.
+const SHOWN_FRAMES: usize = 4;
+
+/// Distance of the proximity rule the first data sets used, metres.
+const PROXIMITY_M: f32 = 1e-3;
+
+pub(crate) fn load_estimator(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator> {
+    let files = moe_io::read_model_files(path)?;
+    let text = files.card.with_context(|| {
+        format!(
+            "{}: no model card beside the weights; the evaluation needs the card's input \
+             features and threshold",
+            files.card_path.display()
+        )
+    })?;
+    let card = ModelCard::from_json(&text)
+        .with_context(|| format!("model card {}", files.card_path.display()))?;
+    let net = Dgcnn::from_safetensors(
+        &files.weights,
+        Some(&card),
+        moe_contact::candle_core::DType::F32,
+        &moe_contact::candle_core::Device::Cpu,
+    )
+    .with_context(|| format!("model {}", path.display()))?;
+    DgcnnEstimator::new(net, card, hand).with_context(|| {
+        format!(
+            "model {} on the data set's hand ({:?} vertices per finger)",
+            path.display(),
+            hand.fingers()
+                .iter()
+                .map(|f| f.model.mesh().num_vertices())
+                .collect::<Vec<_>>()
+        )
+    })
+}
+
+fn knn_index(args: &ContactEvalArgs, reader: &DatasetReader) -> Result<KnnIndex> {
+    if let Some(path) = &args.knn_index
+        && path.exists()
+    {
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let index = KnnIndex::from_bytes(&bytes)
+            .with_context(|| format!("KNN index {}", path.display()))?;
+        if index.vertices_per_finger() != reader.card().layout.finger_num_vertices.as_slice() {
+            bail!(
+                "KNN index {} is of a hand with {:?} vertices per finger, the data set's has {:?}",
+                path.display(),
+                index.vertices_per_finger(),
+                reader.card().layout.finger_num_vertices
+            );
+        }
+        eprintln!("eval contact: KNN index of {} frames from {}", index.len(), path.display());
+        return Ok(index);
+    }
+    let mut frames = Vec::new();
+    for f in reader.labelled_frames(Some(Split::Train), SplitFractions::default()) {
+        frames.push(f?);
+    }
+    if frames.is_empty() {
+        bail!("{}: no training frames for the KNN index", args.data.display());
+    }
+    let index = KnnIndex::new(&frames, true)?;
+    if let Some(path) = &args.knn_index {
+        moe_io::write_atomic(path, &index.to_bytes()?)?;
+        eprintln!(
+            "eval contact: built the KNN index of {} training frames, wrote {}",
+            index.len(),
+            path.display()
+        );
+    }
+    Ok(index)
+}
+
+pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
+    let reader = DatasetReader::open(&args.data)?;
+    if reader.card().totals.frames == 0 {
+        bail!("{}: the data set has no frames", args.data.display());
+    }
+    let hand = dataset_hand(&reader)?;
+    let rule = label_rule_of(&reader);
+    let dgcnn = load_estimator(&args.model, &hand)?;
+    let layout = reader.card().layout.clone();
+    let mut frames: Vec<LabelledFrame> = Vec::new();
+    let mut proximity: Vec<Vec<Vec<bool>>> = Vec::new();
+    for f in reader.frames(Some(Split::Test), SplitFractions::default()) {
+        let f = f?;
+        let labelled = f.to_labelled(&layout)?;
+        let mut near = Vec::with_capacity(layout.finger_num_vertices.len());
+        let mut start = 0;
+        for &n in &layout.finger_num_vertices {
+            near.push(
+                f.obstacle_distance_m[start..start + n]
+                    .iter()
+                    .map(|&d| d < PROXIMITY_M)
+                    .collect(),
+            );
+            start += n;
+        }
+        frames.push(labelled);
+        proximity.push(near);
+        if args.max_frames.is_some_and(|m| frames.len() as u64 >= m) {
+            break;
+        }
+    }
+    if frames.is_empty() {
+        bail!(
+            "{}: no test frames (too few trajectories for a test split)",
+            args.data.display()
+        );
+    }
+    let knn_all = knn_index(args, &reader)?;
+    let knn_sub = knn_all.subset(0.1, args.seed)?;
+    let options = ContactEvalOptions {
+        seed: args.seed,
+        ..ContactEvalOptions::default()
+    };
+    // Show the first frames with the most contact, spread over the set.
+    let mut by_contact: Vec<(usize, usize)> = frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| (f.contact_count(), k))
+        .filter(|(c, _)| *c > 0)
+        .collect();
+    by_contact.sort_unstable_by(|a, b| b.cmp(a));
+    let shown: Vec<usize> = by_contact
+        .iter()
+        .step_by((by_contact.len() / SHOWN_FRAMES).max(1))
+        .take(SHOWN_FRAMES)
+        .map(|&(_, k)| k)
+        .collect();
+    let other = (rule != "proximity").then_some(TruthLabels {
+        rule: "proximity",
+        labels: &proximity,
+    });
+    eprintln!(
+        "eval contact: {} test frames; SR-ARAP, DGCNN, KNN[All] ({} frames), KNN[Sub] ({})",
+        frames.len(),
+        knn_all.len(),
+        knn_sub.len()
+    );
+    let estimators = Estimators {
+        dgcnn: &dgcnn,
+        knn_all: &knn_all,
+        knn_sub: &knn_sub,
+    };
+    let (table, kept) = evaluate_table1(
+        &hand,
+        &frames,
+        &rule,
+        other,
+        estimators,
+        &options,
+        &|k| shown.contains(&k),
+    )?;
+    let plates = if args.trials > 0 {
+        let scenes = plate_scenes()?;
+        eprintln!(
+            "eval contact: {} plate scenes × {} trials",
+            scenes.len(),
+            args.trials
+        );
+        evaluate_plates(
+            &hand,
+            &scenes,
+            args.trials,
+            args.seed,
+            &dgcnn,
+            &knn_all,
+            &options.shape,
+        )?
+    } else {
+        Vec::new()
+    };
+    if let Some(dir) = &args.out {
+        write_out(dir, &hand, &frames, &kept, &plates)?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({
+                "data": args.data.display().to_string(),
+                "model": args.model.display().to_string(),
+                "label_rule": rule,
+                "table1": table,
+                "table2": { "trials": plates, "regions": region_summary(&plates) },
+            }))?
+        );
+    } else {
+        print!("{}", format_table1(&table));
+        if !plates.is_empty() {
+            print!("{}", format_table2(&plates));
+        }
+    }
+    Ok(())
+}
+
+fn plate_scenes() -> Result<Vec<PlateScene>> {
+    let dir = workspace_root().join("fixtures/scenes");
+    PLATES
+        .iter()
+        .map(|(name, region)| {
+            let path = dir.join(format!("{name}.toml"));
+            let text =
+                std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+            let config: SceneConfig =
+                toml::from_str(&text).with_context(|| format!("scene {}", path.display()))?;
+            Ok(PlateScene {
+                name: (*name).to_owned(),
+                region: (*region).to_owned(),
+                config,
+            })
+        })
+        .collect()
+}
+
+/// Mean ± sd of the trials' UCD per region, for DGCNN and KNN[All] (mm); trials whose every
+/// contact frame was missed are left out of the mean and counted.
+fn region_summary(plates: &[PlateTrial]) -> serde_json::Value {
+    let mut out = serde_json::Map::new();
+    for region in ["tip", "middle", "base"] {
+        let trials: Vec<&PlateTrial> = plates.iter().filter(|t| t.region == region).collect();
+        let stat = |f: &dyn Fn(&PlateTrial) -> Real| {
+            let v: Vec<Real> = trials.iter().map(|t| f(t)).filter(|x| x.is_finite()).collect();
+            let n = v.len() as Real;
+            let mean = v.iter().sum::<Real>() / n.max(1.0);
+            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<Real>() / n.max(1.0)).sqrt();
+            json!({ "mean_mm": mean, "sd_mm": sd, "trials": v.len(),
+                    "trials_all_missed": trials.len() - v.len() })
+        };
+        out.insert(
+            region.to_owned(),
+            json!({
+                "dgcnn": stat(&|t| t.dgcnn.ucd_mm),
+                "knn_all": stat(&|t| t.knn_all.ucd_mm),
+            }),
+        );
+    }
+    serde_json::Value::Object(out)
+}
+
+fn format_table1(t: &ContactTable) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Table 1 — {} held-out frames of {} trajectories (DGCNN threshold {:.2})",
+        t.frames, t.trajectories, t.threshold
+    );
+    let _ = writeln!(
+        s,
+        "{:<12} {:>7} {:>10} {:>10} {:>13} {:>12} {:>9}",
+        "shape", "markers", "BCD mm", "sd", "vertex mean", "vertex max", "ms/frame"
+    );
+    for r in &t.shape {
+        let _ = writeln!(
+            s,
+            "{:<12} {:>7} {:>10.3} {:>10.3} {:>13.3} {:>12.3} {:>9.2}",
+            r.method, r.markers, r.bcd_mm, r.bcd_sd_mm, r.vertex_mean_mm, r.vertex_max_mm, r.ms_per_frame
+        );
+    }
+    let _ = writeln!(
+        s,
+        "{:<20} {:<10} {:>8} {:>8} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>9}",
+        "contact", "labels", "BCD mm", "UCD mm", "missed", "f.alarm", "P", "R", "F1", "IoU", "ms/frame"
+    );
+    for r in &t.contact {
+        let p = &r.report;
+        let _ = writeln!(
+            s,
+            "{:<20} {:<10} {:>8.3} {:>8.3} {:>6.1}% {:>6.1}% {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>9.2}",
+            r.method,
+            r.labels,
+            p.bcd_mm,
+            p.ucd_mm,
+            100.0 * p.miss_rate,
+            100.0 * p.false_alarm_rate,
+            p.precision,
+            p.recall,
+            p.f1,
+            p.iou,
+            r.ms_per_frame
+        );
+    }
+    s
+}
+
+fn format_table2(plates: &[PlateTrial]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "Table 2 — plate scenes, UCD predicted → true contact points, mm");
+    let _ = writeln!(
+        s,
+        "{:<20} {:>5} {:>9} {:>8} {:>10} {:>8} {:>10} {:>8}",
+        "scene", "trial", "contact", "DGCNN", "missed", "KNN[All]", "missed", "tilt°"
+    );
+    for t in plates {
+        let _ = writeln!(
+            s,
+            "{:<20} {:>5} {:>9} {:>8.2} {:>9.0}% {:>8.2} {:>9.0}% {:>8.2}",
+            t.scene,
+            t.trial,
+            t.contact_frames,
+            t.dgcnn.ucd_mm,
+            100.0 * t.dgcnn.miss_rate,
+            t.knn_all.ucd_mm,
+            100.0 * t.knn_all.miss_rate,
+            t.tilt_deg
+        );
+    }
+    let summary = region_summary(plates);
+    for region in ["tip", "middle", "base"] {
+        let r = &summary[region];
+        let _ = writeln!(
+            s,
+            "{region:<8} DGCNN {:.2} ± {:.2} mm   KNN[All] {:.2} ± {:.2} mm",
+            r["dgcnn"]["mean_mm"].as_f64().unwrap_or(f64::NAN),
+            r["dgcnn"]["sd_mm"].as_f64().unwrap_or(f64::NAN),
+            r["knn_all"]["mean_mm"].as_f64().unwrap_or(f64::NAN),
+            r["knn_all"]["sd_mm"].as_f64().unwrap_or(f64::NAN),
+        );
+    }
+    s
+}
+
+fn write_out(
+    dir: &Path,
+    hand: &HandModel,
+    frames: &[LabelledFrame],
+    kept: &[moe_touch::contact_eval::FramePrediction],
+    plates: &[PlateTrial],
+) -> Result<()> {
+    // Everything in memory first, so that a failure leaves nothing half-written.
+    let mut files: Vec<(PathBuf, moe_io::PlyData)> = Vec::new();
+    for k in kept {
+        let f = &frames[k.frame];
+        let name = format!("traj{}_frame{}", f.trajectory_id, f.frame_index);
+        for i in 0..hand.num_fingers() {
+            let truth: Vec<Real> = f.contact[i].iter().map(|&c| Real::from(u8::from(c))).collect();
+            files.push((
+                dir.join(format!("{name}_true_finger{i}.ply")),
+                contact_ply(hand, i, &f.shape.fingers[i], &truth)?,
+            ));
+            files.push((
+                dir.join(format!("{name}_dgcnn_on_srarap_finger{i}.ply")),
+                contact_ply(hand, i, &k.arap_shape.fingers[i], &k.dgcnn_on_arap[i])?,
+            ));
+            let knn: Vec<Real> = k.knn_all[i].iter().map(|&c| Real::from(u8::from(c))).collect();
+            files.push((
+                dir.join(format!("{name}_knn_all_finger{i}.ply")),
+                contact_ply(hand, i, &f.shape.fingers[i], &knn)?,
+            ));
+        }
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    for (path, ply) in &files {
+        moe_io::write_ply(path, ply)?;
+    }
+    if !plates.is_empty() {
+        let svg = crate::figure::region_bars(&region_summary(plates));
+        moe_io::write_atomic(&dir.join("plate_regions.svg"), svg.as_bytes())?;
+    }
+    eprintln!("eval contact: wrote {} meshes to {}", files.len(), dir.display());
+    Ok(())
+}
