@@ -203,8 +203,8 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     );
     let estimators = Estimators {
         dgcnn: &dgcnn,
-        knn_all: &knn_all,
-        knn_sub: &knn_sub,
+        knn_all: Some(&knn_all),
+        knn_sub: Some(&knn_sub),
     };
     let (table, kept) = evaluate_table1(
         &hand,
@@ -405,11 +405,13 @@ fn write_out(
                 dir.join(format!("{name}_dgcnn_on_srarap_finger{i}.ply")),
                 contact_ply(hand, i, &k.arap_shape.fingers[i], &k.dgcnn_on_arap[i])?,
             ));
-            let knn: Vec<Real> = k.knn_all[i].iter().map(|&c| Real::from(u8::from(c))).collect();
-            files.push((
-                dir.join(format!("{name}_knn_all_finger{i}.ply")),
-                contact_ply(hand, i, &f.shape.fingers[i], &knn)?,
-            ));
+            if let Some(labels) = k.knn_all.get(i) {
+                let knn: Vec<Real> = labels.iter().map(|&c| Real::from(u8::from(c))).collect();
+                files.push((
+                    dir.join(format!("{name}_knn_all_finger{i}.ply")),
+                    contact_ply(hand, i, &f.shape.fingers[i], &knn)?,
+                ));
+            }
         }
     }
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -422,4 +424,177 @@ fn write_out(
     }
     eprintln!("eval contact: wrote {} meshes to {}", files.len(), dir.display());
     Ok(())
+}
+
+/// The committed held-out frames of the golden regression (a data set directory).
+pub(crate) const HELDOUT_DIR: &str = "fixtures/contact/heldout";
+/// The shipped contact model.
+pub(crate) const SHIPPED_MODEL: &str = "models/contact-two-finger.safetensors";
+
+/// Arguments of `cargo xtask heldout-shard`.
+#[derive(Debug, Args)]
+pub(crate) struct HeldoutArgs {
+    /// Data set to take test frames from.
+    #[arg(long)]
+    pub(crate) data: PathBuf,
+    /// Output data set directory.
+    #[arg(long, default_value = HELDOUT_DIR)]
+    pub(crate) out: PathBuf,
+    /// Test trajectories to take frames from (the first ones with contact).
+    #[arg(long, default_value_t = 2)]
+    pub(crate) trajectories: usize,
+    /// Frames per trajectory (every other frame from the first contact on).
+    #[arg(long, default_value_t = 6)]
+    pub(crate) frames: usize,
+}
+
+/// Writes a small data set of held-out frames: of each of the first test trajectories with
+/// contact, every other frame from one before the first contact.
+pub(crate) fn write_heldout(args: &HeldoutArgs) -> Result<()> {
+    let reader = DatasetReader::open(&args.data)?;
+    let mut by_trajectory: Vec<(u64, Vec<moe_io::DatasetFrame>)> = Vec::new();
+    for f in reader.frames(Some(Split::Test), SplitFractions::default()) {
+        let f = f?;
+        match by_trajectory.last_mut() {
+            Some((t, v)) if *t == f.trajectory_id => v.push(f),
+            _ => by_trajectory.push((f.trajectory_id, vec![f])),
+        }
+    }
+    let mut frames = Vec::new();
+    for (_, traj) in by_trajectory
+        .iter()
+        .filter(|(_, v)| v.iter().any(|f| f.contact_count() > 0))
+        .take(args.trajectories)
+    {
+        let first = traj.iter().position(|f| f.contact_count() > 0).unwrap_or(0);
+        frames.extend(
+            traj.iter()
+                .skip(first.saturating_sub(1))
+                .step_by(2)
+                .take(args.frames)
+                .cloned(),
+        );
+    }
+    if frames.is_empty() {
+        bail!("{}: no test trajectory with contact", args.data.display());
+    }
+    let layout = reader.card().layout.clone();
+    std::fs::create_dir_all(&args.out)?;
+    let file = moe_io::dataset::shard_file_name(0, 1);
+    moe_io::dataset::write_shard(&args.out.join(&file), &layout, &frames)?;
+    let (stats, families) = moe_io::dataset::shard_stats(&layout, &frames);
+    let card = moe_io::dataset::DatasetCard::new(
+        layout,
+        reader.card().seed,
+        reader.card().generator.clone(),
+        vec![(moe_io::dataset::ShardEntry { file, stats }, families)],
+    );
+    moe_io::write_json(&args.out.join(moe_io::dataset::CARD_FILE), &card)?;
+    eprintln!(
+        "heldout-shard: {} frames of {} trajectories to {}",
+        frames.len(),
+        args.trajectories,
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn heldout_frames() -> Result<(HandModel, Vec<LabelledFrame>)> {
+    let reader = DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?;
+    let hand = dataset_hand(&reader)?;
+    let frames = reader
+        .labelled_frames(None, SplitFractions::default())
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((hand, frames))
+}
+
+/// Golden ARAP stage: SR-ARAP shapes of the held-out frames' keypoints (all markers and the
+/// seeded 4 of 7): per frame the BCD and per-vertex errors against the true surface and a
+/// sample of estimated vertices (mm).
+pub(crate) fn golden_arap() -> Result<serde_json::Value> {
+    let (hand, frames) = heldout_frames()?;
+    let options = ContactEvalOptions::default();
+    let mut arap = moe_touch::contact_eval::study_shape_estimator(&hand, &options.shape)?;
+    let rng = moe_geom::SeededRng::new(options.seed);
+    let mut out = Vec::new();
+    for (k, f) in frames.iter().enumerate() {
+        let subset = moe_touch::contact_eval::marker_subset(
+            &f.markers,
+            options.subset_markers,
+            &mut rng.split(k as u64),
+        );
+        let mut rows = serde_json::Map::new();
+        for (name, keypoints) in [("all_markers", &f.markers), ("four_markers", &subset)] {
+            let shape = arap.estimate(keypoints)?.shape;
+            let est: Vec<moe_geom::Point3> = shape.fingers.iter().flatten().copied().collect();
+            let truth: Vec<moe_geom::Point3> = f.shape.fingers.iter().flatten().copied().collect();
+            let errors: Vec<Real> = est.iter().zip(&truth).map(|(a, b)| (a - b).norm()).collect();
+            let samples: Vec<[Real; 3]> = shape
+                .fingers
+                .iter()
+                .flat_map(|v| {
+                    (0..5).map(move |j| {
+                        let p = v[j * (v.len() - 1) / 4];
+                        [1e3 * p.x, 1e3 * p.y, 1e3 * p.z]
+                    })
+                })
+                .collect();
+            rows.insert(
+                name.to_owned(),
+                json!({
+                    "bcd_mm": 1e3 * moe_geom::bcd(&est, &truth)?,
+                    "vertex_mean_mm": 1e3 * errors.iter().sum::<Real>() / errors.len() as Real,
+                    "vertex_max_mm": 1e3 * errors.iter().copied().fold(0.0, Real::max),
+                    "sample_vertices_mm": samples,
+                }),
+            );
+        }
+        out.push(json!({
+            "trajectory": f.trajectory_id,
+            "frame": f.frame_index,
+            "shapes": rows,
+        }));
+    }
+    Ok(json!({ "frames": out }))
+}
+
+/// Golden contact stage: Table 1 of the shipped model on the held-out frames (no KNN rows, no
+/// timings), plus the network's summed contact probability per frame on the true shape.
+pub(crate) fn golden_table1() -> Result<serde_json::Value> {
+    use moe_contact::ContactEstimator;
+    let (hand, frames) = heldout_frames()?;
+    let dgcnn = load_estimator(&workspace_root().join(SHIPPED_MODEL), &hand)?;
+    let estimators = Estimators {
+        dgcnn: &dgcnn,
+        knn_all: None,
+        knn_sub: None,
+    };
+    let (table, _) = evaluate_table1(
+        &hand,
+        &frames,
+        "heldout",
+        None,
+        estimators,
+        &ContactEvalOptions::default(),
+        &|_| false,
+    )?;
+    let mut value = serde_json::to_value(&table)?;
+    for rows in ["shape", "contact"] {
+        if let Some(rows) = value[rows].as_array_mut() {
+            for r in rows {
+                if let Some(o) = r.as_object_mut() {
+                    o.remove("ms_per_frame");
+                }
+            }
+        }
+    }
+    let sums = frames
+        .iter()
+        .map(|f| {
+            let map = dgcnn.estimate(&f.shape, Some(&f.markers))?;
+            Ok(map.fingers.iter().flatten().sum::<Real>())
+        })
+        .collect::<Result<Vec<Real>>>()?;
+    value["probability_sum_per_frame"] = json!(sums);
+    Ok(value)
 }

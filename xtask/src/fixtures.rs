@@ -49,6 +49,16 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-3,
     },
     Fixture {
+        path: "fixtures/golden/arap_heldout_small.json",
+        generate: crate::eval_contact::golden_arap,
+        tolerance: 1e-7,
+    },
+    Fixture {
+        path: "fixtures/golden/contact_heldout_small.json",
+        generate: crate::eval_contact::golden_table1,
+        tolerance: 1e-4,
+    },
+    Fixture {
         path: "fixtures/golden/sim_short_scene.json",
         generate: golden_sim_short_scene,
         tolerance: 1e-6,

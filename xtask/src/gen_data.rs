@@ -9,7 +9,9 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use moe_geom::HandPreset;
 use moe_tendon_sim::randomize::RandomSceneParams;
-use moe_touch::datagen::{GenPlan, generate, simulated_frames, simulated_layout};
+use moe_touch::datagen::{
+    GenPlan, generate, merge_card, parse_shard_spec, simulated_frames, simulated_layout,
+};
 
 /// Arguments of `cargo xtask gen-data`.
 #[derive(Debug, Args)]
@@ -27,8 +29,14 @@ pub(crate) struct GenDataArgs {
     #[arg(long, default_value_t = 2)]
     fingers: u32,
     /// This machine's part of an array job, `I/N` (1-based): shards k with k mod N = I − 1.
+    /// `auto/N` takes I from the scheduler: `SLURM_ARRAY_TASK_ID` (minus
+    /// `SLURM_ARRAY_TASK_MIN` − 1 when set) or `JOB_COMPLETION_INDEX` + 1 (Kubernetes).
     #[arg(long, default_value = "1/1")]
     shard: String,
+    /// Generate nothing: check that every shard of the plan exists in `--out` and write the
+    /// data set card (the last step of an array job).
+    #[arg(long)]
+    merge: bool,
     /// Trajectories per output shard.
     #[arg(long, default_value_t = 32)]
     trajectories_per_shard: u64,
@@ -40,18 +48,8 @@ pub(crate) struct GenDataArgs {
     json: bool,
 }
 
-fn parse_shard(s: &str) -> Result<(u32, u32)> {
-    let (i, n) = s
-        .split_once('/')
-        .with_context(|| format!("--shard {s}: expected I/N"))?;
-    Ok((
-        i.trim().parse().context("--shard: I")?,
-        n.trim().parse().context("--shard: N")?,
-    ))
-}
-
 pub(crate) fn run(args: &GenDataArgs) -> Result<()> {
-    let (machine, machines) = parse_shard(&args.shard)?;
+    let (machine, machines) = parse_shard_spec(&args.shard, &|k| std::env::var(k).ok())?;
     let mut params: RandomSceneParams = match &args.params {
         Some(p) => moe_io::read_config(p)?,
         None => RandomSceneParams::default(),
@@ -70,11 +68,22 @@ pub(crate) fn run(args: &GenDataArgs) -> Result<()> {
         machines,
     };
     plan.validate()?;
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
     let layout = simulated_layout(&params)?;
     // Everything but the machine split: every machine of an array job records the same.
     let generator = serde_json::json!({ "simulator": "moe-tendon-sim", "params": params });
+    if args.merge {
+        let card = merge_card(&plan, &args.out, &layout, generator)?;
+        eprintln!(
+            "gen-data: merged {} shards: {} frames, {} trajectories, contact ratio {:.4}",
+            card.shards.len(),
+            card.totals.frames,
+            card.totals.trajectories,
+            card.totals.contact_ratio()
+        );
+        return Ok(());
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template(

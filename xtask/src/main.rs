@@ -32,6 +32,8 @@ enum Command {
     Train(train::TrainArgs),
     /// Check the golden fixtures against freshly computed results, or rewrite them.
     Fixtures(fixtures::FixturesArgs),
+    /// Write a small data set of held-out frames (the golden regression's input).
+    HeldoutShard(eval_contact::HeldoutArgs),
 }
 
 fn main() -> ExitCode {
@@ -42,6 +44,7 @@ fn main() -> ExitCode {
         Command::GenData(args) => gen_data::run(&args),
         Command::Fixtures(args) => fixtures::run(&args),
         Command::Train(args) => train::run(&args),
+        Command::HeldoutShard(args) => eval_contact::write_heldout(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,6 +1,7 @@
 //! `cargo xtask train`: trains the contact network on a generated data set — a thin command over
 //! `moe_contact::train`, with data loading, checkpoints, progress and the model card.
 
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -252,6 +253,14 @@ fn write_model(
         "frames": reader.card().totals.frames,
         "trajectories": reader.card().totals.trajectories,
         "label_rule": label_rule_of(reader),
+        // The command that regenerates the data set (default randomisation ranges).
+        "regenerate": format!(
+            "cargo run --release -p xtask -- gen-data --out {} --trajectories {} --seed {} --fingers {}",
+            args.data.display(),
+            reader.card().totals.trajectories,
+            reader.card().seed,
+            reader.card().layout.finger_num_vertices.len()
+        ),
         "train_frames": run.train_frames,
         "validation_frames": run.validation_frames,
         "generator": reader.card().generator,
@@ -262,6 +271,9 @@ fn write_model(
     moe_io::write_model_files(&weights_path, &weights, Some(&card.to_json()?))?;
     Ok(())
 }
+
+/// Steps between progress lines when stderr is not a terminal.
+const LOG_EVERY: usize = 50;
 
 fn checkpoint_path(out: &Path) -> PathBuf {
     out.with_extension("checkpoint.safetensors")
@@ -395,11 +407,28 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         bar.set_position(0);
         let t0 = Instant::now();
         let batch = args.batch_size;
+        let logging = !std::io::stderr().is_terminal();
+        let mut recent = 0.0;
         let train_loss = trainer.run_epoch(&train, &mut |step, steps, loss| {
             bar.set_length(steps as u64);
             bar.set_position(step as u64);
-            let rate = (step * batch) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+            let elapsed = t0.elapsed().as_secs_f64().max(1e-9);
+            let rate = (step * batch) as f64 / elapsed;
             bar.set_message(format!("loss {loss:.4}  {rate:.1} sets/s"));
+            // Without a terminal the bar is hidden: a line every LOG_EVERY steps instead.
+            recent += loss;
+            if logging && (step % LOG_EVERY == 0 || step == steps) {
+                let n = (step - 1) % LOG_EVERY + 1;
+                let left = elapsed / step as f64 * (steps - step) as f64;
+                eprintln!(
+                    "train: epoch {} step {step}/{steps}: loss {:.4} (last {n} steps), {rate:.1} \
+                     sets/s, {:.0} s left in the epoch",
+                    epoch + 1,
+                    recent / n as f64,
+                    left
+                );
+                recent = 0.0;
+            }
         })?;
         let epoch_seconds = t0.elapsed().as_secs_f64();
         train_seconds += epoch_seconds;

@@ -107,6 +107,21 @@ pub enum ContactError {
         /// What was given instead.
         given: &'static str,
     },
+    /// The model was trained on another hand than the one it is asked to run on.
+    #[error(
+        "the model was trained on the hand '{card_hand}' ({card_vertices:?} vertices per finger); \
+         this hand has {hand_vertices:?}{rule}"
+    )]
+    HandMismatch {
+        /// The card's hand name.
+        card_hand: String,
+        /// The card's vertices per finger.
+        card_vertices: Vec<usize>,
+        /// The given hand's vertices per finger.
+        hand_vertices: Vec<usize>,
+        /// What would fit (per-finger models: fingers of the trained finger's size).
+        rule: &'static str,
+    },
     /// A batch has no items, or items of different sizes where one size is needed.
     #[error("invalid batch: {message}")]
     InvalidBatch {

@@ -246,8 +246,9 @@ impl DgcnnEstimator {
     ///
     /// # Errors
     /// [`ContactError::CardMismatch`] when the card's input features do not give the network's
-    /// input width, [`ContactError::TooFewPoints`] when a point set of the hand has fewer
-    /// points than `k`.
+    /// input width, [`ContactError::HandMismatch`] when the card's hand is not `hand` (for a
+    /// per-finger model: a finger of another vertex count), [`ContactError::TooFewPoints`] when a
+    /// point set of the hand has fewer points than `k`.
     pub fn new(net: Dgcnn, card: ModelCard, hand: &HandModel) -> Result<Self, ContactError> {
         card.validate()?;
         let spec = &card.architecture.input;
@@ -257,6 +258,35 @@ impl DgcnnEstimator {
                 card: format!("{} ({} channels)", spec.describe(), spec.channels()),
                 weights: format!("{} input channels", net.in_channels()),
             });
+        }
+        if let Some(trained) = &card.hand {
+            let counts: Vec<usize> = hand
+                .fingers()
+                .iter()
+                .map(|f| f.model.mesh().num_vertices())
+                .collect();
+            // A per-finger model sees one finger at a time in its own frame: it runs on any
+            // number of fingers of the trained finger's mesh. A whole-hand model needs the hand.
+            let (fits, rule) = match spec.point_set {
+                PointSet::PerFinger => (
+                    counts
+                        .iter()
+                        .all(|n| trained.finger_num_vertices.contains(n)),
+                    " (a per-finger model runs on fingers of the trained size)",
+                ),
+                PointSet::WholeHand => (
+                    counts == trained.finger_num_vertices,
+                    " (a whole-hand model runs on the trained hand only)",
+                ),
+            };
+            if !fits {
+                return Err(ContactError::HandMismatch {
+                    card_hand: trained.name.clone(),
+                    card_vertices: trained.finger_num_vertices.clone(),
+                    hand_vertices: counts,
+                    rule,
+                });
+            }
         }
         let features = FeatureBuilder::new(spec, hand)?;
         let k = net.config().k;

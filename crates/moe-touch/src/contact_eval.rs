@@ -116,10 +116,11 @@ pub struct TruthLabels<'a> {
 pub struct Estimators<'a> {
     /// The trained network.
     pub dgcnn: &'a DgcnnEstimator,
-    /// KNN[All] (every training frame; must keep shapes for its shape row).
-    pub knn_all: &'a KnnIndex,
+    /// KNN[All] (every training frame; keeps shapes for its shape row) — the KNN rows are
+    /// left out without it.
+    pub knn_all: Option<&'a KnnIndex>,
     /// KNN[Sub] (a seeded 10 % of them).
-    pub knn_sub: &'a KnnIndex,
+    pub knn_sub: Option<&'a KnnIndex>,
 }
 
 /// What every estimator made of one frame, for a person to look at.
@@ -131,7 +132,7 @@ pub struct FramePrediction {
     pub arap_shape: HandShape,
     /// DGCNN contact probabilities on the SR-ARAP shape.
     pub dgcnn_on_arap: Vec<Vec<Real>>,
-    /// KNN[All] contact labels.
+    /// KNN[All] contact labels (empty without the index).
     pub knn_all: Vec<Vec<bool>>,
 }
 
@@ -300,6 +301,7 @@ pub fn evaluate_table1(
             (2usize, (estimators.knn_all, 3usize)),
             (3, (estimators.knn_sub, 4)),
         ] {
+            let Some(index) = index else { continue };
             let t = Instant::now();
             let m = index.nearest(&frame.markers)?;
             let map = index.contact_map(m);
@@ -310,12 +312,10 @@ pub fn evaluate_table1(
                 shapes[acc].add(&shape, &frame.shape, elapsed)?;
             }
         }
-        for (p, m) in predictions.iter().zip(metrics[0].iter_mut()) {
-            m.add(&frame.shape, &frame.contact, p)?;
-        }
-        if let Some(o) = other {
-            for (p, m) in predictions.iter().zip(metrics[1].iter_mut()) {
-                m.add(&frame.shape, &o.labels[k], p)?;
+        for (i, p) in predictions.iter().enumerate().filter(|(_, p)| !p.is_empty()) {
+            metrics[0][i].add(&frame.shape, &frame.contact, p)?;
+            if let Some(o) = other {
+                metrics[1][i].add(&frame.shape, &o.labels[k], p)?;
             }
         }
         if keep(k) {
@@ -351,6 +351,9 @@ pub fn evaluate_table1(
             other.map_or("", |o| o.rule)
         };
         for (i, m) in per_method.iter().enumerate() {
+            if m.report().frames == 0 {
+                continue;
+            }
             contact.push(ContactRow {
                 method: names[i].to_owned(),
                 labels: label_rule.to_owned(),

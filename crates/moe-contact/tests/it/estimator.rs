@@ -2,8 +2,8 @@
 
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
-    ContactError, ContactEstimator, ContactInput, DgcnnEstimator, FeatureFrame, InputFeature,
-    ModelCard, ModelWeights, PointSet,
+    ContactError, ContactEstimator, ContactInput, DgcnnEstimator, FeatureBuilder, FeatureFrame,
+    InputFeature, InputSpec, ModelCard, ModelWeights, PointSet,
 };
 use moe_geom::{FingerParams, GeomError, HandModel, HandPreset, HandShape, Vector3};
 
@@ -175,4 +175,80 @@ fn a_card_whose_features_do_not_fit_the_network_is_refused() {
             ..
         })
     ));
+}
+
+#[test]
+fn per_finger_undoes_arrange_for_every_point_set_layout() {
+    let hand = hand(HandPreset::ThreeFinger);
+    let values: Vec<Vec<u32>> = hand
+        .fingers()
+        .iter()
+        .enumerate()
+        .map(|(f, hf)| {
+            (0..hf.model.mesh().num_vertices() as u32)
+                .map(|v| 100_000 * f as u32 + v)
+                .collect()
+        })
+        .collect();
+    for point_set in [PointSet::PerFinger, PointSet::WholeHand] {
+        let spec = InputSpec {
+            point_set,
+            ..InputSpec::default()
+        };
+        let builder = FeatureBuilder::new(&spec, &hand).unwrap();
+        let flat: Vec<u32> = builder.arrange(&values).into_iter().flatten().collect();
+        assert_eq!(builder.per_finger(&flat).unwrap(), values, "{point_set:?}");
+        assert!(matches!(
+            builder.per_finger(&flat[1..]),
+            Err(moe_contact::ContactError::InvalidBatch { .. })
+        ));
+    }
+}
+
+#[test]
+fn a_card_s_hand_decides_which_hands_the_model_runs_on() {
+    let two = hand(HandPreset::TwoFinger);
+    let three = hand(HandPreset::ThreeFinger);
+    let other = HandModel::preset(
+        HandPreset::TwoFinger,
+        &FingerParams {
+            vertex_budget: 200,
+            ..FingerParams::default()
+        },
+    )
+    .unwrap();
+    let build = |point_set: PointSet, on: &HandModel| {
+        let mut config = small_config(Default::default());
+        config.input.point_set = point_set;
+        let c = config.input.channels();
+        let mut card = ModelCard::new(config.clone());
+        card.hand = Some(moe_contact::CardHand {
+            name: "two-finger".into(),
+            finger_num_vertices: two
+                .fingers()
+                .iter()
+                .map(|f| f.model.mesh().num_vertices())
+                .collect(),
+        });
+        let net = ModelWeights::seeded(&config, c, 31)
+            .unwrap()
+            .build(Some(&card), DType::F32, &Device::Cpu)
+            .unwrap();
+        DgcnnEstimator::new(net, card, on)
+    };
+    // A per-finger model runs on any number of the trained fingers; a whole-hand one does not.
+    assert!(build(PointSet::PerFinger, &two).is_ok());
+    assert!(build(PointSet::PerFinger, &three).is_ok());
+    assert!(build(PointSet::WholeHand, &two).is_ok());
+    for (set, on) in [
+        (PointSet::WholeHand, &three),
+        (PointSet::PerFinger, &other),
+    ] {
+        let err = build(set, on).unwrap_err();
+        assert!(
+            matches!(err, ContactError::HandMismatch { .. }),
+            "{set:?}: {err}"
+        );
+        assert!(err.to_string().contains("two-finger"), "{err}");
+    }
 }

@@ -172,3 +172,74 @@ fn bad_training_input_is_refused() {
     c.batch_size = 0;
     assert!(c.validate().is_err());
 }
+
+#[test]
+fn negative_sampling_keeps_every_contact_set_and_a_seeded_share_of_the_others() {
+    // 40 sets, of which the odd ones have no contact point at all.
+    let mut rng = SeededRng::new(9);
+    let mut train = TrainingSets::new(16, 3);
+    for s in 0..40 {
+        let x: Vec<f64> = (0..48).map(|_| rng.uniform_range(-1.0, 1.0)).collect();
+        let y: Vec<bool> = (0..16).map(|i| s % 2 == 0 && i < 4).collect();
+        train.push(&x, &y).unwrap();
+    }
+    assert_eq!((0..40).filter(|&s| train.has_contact(s)).count(), 20);
+    let arch = small_config(Aggregation::Max);
+    let mut c = config(adamw(), 2);
+    c.batch_size = 1;
+    c.negative_fraction = 0.25;
+    let steps_of = |c: &TrainConfig| {
+        let mut t = Trainer::new(arch.clone(), c.clone(), &train).unwrap();
+        let mut per_epoch = Vec::new();
+        for _ in 0..2 {
+            let mut n = 0;
+            t.run_epoch(&train, &mut |_, _, _| n += 1).unwrap();
+            per_epoch.push(n);
+        }
+        (per_epoch, weights_of(&t))
+    };
+    let (steps, weights) = steps_of(&c);
+    // Every contact set plus about a quarter of the 20 others, drawn afresh each epoch.
+    for &n in &steps {
+        assert!((20 + 1..=20 + 12).contains(&n), "steps per epoch {steps:?}");
+    }
+    assert_eq!(steps_of(&c), (steps.clone(), weights), "seeded");
+    c.negative_fraction = 1.0;
+    assert_eq!(steps_of(&c).0, vec![40, 40]);
+    c.negative_fraction = 0.0;
+    assert!(matches!(
+        Trainer::new(arch.clone(), c, &train),
+        Err(moe_contact::ContactError::InvalidConfig {
+            field: "negative_fraction",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn the_evaluation_of_probabilities_matches_the_network_s_loss() {
+    let sets = half_space_sets(6, 32, 4);
+    let arch = small_config(Aggregation::Max);
+    let trainer = Trainer::new(arch, config(adamw(), 1), &sets).unwrap();
+    let direct = trainer.evaluate(&sets).unwrap();
+    let p = moe_contact::predict(trainer.network(), &sets, 4).unwrap();
+    assert_eq!(p.len(), 6 * 32);
+    assert!(p.iter().all(|v| (0.0..=1.0).contains(v)));
+    // The loss recomputed from the probabilities and the labels by hand.
+    let w = trainer.contact_weight();
+    let (mut num, mut den) = (0.0, 0.0);
+    for (s, chunk) in p.chunks(32).enumerate() {
+        for (&q, l) in chunk.iter().zip(sets.labels_of(s)) {
+            let (weight, py) = if l { (w, q) } else { (1.0, 1.0 - q) };
+            num -= weight * py.ln();
+            den += weight;
+        }
+    }
+    assert!((direct.loss - num / den).abs() < 1e-9, "{} vs {}", direct.loss, num / den);
+    let via = moe_contact::evaluation_of(
+        &p,
+        (0..sets.len()).flat_map(|s| sets.labels_of(s)),
+        w,
+    );
+    assert_eq!(via, direct);
+}
