@@ -33,7 +33,12 @@ pub(crate) struct ContactEvalArgs {
     /// trajectories and written there, so that the next evaluation does not rebuild it.
     #[arg(long, value_name = "K.safetensors")]
     pub(crate) knn_index: Option<PathBuf>,
-    /// Evaluate at most this many test frames (the first ones, in data set order).
+    /// Which frames to evaluate: the data set's test trajectories, or all of them (a data set the
+    /// model never saw, e.g. of another hand; the KNN rows then need `--knn-index` of an
+    /// existing index and are left out without one).
+    #[arg(long, value_enum, default_value = "test")]
+    pub(crate) frames: FrameSet,
+    /// Evaluate at most this many frames (the first ones, in data set order).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
     pub(crate) max_frames: Option<u64>,
     /// Trials per plate scene (Table 2; trial 0 is the scene as committed). 0 skips Table 2.
@@ -49,6 +54,15 @@ pub(crate) struct ContactEvalArgs {
     /// by contact, and a figure of the per-region plate errors (SVG) to this directory.
     #[arg(long, value_name = "DIR")]
     pub(crate) out: Option<PathBuf>,
+}
+
+/// Frames of `--frames`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum FrameSet {
+    /// The test trajectories.
+    Test,
+    /// Every frame.
+    All,
 }
 
 /// The six plate scenes of Table 2, in the paper's order.
@@ -145,7 +159,11 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     let layout = reader.card().layout.clone();
     let mut frames: Vec<LabelledFrame> = Vec::new();
     let mut proximity: Vec<Vec<Vec<bool>>> = Vec::new();
-    for f in reader.frames(Some(Split::Test), SplitFractions::default()) {
+    let split = match args.frames {
+        FrameSet::Test => Some(Split::Test),
+        FrameSet::All => None,
+    };
+    for f in reader.frames(split, SplitFractions::default()) {
         let f = f?;
         let labelled = f.to_labelled(&layout)?;
         let mut near = Vec::with_capacity(layout.finger_num_vertices.len());
@@ -167,12 +185,18 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     }
     if frames.is_empty() {
         bail!(
-            "{}: no test frames (too few trajectories for a test split)",
+            "{}: no frames to evaluate (too few trajectories for a test split?)",
             args.data.display()
         );
     }
-    let knn_all = knn_index(args, &reader)?;
-    let knn_sub = knn_all.subset(0.1, args.seed)?;
+    // On all frames, an index built from the data set's own training frames would find them.
+    let with_knn = args.frames == FrameSet::Test || args.knn_index.as_ref().is_some_and(|p| p.exists());
+    let knn_all = if with_knn {
+        Some(knn_index(args, &reader)?)
+    } else {
+        None
+    };
+    let knn_sub = knn_all.as_ref().map(|k| k.subset(0.1, args.seed)).transpose()?;
     let options = ContactEvalOptions {
         seed: args.seed,
         ..ContactEvalOptions::default()
@@ -196,15 +220,15 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
         labels: &proximity,
     });
     eprintln!(
-        "eval contact: {} test frames; SR-ARAP, DGCNN, KNN[All] ({} frames), KNN[Sub] ({})",
+        "eval contact: {} frames; SR-ARAP, DGCNN, KNN[All] ({} frames), KNN[Sub] ({})",
         frames.len(),
-        knn_all.len(),
-        knn_sub.len()
+        knn_all.as_ref().map_or(0, KnnIndex::len),
+        knn_sub.as_ref().map_or(0, KnnIndex::len)
     );
     let estimators = Estimators {
         dgcnn: &dgcnn,
-        knn_all: Some(&knn_all),
-        knn_sub: Some(&knn_sub),
+        knn_all: knn_all.as_ref(),
+        knn_sub: knn_sub.as_ref(),
     };
     let (table, kept) = evaluate_table1(
         &hand,
@@ -215,7 +239,7 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
         &options,
         &|k| shown.contains(&k),
     )?;
-    let plates = if args.trials > 0 {
+    let plates = if let (true, Some(knn_all)) = (args.trials > 0, &knn_all) {
         let scenes = plate_scenes()?;
         eprintln!(
             "eval contact: {} plate scenes × {} trials",
@@ -228,7 +252,7 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
             args.trials,
             args.seed,
             &dgcnn,
-            &knn_all,
+            knn_all,
             &options.shape,
         )?
     } else {

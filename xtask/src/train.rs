@@ -16,6 +16,7 @@ use moe_contact::{
 use moe_geom::{HandModel, LabelledFrame};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::randomize::RandomSceneParams;
+use moe_touch::contact_eval::with_estimated_shapes;
 use serde::Serialize;
 
 /// Arguments of `cargo xtask train`.
@@ -62,6 +63,10 @@ pub(crate) struct TrainArgs {
     /// Use at most this many training frames (the first ones, in data set order).
     #[arg(long)]
     max_frames: Option<usize>,
+    /// Shapes the network learns from: the SR-ARAP estimate from each frame's markers (what it
+    /// sees at run time), or the simulated surface.
+    #[arg(long, value_enum, default_value = "sr-arap")]
+    input_shape: InputShapeArg,
     /// Fraction of the point sets without contact that each epoch trains on (a fresh draw
     /// every epoch; sets with contact are always used).
     #[arg(long, default_value_t = 1.0)]
@@ -72,6 +77,15 @@ pub(crate) struct TrainArgs {
 enum OptimizerArg {
     Adamw,
     Sgd,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "kebab-case")]
+enum InputShapeArg {
+    /// SR-ARAP from the frame's markers (the paper's 50 iterations from rest).
+    SrArap,
+    /// The simulated surface.
+    Simulated,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -238,6 +252,7 @@ fn write_model(
         finger_num_vertices: reader.card().layout.finger_num_vertices.clone(),
     });
     card.training = Some(serde_json::json!({
+        "input_shape": args.input_shape,
         "config": config,
         "contact_weight": trainer.contact_weight(),
         "train_sets": run.train_sets,
@@ -298,6 +313,22 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             args.data.display()
         );
     }
+    // Validation metrics take the contact points on the true surfaces (the design's definition).
+    let validation_truth = validation_frames.clone();
+    let (train_frames, validation_frames) = if args.input_shape == InputShapeArg::SrArap {
+        let t = Instant::now();
+        let options = moe_arap::ShapeOptions::default();
+        let train = with_estimated_shapes(&hand, &train_frames, &options)?;
+        let validation = with_estimated_shapes(&hand, &validation_frames, &options)?;
+        eprintln!(
+            "train: SR-ARAP shapes of {} frames from their markers in {:.0} s",
+            train.len() + validation.len(),
+            t.elapsed().as_secs_f64()
+        );
+        (train, validation)
+    } else {
+        (train_frames, validation_frames)
+    };
     let mut spec = InputSpec {
         features: if args.xyz_only {
             vec![InputFeature::Xyz]
@@ -441,7 +472,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         );
         let (threshold, best) = eval.best();
         let half = eval.at(0.5).unwrap_or_default();
-        let contact = contact_report(&builder, &validation_frames, &p, threshold)?;
+        let contact = contact_report(&builder, &validation_truth, &p, threshold)?;
         let record = EpochRecord {
             epoch: epoch + 1,
             learning_rate: config.learning_rate_at(epoch),

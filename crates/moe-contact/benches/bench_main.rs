@@ -3,17 +3,17 @@
 //!
 //! Besides criterion's figures, each case prints the median split of one frame into the kNN
 //! searches, the EdgeConv layers and the head (from the network's own stage timings).
-//! `train_step` measures one optimiser step on a batch of four frames.
+//! `train_step` measures one optimiser step on a batch of four frames; `knn` a KNN[All] query.
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
-    ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, ModelCard,
-    ModelWeights, PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
+    ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, KnnIndex,
+    ModelCard, ModelWeights, PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
 };
-use moe_geom::{FingerParams, HandModel, HandPreset, HandShape, Vector3};
+use moe_geom::{FingerParams, HandModel, HandPreset, HandShape, LabelledFrame, Vector3};
 
 /// Every finger bent toward its +x side (deterministic).
 fn bent(hand: &HandModel) -> HandShape {
@@ -120,10 +120,50 @@ fn train_step(c: &mut Criterion) {
     }
 }
 
+/// KNN[All] queries: the nearest of 10,000 training frames of the default two-finger hand by its
+/// 14 markers (42 coordinates), the query with every marker observed and with 4 of 7 per finger.
+fn knn(c: &mut Criterion) {
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("preset");
+    let mut rng = moe_geom::SeededRng::new(3);
+    let rest = hand.rest_keypoints();
+    let jitter = |rng: &mut moe_geom::SeededRng| {
+        let mut kp = rest.clone();
+        for p in kp.fingers.iter_mut().flatten().flatten() {
+            *p += Vector3::new(rng.normal(), rng.normal(), rng.normal()) * 0.003;
+        }
+        kp
+    };
+    let shape = HandShape::rest(&hand);
+    let frames: Vec<LabelledFrame> = (0..10_000)
+        .map(|t| LabelledFrame {
+            trajectory_id: t,
+            frame_index: 0,
+            shape: shape.clone(),
+            contact: shape.fingers.iter().map(|f| vec![false; f.len()]).collect(),
+            markers: jitter(&mut rng),
+            world_from_hand: moe_geom::WorldFromHand::new(moe_geom::Iso3::identity()),
+        })
+        .collect();
+    let index = KnnIndex::new(&frames, false).expect("index");
+    let query = jitter(&mut rng);
+    let mut partial = query.clone();
+    for f in &mut partial.fingers {
+        for m in [1, 3, 5] {
+            f[m] = None;
+        }
+    }
+    c.bench_function("knn/two-finger/10000-frames/all-markers", |b| {
+        b.iter(|| black_box(index.nearest(black_box(&query)).expect("query")))
+    });
+    c.bench_function("knn/two-finger/10000-frames/4-of-7", |b| {
+        b.iter(|| black_box(index.nearest(black_box(&partial)).expect("query")))
+    });
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30);
-    targets = contact
+    targets = contact, knn
 }
 criterion_group! {
     name = training;

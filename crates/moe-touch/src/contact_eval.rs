@@ -230,6 +230,36 @@ pub fn study_shape_estimator(
     Ok(arap)
 }
 
+/// `frames` with every shape replaced by its SR-ARAP estimate from the frame's markers (what a
+/// contact model sees at run time), labels and everything else kept. Frames are solved in
+/// parallel, one estimator per worker; the result does not depend on the thread count.
+///
+/// # Errors
+/// As [`study_shape_estimator`] and [`MultiShapeEstimator::estimate`].
+pub fn with_estimated_shapes(
+    hand: &HandModel,
+    frames: &[LabelledFrame],
+    options: &ShapeOptions,
+) -> Result<Vec<LabelledFrame>, TouchError> {
+    use rayon::prelude::*;
+    frames
+        .par_iter()
+        .map_init(
+            || study_shape_estimator(hand, options),
+            |arap, frame| {
+                let arap = arap.as_mut().map_err(|e| TouchError::InvalidEvaluation {
+                    reason: format!("shape estimator: {e}"),
+                })?;
+                let shape = arap.estimate(&frame.markers)?.shape;
+                Ok(LabelledFrame {
+                    shape,
+                    ..frame.clone()
+                })
+            },
+        )
+        .collect()
+}
+
 /// Table 1 on `frames` (held-out frames of one hand), scored against the frames' own labels
 /// (`rule` names their rule) and, if given, against `other` labels of the same frames.
 /// `keep(k)` selects the frames whose predictions are returned for display.
