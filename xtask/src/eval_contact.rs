@@ -11,8 +11,8 @@ use moe_geom::{HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::SceneConfig;
 use moe_touch::contact_eval::{
-    ContactEvalOptions, ContactTable, Estimators, PlateScene, PlateTrial, TruthLabels,
-    contact_ply, evaluate_plates, evaluate_table1,
+    ContactEvalOptions, ContactTable, Estimators, PlateScene, PlateTrial, TruthLabels, contact_ply,
+    evaluate_plates, evaluate_table1,
 };
 use serde_json::json;
 
@@ -126,7 +126,11 @@ fn knn_index(args: &ContactEvalArgs, reader: &DatasetReader) -> Result<KnnIndex>
                 reader.card().layout.finger_num_vertices
             );
         }
-        eprintln!("eval contact: KNN index of {} frames from {}", index.len(), path.display());
+        eprintln!(
+            "eval contact: KNN index of {} frames from {}",
+            index.len(),
+            path.display()
+        );
         return Ok(index);
     }
     let mut frames = Vec::new();
@@ -134,7 +138,10 @@ fn knn_index(args: &ContactEvalArgs, reader: &DatasetReader) -> Result<KnnIndex>
         frames.push(f?);
     }
     if frames.is_empty() {
-        bail!("{}: no training frames for the KNN index", args.data.display());
+        bail!(
+            "{}: no training frames for the KNN index",
+            args.data.display()
+        );
     }
     let index = KnnIndex::new(&frames, true)?;
     if let Some(path) = &args.knn_index {
@@ -166,19 +173,8 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     for f in reader.frames(split, SplitFractions::default()) {
         let f = f?;
         let labelled = f.to_labelled(&layout)?;
-        let mut near = Vec::with_capacity(layout.finger_num_vertices.len());
-        let mut start = 0;
-        for &n in &layout.finger_num_vertices {
-            near.push(
-                f.obstacle_distance_m[start..start + n]
-                    .iter()
-                    .map(|&d| d < PROXIMITY_M)
-                    .collect(),
-            );
-            start += n;
-        }
         frames.push(labelled);
-        proximity.push(near);
+        proximity.push(layout.per_finger(&f.obstacle_distance_m, |&d| d < PROXIMITY_M));
         if args.max_frames.is_some_and(|m| frames.len() as u64 >= m) {
             break;
         }
@@ -190,13 +186,17 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
         );
     }
     // On all frames, an index built from the data set's own training frames would find them.
-    let with_knn = args.frames == FrameSet::Test || args.knn_index.as_ref().is_some_and(|p| p.exists());
+    let with_knn =
+        args.frames == FrameSet::Test || args.knn_index.as_ref().is_some_and(|p| p.exists());
     let knn_all = if with_knn {
         Some(knn_index(args, &reader)?)
     } else {
         None
     };
-    let knn_sub = knn_all.as_ref().map(|k| k.subset(0.1, args.seed)).transpose()?;
+    let knn_sub = knn_all
+        .as_ref()
+        .map(|k| k.subset(0.1, args.seed))
+        .transpose()?;
     let options = ContactEvalOptions {
         seed: args.seed,
         ..ContactEvalOptions::default()
@@ -230,15 +230,10 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
         knn_all: knn_all.as_ref(),
         knn_sub: knn_sub.as_ref(),
     };
-    let (table, kept) = evaluate_table1(
-        &hand,
-        &frames,
-        &rule,
-        other,
-        estimators,
-        &options,
-        &|k| shown.contains(&k),
-    )?;
+    let (table, kept) =
+        evaluate_table1(&hand, &frames, &rule, other, estimators, &options, &|k| {
+            shown.contains(&k)
+        })?;
     let plates = if let (true, Some(knn_all)) = (args.trials > 0, &knn_all) {
         let scenes = plate_scenes()?;
         eprintln!(
@@ -287,8 +282,8 @@ fn plate_scenes() -> Result<Vec<PlateScene>> {
         .iter()
         .map(|(name, region)| {
             let path = dir.join(format!("{name}.toml"));
-            let text =
-                std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+            let text = std::fs::read_to_string(&path)
+                .with_context(|| format!("reading {}", path.display()))?;
             let config: SceneConfig =
                 toml::from_str(&text).with_context(|| format!("scene {}", path.display()))?;
             Ok(PlateScene {
@@ -307,7 +302,11 @@ fn region_summary(plates: &[PlateTrial]) -> serde_json::Value {
     for region in ["tip", "middle", "base"] {
         let trials: Vec<&PlateTrial> = plates.iter().filter(|t| t.region == region).collect();
         let stat = |f: &dyn Fn(&PlateTrial) -> Real| {
-            let v: Vec<Real> = trials.iter().map(|t| f(t)).filter(|x| x.is_finite()).collect();
+            let v: Vec<Real> = trials
+                .iter()
+                .map(|t| f(t))
+                .filter(|x| x.is_finite())
+                .collect();
             let n = v.len() as Real;
             let mean = v.iter().sum::<Real>() / n.max(1.0);
             let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<Real>() / n.max(1.0)).sqrt();
@@ -341,13 +340,29 @@ fn format_table1(t: &ContactTable) -> String {
         let _ = writeln!(
             s,
             "{:<12} {:>7} {:>10.3} {:>10.3} {:>13.3} {:>12.3} {:>9.2}",
-            r.method, r.markers, r.bcd_mm, r.bcd_sd_mm, r.vertex_mean_mm, r.vertex_max_mm, r.ms_per_frame
+            r.method,
+            r.markers,
+            r.bcd_mm,
+            r.bcd_sd_mm,
+            r.vertex_mean_mm,
+            r.vertex_max_mm,
+            r.ms_per_frame
         );
     }
     let _ = writeln!(
         s,
         "{:<20} {:<10} {:>8} {:>8} {:>7} {:>7} {:>6} {:>6} {:>6} {:>6} {:>9}",
-        "contact", "labels", "BCD mm", "UCD mm", "missed", "f.alarm", "P", "R", "F1", "IoU", "ms/frame"
+        "contact",
+        "labels",
+        "BCD mm",
+        "UCD mm",
+        "missed",
+        "f.alarm",
+        "P",
+        "R",
+        "F1",
+        "IoU",
+        "ms/frame"
     );
     for r in &t.contact {
         let p = &r.report;
@@ -372,7 +387,10 @@ fn format_table1(t: &ContactTable) -> String {
 
 fn format_table2(plates: &[PlateTrial]) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "Table 2 — plate scenes, UCD predicted → true contact points, mm");
+    let _ = writeln!(
+        s,
+        "Table 2 — plate scenes, UCD predicted → true contact points, mm"
+    );
     let _ = writeln!(
         s,
         "{:<20} {:>5} {:>9} {:>8} {:>10} {:>8} {:>10} {:>8}",
@@ -420,7 +438,10 @@ fn write_out(
         let f = &frames[k.frame];
         let name = format!("traj{}_frame{}", f.trajectory_id, f.frame_index);
         for i in 0..hand.num_fingers() {
-            let truth: Vec<Real> = f.contact[i].iter().map(|&c| Real::from(u8::from(c))).collect();
+            let truth: Vec<Real> = f.contact[i]
+                .iter()
+                .map(|&c| Real::from(u8::from(c)))
+                .collect();
             files.push((
                 dir.join(format!("{name}_true_finger{i}.ply")),
                 contact_ply(hand, i, &f.shape.fingers[i], &truth)?,
@@ -446,7 +467,11 @@ fn write_out(
         let svg = crate::figure::region_bars(&region_summary(plates));
         moe_io::write_atomic(&dir.join("plate_regions.svg"), svg.as_bytes())?;
     }
-    eprintln!("eval contact: wrote {} meshes to {}", files.len(), dir.display());
+    eprintln!(
+        "eval contact: wrote {} meshes to {}",
+        files.len(),
+        dir.display()
+    );
     Ok(())
 }
 
@@ -552,7 +577,11 @@ pub(crate) fn golden_arap() -> Result<serde_json::Value> {
             let shape = arap.estimate(keypoints)?.shape;
             let est: Vec<moe_geom::Point3> = shape.fingers.iter().flatten().copied().collect();
             let truth: Vec<moe_geom::Point3> = f.shape.fingers.iter().flatten().copied().collect();
-            let errors: Vec<Real> = est.iter().zip(&truth).map(|(a, b)| (a - b).norm()).collect();
+            let errors: Vec<Real> = est
+                .iter()
+                .zip(&truth)
+                .map(|(a, b)| (a - b).norm())
+                .collect();
             let samples: Vec<[Real; 3]> = shape
                 .fingers
                 .iter()

@@ -149,7 +149,8 @@ pub(crate) fn run(args: &LabelsEvalArgs) -> Result<()> {
         free_config.obstacles.clear();
         let mut free = Scene::new(free_config)?;
         let steps = scene.num_steps();
-        let (Ok(frames), Ok(free_frames)) = (run_saving(&mut scene, steps), run_saving(&mut free, steps))
+        let (Ok(frames), Ok(free_frames)) =
+            (run_saving(&mut scene, steps), run_saving(&mut free, steps))
         else {
             failed += 1;
             continue;

@@ -6,15 +6,26 @@ use std::fmt::Write as _;
 /// per region, mean with ±sd whiskers, in mm.
 pub(crate) fn region_bars(summary: &serde_json::Value) -> String {
     let regions = ["tip", "middle", "base"];
-    let methods = [("dgcnn", "DGCNN (SR-ARAP)", "#d62728"), ("knn_all", "KNN[All]", "#1f77b4")];
+    let methods = [
+        ("dgcnn", "DGCNN (SR-ARAP)", "#d62728"),
+        ("knn_all", "KNN[All]", "#1f77b4"),
+    ];
     let value = |r: &str, m: &str, k: &str| summary[r][m][k].as_f64().filter(|v| v.is_finite());
     let top = regions
         .iter()
         .flat_map(|r| methods.iter().map(move |m| (r, m)))
-        .filter_map(|(r, m)| Some(value(r, m.0, "mean_mm")? + value(r, m.0, "sd_mm").unwrap_or(0.0)))
+        .filter_map(|(r, m)| {
+            Some(value(r, m.0, "mean_mm")? + value(r, m.0, "sd_mm").unwrap_or(0.0))
+        })
         .fold(1.0_f64, f64::max);
     // A round axis maximum.
-    let step = if top > 20.0 { 5.0 } else if top > 8.0 { 2.0 } else { 1.0 };
+    let step = if top > 20.0 {
+        5.0
+    } else if top > 8.0 {
+        2.0
+    } else {
+        1.0
+    };
     let y_max = (top / step).ceil() * step;
     let (w, h, left, bottom, top_pad) = (520.0, 340.0, 60.0, 50.0, 40.0);
     let plot_h = h - bottom - top_pad;

@@ -9,9 +9,9 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use moe_contact::{
-    Aggregation, CardHand, Checkpoint, ContactMetrics, ContactReport, DgcnnConfig, FeatureBuilder, FeatureFrame, InputFeature,
-    InputSpec, ModelCard, ModelWeights, Normalisation, OptimizerConfig, PointSet, TrainConfig,
-    Trainer, TrainingSets, evaluation_of,
+    Aggregation, CardHand, Checkpoint, ContactMetrics, ContactReport, DgcnnConfig, FeatureBuilder,
+    FeatureFrame, InputFeature, InputSpec, ModelCard, ModelWeights, Normalisation, OptimizerConfig,
+    PointSet, TrainConfig, Trainer, TrainingSets, evaluation_of,
 };
 use moe_geom::{HandModel, LabelledFrame};
 use moe_io::{DatasetReader, Split, SplitFractions};

@@ -4,15 +4,12 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// Small, fast scenes: a coarse finger and a 0.2 s press.
-const PARAMS: &str = "press_secs = 0.1\nhold_secs = 0.05\nretract_secs = 0.05\n\
-    save_every_steps = 4\n[finger]\nvertex_budget = 120\n";
+mod common;
+
+use common::PARAMS;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("xtask-contact-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("contact", name)
 }
 
 fn xtask(args: &[&str], paths: &[(&str, &Path)]) -> Output {
@@ -32,14 +29,25 @@ fn stderr(o: &Output) -> String {
 fn assert_one_error(o: &Output, needle: &str) {
     assert!(!o.status.success(), "expected a failure");
     let err = stderr(o);
-    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("xtask: error:")).collect();
+    let errors: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("xtask: error:"))
+        .collect();
     assert_eq!(errors.len(), 1, "{err}");
     assert!(errors[0].contains(needle), "expected '{needle}' in: {err}");
 }
 
 fn generate(dir: &Path, params: &Path, trajectories: &str) {
     let o = xtask(
-        &["gen-data", "--trajectories", trajectories, "--seed", "3", "--trajectories-per-shard", "8"],
+        &[
+            "gen-data",
+            "--trajectories",
+            trajectories,
+            "--seed",
+            "3",
+            "--trajectories-per-shard",
+            "8",
+        ],
         &[("--out", dir), ("--params", params)],
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -54,17 +62,34 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     generate(&data, &params, "24");
     let model = root.join("tiny");
     let o = xtask(
-        &["train", "--epochs", "1", "--batch-size", "4", "--negative-fraction", "0.5"],
+        &[
+            "train",
+            "--epochs",
+            "1",
+            "--batch-size",
+            "4",
+            "--negative-fraction",
+            "0.5",
+        ],
         &[("--data", &data), ("--out", &model)],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let card: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(model.with_extension("json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(model.with_extension("json")).unwrap())
+            .unwrap();
     let epochs = card["metrics"]["epochs"].as_array().unwrap();
     assert_eq!(epochs.len(), 1);
-    assert!(epochs[0]["validation_contact_bcd_mm"].is_number() || epochs[0]["validation_contact_bcd_mm"].is_null());
+    assert!(
+        epochs[0]["validation_contact_bcd_mm"].is_number()
+            || epochs[0]["validation_contact_bcd_mm"].is_null()
+    );
     assert_eq!(card["dataset"]["label_rule"], "press");
-    assert!(card["dataset"]["regenerate"].as_str().unwrap().contains("--trajectories 24 --seed 3"));
+    assert!(
+        card["dataset"]["regenerate"]
+            .as_str()
+            .unwrap()
+            .contains("--trajectories 24 --seed 3")
+    );
 
     // Table 1 and one trial of each plate, with the KNN index written on the first run.
     let index = root.join("knn.safetensors");
@@ -72,7 +97,12 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     let weights = model.with_extension("safetensors");
     let o = xtask(
         &["eval", "contact", "--trials", "1", "--json"],
-        &[("--data", &data), ("--model", &weights), ("--knn-index", &index), ("--out", &out)],
+        &[
+            ("--data", &data),
+            ("--model", &weights),
+            ("--knn-index", &index),
+            ("--out", &out),
+        ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(index.exists());
@@ -85,7 +115,13 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
         .collect();
     assert_eq!(
         methods,
-        ["DGCNN (true shape)", "DGCNN (SR-ARAP)", "KNN[All]", "KNN[Sub]"].repeat(2),
+        [
+            "DGCNN (true shape)",
+            "DGCNN (SR-ARAP)",
+            "KNN[All]",
+            "KNN[Sub]"
+        ]
+        .repeat(2),
         "scored against the press labels and the proximity labels"
     );
     let shape = report["table1"]["shape"].as_array().unwrap();
@@ -97,7 +133,11 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     // The second run loads the index instead of rebuilding it.
     let o = xtask(
         &["eval", "contact", "--trials", "0"],
-        &[("--data", &data), ("--model", &weights), ("--knn-index", &index)],
+        &[
+            ("--data", &data),
+            ("--model", &weights),
+            ("--knn-index", &index),
+        ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("KNN index of"), "{}", stderr(&o));
@@ -107,20 +147,33 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     let empty = root.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
     assert_one_error(
-        &xtask(&["eval", "contact"], &[("--data", &empty), ("--model", &weights)]),
+        &xtask(
+            &["eval", "contact"],
+            &[("--data", &empty), ("--model", &weights)],
+        ),
         "card.json",
     );
     assert_one_error(
-        &xtask(&["train"], &[("--data", &empty), ("--out", &root.join("never"))]),
+        &xtask(
+            &["train"],
+            &[("--data", &empty), ("--out", &root.join("never"))],
+        ),
         "card.json",
     );
     // A data set of another hand than the model's:
     let other_params = root.join("other.toml");
-    std::fs::write(&other_params, PARAMS.replace("vertex_budget = 120", "vertex_budget = 200")).unwrap();
+    std::fs::write(
+        &other_params,
+        PARAMS.replace("vertex_budget = 120", "vertex_budget = 200"),
+    )
+    .unwrap();
     let other = root.join("other");
     generate(&other, &other_params, "8");
     assert_one_error(
-        &xtask(&["eval", "contact", "--trials", "0"], &[("--data", &other), ("--model", &weights)]),
+        &xtask(
+            &["eval", "contact", "--trials", "0"],
+            &[("--data", &other), ("--model", &weights)],
+        ),
         "trained on the hand",
     );
     // A card whose input features the weights (and so the data) cannot feed:
@@ -129,11 +182,18 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     let mut edited = card.clone();
     edited["architecture"]["input"]["features"] = serde_json::json!(["xyz"]);
     edited["architecture"]["input"]["normalisation"] = serde_json::Value::Null;
-    std::fs::write(bad.with_extension("json"), serde_json::to_string(&edited).unwrap()).unwrap();
+    std::fs::write(
+        bad.with_extension("json"),
+        serde_json::to_string(&edited).unwrap(),
+    )
+    .unwrap();
     assert_one_error(
         &xtask(
             &["eval", "contact", "--trials", "0"],
-            &[("--data", &data), ("--model", &bad.with_extension("safetensors"))],
+            &[
+                ("--data", &data),
+                ("--model", &bad.with_extension("safetensors")),
+            ],
         ),
         "architecture.input.features",
     );

@@ -5,28 +5,37 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Small, fast scenes: a coarse finger and a 0.2 s press.
-const PARAMS: &str = "press_secs = 0.1\nhold_secs = 0.05\nretract_secs = 0.05\n\
-    save_every_steps = 5\n[finger]\nvertex_budget = 120\n";
+mod common;
+
+use common::PARAMS;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("xtask-shards-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("shards", name)
 }
 
-fn gen_data(out: &Path, params: &Path, shard: &str, env: &[(&str, &str)], merge: bool) -> std::process::Output {
+fn gen_data(
+    out: &Path,
+    params: &Path,
+    shard: &str,
+    env: &[(&str, &str)],
+    merge: bool,
+) -> std::process::Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_xtask"));
-    cmd.args(["gen-data", "--trajectories", "3", "--trajectories-per-shard", "1"])
-        .args(["--seed", "5", "--shard", shard])
-        .arg("--out")
-        .arg(out)
-        .arg("--params")
-        .arg(params)
-        .env_remove("SLURM_ARRAY_TASK_ID")
-        .env_remove("SLURM_ARRAY_TASK_MIN")
-        .env_remove("JOB_COMPLETION_INDEX");
+    cmd.args([
+        "gen-data",
+        "--trajectories",
+        "3",
+        "--trajectories-per-shard",
+        "1",
+    ])
+    .args(["--seed", "5", "--shard", shard])
+    .arg("--out")
+    .arg(out)
+    .arg("--params")
+    .arg(params)
+    .env_remove("SLURM_ARRAY_TASK_ID")
+    .env_remove("SLURM_ARRAY_TASK_MIN")
+    .env_remove("JOB_COMPLETION_INDEX");
     if merge {
         cmd.arg("--merge");
     }
@@ -58,7 +67,11 @@ fn array_tasks_from_the_scheduler_s_environment_equal_one_unsplit_run() {
     std::fs::write(&params, PARAMS).unwrap();
     let whole = root.join("whole");
     let out = gen_data(&whole, &params, "1/1", &[], false);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     for (name, tasks) in [
         // Slurm, --array=0-2: the minimum is subtracted.
@@ -84,7 +97,11 @@ fn array_tasks_from_the_scheduler_s_environment_equal_one_unsplit_run() {
         // After the first task, merging names what is missing.
         for (k, env) in tasks.iter().enumerate() {
             let out = gen_data(&dir, &params, "auto/3", env, false);
-            assert!(out.status.success(), "{name} task {k}: {}", String::from_utf8_lossy(&out.stderr));
+            assert!(
+                out.status.success(),
+                "{name} task {k}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
             if k == 0 {
                 let early = gen_data(&dir, &params, "1/3", &[], true);
                 assert!(!early.status.success());
@@ -93,14 +110,25 @@ fn array_tasks_from_the_scheduler_s_environment_equal_one_unsplit_run() {
             }
         }
         let merged = gen_data(&dir, &params, "1/3", &[], true);
-        assert!(merged.status.success(), "{}", String::from_utf8_lossy(&merged.stderr));
-        assert_eq!(files(&dir), files(&whole), "{name}: the union differs from one run");
+        assert!(
+            merged.status.success(),
+            "{}",
+            String::from_utf8_lossy(&merged.stderr)
+        );
+        assert_eq!(
+            files(&dir),
+            files(&whole),
+            "{name}: the union differs from one run"
+        );
     }
     // Without any scheduler variable, `auto` is one clear error line.
     let out = gen_data(&root.join("none"), &params, "auto/3", &[], false);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("none of SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX"), "{err}");
+    assert!(
+        err.contains("none of SLURM_ARRAY_TASK_ID, JOB_COMPLETION_INDEX"),
+        "{err}"
+    );
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     let _ = std::fs::remove_dir_all(&root);
 }

@@ -10,8 +10,8 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
-    ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, KnnIndex,
-    ModelCard, ModelWeights, PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
+    ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, KnnIndex, ModelCard,
+    ModelWeights, PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
 };
 use moe_geom::{FingerParams, HandModel, HandPreset, HandShape, LabelledFrame, Vector3};
 

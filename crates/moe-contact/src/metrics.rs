@@ -84,7 +84,9 @@ impl ContactMetrics {
     ) -> Result<(), ContactError> {
         let fits = |l: &[Vec<bool>]| {
             l.len() == shape.fingers.len()
-                && l.iter().zip(&shape.fingers).all(|(a, b)| a.len() == b.len())
+                && l.iter()
+                    .zip(&shape.fingers)
+                    .all(|(a, b)| a.len() == b.len())
         };
         for (what, l) in [("true", truth), ("predicted", predicted)] {
             if !fits(l) {
@@ -231,10 +233,17 @@ mod tests {
             &labels([false; 4], [true, false]),
         )
         .unwrap();
-        m.add(&s, &labels([false; 4], [false; 2]), &labels([false; 4], [false; 2]))
-            .unwrap();
+        m.add(
+            &s,
+            &labels([false; 4], [false; 2]),
+            &labels([false; 4], [false; 2]),
+        )
+        .unwrap();
         let r = m.report();
-        assert_eq!((r.frames, r.contact_frames, r.misses, r.false_alarms), (4, 2, 1, 1));
+        assert_eq!(
+            (r.frames, r.contact_frames, r.misses, r.false_alarms),
+            (4, 2, 1, 1)
+        );
         assert!((r.miss_rate - 0.5).abs() < 1e-15);
         assert!((r.false_alarm_rate - 0.5).abs() < 1e-15);
         assert!((r.bcd_mm - 5.0).abs() < 1e-9, "{}", r.bcd_mm);

@@ -271,9 +271,7 @@ impl TrainingSets {
 
     /// Whether set `s` has at least one contact point.
     pub fn has_contact(&self, s: usize) -> bool {
-        self.labels[s * self.points..(s + 1) * self.points]
-            .iter()
-            .any(|&l| l == 1)
+        self.labels[s * self.points..(s + 1) * self.points].contains(&1)
     }
 
     /// The labels of set `s`.

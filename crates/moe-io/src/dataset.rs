@@ -82,6 +82,20 @@ impl DatasetLayout {
         self.markers_per_finger.iter().sum()
     }
 
+    /// Per-vertex values of the whole hand (fingers concatenated, as a shard stores them) split
+    /// per finger, each value mapped by `f`. `values` must hold [`DatasetLayout::total_vertices`]
+    /// entries; a shorter list gives shorter (possibly empty) fingers.
+    pub fn per_finger<T, U>(&self, values: &[T], f: impl Fn(&T) -> U) -> Vec<Vec<U>> {
+        let mut out = Vec::with_capacity(self.finger_num_vertices.len());
+        let mut start = 0;
+        for &n in &self.finger_num_vertices {
+            let end = (start + n).min(values.len());
+            out.push(values[start.min(end)..end].iter().map(&f).collect());
+            start += n;
+        }
+        out
+    }
+
     /// Tendons of the whole hand.
     pub fn total_tendons(&self) -> usize {
         self.tendons_per_finger * self.finger_num_vertices.len()
@@ -152,19 +166,8 @@ impl DatasetFrame {
             }
         }
         let point = |p: &[f32; 3]| Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
-        let mut fingers = Vec::with_capacity(layout.finger_num_vertices.len());
-        let mut contact = Vec::with_capacity(layout.finger_num_vertices.len());
-        let mut start = 0;
-        for &n in &layout.finger_num_vertices {
-            fingers.push(self.vertices[start..start + n].iter().map(point).collect());
-            contact.push(
-                self.contact[start..start + n]
-                    .iter()
-                    .map(|&c| c != 0)
-                    .collect(),
-            );
-            start += n;
-        }
+        let fingers = layout.per_finger(&self.vertices, point);
+        let contact = layout.per_finger(&self.contact, |&c| c != 0);
         let mut markers = Vec::with_capacity(layout.markers_per_finger.len());
         let mut start = 0;
         for &m in &layout.markers_per_finger {
@@ -214,7 +217,11 @@ fn check_frame(
     let sizes = [
         ("vertices", f.vertices.len(), layout.total_vertices()),
         ("contact labels", f.contact.len(), layout.total_vertices()),
-        ("contact forces", f.contact_force_n.len(), layout.total_vertices()),
+        (
+            "contact forces",
+            f.contact_force_n.len(),
+            layout.total_vertices(),
+        ),
         (
             "obstacle distances",
             f.obstacle_distance_m.len(),
@@ -371,7 +378,9 @@ pub fn shard_bytes(
             Dtype::F32,
             vec![n, v],
             bytes_of(
-                frames.iter().flat_map(|f| f.contact_force_n.iter().copied()),
+                frames
+                    .iter()
+                    .flat_map(|f| f.contact_force_n.iter().copied()),
                 f32::to_le_bytes,
             ),
         ),

@@ -148,7 +148,12 @@ struct ShapeAcc {
 }
 
 impl ShapeAcc {
-    fn add(&mut self, estimate: &HandShape, truth: &HandShape, seconds: Real) -> Result<(), TouchError> {
+    fn add(
+        &mut self,
+        estimate: &HandShape,
+        truth: &HandShape,
+        seconds: Real,
+    ) -> Result<(), TouchError> {
         let a: Vec<Point3> = estimate.fingers.iter().flatten().copied().collect();
         let b: Vec<Point3> = truth.fingers.iter().flatten().copied().collect();
         if a.len() != b.len() {
@@ -313,18 +318,26 @@ pub fn evaluate_table1(
         let t = Instant::now();
         let arap_shape = arap.estimate(&frame.markers)?.shape;
         shapes[1].add(&arap_shape, &frame.shape, t.elapsed().as_secs_f64())?;
-        let subset = marker_subset(&frame.markers, options.subset_markers, &mut rng.split(k as u64));
+        let subset = marker_subset(
+            &frame.markers,
+            options.subset_markers,
+            &mut rng.split(k as u64),
+        );
         let t = Instant::now();
         let subset_shape = arap.estimate(&subset)?.shape;
         shapes[2].add(&subset_shape, &frame.shape, t.elapsed().as_secs_f64())?;
 
         let mut predictions: [Vec<Vec<bool>>; 4] = Default::default();
         let t = Instant::now();
-        let on_true = estimators.dgcnn.estimate(&frame.shape, Some(&frame.markers))?;
+        let on_true = estimators
+            .dgcnn
+            .estimate(&frame.shape, Some(&frame.markers))?;
         seconds[0] += t.elapsed().as_secs_f64();
         predictions[0] = labels_above(&on_true.fingers, threshold);
         let t = Instant::now();
-        let on_arap = estimators.dgcnn.estimate(&arap_shape, Some(&frame.markers))?;
+        let on_arap = estimators
+            .dgcnn
+            .estimate(&arap_shape, Some(&frame.markers))?;
         seconds[1] += t.elapsed().as_secs_f64();
         predictions[1] = labels_above(&on_arap.fingers, threshold);
         for (slot, (index, acc)) in [
@@ -342,7 +355,11 @@ pub fn evaluate_table1(
                 shapes[acc].add(&shape, &frame.shape, elapsed)?;
             }
         }
-        for (i, p) in predictions.iter().enumerate().filter(|(_, p)| !p.is_empty()) {
+        for (i, p) in predictions
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| !p.is_empty())
+        {
             metrics[0][i].add(&frame.shape, &frame.contact, p)?;
             if let Some(o) = other {
                 metrics[1][i].add(&frame.shape, &o.labels[k], p)?;
@@ -371,7 +388,12 @@ pub fn evaluate_table1(
             shape_rows.push(acc.row(name, markers));
         }
     }
-    let names = ["DGCNN (true shape)", "DGCNN (SR-ARAP)", "KNN[All]", "KNN[Sub]"];
+    let names = [
+        "DGCNN (true shape)",
+        "DGCNN (SR-ARAP)",
+        "KNN[All]",
+        "KNN[Sub]",
+    ];
     let n = frames.len() as Real;
     let mut contact = Vec::new();
     for (t, per_method) in metrics.iter().enumerate() {
@@ -444,7 +466,11 @@ pub const PLATE_TILT_DEG: Real = 3.0;
 /// `config` with its obstacles moved by a seeded offset of up to [`PLATE_OFFSET_M`] per axis
 /// and tilted by up to [`PLATE_TILT_DEG`] about a random axis through their first keyframe;
 /// trial 0 of any seed is the scene as given.
-pub fn perturbed_plate(config: &SceneConfig, seed: u64, trial: u64) -> (SceneConfig, [Real; 3], Real) {
+pub fn perturbed_plate(
+    config: &SceneConfig,
+    seed: u64,
+    trial: u64,
+) -> (SceneConfig, [Real; 3], Real) {
     if trial == 0 {
         return (config.clone(), [0.0; 3], 0.0);
     }
@@ -474,7 +500,8 @@ pub fn perturbed_plate(config: &SceneConfig, seed: u64, trial: u64) -> (SceneCon
         };
         for k in &mut o.trajectory.keyframes {
             let r = rotation * UnitQuat::from_scaled_axis(Vector3::from(k.rotation_rad));
-            let t = pivot + rotation * (Vector3::from(k.translation_m) - pivot) + Vector3::from(offset);
+            let t =
+                pivot + rotation * (Vector3::from(k.translation_m) - pivot) + Vector3::from(offset);
             k.translation_m = [t.x, t.y, t.z];
             let a = r.scaled_axis();
             k.rotation_rad = [a.x, a.y, a.z];
@@ -487,7 +514,10 @@ pub fn perturbed_plate(config: &SceneConfig, seed: u64, trial: u64) -> (SceneCon
 ///
 /// # Errors
 /// Divergence of the simulation, or a scene whose hand is not `hand`'s layout.
-pub fn simulate_labelled(config: &SceneConfig, hand: &HandModel) -> Result<Vec<LabelledFrame>, TouchError> {
+pub fn simulate_labelled(
+    config: &SceneConfig,
+    hand: &HandModel,
+) -> Result<Vec<LabelledFrame>, TouchError> {
     let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
     let steps = scene.num_steps();
     let frames = run_saving(&mut scene, steps)?;
@@ -556,7 +586,11 @@ pub fn evaluate_plates(
                 contact_frames += 1;
                 let estimated = arap.estimate(&frame.markers)?.shape;
                 let p = dgcnn.estimate(&estimated, Some(&frame.markers))?;
-                d.add(&frame.shape, &frame.contact, &labels_above(&p.fingers, threshold))?;
+                d.add(
+                    &frame.shape,
+                    &frame.contact,
+                    &labels_above(&p.fingers, threshold),
+                )?;
                 let m = knn_all.nearest(&frame.markers)?;
                 k.add(
                     &frame.shape,
@@ -618,6 +652,11 @@ pub fn contact_ply(
     }
     let mut ply = moe_io::PlyData::from_mesh(&mesh)
         .with_scalar("contact_probability", probabilities.iter().copied());
-    ply.colors = Some(probabilities.iter().map(|&p| probability_colour(p)).collect());
+    ply.colors = Some(
+        probabilities
+            .iter()
+            .map(|&p| probability_colour(p))
+            .collect(),
+    );
     Ok(ply)
 }

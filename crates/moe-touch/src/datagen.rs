@@ -500,7 +500,11 @@ mod tests {
     #[test]
     fn shard_specs_take_the_index_from_the_scheduler() {
         let env = |vars: &'static [(&'static str, &'static str)]| {
-            move |k: &str| vars.iter().find(|(n, _)| *n == k).map(|(_, v)| v.to_string())
+            move |k: &str| {
+                vars.iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
         };
         let none = env(&[]);
         assert_eq!(parse_shard_spec("2/4", &none).unwrap(), (2, 4));
@@ -522,13 +526,22 @@ mod tests {
         );
         for (spec, vars, needle) in [
             ("auto/4", &[][..], "none of SLURM_ARRAY_TASK_ID"),
-            ("auto/4", &[("JOB_COMPLETION_INDEX", "4")][..], "machine 5 of 4"),
-            ("auto/4", &[("SLURM_ARRAY_TASK_ID", "x")][..], "SLURM_ARRAY_TASK_ID=x"),
+            (
+                "auto/4",
+                &[("JOB_COMPLETION_INDEX", "4")][..],
+                "machine 5 of 4",
+            ),
+            (
+                "auto/4",
+                &[("SLURM_ARRAY_TASK_ID", "x")][..],
+                "SLURM_ARRAY_TASK_ID=x",
+            ),
             ("0/4", &[][..], "machine 0 of 4"),
             ("3", &[][..], "expected I/N"),
             ("1/0", &[][..], "not in 1..=0"),
         ] {
-            let vars: &'static [(&'static str, &'static str)] = Box::leak(vars.to_vec().into_boxed_slice());
+            let vars: &'static [(&'static str, &'static str)] =
+                Box::leak(vars.to_vec().into_boxed_slice());
             let err = parse_shard_spec(spec, &env(vars)).unwrap_err().to_string();
             assert!(err.contains(needle), "{spec} {vars:?}: {err}");
         }

@@ -240,10 +240,7 @@ fn a_card_s_hand_decides_which_hands_the_model_runs_on() {
     assert!(build(PointSet::PerFinger, &two).is_ok());
     assert!(build(PointSet::PerFinger, &three).is_ok());
     assert!(build(PointSet::WholeHand, &two).is_ok());
-    for (set, on) in [
-        (PointSet::WholeHand, &three),
-        (PointSet::PerFinger, &other),
-    ] {
+    for (set, on) in [(PointSet::WholeHand, &three), (PointSet::PerFinger, &other)] {
         let err = build(set, on).unwrap_err();
         assert!(
             matches!(err, ContactError::HandMismatch { .. }),

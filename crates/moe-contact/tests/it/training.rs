@@ -235,11 +235,12 @@ fn the_evaluation_of_probabilities_matches_the_network_s_loss() {
             den += weight;
         }
     }
-    assert!((direct.loss - num / den).abs() < 1e-9, "{} vs {}", direct.loss, num / den);
-    let via = moe_contact::evaluation_of(
-        &p,
-        (0..sets.len()).flat_map(|s| sets.labels_of(s)),
-        w,
+    assert!(
+        (direct.loss - num / den).abs() < 1e-9,
+        "{} vs {}",
+        direct.loss,
+        num / den
     );
+    let via = moe_contact::evaluation_of(&p, (0..sets.len()).flat_map(|s| sets.labels_of(s)), w);
     assert_eq!(via, direct);
 }
