@@ -660,3 +660,64 @@ pub fn contact_ply(
     );
     Ok(ply)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use moe_geom::{FingerParams, HandPreset};
+    use moe_tendon_sim::{ObstacleConfig, ObstacleShape, PoseKeyframe, PoseTrajectory};
+
+    #[test]
+    fn marker_subsets_keep_the_asked_number_per_finger_and_are_seeded() {
+        let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
+        let all = hand.rest_keypoints();
+        let rng = SeededRng::new(4);
+        let a = marker_subset(&all, 4, &mut rng.split(1));
+        for (f, g) in a.fingers.iter().zip(&all.fingers) {
+            assert_eq!(f.iter().flatten().count(), 4);
+            // Kept markers are unchanged.
+            for (p, q) in f.iter().zip(g) {
+                if let Some(p) = p {
+                    assert_eq!(Some(*p), *q);
+                }
+            }
+        }
+        assert_eq!(a, marker_subset(&all, 4, &mut rng.split(1)));
+        assert_ne!(a, marker_subset(&all, 4, &mut rng.split(2)));
+        assert_eq!(marker_subset(&all, 9, &mut rng.split(1)), all);
+    }
+
+    #[test]
+    fn plate_perturbations_are_small_seeded_and_rigid() {
+        let config = SceneConfig {
+            obstacles: vec![ObstacleConfig {
+                shape: ObstacleShape::Cuboid {
+                    half_extents_m: [0.001, 0.02, 0.015],
+                },
+                trajectory: PoseTrajectory {
+                    keyframes: vec![
+                        PoseKeyframe::at(0.0, [0.01, 0.0, 0.08]),
+                        PoseKeyframe::at(1.0, [0.0, 0.0, 0.08]),
+                    ],
+                },
+            }],
+            ..SceneConfig::default()
+        };
+        assert_eq!(perturbed_plate(&config, 3, 0).0, config);
+        let (moved, offset, tilt) = perturbed_plate(&config, 3, 1);
+        assert_eq!(perturbed_plate(&config, 3, 1).0, moved);
+        assert!(offset.iter().all(|o| o.abs() <= PLATE_OFFSET_M));
+        assert!(tilt.abs() <= PLATE_TILT_DEG && tilt != 0.0);
+        let k = &moved.obstacles[0].trajectory.keyframes;
+        // The first keyframe moves by the offset only (the tilt is about it); the distance
+        // between the keyframes is kept; the rotation is the tilt.
+        let d0: Vec<Real> = (0..3)
+            .map(|i| k[0].translation_m[i] - [0.01, 0.0, 0.08][i])
+            .collect();
+        assert!(d0.iter().zip(&offset).all(|(a, b)| (a - b).abs() < 1e-15));
+        let gap = Vector3::from(k[1].translation_m) - Vector3::from(k[0].translation_m);
+        assert!((gap.norm() - 0.01).abs() < 1e-12);
+        let angle = Vector3::from(k[1].rotation_rad).norm().to_degrees();
+        assert!((angle - tilt.abs()).abs() < 1e-9, "{angle} vs {tilt}");
+    }
+}
