@@ -548,20 +548,20 @@ pub(crate) fn write_heldout(args: &HeldoutArgs) -> Result<()> {
     Ok(())
 }
 
-fn heldout_frames() -> Result<(HandModel, Vec<LabelledFrame>)> {
+fn heldout_frames() -> Result<(HandModel, Vec<LabelledFrame>, String)> {
     let reader = DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?;
     let hand = dataset_hand(&reader)?;
     let frames = reader
         .labelled_frames(None, SplitFractions::default())
         .collect::<Result<Vec<_>, _>>()?;
-    Ok((hand, frames))
+    Ok((hand, frames, label_rule_of(&reader)))
 }
 
 /// Golden ARAP stage: SR-ARAP shapes of the held-out frames' keypoints (all markers and the
 /// seeded 4 of 7): per frame the BCD and per-vertex errors against the true surface and a
 /// sample of estimated vertices (mm).
 pub(crate) fn golden_arap() -> Result<serde_json::Value> {
-    let (hand, frames) = heldout_frames()?;
+    let (hand, frames, _) = heldout_frames()?;
     let options = ContactEvalOptions::default();
     let mut arap = moe_touch::contact_eval::study_shape_estimator(&hand, &options.shape)?;
     let rng = moe_geom::SeededRng::new(options.seed);
@@ -615,7 +615,7 @@ pub(crate) fn golden_arap() -> Result<serde_json::Value> {
 /// timings), plus the network's summed contact probability per frame on the true shape.
 pub(crate) fn golden_table1() -> Result<serde_json::Value> {
     use moe_contact::ContactEstimator;
-    let (hand, frames) = heldout_frames()?;
+    let (hand, frames, rule) = heldout_frames()?;
     let dgcnn = load_estimator(&workspace_root().join(SHIPPED_MODEL), &hand)?;
     let estimators = Estimators {
         dgcnn: &dgcnn,
@@ -625,7 +625,7 @@ pub(crate) fn golden_table1() -> Result<serde_json::Value> {
     let (table, _) = evaluate_table1(
         &hand,
         &frames,
-        "heldout",
+        &rule,
         None,
         estimators,
         &ContactEvalOptions::default(),

@@ -65,8 +65,12 @@ pub(crate) struct TrainArgs {
     max_frames: Option<usize>,
     /// Shapes the network learns from: the SR-ARAP estimate from each frame's markers (what it
     /// sees at run time), or the simulated surface.
-    #[arg(long, value_enum, default_value = "sr-arap")]
+    #[arg(long, value_enum, default_value = "both")]
     input_shape: InputShapeArg,
+    /// Start from these weights (a trained model's NAME.safetensors) instead of seeded ones,
+    /// with fresh optimiser state: fine-tuning. Ignored with --resume.
+    #[arg(long, value_name = "M.safetensors")]
+    init: Option<PathBuf>,
     /// Fraction of the point sets without contact that each epoch trains on (a fresh draw
     /// every epoch; sets with contact are always used).
     #[arg(long, default_value_t = 1.0)]
@@ -86,6 +90,9 @@ enum InputShapeArg {
     SrArap,
     /// The simulated surface.
     Simulated,
+    /// Both: every training frame twice, as simulated and as SR-ARAP estimated; validation on
+    /// the SR-ARAP shapes (what the model sees at run time).
+    Both,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -253,6 +260,7 @@ fn write_model(
     });
     card.training = Some(serde_json::json!({
         "input_shape": args.input_shape,
+        "init": args.init.as_ref().map(|p| p.display().to_string()),
         "config": config,
         "contact_weight": trainer.contact_weight(),
         "train_sets": run.train_sets,
@@ -315,19 +323,22 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     }
     // Validation metrics take the contact points on the true surfaces (the design's definition).
     let validation_truth = validation_frames.clone();
-    let (train_frames, validation_frames) = if args.input_shape == InputShapeArg::SrArap {
+    let (train_frames, validation_frames) = if args.input_shape == InputShapeArg::Simulated {
+        (train_frames, validation_frames)
+    } else {
         let t = Instant::now();
         let options = moe_arap::ShapeOptions::default();
-        let train = with_estimated_shapes(&hand, &train_frames, &options)?;
+        let mut train = with_estimated_shapes(&hand, &train_frames, &options)?;
         let validation = with_estimated_shapes(&hand, &validation_frames, &options)?;
         eprintln!(
             "train: SR-ARAP shapes of {} frames from their markers in {:.0} s",
             train.len() + validation.len(),
             t.elapsed().as_secs_f64()
         );
+        if args.input_shape == InputShapeArg::Both {
+            train.extend(train_frames);
+        }
         (train, validation)
-    } else {
-        (train_frames, validation_frames)
     };
     let mut spec = InputSpec {
         features: if args.xyz_only {
@@ -345,11 +356,27 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         },
         normalisation: None,
     };
-    // Normalise every channel by the training frames' statistics.
-    spec.normalisation = Some(normalisation_of(
-        &FeatureBuilder::new(&spec, &hand)?,
-        &train_frames,
-    )?);
+    // Normalise every channel by the training frames' statistics — or, fine-tuning, keep the
+    // normalisation the initial weights were trained with.
+    let init_normalisation = match &args.init {
+        Some(path) => moe_io::read_model_files(path)?
+            .card
+            .map(|text| ModelCard::from_json(&text))
+            .transpose()?
+            .and_then(|c| {
+                (c.architecture.input.features == spec.features)
+                    .then_some(c.architecture.input.normalisation)
+                    .flatten()
+            }),
+        None => None,
+    };
+    spec.normalisation = match init_normalisation {
+        Some(n) => Some(n),
+        None => Some(normalisation_of(
+            &FeatureBuilder::new(&spec, &hand)?,
+            &train_frames,
+        )?),
+    };
     let builder = FeatureBuilder::new(&spec, &hand)?;
     let train = TrainingSets::from_frames(&builder, &train_frames)?;
     let validation = TrainingSets::from_frames(&builder, &validation_frames)?;
@@ -406,10 +433,17 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             eprintln!("train: resumed after epoch {}", trainer.epochs_done());
             (trainer, history)
         } else {
-            (
-                Trainer::new(arch.clone(), config.clone(), &train)?,
-                Vec::new(),
-            )
+            let trainer = match &args.init {
+                Some(path) => {
+                    let files = moe_io::read_model_files(path)?;
+                    let weights = ModelWeights::parse(&files.weights)
+                        .with_context(|| format!("initial weights {}", path.display()))?;
+                    eprintln!("train: starting from the weights of {}", path.display());
+                    Trainer::from_weights(arch.clone(), config.clone(), &train, &weights)?
+                }
+                None => Trainer::new(arch.clone(), config.clone(), &train)?,
+            };
+            (trainer, Vec::new())
         };
     history.truncate(trainer.epochs_done());
     eprintln!(
@@ -440,7 +474,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         let batch = args.batch_size;
         let logging = !std::io::stderr().is_terminal();
         let mut recent = 0.0;
+        let mut epoch_steps = 0;
         let train_loss = trainer.run_epoch(&train, &mut |step, steps, loss| {
+            epoch_steps = steps;
             bar.set_length(steps as u64);
             bar.set_position(step as u64);
             let elapsed = t0.elapsed().as_secs_f64().max(1e-9);
@@ -463,7 +499,8 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         })?;
         let epoch_seconds = t0.elapsed().as_secs_f64();
         train_seconds += epoch_seconds;
-        sets_trained += train.len();
+        // The sets this epoch drew (all but the last batch are full).
+        sets_trained += (epoch_steps * batch).min(train.len());
         let p = moe_contact::predict(trainer.network(), &validation, args.batch_size)?;
         let eval = evaluation_of(
             &p,

@@ -456,6 +456,29 @@ impl Trainer {
         config: TrainConfig,
         train: &TrainingSets,
     ) -> Result<Self, ContactError> {
+        Self::build(arch, config, train, None)
+    }
+
+    /// A trainer that starts from `weights` (fine-tuning a trained model) with fresh optimiser
+    /// state; otherwise as [`Trainer::new`].
+    ///
+    /// # Errors
+    /// As [`Trainer::new`], and weights that do not fit the architecture.
+    pub fn from_weights(
+        arch: DgcnnConfig,
+        config: TrainConfig,
+        train: &TrainingSets,
+        weights: &ModelWeights,
+    ) -> Result<Self, ContactError> {
+        Self::build(arch, config, train, Some(weights))
+    }
+
+    fn build(
+        arch: DgcnnConfig,
+        config: TrainConfig,
+        train: &TrainingSets,
+        init: Option<&ModelWeights>,
+    ) -> Result<Self, ContactError> {
         config.validate()?;
         if train.is_empty() {
             return Err(ContactError::InvalidBatch {
@@ -481,7 +504,12 @@ impl Trainer {
             train.channels(),
             VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu),
         )?;
-        ModelWeights::seeded(&arch, train.channels(), config.seed)?.assign_to(&varmap)?;
+        match init {
+            Some(w) => w.assign_to(&varmap)?,
+            None => {
+                ModelWeights::seeded(&arch, train.channels(), config.seed)?.assign_to(&varmap)?
+            }
+        }
         let vars = sorted_vars(&varmap)?;
         let state = match config.optimizer {
             OptimizerConfig::AdamW { .. } => OptimizerState::AdamW {
