@@ -29,7 +29,7 @@ pub(crate) struct ContactEvalArgs {
     /// The contact model (`NAME.safetensors` with its card `NAME.json`).
     #[arg(long)]
     pub(crate) model: PathBuf,
-    /// KNN[All] index file: loaded when it exists, otherwise built from the training
+    /// `KNN[All]` index file: loaded when it exists, otherwise built from the training
     /// trajectories and written there, so that the next evaluation does not rebuild it.
     #[arg(long, value_name = "K.safetensors")]
     pub(crate) knn_index: Option<PathBuf>,
@@ -44,7 +44,7 @@ pub(crate) struct ContactEvalArgs {
     /// Trials per plate scene (Table 2; trial 0 is the scene as committed). 0 skips Table 2.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(0..=100))]
     pub(crate) trials: u64,
-    /// Seed of the marker subsets, KNN[Sub] and the plate perturbations.
+    /// Seed of the marker subsets, `KNN[Sub]` and the plate perturbations.
     #[arg(long, default_value_t = 0)]
     pub(crate) seed: u64,
     /// Print one JSON object on stdout instead of tables.
@@ -295,7 +295,7 @@ fn plate_scenes() -> Result<Vec<PlateScene>> {
         .collect()
 }
 
-/// Mean ± sd of the trials' UCD per region, for DGCNN and KNN[All] (mm); trials whose every
+/// Mean ± sd of the trials' UCD per region, for DGCNN and `KNN[All]` (mm); trials whose every
 /// contact frame was missed are left out of the mean and counted.
 fn region_summary(plates: &[PlateTrial]) -> serde_json::Value {
     let mut out = serde_json::Map::new();

@@ -2,7 +2,7 @@
 
 use std::fmt::Write as _;
 
-/// Grouped bars of the per-region plate errors (`region_summary`'s JSON): DGCNN and KNN[All]
+/// Grouped bars of the per-region plate errors (`region_summary`'s JSON): DGCNN and `KNN[All]`
 /// per region, mean with ±sd whiskers, in mm.
 pub(crate) fn region_bars(summary: &serde_json::Value) -> String {
     let regions = ["tip", "middle", "base"];

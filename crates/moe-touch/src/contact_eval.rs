@@ -8,13 +8,13 @@
 //!   rest shape for reference; each by BCD against the simulated surface and by the per-vertex
 //!   error (vertex i against vertex i), which BCD hides;
 //! - contact estimation: the DGCNN on the true shape, the DGCNN on the SR-ARAP shape (the
-//!   paper's setting), KNN[All] and KNN[Sub], by [`moe_contact::metrics`]'s definitions, against
+//!   paper's setting), `KNN[All]` and `KNN[Sub]`, by [`moe_contact::metrics`]'s definitions, against
 //!   the data set's labels and optionally a second labelling of the same frames;
 //! - the runtime per observation of each (one frame at a time, as a robot runs them).
 //!
 //! Table 2 simulates each plate scene a few times with the plate's pose perturbed by a seeded
 //! small offset and tilt, and reports the UCD from the predicted to the true contact points over
-//! the frames that have contact, for the DGCNN on SR-ARAP shapes and for KNN[All].
+//! the frames that have contact, for the DGCNN on SR-ARAP shapes and for `KNN[All]`.
 
 use std::time::Instant;
 
@@ -116,10 +116,10 @@ pub struct TruthLabels<'a> {
 pub struct Estimators<'a> {
     /// The trained network.
     pub dgcnn: &'a DgcnnEstimator,
-    /// KNN[All] (every training frame; keeps shapes for its shape row) — the KNN rows are
+    /// `KNN[All]` (every training frame; keeps shapes for its shape row) — the KNN rows are
     /// left out without it.
     pub knn_all: Option<&'a KnnIndex>,
-    /// KNN[Sub] (a seeded 10 % of them).
+    /// `KNN[Sub]` (a seeded 10 % of them).
     pub knn_sub: Option<&'a KnnIndex>,
 }
 
@@ -132,7 +132,7 @@ pub struct FramePrediction {
     pub arap_shape: HandShape,
     /// DGCNN contact probabilities on the SR-ARAP shape.
     pub dgcnn_on_arap: Vec<Vec<Real>>,
-    /// KNN[All] contact labels (empty without the index).
+    /// `KNN[All]` contact labels (empty without the index).
     pub knn_all: Vec<Vec<bool>>,
 }
 
@@ -454,7 +454,7 @@ pub struct PlateTrial {
     pub contact_frames: u64,
     /// DGCNN on SR-ARAP shapes over those frames.
     pub dgcnn: ContactReport,
-    /// KNN[All] over those frames.
+    /// `KNN[All]` over those frames.
     pub knn_all: ContactReport,
 }
 
@@ -559,7 +559,7 @@ pub fn simulate_labelled(
 
 /// Table 2: every plate scene, `trials` trials each (trial 0 unperturbed), UCD from predicted to
 /// true contact points over the frames with true contact, for the DGCNN on SR-ARAP shapes and
-/// KNN[All].
+/// `KNN[All]`.
 ///
 /// # Errors
 /// As [`simulate_labelled`] and the estimators.
