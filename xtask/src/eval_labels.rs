@@ -165,7 +165,7 @@ pub(crate) fn run(args: &LabelsEvalArgs) -> Result<()> {
         let movable: Vec<Vec<bool>> = scene
             .bodies()
             .iter()
-            .map(|b| b.movable_surface_vertices())
+            .map(|b| b.movable_surface_vertices().to_vec())
             .collect();
         for (f, g) in frames.iter().zip(&free_frames) {
             tally(&scene, f, g, &topologies, &movable, &mut stats);

@@ -79,9 +79,20 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
             .unwrap();
     let epochs = card["metrics"]["epochs"].as_array().unwrap();
     assert_eq!(epochs.len(), 1);
+    // Validation records the contact metrics: rates in [0, 1], a BCD (null when every contact
+    // frame was missed, as JSON has no NaN).
+    for key in [
+        "validation_miss_rate",
+        "validation_false_alarm_rate",
+        "validation_f1",
+    ] {
+        let v = epochs[0][key].as_f64().unwrap_or(-1.0);
+        assert!((0.0..=1.0).contains(&v), "{key} = {}", epochs[0][key]);
+    }
+    let bcd = &epochs[0]["validation_contact_bcd_mm"];
     assert!(
-        epochs[0]["validation_contact_bcd_mm"].is_number()
-            || epochs[0]["validation_contact_bcd_mm"].is_null()
+        bcd.is_null() || bcd.as_f64().is_some_and(|b| b >= 0.0),
+        "{bcd}"
     );
     assert_eq!(card["dataset"]["label_rule"], "press");
     assert!(

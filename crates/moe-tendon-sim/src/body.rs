@@ -22,6 +22,8 @@ pub struct FingerBody {
     surface: Embedding,
     tendons: Vec<Tendon>,
     stats: VoxelStats,
+    /// Per surface vertex: whether it can move (computed once from the fixed nodes).
+    movable: Vec<bool>,
 }
 
 /// External inputs of one finger step besides the state.
@@ -78,11 +80,23 @@ impl FingerBody {
             .collect::<Result<Vec<_>, _>>()?;
         let pairs: Vec<(u32, u32)> = tendons.iter().flat_map(|t| t.coupled_pairs()).collect();
         let fem = FemModel::new(vm.tets, material.clone(), fixed, &pairs, tendons.len())?;
+        let movable = vm
+            .surface
+            .points()
+            .iter()
+            .map(|e| {
+                e.nodes
+                    .iter()
+                    .zip(&e.weights)
+                    .any(|(&n, &w)| w != 0.0 && !fem.fixed()[n as usize])
+            })
+            .collect();
         Ok(Self {
             fem,
             surface: vm.surface,
             tendons,
             stats: vm.stats,
+            movable,
         })
     }
 
@@ -98,18 +112,8 @@ impl FingerBody {
 
     /// Per surface vertex: whether it can move, i.e. at least one node of its element with a
     /// non-zero weight is free. A vertex held by the fixed base alone cannot.
-    pub fn movable_surface_vertices(&self) -> Vec<bool> {
-        let fixed = self.fem.fixed();
-        self.surface
-            .points()
-            .iter()
-            .map(|e| {
-                e.nodes
-                    .iter()
-                    .zip(&e.weights)
-                    .any(|(&n, &w)| w != 0.0 && !fixed[n as usize])
-            })
-            .collect()
+    pub fn movable_surface_vertices(&self) -> &[bool] {
+        &self.movable
     }
 
     /// The tendons.

@@ -558,11 +558,8 @@ impl Scene {
                     &poses,
                     self.config.contact.stiffness_n_per_m,
                 );
-                let labels = contact_labels(
-                    &contact,
-                    &b.movable_surface_vertices(),
-                    &self.config.contact,
-                );
+                let labels =
+                    contact_labels(&contact, b.movable_surface_vertices(), &self.config.contact);
                 FingerFrame {
                     vertices_in_hand: world.iter().map(|p| hand_from_world * p).collect(),
                     vertices_in_world: world,

@@ -65,7 +65,7 @@ fn press_with(
         &[obstacle.pose_at(t_end)],
         contact.stiffness_n_per_m,
     );
-    let labels = contact_labels(&c, &body.movable_surface_vertices(), contact);
+    let labels = contact_labels(&c, body.movable_surface_vertices(), contact);
     (surface, c.distances_m, labels)
 }
 
