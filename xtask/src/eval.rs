@@ -33,6 +33,8 @@ pub(crate) enum EvalTarget {
     Contact(crate::eval_contact::ContactEvalArgs),
     /// Contact-label rules on simulated trajectories against their obstacle-free twins.
     Labels(crate::eval_labels::LabelsEvalArgs),
+    /// Marker perception on the paper's scenes rendered by the simulated wrist camera.
+    Markers(crate::eval_markers::MarkersEvalArgs),
 }
 
 /// Benchmark size.
@@ -73,6 +75,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
         EvalTarget::Surface(a) => run_surface(a),
         EvalTarget::Contact(a) => crate::eval_contact::run(a),
         EvalTarget::Labels(a) => crate::eval_labels::run(a),
+        EvalTarget::Markers(a) => crate::eval_markers::run(a),
     }
 }
 

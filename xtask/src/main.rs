@@ -8,6 +8,7 @@ mod ci;
 mod eval;
 mod eval_contact;
 mod eval_labels;
+mod eval_markers;
 mod figure;
 mod fixtures;
 mod gen_data;

@@ -44,4 +44,6 @@ pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
 pub use rng::SeededRng;
 pub use topology::{Topology, largest_component};
-pub use transform::{CameraFromHand, HandFromFinger, Transform, WorldFromHand, frame};
+pub use transform::{
+    CameraFromHand, HandFromCamera, HandFromFinger, Transform, WorldFromHand, frame,
+};

@@ -44,6 +44,8 @@ pub type WorldFromHand = Transform<frame::World, frame::Hand>;
 pub type HandFromFinger = Transform<frame::Hand, frame::Finger>;
 /// `camera_from_hand`: the wrist camera's mounting, inverted.
 pub type CameraFromHand = Transform<frame::Camera, frame::Hand>;
+/// `hand_from_camera`: the wrist camera's mounting (a calibration: the camera rides on the wrist).
+pub type HandFromCamera = Transform<frame::Hand, frame::Camera>;
 
 impl<To, From> Transform<To, From> {
     /// Wraps an isometry that maps `From` coordinates to `To` coordinates.

@@ -314,6 +314,61 @@ impl RgbdCamera {
         Ok(self.shade(items, &markers_in_camera, &hits, seed))
     }
 
+    /// Which of `points_in_hand` the camera sees: a point is visible when it projects inside
+    /// the image in front of the camera and no surface of `items` crosses the line of sight to
+    /// it short of `tolerance_m` before the point (the point's own surface does not hide it).
+    /// Exact ray casting against every triangle, independent of the pixel grid and the noise:
+    /// this is the ground truth that marker detection is scored against.
+    ///
+    /// # Errors
+    /// Invalid intrinsics, or a face index out of range in an item.
+    pub fn visible(
+        &self,
+        items: &[RenderItem<'_>],
+        points_in_hand: &[Point3],
+        tolerance_m: Real,
+    ) -> Result<Vec<bool>, GeomError> {
+        self.intrinsics.validate()?;
+        let camera_from_hand = self.hand_from_camera.inverse();
+        let targets: Vec<Point3> = camera_from_hand.transform_points(points_in_hand);
+        let k = &self.intrinsics;
+        let (w, h) = (Real::from(k.width), Real::from(k.height));
+        let mut visible: Vec<bool> = targets
+            .iter()
+            .map(|p| {
+                k.project(p).is_some_and(|(u, v)| {
+                    (-0.5..w - 0.5).contains(&u) && (-0.5..h - 0.5).contains(&v)
+                })
+            })
+            .collect();
+        for item in items {
+            let verts: Vec<Point3> = camera_from_hand.transform_points(item.vertices_in_hand);
+            for (face, tri) in item.faces.iter().enumerate() {
+                let mut q = [Point3::origin(); 3];
+                for (k, &v) in tri.iter().enumerate() {
+                    q[k] = *verts
+                        .get(v as usize)
+                        .ok_or(GeomError::FaceIndexOutOfRange {
+                            face,
+                            index: v,
+                            len: verts.len(),
+                        })?;
+                }
+                for (seen, p) in visible.iter_mut().zip(&targets) {
+                    if *seen {
+                        let len = p.coords.norm();
+                        if let Some(t) = ray_triangle(&(p.coords / len), &q)
+                            && t < len - tolerance_m
+                        {
+                            *seen = false;
+                        }
+                    }
+                }
+            }
+        }
+        Ok(visible)
+    }
+
     /// Clips a camera-frame triangle at the near plane and rasterises what remains.
     fn raster_triangle(&self, q: &[Point3; 3], item: u32, hits: &mut [Option<Hit>]) {
         const NEAR: Real = 1e-3;
@@ -469,6 +524,31 @@ impl RgbdCamera {
             depth_m,
         }
     }
+}
+
+/// Distance along the unit ray `dir` from the origin to triangle `q`, `None` if it misses
+/// (Möller–Trumbore, both faces).
+fn ray_triangle(dir: &Vector3, q: &[Point3; 3]) -> Option<Real> {
+    let e1 = q[1] - q[0];
+    let e2 = q[2] - q[0];
+    let p = dir.cross(&e2);
+    let det = e1.dot(&p);
+    if det.abs() < 1e-18 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = -q[0].coords;
+    let u = s.dot(&p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qv = s.cross(&e1);
+    let v = dir.dot(&qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(&qv) * inv;
+    (t > 0.0).then_some(t)
 }
 
 #[cfg(test)]
@@ -768,6 +848,43 @@ mod tests {
         let m2 = camera_from_hand.transform_point(&data[1].2[2]);
         let (u2, v2) = camera.intrinsics.project(&m2).unwrap();
         assert!(red_centroid(&img, u2, v2, 3.0).is_some());
+    }
+
+    #[test]
+    fn visibility_is_the_line_of_sight() {
+        let camera = RgbdCamera::default();
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let data = hand_items(&hand);
+        let items: Vec<RenderItem<'_>> = data.iter().map(|(v, f, mk)| item(v, f, mk)).collect();
+        let markers: Vec<Point3> = data.iter().flat_map(|d| d.2.clone()).collect();
+        // Every marker faces the camera (see the test above) ...
+        let seen = camera.visible(&items, &markers, 2e-4).unwrap();
+        assert!(seen.iter().all(|&s| s), "{seen:?}");
+        // ... and the same points moved through to the far side of their finger are hidden by
+        // it; a point behind the camera or outside the image is not seen at all.
+        let far: Vec<Point3> = hand
+            .fingers()
+            .iter()
+            .flat_map(|f| {
+                f.model.marker_positions().into_iter().map(|p| {
+                    f.hand_from_finger
+                        .transform_point(&Point3::new(-p.x, -p.y, p.z))
+                })
+            })
+            .collect();
+        let seen = camera.visible(&items, &far, 2e-4).unwrap();
+        assert!(seen.iter().all(|&s| !s), "{seen:?}");
+        let outside = [Point3::new(0.0, 0.0, -0.1), Point3::new(1.0, 0.0, 0.05)];
+        assert_eq!(
+            camera.visible(&[], &outside, 0.0).unwrap(),
+            vec![false, false]
+        );
+        assert_eq!(
+            camera
+                .visible(&[], &[Point3::new(0.0, 0.0, 0.05)], 0.0)
+                .unwrap(),
+            vec![true]
+        );
     }
 
     #[test]

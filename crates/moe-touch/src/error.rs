@@ -35,6 +35,26 @@ pub enum TouchError {
     /// A geometric input is malformed.
     #[error(transparent)]
     Geometry(#[from] moe_geom::GeomError),
+    /// An image does not have the size the camera intrinsics give.
+    #[error("{what}: expected {expected}, got {got}")]
+    ImageSize {
+        /// Which image and unit.
+        what: &'static str,
+        /// Size from the intrinsics.
+        expected: usize,
+        /// Size given.
+        got: usize,
+    },
+    /// A marker-detector parameter is out of range.
+    #[error("marker detector: {name} = {value}: {reason}")]
+    InvalidDetector {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// An evaluation's inputs do not fit together.
     #[error("evaluation: {reason}")]
     InvalidEvaluation {

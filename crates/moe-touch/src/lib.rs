@@ -13,5 +13,7 @@ pub mod datagen;
 pub mod episode;
 /// The crate's error type.
 pub mod error;
+/// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
+pub mod perception;
 
 pub use error::TouchError;

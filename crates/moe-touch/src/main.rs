@@ -28,6 +28,9 @@ enum Command {
     Hand(cli::hand::HandArgs),
     /// Deform any mesh with SR-ARAP so that handle vertices reach their targets.
     Arap(cli::arap::ArapArgs),
+    /// Detect and track the red markers in every frame of an episode (wrist RGB-D → keypoints
+    /// per finger); report detection against the ground truth when the episode has it.
+    Markers(cli::markers::MarkersArgs),
     /// Estimate a hand's deformed finger meshes from one frame of marker keypoints (SR-ARAP).
     Shape(cli::shape::ShapeArgs),
     /// Estimate per-vertex contact with the DGCNN: on a point cloud, or on a hand shape as
@@ -45,6 +48,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Hand(args) => cli::hand::run(args),
         Command::Arap(args) => cli::arap::run(args),
+        Command::Markers(args) => cli::markers::run(args),
         Command::Shape(args) => cli::shape::run(args),
         Command::Contact(args) => cli::contact::run(args),
         Command::Sim(args) => cli::sim::run(args),

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::{ArapEnergy, MultiShapeEstimator, ShapeOptions};
 use moe_geom::HandKeypoints;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Arguments of `moe-touch shape`.
 #[derive(Debug, Args)]
@@ -16,7 +16,8 @@ pub(crate) struct ShapeArgs {
     #[arg(long, value_name = "PRESET|CONFIG")]
     hand: String,
     /// Keypoints in the hand frame (metres): {"fingers": [[[x, y, z] or null, ...], ...]}, one
-    /// list per finger with one entry per marker, null for an occluded marker.
+    /// list per finger with one entry per marker, null for an occluded marker; an optional
+    /// "time_ns" is ignored, so a line of `moe-touch markers --out` is such a file.
     #[arg(long, value_name = "KP.json")]
     keypoints: PathBuf,
     /// Local/global iterations from the rest shape.
@@ -34,6 +35,15 @@ pub(crate) struct ShapeArgs {
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+/// A keypoints file: the keypoints, optionally with the time of their frame.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KeypointsInput {
+    #[serde(default, rename = "time_ns")]
+    _time_ns: Option<u64>,
+    fingers: Vec<Vec<Option<moe_geom::Point3>>>,
 }
 
 /// One finger of `shape.json`.
@@ -64,7 +74,10 @@ struct ShapeRecord {
 
 pub(crate) fn run(args: ShapeArgs) -> Result<()> {
     let hand = super::load_hand(&args.hand)?;
-    let keypoints: HandKeypoints = moe_io::read_json(&args.keypoints)?;
+    let input: KeypointsInput = moe_io::read_json(&args.keypoints)?;
+    let keypoints = HandKeypoints {
+        fingers: input.fingers,
+    };
     let options = ShapeOptions {
         iterations: args.iterations,
         alpha: args.alpha,

@@ -5,5 +5,6 @@ mod common;
 mod contact;
 mod episode;
 mod hand;
+mod markers;
 mod sim;
 mod surface;

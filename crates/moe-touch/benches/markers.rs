@@ -1,0 +1,73 @@
+//! Marker perception speed: one 640 × 480 wrist-camera frame to keypoints.
+//!
+//! `cargo bench -p moe-touch --bench markers`
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use moe_geom::{FingerParams, HandModel, HandPreset, Point3};
+use moe_tendon_sim::camera::{RenderItem, RgbdCamera, RgbdImage};
+use moe_touch::episode::{FINGER_ALBEDO, MARKER_RADIUS_M};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+
+/// The hand at rest seen by the default (noisy) wrist camera.
+fn frame(hand: &HandModel, camera: &RgbdCamera) -> RgbdImage {
+    let fingers: Vec<Vec<Point3>> = (0..hand.num_fingers())
+        .map(|i| hand.rest_vertices_in_hand(i))
+        .collect();
+    let markers: Vec<Vec<Point3>> = hand
+        .fingers()
+        .iter()
+        .zip(&fingers)
+        .map(|(f, v)| {
+            f.model
+                .marker_vertices()
+                .iter()
+                .map(|&m| v[m as usize])
+                .collect()
+        })
+        .collect();
+    let items: Vec<RenderItem<'_>> = hand
+        .fingers()
+        .iter()
+        .zip(&fingers)
+        .zip(&markers)
+        .map(|((f, v), m)| RenderItem {
+            vertices_in_hand: v,
+            faces: f.model.mesh().faces(),
+            albedo: FINGER_ALBEDO,
+            markers_in_hand: m,
+            marker_radius_m: MARKER_RADIUS_M,
+        })
+        .collect();
+    camera.render(&items, 1).expect("renders")
+}
+
+fn bench_markers(c: &mut Criterion) {
+    let camera = RgbdCamera::default();
+    for preset in [HandPreset::TwoFinger, HandPreset::ThreeFinger] {
+        let hand = HandModel::preset(preset, &FingerParams::default()).expect("preset");
+        let img = frame(&hand, &camera);
+        let mut detector = MarkerDetector::new(
+            camera.intrinsics,
+            camera.hand_from_camera,
+            &hand,
+            DetectorConfig::default(),
+        )
+        .expect("detector");
+        let first = detector.detect(&img.color, &img.depth_m).expect("detects");
+        assert_eq!(first.diagnostics.missing, 0, "every marker found");
+        c.bench_function(&format!("markers/640x480 {preset} tracked"), |b| {
+            b.iter(|| black_box(detector.detect(black_box(&img.color), &img.depth_m)))
+        });
+        c.bench_function(&format!("markers/640x480 {preset} first frame"), |b| {
+            b.iter(|| {
+                detector.reset();
+                black_box(detector.detect(black_box(&img.color), &img.depth_m))
+            })
+        });
+    }
+}
+
+criterion_group!(benches, bench_markers);
+criterion_main!(benches);
