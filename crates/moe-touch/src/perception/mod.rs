@@ -7,12 +7,12 @@
 //!    grey silicone fails on saturation before any hue is computed).
 //! 2. **Back-projection**: marker pixels with valid depth (finite, positive; NaN, zero and
 //!    negative depth are missing) are lifted into the camera frame with the pinhole intrinsics.
-//! 3. **Pre-grouping**: the lifted pixels are binned into cells of `cell_px × cell_px` pixels and
-//!    one DBSCAN radius of depth, each cell standing for its pixels by their mean point. A
-//!    640 × 480 frame of the two-finger hand has some 10⁴ marker pixels but a few hundred cells,
+//! 3. **Pre-grouping**: the lifted points are binned into cubic voxels of `voxel_m` (1 mm) in
+//!    the camera frame, each voxel standing for its pixels by their mean point. A 640 × 480
+//!    frame of the two-finger hand has some 5,000 marker pixels but a few hundred voxels,
 //!    so DBSCAN runs on hundreds of points, not on every pixel — and every pixel still counts in
 //!    the centre, which is computed from the pixels of the cluster's cells.
-//! 4. **Clustering**: DBSCAN (linfa-clustering) on the cell points in 3-D, radius
+//! 4. **Clustering**: DBSCAN (linfa-clustering) on the voxel points in 3-D, radius
 //!    `dbscan_eps_m`, core size `dbscan_min_points` (counting the point itself). Clusters with
 //!    fewer than `min_cluster_pixels` pixels or a radius above `max_cluster_radius_m` are
 //!    rejected (red noise, a red object).
@@ -61,13 +61,13 @@ pub struct DetectorConfig {
     pub min_saturation: Real,
     /// Smallest HSV value, 0–1. Default 0.15 (dark, shadowed pixels have unreliable hue).
     pub min_value: Real,
-    /// Side of the pixel cells that pre-group marker pixels for DBSCAN, pixels; 0 (the
-    /// default) picks one cell per 160th of the image width (4 px at 640 × 480, 1 px at
-    /// 160 × 120), which keeps a cell's footprint near 1 mm at 10 cm.
-    pub cell_px: u32,
-    /// DBSCAN neighbourhood radius, metres. Default 0.0025 (cells of one marker are 0.2–2 mm
-    /// apart, more where it is seen obliquely; neighbouring markers of the parametric finger
-    /// are 5 mm apart edge to edge).
+    /// Side of the voxels that pre-group the marker points for DBSCAN, metres. Default 0.001
+    /// (a 5 mm marker fills some 20 voxels, whatever its distance and the image resolution).
+    pub voxel_m: Real,
+    /// DBSCAN neighbourhood radius, metres. Default 0.0018 (voxels of one marker are 1 mm
+    /// apart; neighbouring markers of the parametric finger are 4 mm apart edge to edge, less
+    /// once depth noise — along lines of sight that run nearly along the finger — scatters
+    /// their points: at 2.5 mm, two markers merged in noisy frames).
     pub dbscan_eps_m: Real,
     /// DBSCAN core-point size, counting the point itself. Default 3.
     pub dbscan_min_points: usize,
@@ -98,8 +98,8 @@ impl Default for DetectorConfig {
             hue_tolerance_deg: 20.0,
             min_saturation: 0.55,
             min_value: 0.15,
-            cell_px: 0,
-            dbscan_eps_m: 0.0025,
+            voxel_m: 0.001,
+            dbscan_eps_m: 0.0018,
             dbscan_min_points: 3,
             min_cluster_pixels: 4,
             max_cluster_radius_m: 0.005,
@@ -124,6 +124,7 @@ impl DetectorConfig {
             ("min_saturation", self.min_saturation, (0.0, 1.0)),
             ("min_value", self.min_value, (0.0, 1.0)),
             ("dbscan_eps_m", self.dbscan_eps_m, (1e-6, 0.1)),
+            ("voxel_m", self.voxel_m, (1e-5, 0.05)),
             (
                 "max_cluster_radius_m",
                 self.max_cluster_radius_m,
@@ -143,7 +144,6 @@ impl DetectorConfig {
             }
         }
         let counts = [
-            ("cell_px", self.cell_px as usize, 0, 64),
             ("dbscan_min_points", self.dbscan_min_points, 2, 1000),
             ("min_cluster_pixels", self.min_cluster_pixels, 1, 1_000_000),
             (
@@ -212,7 +212,7 @@ pub struct MarkerDiagnostics {
     pub red_pixels: usize,
     /// Of those, with valid depth.
     pub red_pixels_with_depth: usize,
-    /// Cells clustered by DBSCAN.
+    /// Voxels clustered by DBSCAN.
     pub cells: usize,
     /// Every cluster DBSCAN found, with its fate.
     pub clusters: Vec<ClusterReport>,
@@ -295,15 +295,6 @@ impl MarkerDetector {
         })
     }
 
-    /// The cell size in use, pixels (`cell_px`, or its automatic value).
-    pub fn cell_px(&self) -> u32 {
-        if self.config.cell_px > 0 {
-            self.config.cell_px
-        } else {
-            (self.intrinsics.width as f64 / 160.0).round().max(1.0) as u32
-        }
-    }
-
     /// The parameters.
     pub fn config(&self) -> &DetectorConfig {
         &self.config
@@ -348,8 +339,7 @@ impl MarkerDetector {
             }
         }
         let seg = segment::segment(
-            self.cell_px(),
-            self.config.dbscan_eps_m,
+            self.config.voxel_m,
             &self.test,
             &self.intrinsics,
             color_rgb8,

@@ -1,4 +1,4 @@
-//! Red segmentation, back-projection and the pixel cells that DBSCAN clusters.
+//! Red segmentation, back-projection and the voxel cells that DBSCAN clusters.
 
 use std::collections::HashMap;
 
@@ -86,22 +86,22 @@ pub(super) struct Segmentation {
 
 /// Finds the marker-coloured pixels with valid depth (finite and positive; NaN, zero, negative
 /// and infinite depth count as missing), back-projects them into the camera frame and groups
-/// them into cells of `cell_px × cell_px` pixels and one DBSCAN radius of depth — so that a
-/// cell never mixes two surfaces at different ranges — each represented by its mean point.
+/// them into cubic voxels of side `voxel_m` in the camera frame, each represented by the mean
+/// point of its pixels. Voxels are metric, so a marker yields about as many cells near the
+/// camera as far from it, at any image resolution, and a cell never mixes two surfaces at
+/// different ranges.
 pub(super) fn segment(
-    cell_px: u32,
-    depth_bin_m: Real,
+    voxel_m: Real,
     test: &RedTest,
     k: &CameraIntrinsics,
     color_rgb8: &[u8],
     depth_m: &[f32],
 ) -> Segmentation {
     let (w, h) = (k.width as usize, k.height as usize);
-    let cell = cell_px.max(1);
-    let depth_bin = depth_bin_m.max(1e-6);
+    let inv_voxel = 1.0 / voxel_m.max(1e-6);
     let (inv_fx, inv_fy) = (1.0 / k.fx, 1.0 / k.fy);
     let mut out = Segmentation::default();
-    let mut cells: HashMap<(u32, u32, i64), u32> = HashMap::new();
+    let mut cells: HashMap<[i64; 3], u32> = HashMap::new();
     let mut sums: Vec<[Real; 3]> = Vec::new();
     for j in 0..h {
         let row = &color_rgb8[3 * j * w..3 * (j + 1) * w];
@@ -120,11 +120,7 @@ pub(super) fn segment(
                 (j as Real - k.cy) * z * inv_fy,
                 z,
             );
-            let key = (
-                i as u32 / cell,
-                j as u32 / cell,
-                (z / depth_bin).floor() as i64,
-            );
+            let key = [p.x, p.y, p.z].map(|c| (c * inv_voxel).floor() as i64);
             let next = sums.len() as u32;
             let c = *cells.entry(key).or_insert(next);
             if c == next {
@@ -221,21 +217,22 @@ mod tests {
             height: 2,
             fx: 100.0,
             fy: 100.0,
-            cx: 1.5,
-            cy: 0.5,
+            cx: 3.5,
+            cy: 1.5,
         };
         let red = moe_tendon_sim::camera::MARKER_RED;
         let color: Vec<u8> = (0..8).flat_map(|_| red).collect();
         let depth = [0.05, f32::NAN, 0.0, -1.0, f32::INFINITY, 0.05, 0.05, 0.08];
-        let s = segment(4, config.dbscan_eps_m, &test, &k, &color, &depth);
+        let s = segment(0.01, &test, &k, &color, &depth);
         assert_eq!(s.red_pixels, 8);
         assert_eq!(s.pixels, vec![[0, 0], [1, 1], [2, 1], [3, 1]]);
-        // Pixels (0,0), (1,1), (2,1) share a 4-pixel cell and a range; (3,1) is 3 cm farther.
+        // Pixels (0,0), (1,1), (2,1) are within 1 mm of each other at 5 cm and share a 1 cm
+        // voxel; (3,1) is 3 cm farther.
         assert_eq!(s.cell_points.len(), 2);
         assert_eq!(s.cell_counts, vec![3, 1]);
         let p = s.points[1];
-        assert!((p.x - (1.0 - 1.5) * 0.05 / 100.0).abs() < 1e-9);
-        assert!((p.y - 0.5 * 0.05 / 100.0).abs() < 1e-9);
+        assert!((p.x - (1.0 - 3.5) * 0.05 / 100.0).abs() < 1e-9);
+        assert!((p.y - (1.0 - 1.5) * 0.05 / 100.0).abs() < 1e-9);
         assert!((p.z - 0.05).abs() < 1e-9);
     }
 }

@@ -449,10 +449,10 @@ fn bad_input_is_an_error_or_missing_markers_never_a_panic() {
         ),
         (
             DetectorConfig {
-                cell_px: 65,
+                voxel_m: 0.0,
                 ..DetectorConfig::default()
             },
-            "cell_px",
+            "voxel_m",
         ),
     ] {
         let err = MarkerDetector::new(camera.intrinsics, camera.hand_from_camera, &hand, config)
