@@ -62,7 +62,7 @@ impl PatchFit {
     /// Weighted principal frame and least-squares h = β0 + β1 a + β2 b + β3 a² + β4 ab + β5 b².
     fn new(points: &[Point3], weights: &[Real]) -> Option<Self> {
         let sw: Real = weights.iter().sum();
-        if !(sw > 0.0) {
+        if sw.is_nan() || sw <= 0.0 {
             return None;
         }
         let centre = Point3::from(

@@ -3,7 +3,7 @@
 use moe_geom::{FingerParams, HandModel, HandPreset, Point3, Real, Vector3};
 use moe_tendon_sim::camera::{MARKER_RED, NoiseModel, RenderItem, RgbdCamera, RgbdImage};
 use moe_touch::episode::{FINGER_ALBEDO, MARKER_RADIUS_M};
-use moe_touch::perception::score::{MarkerScore, VISIBILITY_TOLERANCE_M};
+use moe_touch::perception::score::VISIBILITY_TOLERANCE_M;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 
 use crate::common::fixtures;
