@@ -578,3 +578,47 @@ fn the_markers_command_writes_keypoints_overlays_and_a_report() {
         assert!(!kp2.exists(), "{err}");
     }
 }
+
+#[test]
+fn lost_tracks_fall_back_to_the_rest_pose_and_reset_forgets_them() {
+    let hand = two_finger();
+    let camera = RgbdCamera::default();
+    let config = DetectorConfig {
+        max_missing_frames: 2,
+        ..DetectorConfig::default()
+    };
+    let mut d = detector(&camera, &hand, config);
+    let (img, truth, _) = render(&camera, &hand, &bent_fingers(&hand, 0.02), &[], 1);
+    let no_depth = vec![0.0f32; img.depth_m.len()];
+    let first = d.detect(&img.color, &img.depth_m).unwrap();
+    assert!(first.diagnostics.tracking_lost);
+    assert_eq!(first.diagnostics.found, 14);
+    // Two frames without depth: every marker missing, the tracks kept ...
+    for _ in 0..2 {
+        let blind = d.detect(&img.color, &no_depth).unwrap();
+        assert_eq!(blind.diagnostics.found, 0);
+        assert!(!blind.diagnostics.tracking_lost);
+    }
+    let back = d.detect(&img.color, &img.depth_m).unwrap();
+    assert!(
+        !back.diagnostics.tracking_lost,
+        "tracks survive two missing frames"
+    );
+    assert_eq!(back.diagnostics.found, 14);
+    // ... three frames drop them, and the next frame is matched against the rest pose again,
+    // with the same identities.
+    for _ in 0..3 {
+        d.detect(&img.color, &no_depth).unwrap();
+    }
+    let relost = d.detect(&img.color, &img.depth_m).unwrap();
+    assert!(relost.diagnostics.tracking_lost);
+    assert_eq!(relost.keypoints, first.keypoints);
+    d.reset();
+    let after_reset = d.detect(&img.color, &img.depth_m).unwrap();
+    assert!(after_reset.diagnostics.tracking_lost);
+    for (f, t) in after_reset.keypoints.fingers.iter().zip(&truth) {
+        for (p, q) in f.iter().zip(t) {
+            assert!((p.unwrap() - q).norm() < 2e-3);
+        }
+    }
+}
