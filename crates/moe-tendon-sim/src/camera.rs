@@ -213,6 +213,36 @@ pub struct RenderItem<'a> {
     pub marker_radius_m: Real,
 }
 
+impl RenderItem<'_> {
+    /// The item's triangles in the camera frame.
+    ///
+    /// # Errors
+    /// [`GeomError::FaceIndexOutOfRange`] for a face that indexes past the vertices.
+    fn triangles_in(
+        &self,
+        camera_from_hand: &Transform<frame::Camera, frame::Hand>,
+    ) -> Result<Vec<[Point3; 3]>, GeomError> {
+        let verts: Vec<Point3> = camera_from_hand.transform_points(self.vertices_in_hand);
+        self.faces
+            .iter()
+            .enumerate()
+            .map(|(face, tri)| {
+                let mut q = [Point3::origin(); 3];
+                for (k, &v) in tri.iter().enumerate() {
+                    q[k] = *verts
+                        .get(v as usize)
+                        .ok_or(GeomError::FaceIndexOutOfRange {
+                            face,
+                            index: v,
+                            len: verts.len(),
+                        })?;
+                }
+                Ok(q)
+            })
+            .collect()
+    }
+}
+
 /// Colour of painted markers.
 pub const MARKER_RED: [u8; 3] = [220, 25, 25];
 /// Colour where nothing is hit.
@@ -295,18 +325,7 @@ impl RgbdCamera {
         let camera_from_hand = self.hand_from_camera.inverse();
         let mut markers_in_camera: Vec<Vec<Point3>> = Vec::with_capacity(items.len());
         for (index, item) in items.iter().enumerate() {
-            let verts: Vec<Point3> = camera_from_hand.transform_points(item.vertices_in_hand);
-            for (face, tri) in item.faces.iter().enumerate() {
-                let mut q = [Point3::origin(); 3];
-                for (k, &v) in tri.iter().enumerate() {
-                    q[k] = *verts
-                        .get(v as usize)
-                        .ok_or(GeomError::FaceIndexOutOfRange {
-                            face,
-                            index: v,
-                            len: verts.len(),
-                        })?;
-                }
+            for q in item.triangles_in(&camera_from_hand)? {
                 self.raster_triangle(&q, index as u32, &mut hits);
             }
             markers_in_camera.push(camera_from_hand.transform_points(item.markers_in_hand));
@@ -342,18 +361,7 @@ impl RgbdCamera {
             })
             .collect();
         for item in items {
-            let verts: Vec<Point3> = camera_from_hand.transform_points(item.vertices_in_hand);
-            for (face, tri) in item.faces.iter().enumerate() {
-                let mut q = [Point3::origin(); 3];
-                for (k, &v) in tri.iter().enumerate() {
-                    q[k] = *verts
-                        .get(v as usize)
-                        .ok_or(GeomError::FaceIndexOutOfRange {
-                            face,
-                            index: v,
-                            len: verts.len(),
-                        })?;
-                }
+            for q in item.triangles_in(&camera_from_hand)? {
                 for (seen, p) in visible.iter_mut().zip(&targets) {
                     if *seen {
                         let len = p.coords.norm();

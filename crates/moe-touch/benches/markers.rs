@@ -6,8 +6,8 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_geom::{FingerParams, HandModel, HandPreset, Point3};
-use moe_tendon_sim::camera::{RenderItem, RgbdCamera, RgbdImage};
-use moe_touch::episode::{FINGER_ALBEDO, MARKER_RADIUS_M};
+use moe_tendon_sim::camera::{RgbdCamera, RgbdImage};
+use moe_touch::episode::{finger_items, markers_of};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 
 /// The hand at rest seen by the default (noisy) wrist camera.
@@ -15,32 +15,11 @@ fn frame(hand: &HandModel, camera: &RgbdCamera) -> RgbdImage {
     let fingers: Vec<Vec<Point3>> = (0..hand.num_fingers())
         .map(|i| hand.rest_vertices_in_hand(i))
         .collect();
-    let markers: Vec<Vec<Point3>> = hand
-        .fingers()
-        .iter()
-        .zip(&fingers)
-        .map(|(f, v)| {
-            f.model
-                .marker_vertices()
-                .iter()
-                .map(|&m| v[m as usize])
-                .collect()
-        })
-        .collect();
-    let items: Vec<RenderItem<'_>> = hand
-        .fingers()
-        .iter()
-        .zip(&fingers)
-        .zip(&markers)
-        .map(|((f, v), m)| RenderItem {
-            vertices_in_hand: v,
-            faces: f.model.mesh().faces(),
-            albedo: FINGER_ALBEDO,
-            markers_in_hand: m,
-            marker_radius_m: MARKER_RADIUS_M,
-        })
-        .collect();
-    camera.render(&items, 1).expect("renders")
+    let views: Vec<&[Point3]> = fingers.iter().map(Vec::as_slice).collect();
+    let markers = markers_of(hand, &views);
+    camera
+        .render(&finger_items(hand, &views, &markers), 1)
+        .expect("renders")
 }
 
 fn bench_markers(c: &mut Criterion) {

@@ -1,9 +1,9 @@
 //! Recording simulated episodes: what the wrist camera sees of a scene, with the ground truth
 //! attached, frame by frame, ready for `moe_io::EpisodeWriter`.
 
-use moe_geom::{Iso3, Point3};
+use moe_geom::{HandModel, Iso3, Point3};
 use moe_io::{CameraInfo, EpisodeFrame, EpisodeInfo, ObstacleMesh};
-use moe_tendon_sim::camera::{RenderItem, RgbdCamera};
+use moe_tendon_sim::camera::{CameraIntrinsics, RenderItem, RgbdCamera};
 use moe_tendon_sim::randomize::TrajectoryFrame;
 use moe_tendon_sim::surface::obstacle_surface;
 use moe_tendon_sim::{Scene, SimError};
@@ -14,6 +14,68 @@ pub const MARKER_RADIUS_M: f64 = 0.0025;
 pub const FINGER_ALBEDO: [u8; 3] = [215, 210, 200];
 /// Colour of obstacles in the rendered images.
 pub const OBSTACLE_ALBEDO: [u8; 3] = [90, 120, 170];
+
+/// The marker centres of every finger of `hand` whose vertices (hand frame) are `fingers`.
+pub fn markers_of(hand: &HandModel, fingers: &[&[Point3]]) -> Vec<Vec<Point3>> {
+    hand.fingers()
+        .iter()
+        .zip(fingers)
+        .map(|(f, v)| {
+            f.model
+                .marker_vertices()
+                .iter()
+                .map(|&m| v[m as usize])
+                .collect()
+        })
+        .collect()
+}
+
+/// What the wrist camera renders of the hand: one item per finger, the silicone colour with
+/// the markers (`markers`, as [`markers_of`] gives them) painted red.
+pub fn finger_items<'a>(
+    hand: &'a HandModel,
+    fingers: &[&'a [Point3]],
+    markers: &'a [Vec<Point3>],
+) -> Vec<RenderItem<'a>> {
+    hand.fingers()
+        .iter()
+        .zip(fingers)
+        .zip(markers)
+        .map(|((f, v), m)| RenderItem {
+            vertices_in_hand: v,
+            faces: f.model.mesh().faces(),
+            albedo: FINGER_ALBEDO,
+            markers_in_hand: m,
+            marker_radius_m: MARKER_RADIUS_M,
+        })
+        .collect()
+}
+
+/// The vertices of `obstacles` (world frame) in the hand frame of a hand at `world_from_hand`.
+pub fn obstacles_in_hand(world_from_hand: &Iso3, obstacles: &[ObstacleMesh]) -> Vec<Vec<Point3>> {
+    let hand_from_world = world_from_hand.inverse();
+    obstacles
+        .iter()
+        .map(|o| {
+            o.vertices_in_world
+                .iter()
+                .map(|p| hand_from_world * p)
+                .collect()
+        })
+        .collect()
+}
+
+/// The episode form of a camera's intrinsics.
+pub fn camera_info(k: &CameraIntrinsics) -> CameraInfo {
+    CameraInfo {
+        width: k.width,
+        height: k.height,
+        fx: k.fx,
+        fy: k.fy,
+        cx: k.cx,
+        cy: k.cy,
+    }
+}
 
 /// Records a scene's saved frames as episode frames.
 #[derive(Debug)]
@@ -33,18 +95,10 @@ impl EpisodeRecorder {
     /// An obstacle whose surface cannot be meshed.
     pub fn new(scene: &Scene, name: &str, seed: u64) -> Result<Self, SimError> {
         let camera = scene.config().camera;
-        let k = camera.intrinsics;
         let hand = scene.hand();
         let info = EpisodeInfo {
             scene: name.to_owned(),
-            camera: CameraInfo {
-                width: k.width,
-                height: k.height,
-                fx: k.fx,
-                fy: k.fy,
-                cx: k.cx,
-                cy: k.cy,
-            },
+            camera: camera_info(&camera.intrinsics),
             hand_from_camera: *camera.hand_from_camera.iso(),
             hand_from_finger: hand
                 .fingers()
@@ -97,19 +151,12 @@ impl EpisodeRecorder {
     ) -> Result<EpisodeFrame, SimError> {
         let frame = &saved.frame;
         let t = frame.time_secs;
-        let hand_from_world = frame.world_from_hand.inverse();
-        let markers_in_hand: Vec<Vec<Point3>> = frame
+        let finger_vertices: Vec<&[Point3]> = frame
             .fingers
             .iter()
-            .zip(scene.hand().fingers())
-            .map(|(g, f)| {
-                f.model
-                    .marker_vertices()
-                    .iter()
-                    .map(|&m| g.vertices_in_hand[m as usize])
-                    .collect()
-            })
+            .map(|g| g.vertices_in_hand.as_slice())
             .collect();
+        let markers_in_hand = markers_of(scene.hand(), &finger_vertices);
         let obstacles: Vec<ObstacleMesh> = scene
             .obstacles()
             .iter()
@@ -124,28 +171,8 @@ impl EpisodeRecorder {
                 }
             })
             .collect();
-        let obstacle_in_hand: Vec<Vec<Point3>> = obstacles
-            .iter()
-            .map(|o| {
-                o.vertices_in_world
-                    .iter()
-                    .map(|p| hand_from_world * p)
-                    .collect()
-            })
-            .collect();
-        let mut items: Vec<RenderItem<'_>> = frame
-            .fingers
-            .iter()
-            .zip(scene.hand().fingers())
-            .zip(&markers_in_hand)
-            .map(|((g, f), m)| RenderItem {
-                vertices_in_hand: &g.vertices_in_hand,
-                faces: f.model.mesh().faces(),
-                albedo: FINGER_ALBEDO,
-                markers_in_hand: m,
-                marker_radius_m: MARKER_RADIUS_M,
-            })
-            .collect();
+        let obstacle_in_hand = obstacles_in_hand(&frame.world_from_hand, &obstacles);
+        let mut items = finger_items(scene.hand(), &finger_vertices, &markers_in_hand);
         for (o, v) in obstacles.iter().zip(&obstacle_in_hand) {
             items.push(RenderItem {
                 vertices_in_hand: v,

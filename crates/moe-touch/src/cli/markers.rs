@@ -9,9 +9,10 @@ use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::ShapeOptions;
 use moe_geom::{Point3, Transform};
-use moe_tendon_sim::camera::CameraIntrinsics;
 use moe_touch::perception::overlay::draw_detection;
-use moe_touch::perception::score::{EpisodeMarkerReport, check_hand, evaluate_episode};
+use moe_touch::perception::score::{
+    EpisodeMarkerReport, check_hand, episode_intrinsics, evaluate_episode,
+};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use serde::Serialize;
 
@@ -71,17 +72,8 @@ pub(crate) fn run(args: MarkersArgs) -> Result<()> {
     let hand = super::load_hand(&args.hand)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
-    let c = episode.info.camera;
-    let intrinsics = CameraIntrinsics {
-        width: c.width,
-        height: c.height,
-        fx: c.fx,
-        fy: c.fy,
-        cx: c.cx,
-        cy: c.cy,
-    };
     let mut detector = MarkerDetector::new(
-        intrinsics,
+        episode_intrinsics(&episode.info),
         Transform::new(episode.info.hand_from_camera),
         &hand,
         config,

@@ -153,18 +153,23 @@ impl MarkerScore {
     }
 }
 
+/// The intrinsics of an episode's camera.
+pub fn episode_intrinsics(info: &EpisodeInfo) -> CameraIntrinsics {
+    let c = info.camera;
+    CameraIntrinsics {
+        width: c.width,
+        height: c.height,
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+    }
+}
+
 /// The camera of an episode (its intrinsics and mounting; the noise plays no part here).
 pub fn episode_camera(info: &EpisodeInfo) -> RgbdCamera {
-    let c = info.camera;
     RgbdCamera {
-        intrinsics: CameraIntrinsics {
-            width: c.width,
-            height: c.height,
-            fx: c.fx,
-            fy: c.fy,
-            cx: c.cx,
-            cy: c.cy,
-        },
+        intrinsics: episode_intrinsics(info),
         hand_from_camera: Transform::new(info.hand_from_camera),
         ..RgbdCamera::default()
     }
@@ -192,17 +197,7 @@ pub fn visible_markers(
         });
     }
     let camera = episode_camera(info);
-    let hand_from_world = frame.world_from_hand.inverse();
-    let obstacles: Vec<Vec<Point3>> = frame
-        .obstacles
-        .iter()
-        .map(|o| {
-            o.vertices_in_world
-                .iter()
-                .map(|p| hand_from_world * p)
-                .collect()
-        })
-        .collect();
+    let obstacles = crate::episode::obstacles_in_hand(&frame.world_from_hand, &frame.obstacles);
     let mut items: Vec<RenderItem<'_>> = frame
         .finger_vertices_in_hand
         .iter()

@@ -2,7 +2,7 @@
 
 use moe_geom::{FingerParams, HandModel, HandPreset, Point3, Real, Vector3};
 use moe_tendon_sim::camera::{MARKER_RED, NoiseModel, RenderItem, RgbdCamera, RgbdImage};
-use moe_touch::episode::{FINGER_ALBEDO, MARKER_RADIUS_M};
+use moe_touch::episode::{camera_info, finger_items, markers_of, obstacles_in_hand};
 use moe_touch::perception::score::VISIBILITY_TOLERANCE_M;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 
@@ -40,31 +40,9 @@ fn render(
     plates: &[Plate],
     seed: u64,
 ) -> (RgbdImage, Vec<Vec<Point3>>, Vec<Vec<bool>>) {
-    let markers: Vec<Vec<Point3>> = hand
-        .fingers()
-        .iter()
-        .zip(fingers)
-        .map(|(f, v)| {
-            f.model
-                .marker_vertices()
-                .iter()
-                .map(|&m| v[m as usize])
-                .collect()
-        })
-        .collect();
-    let mut items: Vec<RenderItem<'_>> = hand
-        .fingers()
-        .iter()
-        .zip(fingers)
-        .zip(&markers)
-        .map(|((f, v), m)| RenderItem {
-            vertices_in_hand: v,
-            faces: f.model.mesh().faces(),
-            albedo: FINGER_ALBEDO,
-            markers_in_hand: m,
-            marker_radius_m: MARKER_RADIUS_M,
-        })
-        .collect();
+    let views: Vec<&[Point3]> = fingers.iter().map(Vec::as_slice).collect();
+    let markers = markers_of(hand, &views);
+    let mut items = finger_items(hand, &views, &markers);
     for p in plates {
         items.push(RenderItem {
             vertices_in_hand: &p.vertices,
@@ -101,9 +79,7 @@ fn bent_fingers(hand: &HandModel, angle: Real) -> Vec<Vec<Point3>> {
             v.into_iter()
                 .map(|p| {
                     let a = angle * (p.z / 0.08).clamp(0.0, 1.0).powi(2);
-                    let r = moe_geom::nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), a);
-                    let pivot = Vector3::new(p.x.signum() * 0.0, 0.0, 0.0);
-                    Point3::from(r * (p.coords - pivot) + pivot)
+                    moe_geom::nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), a) * p
                 })
                 .collect()
         })
@@ -178,31 +154,18 @@ fn rerendered_episode(seed: u64) -> (moe_io::EpisodeInfo, Vec<moe_io::EpisodeFra
     let camera = RgbdCamera::default();
     let hand = two_finger();
     let mut info = episode.info.clone();
-    let k = camera.intrinsics;
-    info.camera = moe_io::CameraInfo {
-        width: k.width,
-        height: k.height,
-        fx: k.fx,
-        fy: k.fy,
-        cx: k.cx,
-        cy: k.cy,
-    };
+    info.camera = camera_info(&camera.intrinsics);
     info.hand_from_camera = *camera.hand_from_camera.iso();
     let frames = episode
         .frames
         .iter()
         .enumerate()
         .map(|(i, f)| {
-            let hand_from_world = f.world_from_hand.inverse();
-            let plates: Vec<Plate> = f
-                .obstacles
-                .iter()
-                .map(|o| Plate {
-                    vertices: o
-                        .vertices_in_world
-                        .iter()
-                        .map(|p| hand_from_world * p)
-                        .collect(),
+            let plates: Vec<Plate> = obstacles_in_hand(&f.world_from_hand, &f.obstacles)
+                .into_iter()
+                .zip(&f.obstacles)
+                .map(|(vertices, o)| Plate {
+                    vertices,
                     faces: o.faces.clone(),
                     albedo: moe_touch::episode::OBSTACLE_ALBEDO,
                 })
