@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use moe_contact::{Dgcnn, DgcnnEstimator, KnnIndex, ModelCard};
+use moe_contact::{DgcnnEstimator, KnnIndex};
 use moe_geom::{HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::SceneConfig;
@@ -82,24 +82,7 @@ const SHOWN_FRAMES: usize = 4;
 const PROXIMITY_M: f32 = 1e-3;
 
 pub(crate) fn load_estimator(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator> {
-    let files = moe_io::read_model_files(path)?;
-    let text = files.card.with_context(|| {
-        format!(
-            "{}: no model card beside the weights; the evaluation needs the card's input \
-             features and threshold",
-            files.card_path.display()
-        )
-    })?;
-    let card = ModelCard::from_json(&text)
-        .with_context(|| format!("model card {}", files.card_path.display()))?;
-    let net = Dgcnn::from_safetensors(
-        &files.weights,
-        Some(&card),
-        moe_contact::candle_core::DType::F32,
-        &moe_contact::candle_core::Device::Cpu,
-    )
-    .with_context(|| format!("model {}", path.display()))?;
-    DgcnnEstimator::new(net, card, hand).with_context(|| {
+    moe_touch::pipeline::load_contact_model(path, hand).with_context(|| {
         format!(
             "model {} on the data set's hand ({:?} vertices per finger)",
             path.display(),

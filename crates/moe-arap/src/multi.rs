@@ -355,4 +355,8 @@ impl moe_geom::ShapeEstimator for MultiShapeEstimator {
     fn estimate_shape(&mut self, keypoints: &HandKeypoints) -> Result<HandShape, ArapError> {
         Ok(self.estimate(keypoints)?.shape)
     }
+
+    fn reset(&mut self) {
+        self.reset_tracking();
+    }
 }

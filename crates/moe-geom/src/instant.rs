@@ -95,6 +95,11 @@ pub trait ShapeEstimator {
     /// # Errors
     /// Keypoints that do not fit the estimator's hand, or a failed estimate.
     fn estimate_shape(&mut self, keypoints: &HandKeypoints) -> Result<HandShape, Self::Error>;
+
+    /// Forgets what was carried from frame to frame (a warm start, for example), so that the
+    /// next frame is estimated as a first one. Stateless estimators keep the default, which
+    /// does nothing.
+    fn reset(&mut self) {}
 }
 
 /// A vertex estimated to be in contact.

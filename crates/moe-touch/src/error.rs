@@ -29,6 +29,15 @@ pub enum TouchError {
     /// Shape estimation failed.
     #[error(transparent)]
     Shape(#[from] moe_arap::ArapError),
+    /// A contact model has no card beside its weights.
+    #[error("{}: no model card beside the weights (the card carries the input features, their normalisation and the threshold)", path.display())]
+    MissingModelCard {
+        /// Where the card was looked for.
+        path: std::path::PathBuf,
+    },
+    /// A shape estimator other than SR-ARAP failed.
+    #[error("shape estimation: {0}")]
+    ShapeEstimation(Box<dyn std::error::Error + Send + Sync>),
     /// Contact estimation failed.
     #[error(transparent)]
     Contact(#[from] moe_contact::ContactError),

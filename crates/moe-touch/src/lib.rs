@@ -15,5 +15,8 @@ pub mod episode;
 pub mod error;
 /// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
 pub mod perception;
+/// The per-frame pipeline: markers, shape, contact, contact points in the world.
+pub mod pipeline;
 
 pub use error::TouchError;
+pub use pipeline::{FrameEstimate, Pipeline, RgbdFrame, StageTimings};

@@ -6,5 +6,6 @@ mod contact;
 mod episode;
 mod hand;
 mod markers;
+mod pipeline;
 mod sim;
 mod surface;

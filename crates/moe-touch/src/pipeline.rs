@@ -1,0 +1,202 @@
+//! The pipeline a robot runs on every wrist-camera frame (paper Fig. 1): markers → keypoints →
+//! hand shape → contact map → contact points in the hand and the world.
+
+use std::path::Path;
+use std::time::Instant;
+
+use moe_contact::{ContactEstimator, DgcnnEstimator, ModelCard};
+use moe_geom::{
+    ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape, Real, ShapeEstimator,
+    WorldFromHand,
+};
+use serde::Serialize;
+
+use crate::TouchError;
+use crate::perception::{MarkerDetector, MarkerDiagnostics};
+
+/// One wrist-camera frame: colour (RGB8, row-major) and depth (metres along the optical axis,
+/// row-major, 0 or NaN where missing), both of the detector's image size.
+#[derive(Debug, Clone, Copy)]
+pub struct RgbdFrame<'a> {
+    /// RGB8, three bytes per pixel.
+    pub color_rgb8: &'a [u8],
+    /// Depth, metres.
+    pub depth_m: &'a [f32],
+}
+
+/// Wall time of each stage of one frame, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct StageTimings {
+    /// Marker perception.
+    pub markers_ms: Real,
+    /// Shape estimation.
+    pub shape_ms: Real,
+    /// Contact estimation and contact points.
+    pub contact_ms: Real,
+    /// The whole frame.
+    pub total_ms: Real,
+}
+
+/// Everything the pipeline estimates about one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameEstimate {
+    /// Every marker in the hand frame, `None` where it was not seen.
+    pub keypoints: HandKeypoints,
+    /// The estimated surface of every finger, hand frame.
+    pub shape: HandShape,
+    /// Contact probability of every vertex.
+    pub contact: ContactMap,
+    /// Vertices at or above the contact threshold, positions in the hand frame.
+    pub contacts_in_hand: Vec<ContactPoint>,
+    /// The same contact points in the world frame.
+    pub contacts_in_world: Vec<ContactPoint>,
+    /// Where the hand was.
+    pub world_from_hand: WorldFromHand,
+    /// Fingers none of whose markers were seen (their shape is the estimator's fallback).
+    pub fingers_without_markers: Vec<usize>,
+    /// What marker perception saw and decided.
+    pub markers: MarkerDiagnostics,
+    /// Per-stage wall time.
+    pub timings: StageTimings,
+}
+
+/// The stages, and the state a stream of frames needs (marker tracks, the shape estimator's
+/// warm start); see the module documentation.
+#[derive(Debug)]
+pub struct Pipeline<S, C> {
+    hand: HandModel,
+    detector: MarkerDetector,
+    shape: S,
+    contact: C,
+    threshold: Real,
+}
+
+impl<S, C> Pipeline<S, C>
+where
+    S: ShapeEstimator,
+    C: ContactEstimator,
+{
+    /// Puts the stages together: `detector` finds the markers of `hand`, `shape` turns them into
+    /// the hand's surface, `contact` scores every vertex, and vertices at or above `threshold`
+    /// (the model card's, for a trained model) are contact points.
+    ///
+    /// # Errors
+    /// [`TouchError::InvalidEvaluation`] for a threshold outside `[0, 1]`.
+    pub fn new(
+        hand: HandModel,
+        detector: MarkerDetector,
+        shape: S,
+        contact: C,
+        threshold: Real,
+    ) -> Result<Self, TouchError> {
+        if !(0.0..=1.0).contains(&threshold) {
+            return Err(TouchError::InvalidEvaluation {
+                reason: format!("contact threshold {threshold} is not in [0, 1]"),
+            });
+        }
+        Ok(Self {
+            hand,
+            detector,
+            shape,
+            contact,
+            threshold,
+        })
+    }
+
+    /// The hand.
+    pub fn hand(&self) -> &HandModel {
+        &self.hand
+    }
+
+    /// The marker detector (its camera, its parameters).
+    pub fn detector(&self) -> &MarkerDetector {
+        &self.detector
+    }
+
+    /// The contact threshold.
+    pub fn threshold(&self) -> Real {
+        self.threshold
+    }
+
+    /// Forgets the stream: marker tracks and the shape estimator's warm start.
+    pub fn reset(&mut self) {
+        self.detector.reset();
+        self.shape.reset();
+    }
+
+    /// Runs every stage on one frame of a hand at `world_from_hand`.
+    ///
+    /// # Errors
+    /// Images that do not fit the camera, or a failing stage.
+    pub fn process(
+        &mut self,
+        frame: RgbdFrame<'_>,
+        world_from_hand: WorldFromHand,
+    ) -> Result<FrameEstimate, TouchError> {
+        let start = Instant::now();
+        let detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
+        let t_markers = Instant::now();
+        let shape = self
+            .shape
+            .estimate_shape(&detection.keypoints)
+            .map_err(|e| TouchError::ShapeEstimation(Box::new(e)))?;
+        let t_shape = Instant::now();
+        let contact = self.contact.estimate(&shape, Some(&detection.keypoints))?;
+        let contacts_in_hand = contact.contacts_above(self.threshold, &shape)?;
+        let contacts_in_world = contacts_in_hand
+            .iter()
+            .map(|c| ContactPoint {
+                point: world_from_hand.transform_point(&c.point),
+                ..*c
+            })
+            .collect();
+        let end = Instant::now();
+        let ms = |a: Instant, b: Instant| 1e3 * (b - a).as_secs_f64();
+        let fingers_without_markers = detection
+            .keypoints
+            .fingers
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.iter().all(Option::is_none))
+            .map(|(f, _)| f)
+            .collect();
+        Ok(FrameEstimate {
+            keypoints: detection.keypoints,
+            shape,
+            contact,
+            contacts_in_hand,
+            contacts_in_world,
+            world_from_hand,
+            fingers_without_markers,
+            markers: detection.diagnostics,
+            timings: StageTimings {
+                markers_ms: ms(start, t_markers),
+                shape_ms: ms(t_markers, t_shape),
+                contact_ms: ms(t_shape, end),
+                total_ms: ms(start, end),
+            },
+        })
+    }
+}
+
+/// Loads a trained contact model (`NAME.safetensors` and its card `NAME.json`) for `hand`, in
+/// f32 on the CPU: what the pipeline runs.
+///
+/// # Errors
+/// Unreadable or malformed files, a missing card ([`TouchError::MissingModelCard`]: the card
+/// carries the input features, their normalisation and the threshold), or a model trained for
+/// another hand.
+pub fn load_contact_model(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator, TouchError> {
+    let files = moe_io::read_model_files(path)?;
+    let text = files.card.ok_or_else(|| TouchError::MissingModelCard {
+        path: files.card_path.clone(),
+    })?;
+    let card = ModelCard::from_json(&text)?;
+    let net = moe_contact::Dgcnn::from_safetensors(
+        &files.weights,
+        Some(&card),
+        moe_contact::candle_core::DType::F32,
+        &moe_contact::candle_core::Device::Cpu,
+    )?;
+    Ok(DgcnnEstimator::new(net, card, hand)?)
+}
