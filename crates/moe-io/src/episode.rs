@@ -20,7 +20,11 @@
 //! log time. Each frame is one zstd-compressed chunk (the episode info another), closed as soon
 //! as the frame is written, so a file cut short — a crashed recorder, a partial copy — still
 //! yields every frame written completely before the cut ([`parse_episode_prefix`]);
-//! [`read_episode`] insists on a complete file. Compression takes a 640 × 480 frame from about
+//! [`read_episode`] insists on a complete file. Reading is guarded: the file's records and
+//! every chunk's contents are checked against their declared lengths before the MCAP reader
+//! sees them (a corrupt length would otherwise make it reserve that much memory — the fuzz
+//! tests found one in a damaged zstd chunk), and a panic in the MCAP or protobuf decoders
+//! becomes [`IoError::ParserPanic`](crate::IoError::ParserPanic). Compression takes a 640 × 480 frame from about
 //! 2.5 MB to 0.9 MB (the noisy depth image compresses least). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
@@ -311,8 +315,128 @@ fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError> {
             ));
         }
     }
-    if info.camera.width == 0 || info.camera.height == 0 {
-        return Err(format_err(path, "camera image size is zero"));
+    let c = &info.camera;
+    if !(1..=MAX_IMAGE_SIDE).contains(&c.width) || !(1..=MAX_IMAGE_SIDE).contains(&c.height) {
+        return Err(format_err(
+            path,
+            format!(
+                "camera image size {} × {} is outside 1..={MAX_IMAGE_SIDE} pixels a side",
+                c.width, c.height
+            ),
+        ));
+    }
+    if let Some((f, &nv)) = info
+        .finger_num_vertices
+        .iter()
+        .enumerate()
+        .find(|(_, n)| **n > MAX_FINGER_VERTICES)
+    {
+        return Err(format_err(
+            path,
+            format!("finger {f} declares {nv} vertices, more than {MAX_FINGER_VERTICES}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Largest image side an episode may declare, pixels.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+/// Most vertices a finger of an episode may declare.
+pub const MAX_FINGER_VERTICES: usize = 1 << 22;
+/// Largest uncompressed size a chunk may declare, bytes (a 640 × 480 frame takes 2.5 MB).
+pub const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
+/// Walks the file's records before the MCAP reader sees them, so that no declared length can
+/// make it allocate without bound (it reserves what a record or a chunk declares): every
+/// top-level record must fit in the bytes that follow it; a chunk may not declare more than
+/// [`MAX_CHUNK_BYTES`] uncompressed, its compressed records are decompressed here into at most
+/// the declared size (which they must fill exactly), and every record inside must fit in the
+/// chunk. A top-level record that runs past the end of the file is truncation: the bytes the
+/// reader gets end before it, and it reports the frames before the cut. Returns how many bytes
+/// to read. (Decompressing twice costs about a millisecond per 640 × 480 frame.)
+fn check_declared_lengths(path: &Path, bytes: &[u8]) -> Result<usize, IoError> {
+    const CHUNK: u8 = 0x06;
+    let magic = mcap::MAGIC.len();
+    if bytes.len() < magic {
+        return Ok(bytes.len());
+    }
+    let mut at = magic;
+    while bytes.len() - at >= 9 {
+        let opcode = bytes[at];
+        let len = read_u64(bytes, at + 1);
+        let body = at + 9;
+        let remaining = (bytes.len() - body) as u64;
+        if len > remaining {
+            return Ok(at);
+        }
+        if opcode == CHUNK {
+            check_chunk(path, at, &bytes[body..body + len as usize])?;
+        }
+        at = body + len as usize;
+    }
+    Ok(bytes.len())
+}
+
+fn read_u64(b: &[u8], at: usize) -> u64 {
+    b.get(at..at + 8)
+        .and_then(|s| s.try_into().ok())
+        .map_or(u64::MAX, u64::from_le_bytes)
+}
+
+/// Checks one chunk record's body (see [`check_declared_lengths`]); `at` is its file offset.
+fn check_chunk(path: &Path, at: usize, body: &[u8]) -> Result<(), IoError> {
+    let bad = |what: String| format_err(path, format!("the chunk at byte {at} {what}"));
+    if body.len() < 32 {
+        return Err(bad("is too short for a chunk header".into()));
+    }
+    let uncompressed = read_u64(body, 16);
+    if uncompressed > MAX_CHUNK_BYTES {
+        return Err(bad(format!(
+            "declares {uncompressed} bytes uncompressed, more than {MAX_CHUNK_BYTES}"
+        )));
+    }
+    let name_len = u32::from_le_bytes([body[28], body[29], body[30], body[31]]) as usize;
+    let Some(name) = body.get(32..32 + name_len) else {
+        return Err(bad("declares a compression name past its end".into()));
+    };
+    let records_len = read_u64(body, 32 + name_len);
+    let start = 40 + name_len;
+    if records_len != (body.len() as u64).saturating_sub(start as u64) || start > body.len() {
+        return Err(bad(format!(
+            "declares {records_len} bytes of records in a body of {}",
+            body.len()
+        )));
+    }
+    let compressed = &body[start..];
+    let records = match name {
+        b"" => std::borrow::Cow::Borrowed(compressed),
+        b"zstd" => std::borrow::Cow::Owned(
+            zstd::bulk::decompress(compressed, uncompressed as usize)
+                .map_err(|e| bad(format!("does not decompress: {e}")))?,
+        ),
+        other => {
+            return Err(bad(format!(
+                "uses compression '{}', which episodes do not use",
+                String::from_utf8_lossy(other)
+            )));
+        }
+    };
+    if records.len() as u64 != uncompressed {
+        return Err(bad(format!(
+            "declares {uncompressed} bytes uncompressed and holds {}",
+            records.len()
+        )));
+    }
+    let mut k = 0usize;
+    while k < records.len() {
+        let len = read_u64(&records, k + 1);
+        let left = (records.len() - k).saturating_sub(9) as u64;
+        if records.len() - k < 9 || len > left {
+            return Err(bad(format!(
+                "holds a record at offset {k} declaring {len} bytes, {left} left"
+            )));
+        }
+        k += 9 + len as usize;
     }
     Ok(())
 }
@@ -890,6 +1014,25 @@ pub fn parse_episode(path: &Path, bytes: &[u8]) -> Result<Episode, IoError> {
 /// Reads every complete frame up to the first damage. Returns the episode read so far (`None`
 /// when not even the episode info could be read) and the error that stopped the reading, if any.
 pub fn parse_episode_prefix(path: &Path, bytes: &[u8]) -> (Option<Episode>, Option<IoError>) {
+    let readable = match check_declared_lengths(path, bytes) {
+        Ok(n) => n,
+        Err(e) => return (None, Some(e)),
+    };
+    let bytes = &bytes[..readable];
+    // The MCAP and protobuf decoders are third-party parsers: a panic in them becomes an error.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| parse_prefix(path, bytes)))
+        .unwrap_or_else(|_| {
+            (
+                None,
+                Some(IoError::ParserPanic {
+                    path: path.to_path_buf(),
+                    parser: "mcap",
+                }),
+            )
+        })
+}
+
+fn parse_prefix(path: &Path, bytes: &[u8]) -> (Option<Episode>, Option<IoError>) {
     let options = mcap::read::Options::IgnoreEndMagic.into();
     let stream = match mcap::MessageStream::new_with_options(bytes, options) {
         Ok(s) => s,
