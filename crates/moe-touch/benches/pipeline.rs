@@ -1,0 +1,72 @@
+//! The whole per-frame pipeline on the committed example episode with the shipped model:
+//! markers → SR-ARAP → DGCNN contact → contact points in the world.
+//!
+//! `cargo bench -p moe-touch --bench pipeline`
+
+use std::hint::black_box;
+use std::path::Path;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use moe_arap::{MultiShapeEstimator, ShapeOptions};
+use moe_geom::{FingerParams, HandModel, HandPreset, Transform, WorldFromHand};
+use moe_touch::perception::score::episode_intrinsics;
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::pipeline::load_contact_model;
+use moe_touch::{Pipeline, RgbdFrame};
+
+fn pipeline(
+    hand: &HandModel,
+    episode: &moe_io::Episode,
+    options: ShapeOptions,
+) -> Pipeline<MultiShapeEstimator, moe_contact::DgcnnEstimator> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
+        .expect("the shipped model loads");
+    let threshold = model.threshold();
+    let detector = MarkerDetector::new(
+        episode_intrinsics(&episode.info),
+        Transform::new(episode.info.hand_from_camera),
+        hand,
+        DetectorConfig::default(),
+    )
+    .expect("detector");
+    let shape = moe_touch::contact_eval::study_shape_estimator(hand, &options).expect("SR-ARAP");
+    Pipeline::new(hand.clone(), detector, shape, model, threshold).expect("pipeline")
+}
+
+fn bench_pipeline(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let episode = moe_io::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+        .expect("the committed episode reads");
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    // The frame with the plate pressed in.
+    let frame = &episode.frames[3];
+    let input = RgbdFrame {
+        color_rgb8: &frame.color_rgb8,
+        depth_m: &frame.depth_m,
+    };
+    let pose = WorldFromHand::new(frame.world_from_hand);
+    let mut from_rest = pipeline(&hand, &episode, ShapeOptions::default());
+    c.bench_function(
+        "pipeline/two-finger frame, SR-ARAP 50 iterations from rest",
+        |b| b.iter(|| black_box(from_rest.process(black_box(input), pose).expect("runs"))),
+    );
+    let tracked_options = ShapeOptions {
+        iterations: 10,
+        warm_start: true,
+        ..ShapeOptions::default()
+    };
+    let mut tracked = pipeline(&hand, &episode, tracked_options);
+    tracked.process(input, pose).expect("runs");
+    c.bench_function(
+        "pipeline/two-finger frame, tracked (10 iterations, warm start)",
+        |b| b.iter(|| black_box(tracked.process(black_box(input), pose).expect("runs"))),
+    );
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30);
+    targets = bench_pipeline
+}
+criterion_main!(benches);
