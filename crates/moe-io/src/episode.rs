@@ -145,11 +145,11 @@ struct ContactLabels {
     fingers: Vec<Vec<u32>>,
 }
 
-fn format_err(path: &Path, message: impl Into<String>) -> IoError {
+pub(crate) fn format_err(path: &Path, message: impl Into<String>) -> IoError {
     IoError::parse(path, None, message)
 }
 
-fn mcap_err(path: &Path, e: mcap::McapError) -> IoError {
+pub(crate) fn mcap_err(path: &Path, e: mcap::McapError) -> IoError {
     IoError::parse(path, None, format!("MCAP: {e}"))
 }
 
@@ -172,7 +172,7 @@ impl<W: Write + Seek> std::fmt::Debug for EpisodeWriter<W> {
     }
 }
 
-fn schema_of<T: Encode>() -> (String, String, Vec<u8>) {
+pub(crate) fn schema_of<T: Encode>() -> (String, String, Vec<u8>) {
     let s = T::get_schema().expect("Foxglove messages carry their schema");
     (s.name, s.encoding, s.data.into_owned())
 }
@@ -555,7 +555,7 @@ fn check_frame(path: &Path, info: &EpisodeInfo, frame: &EpisodeFrame) -> Result<
     Ok(())
 }
 
-fn timestamp(time_ns: u64) -> Option<fg::Timestamp> {
+pub(crate) fn timestamp(time_ns: u64) -> Option<fg::Timestamp> {
     Some(fg::Timestamp::new(
         (time_ns / 1_000_000_000) as u32,
         (time_ns % 1_000_000_000) as u32,
@@ -570,7 +570,7 @@ fn fg_point(p: &Point3) -> fg::Point3 {
     }
 }
 
-fn fg_color(c: [f64; 4]) -> Option<fg::Color> {
+pub(crate) fn fg_color(c: [f64; 4]) -> Option<fg::Color> {
     Some(fg::Color {
         r: c[0],
         g: c[1],
@@ -579,7 +579,12 @@ fn fg_color(c: [f64; 4]) -> Option<fg::Color> {
     })
 }
 
-fn fg_transform(time_ns: u64, parent: &str, child: &str, iso: &Iso3) -> fg::FrameTransform {
+pub(crate) fn fg_transform(
+    time_ns: u64,
+    parent: &str,
+    child: &str,
+    iso: &Iso3,
+) -> fg::FrameTransform {
     let t = iso.translation.vector;
     let q = iso.rotation.quaternion();
     fg::FrameTransform {
@@ -617,7 +622,7 @@ fn iso_from(path: &Path, t: &fg::FrameTransform) -> Result<Iso3, IoError> {
     ))
 }
 
-fn encode<T: Encode>(message: &T) -> Vec<u8> {
+pub(crate) fn encode<T: Encode>(message: &T) -> Vec<u8> {
     let mut buf = Vec::new();
     message
         .encode(&mut buf)
@@ -625,7 +630,78 @@ fn encode<T: Encode>(message: &T) -> Vec<u8> {
     buf
 }
 
-fn mesh_entity(
+/// The colour image of a frame as a Foxglove `RawImage` (`rgb8`, frame `camera`).
+pub(crate) fn color_image(time_ns: u64, cam: &CameraInfo, rgb8: &[u8]) -> fg::RawImage {
+    fg::RawImage {
+        timestamp: timestamp(time_ns),
+        frame_id: "camera".into(),
+        width: cam.width,
+        height: cam.height,
+        encoding: "rgb8".into(),
+        step: 3 * cam.width,
+        data: rgb8.to_vec().into(),
+    }
+}
+
+/// The pinhole calibration of the camera (no distortion).
+pub(crate) fn camera_calibration(time_ns: u64, cam: &CameraInfo) -> fg::CameraCalibration {
+    fg::CameraCalibration {
+        timestamp: timestamp(time_ns),
+        frame_id: "camera".into(),
+        width: cam.width,
+        height: cam.height,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.0; 5],
+        k: vec![cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0],
+        r: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: vec![
+            cam.fx, 0.0, cam.cx, 0.0, 0.0, cam.fy, cam.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
+        ],
+    }
+}
+
+/// Spheres of diameter `size_m` at `points` (in `frame_id`), one entity.
+pub(crate) fn spheres_entity(
+    time_ns: u64,
+    frame_id: &str,
+    id: String,
+    points: &[Point3],
+    size_m: f64,
+    color: [f64; 4],
+) -> fg::SceneEntity {
+    fg::SceneEntity {
+        timestamp: timestamp(time_ns),
+        frame_id: frame_id.to_owned(),
+        id,
+        spheres: points
+            .iter()
+            .map(|m| fg::SpherePrimitive {
+                pose: Some(fg::Pose {
+                    position: Some(fg::Vector3 {
+                        x: m.x,
+                        y: m.y,
+                        z: m.z,
+                    }),
+                    orientation: Some(fg::Quaternion {
+                        x: 0.0,
+                        y: 0.0,
+                        z: 0.0,
+                        w: 1.0,
+                    }),
+                }),
+                size: Some(fg::Vector3 {
+                    x: size_m,
+                    y: size_m,
+                    z: size_m,
+                }),
+                color: fg_color(color),
+            })
+            .collect(),
+        ..Default::default()
+    }
+}
+
+pub(crate) fn mesh_entity(
     time_ns: u64,
     frame_id: &str,
     id: String,
@@ -668,15 +744,7 @@ fn encode_frame(
 ) -> Result<Vec<Vec<u8>>, IoError> {
     let t = frame.time_ns;
     let cam = &info.camera;
-    let color = fg::RawImage {
-        timestamp: timestamp(t),
-        frame_id: "camera".into(),
-        width: cam.width,
-        height: cam.height,
-        encoding: "rgb8".into(),
-        step: 3 * cam.width,
-        data: frame.color_rgb8.clone().into(),
-    };
+    let color = color_image(t, cam, &frame.color_rgb8);
     let depth = fg::RawImage {
         timestamp: timestamp(t),
         frame_id: "camera".into(),
@@ -691,19 +759,7 @@ fn encode_frame(
             .collect::<Vec<u8>>()
             .into(),
     };
-    let calibration = fg::CameraCalibration {
-        timestamp: timestamp(t),
-        frame_id: "camera".into(),
-        width: cam.width,
-        height: cam.height,
-        distortion_model: "plumb_bob".into(),
-        d: vec![0.0; 5],
-        k: vec![cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0],
-        r: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        p: vec![
-            cam.fx, 0.0, cam.cx, 0.0, 0.0, cam.fy, cam.cy, 0.0, 0.0, 0.0, 1.0, 0.0,
-        ],
-    };
+    let calibration = camera_calibration(t, cam);
     let mut transforms = vec![
         fg_transform(t, "world", "hand", &frame.world_from_hand),
         fg_transform(t, "hand", "camera", &info.hand_from_camera),
@@ -756,35 +812,15 @@ fn encode_frame(
             .markers_in_hand
             .iter()
             .enumerate()
-            .map(|(f, ms)| fg::SceneEntity {
-                timestamp: timestamp(t),
-                frame_id: "hand".into(),
-                id: format!("markers_{f}"),
-                spheres: ms
-                    .iter()
-                    .map(|m| fg::SpherePrimitive {
-                        pose: Some(fg::Pose {
-                            position: Some(fg::Vector3 {
-                                x: m.x,
-                                y: m.y,
-                                z: m.z,
-                            }),
-                            orientation: Some(fg::Quaternion {
-                                x: 0.0,
-                                y: 0.0,
-                                z: 0.0,
-                                w: 1.0,
-                            }),
-                        }),
-                        size: Some(fg::Vector3 {
-                            x: 0.005,
-                            y: 0.005,
-                            z: 0.005,
-                        }),
-                        color: fg_color([1.0, 0.0, 0.0, 1.0]),
-                    })
-                    .collect(),
-                ..Default::default()
+            .map(|(f, ms)| {
+                spheres_entity(
+                    t,
+                    "hand",
+                    format!("markers_{f}"),
+                    ms,
+                    0.005,
+                    [1.0, 0.0, 0.0, 1.0],
+                )
             })
             .collect(),
     };

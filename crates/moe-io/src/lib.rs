@@ -70,6 +70,8 @@ pub mod model;
 pub mod obj;
 /// Stanford PLY.
 pub mod ply;
+/// Pipeline results over an episode, as MCAP for Foxglove.
+pub mod run_output;
 /// STL.
 pub mod stl;
 
@@ -93,4 +95,7 @@ pub use mesh_io::{read_mesh, write_mesh};
 pub use model::{ModelFiles, read_model_files, write_model_files};
 pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
 pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
+pub use run_output::{
+    RUN_TOPICS, RunFrame, RunInfo, RunTruth, RunWriter, probability_colour, write_run,
+};
 pub use stl::{STL_WELD_RELATIVE_TOLERANCE, read_stl, read_stl_from};

@@ -613,15 +613,9 @@ pub fn evaluate_plates(
     Ok(out)
 }
 
-/// Blue (0) to red (1) colour of a contact probability, for meshes a person looks at.
-pub fn probability_colour(p: Real) -> [u8; 3] {
-    let p = p.clamp(0.0, 1.0);
-    [
-        (255.0 * p).round() as u8,
-        40,
-        (255.0 * (1.0 - p)).round() as u8,
-    ]
-}
+/// Blue (0) to red (1) colour of a contact probability, for meshes a person looks at (the
+/// colours of the `run` output's meshes too).
+pub use moe_io::probability_colour;
 
 /// Finger `finger` of `hand` deformed to `vertices`, as PLY with the per-vertex scalar
 /// `contact_probability` and colours from [`probability_colour`].

@@ -17,6 +17,8 @@ pub mod error;
 pub mod perception;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.
 pub mod pipeline;
+/// Running the pipeline over a recorded episode, with figures against its ground truth.
+pub mod run;
 
 pub use error::TouchError;
 pub use pipeline::{FrameEstimate, Pipeline, RgbdFrame, StageTimings};

@@ -31,6 +31,9 @@ enum Command {
     /// Detect and track the red markers in every frame of an episode (wrist RGB-D → keypoints
     /// per finger); report detection against the ground truth when the episode has it.
     Markers(cli::markers::MarkersArgs),
+    /// Run the whole pipeline (markers → SR-ARAP → contact) over an episode: a result MCAP for
+    /// Foxglove and a report against the ground truth.
+    Run(cli::run::RunArgs),
     /// Estimate a hand's deformed finger meshes from one frame of marker keypoints (SR-ARAP).
     Shape(cli::shape::ShapeArgs),
     /// Estimate per-vertex contact with the DGCNN: on a point cloud, or on a hand shape as
@@ -49,6 +52,7 @@ fn main() -> ExitCode {
         Command::Hand(args) => cli::hand::run(args),
         Command::Arap(args) => cli::arap::run(args),
         Command::Markers(args) => cli::markers::run(args),
+        Command::Run(args) => cli::run::run(args),
         Command::Shape(args) => cli::shape::run(args),
         Command::Contact(args) => cli::contact::run(args),
         Command::Sim(args) => cli::sim::run(args),

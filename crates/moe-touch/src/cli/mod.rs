@@ -5,6 +5,7 @@ pub(crate) mod arap;
 pub(crate) mod contact;
 pub(crate) mod hand;
 pub(crate) mod markers;
+pub(crate) mod run;
 pub(crate) mod shape;
 pub(crate) mod sim;
 pub(crate) mod surface;

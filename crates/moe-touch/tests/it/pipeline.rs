@@ -143,3 +143,112 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
         .unwrap_err();
     assert!(matches!(err, TouchError::ImageSize { .. }), "{err}");
 }
+
+#[test]
+fn the_run_command_writes_a_deterministic_result_and_a_report() {
+    use crate::common::{assert_one_line_error, run, scratch};
+    let dir = scratch("run-cli");
+    let episode = fixtures().join("episodes/plate_tip_front_small.mcap");
+    let model = model_path();
+    let out = dir.join("result.mcap");
+    let report = dir.join("report.json");
+    let args = |out: &std::path::Path| {
+        vec![
+            "run".to_owned(),
+            "--episode".into(),
+            episode.display().to_string(),
+            "--model".into(),
+            model.display().to_string(),
+            "--out".into(),
+            out.display().to_string(),
+        ]
+    };
+    let mut a = args(&out);
+    a.extend([
+        "--report".into(),
+        report.display().to_string(),
+        "--json".into(),
+    ]);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    let o = run(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["frames"], 7);
+    assert!(summary["truncated"].is_null());
+    assert!(summary["shape_bcd_mm"].as_f64().unwrap() < 1.0, "{summary}");
+    assert_eq!(summary["contact"]["contact_frames"], 5);
+    let full: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(full["per_frame"].as_array().unwrap().len(), 7);
+    // Same episode and model, same bytes.
+    let again = dir.join("again.mcap");
+    let b = args(&again);
+    let b: Vec<&str> = b.iter().map(String::as_str).collect();
+    assert!(run(&b).status.success());
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&again).unwrap());
+
+    // An episode cut short runs its complete frames and says so.
+    let bytes = std::fs::read(&episode).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    let cut_out = dir.join("cut-result.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        cut.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        cut_out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let frames = s["frames"].as_u64().unwrap();
+    assert!((1..7).contains(&frames), "{frames} frames");
+    assert!(
+        s["truncated"].as_str().unwrap().contains("complete frames"),
+        "{s}"
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("warning:"));
+
+    // Another hand than the episode's and the model's: one clear error, nothing written.
+    let wrong = dir.join("wrong.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        episode.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--hand",
+        "three-finger",
+        "--out",
+        wrong.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(err.contains("three-finger"), "{err}");
+    assert!(!wrong.exists());
+}
+
+#[test]
+fn the_foxglove_layout_shows_only_topics_a_run_writes() {
+    let text = std::fs::read_to_string(fixtures().join("foxglove/run_layout.json")).unwrap();
+    let layout: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let panels = layout["configById"].as_object().unwrap();
+    assert!(panels.len() >= 3);
+    let mut named = 0;
+    for (id, config) in panels {
+        let mut topics: Vec<String> = config["topics"]
+            .as_object()
+            .map(|t| t.keys().cloned().collect())
+            .unwrap_or_default();
+        if let Some(t) = config["imageMode"]["imageTopic"].as_str() {
+            topics.push(t.to_owned());
+        }
+        for t in topics {
+            assert!(moe_io::RUN_TOPICS.contains(&t.as_str()), "{id}: {t}");
+            named += 1;
+        }
+    }
+    assert!(named >= 8);
+}
