@@ -21,7 +21,7 @@ fn the_committed_episode_reads_back_with_its_ground_truth() {
     let episode = moe_io::read_episode(&path).unwrap();
     assert_eq!(
         (episode.info.camera.width, episode.info.camera.height),
-        (160, 120)
+        (320, 240)
     );
     assert_eq!(episode.frames.len(), 7);
     assert!(

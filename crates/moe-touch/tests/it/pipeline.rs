@@ -176,7 +176,7 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     assert_eq!(summary["frames"], 7);
     assert!(summary["truncated"].is_null());
     assert!(summary["shape_bcd_mm"].as_f64().unwrap() < 1.0, "{summary}");
-    assert_eq!(summary["contact"]["contact_frames"], 5);
+    assert_eq!(summary["contact"]["contact_frames"], 3);
     let full: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(full["per_frame"].as_array().unwrap().len(), 7);
