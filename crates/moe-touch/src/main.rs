@@ -24,6 +24,9 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// The whole pipeline on the committed example episode with the shipped model: a short
+    /// table, a result MCAP for Foxglove, meshes coloured by contact and a picture.
+    Demo(cli::demo::DemoArgs),
     /// Generate a hand model (rest meshes, marker and base vertex ids) from a preset or a config.
     Hand(cli::hand::HandArgs),
     /// Deform any mesh with SR-ARAP so that handle vertices reach their targets.
@@ -49,6 +52,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(args) => cli::demo::run(args),
         Command::Hand(args) => cli::hand::run(args),
         Command::Arap(args) => cli::arap::run(args),
         Command::Markers(args) => cli::markers::run(args),

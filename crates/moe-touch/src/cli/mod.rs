@@ -3,6 +3,7 @@
 
 pub(crate) mod arap;
 pub(crate) mod contact;
+pub(crate) mod demo;
 pub(crate) mod hand;
 pub(crate) mod markers;
 pub(crate) mod run;

@@ -1,7 +1,8 @@
 //! Pictures of a detection: the colour image with the markers found and their ids drawn on it.
 
 use image::{Rgb, RgbImage};
-use moe_geom::Real;
+use moe_geom::{HandFromCamera, HandKeypoints, Point3, Real};
+use moe_tendon_sim::camera::CameraIntrinsics;
 
 use super::{ClusterFate, MarkerDetection, MarkerDetector};
 use crate::TouchError;
@@ -10,6 +11,8 @@ use crate::TouchError;
 const FOUND: Rgb<u8> = Rgb([40, 255, 60]);
 /// Colour of a rejected cluster's cross.
 const REJECTED: Rgb<u8> = Rgb([255, 220, 0]);
+/// Colour of a contact point.
+const CONTACT: Rgb<u8> = Rgb([255, 30, 200]);
 
 /// 3 × 5 pixel glyphs of `0`–`9` and `.`, one row per entry, bit 2 on the left.
 const GLYPHS: [[u8; 5]; 11] = [
@@ -36,7 +39,37 @@ pub fn draw_detection(
     color_rgb8: &[u8],
     detection: &MarkerDetection,
 ) -> Result<RgbImage, TouchError> {
-    let k = detector.intrinsics();
+    let mut img = draw_keypoints(
+        detector.intrinsics(),
+        detector.hand_from_camera(),
+        color_rgb8,
+        &detection.keypoints,
+        &[],
+    )?;
+    for c in &detection.diagnostics.clusters {
+        if !matches!(c.fate, ClusterFate::Assigned { .. })
+            && c.centre_px.iter().all(|x| x.is_finite())
+        {
+            cross(&mut img, c.centre_px[0], c.centre_px[1], 4, REJECTED);
+        }
+    }
+    Ok(img)
+}
+
+/// The colour image of a camera with `intrinsics` at `hand_from_camera`, with the markers
+/// `keypoints` (hand frame) ringed and labelled and the contact points `contacts_in_hand`
+/// dotted in red.
+///
+/// # Errors
+/// [`TouchError::ImageSize`] when the image does not have the intrinsics' size.
+pub fn draw_keypoints(
+    intrinsics: &CameraIntrinsics,
+    hand_from_camera: HandFromCamera,
+    color_rgb8: &[u8],
+    keypoints: &HandKeypoints,
+    contacts_in_hand: &[Point3],
+) -> Result<RgbImage, TouchError> {
+    let k = intrinsics;
     let expected = 3 * k.width as usize * k.height as usize;
     let mut img = RgbImage::from_raw(k.width, k.height, color_rgb8.to_vec()).ok_or(
         TouchError::ImageSize {
@@ -45,8 +78,16 @@ pub fn draw_detection(
             got: color_rgb8.len(),
         },
     )?;
-    let camera_from_hand = detector.hand_from_camera().inverse();
-    for (f, markers) in detection.keypoints.fingers.iter().enumerate() {
+    let camera_from_hand = hand_from_camera.inverse();
+    for p in contacts_in_hand {
+        if let Some((u, v)) = k.project(&camera_from_hand.transform_point(p)) {
+            let (x, y) = (u.round() as i64, v.round() as i64);
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (-1, 0), (0, -1)] {
+                put(&mut img, x + dx, y + dy, CONTACT);
+            }
+        }
+    }
+    for (f, markers) in keypoints.fingers.iter().enumerate() {
         for (m, p) in markers.iter().enumerate() {
             let Some(p) = p else { continue };
             let Some((u, v)) = k.project(&camera_from_hand.transform_point(p)) else {
@@ -54,13 +95,6 @@ pub fn draw_detection(
             };
             ring(&mut img, u, v, 7.0, FOUND);
             text(&mut img, u + 9.0, v - 5.0, &format!("{f}.{m}"), FOUND);
-        }
-    }
-    for c in &detection.diagnostics.clusters {
-        if !matches!(c.fate, ClusterFate::Assigned { .. })
-            && c.centre_px.iter().all(|x| x.is_finite())
-        {
-            cross(&mut img, c.centre_px[0], c.centre_px[1], 4, REJECTED);
         }
     }
     Ok(img)

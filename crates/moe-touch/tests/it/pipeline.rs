@@ -252,3 +252,47 @@ fn the_foxglove_layout_shows_only_topics_a_run_writes() {
     }
     assert!(named >= 8);
 }
+
+#[test]
+fn the_demo_needs_no_arguments_and_writes_its_outputs() {
+    use crate::common::{run, scratch};
+    let dir = scratch("demo");
+    let out = dir.join("demo");
+    let o = run(&["demo", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    for row in [
+        "frames",
+        "markers found",
+        "shape BCD",
+        "contact BCD",
+        "frames per second",
+    ] {
+        assert!(table.contains(row), "{row} missing from\n{table}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["frames"], 7);
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    for want in ["result.mcap", "figure.png"] {
+        assert!(names.iter().any(|n| n == want), "{want} in {names:?}");
+    }
+    // Estimate and truth of both fingers of one frame.
+    assert_eq!(
+        names.iter().filter(|n| n.ends_with(".ply")).count(),
+        4,
+        "{names:?}"
+    );
+    let png = std::fs::read(out.join("figure.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let ply = names
+        .iter()
+        .find(|n| n.contains("estimate_finger_0"))
+        .unwrap();
+    let data = moe_io::read_ply(&out.join(ply)).unwrap();
+    assert_eq!(data.points.len(), 1024);
+    assert!(data.scalars.iter().any(|(n, _)| n == "contact_probability"));
+}

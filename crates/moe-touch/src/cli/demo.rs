@@ -1,0 +1,183 @@
+//! `moe-touch demo`: the whole pipeline on the committed example episode with the shipped
+//! model, no arguments needed — a short table, the result MCAP, the meshes of the frame with
+//! the most contact, and a picture.
+
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Args;
+use moe_arap::ShapeOptions;
+use moe_geom::{HandModel, Point3, Transform};
+use moe_touch::Pipeline;
+use moe_touch::contact_eval::contact_ply;
+use moe_touch::perception::overlay::draw_keypoints;
+use moe_touch::perception::score::{check_hand, episode_intrinsics};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::pipeline::load_contact_model;
+use moe_touch::run::{RunReport, run_episode, run_info};
+
+/// The workspace this binary was built from (where the example episode and the model are).
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Arguments of `moe-touch demo`.
+#[derive(Debug, Args)]
+pub(crate) struct DemoArgs {
+    /// Output directory: result.mcap, report.json, the meshes of the frame with the most
+    /// contact (PLY coloured by contact probability, estimate and truth) and figure.png.
+    #[arg(long, value_name = "DIR", default_value = "out/demo")]
+    out: PathBuf,
+    /// Episode (default: the committed example, plate pressing the tip of finger 0).
+    #[arg(long, value_name = "EP.mcap")]
+    episode: Option<PathBuf>,
+    /// Contact model (default: the shipped two-finger model).
+    #[arg(long, value_name = "M.safetensors")]
+    model: Option<PathBuf>,
+}
+
+pub(crate) fn run(args: DemoArgs) -> Result<()> {
+    let episode_path = args
+        .episode
+        .clone()
+        .unwrap_or_else(|| workspace().join("fixtures/episodes/plate_tip_front_small.mcap"));
+    let model_path = args
+        .model
+        .clone()
+        .unwrap_or_else(|| workspace().join("models/contact-two-finger.safetensors"));
+    let episode = moe_io::read_episode(&episode_path)?;
+    let hand = HandModel::preset(
+        moe_geom::HandPreset::TwoFinger,
+        &moe_geom::FingerParams::default(),
+    )?;
+    check_hand(&hand, &episode.info)
+        .with_context(|| format!("the demo's two-finger hand for {}", episode_path.display()))?;
+    let model = load_contact_model(&model_path, &hand)
+        .with_context(|| format!("model {}", model_path.display()))?;
+    let threshold = model.threshold();
+    let intrinsics = episode_intrinsics(&episode.info);
+    let hand_from_camera = Transform::new(episode.info.hand_from_camera);
+    let detector = MarkerDetector::new(
+        intrinsics,
+        hand_from_camera,
+        &hand,
+        DetectorConfig::default(),
+    )?;
+    let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &ShapeOptions::default())?;
+    let mut pipeline = Pipeline::new(hand.clone(), detector, shape, model, threshold)?;
+    let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, None)?;
+
+    // The frame with the most estimated contact (the first of equals).
+    let best = (0..frames.len())
+        .max_by_key(|&k| (frames[k].contacts_in_world.len(), std::cmp::Reverse(k)))
+        .context("the episode has no frames")?;
+    let frame = &frames[best];
+    let source = &episode.frames[best];
+    // Everything in memory first.
+    let mut plys = Vec::new();
+    for f in 0..hand.num_fingers() {
+        plys.push((
+            format!("frame_{best}_estimate_finger_{f}.ply"),
+            contact_ply(
+                &hand,
+                f,
+                &frame.vertices_in_hand[f],
+                &frame.contact_probability[f],
+            )?,
+        ));
+        if let Some(truth) = &frame.truth {
+            let mut labels = vec![0.0; truth.vertices_in_hand[f].len()];
+            for &v in &truth.contact_vertices[f] {
+                labels[v as usize] = 1.0;
+            }
+            plys.push((
+                format!("frame_{best}_truth_finger_{f}.ply"),
+                contact_ply(&hand, f, &truth.vertices_in_hand[f], &labels)?,
+            ));
+        }
+    }
+    let hand_from_world = source.world_from_hand.inverse();
+    let contacts_in_hand: Vec<Point3> = frame
+        .contacts_in_world
+        .iter()
+        .map(|p| hand_from_world * p)
+        .collect();
+    let keypoints = moe_geom::HandKeypoints {
+        fingers: frame.markers_in_hand.clone(),
+    };
+    let img = draw_keypoints(
+        &intrinsics,
+        hand_from_camera,
+        &frame.color_rgb8,
+        &keypoints,
+        &contacts_in_hand,
+    )?;
+    // Twice the size, pixel for pixel, so that a small camera image is legible.
+    let img = image::imageops::resize(
+        &img,
+        2 * img.width(),
+        2 * img.height(),
+        image::imageops::FilterType::Nearest,
+    );
+    let mut png = Vec::new();
+    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+        .context("encoding the figure")?;
+    let report_text = serde_json::to_string_pretty(&report)?;
+    let model_name = model_path
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let info = run_info(&episode.info, &model_name, threshold);
+
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    moe_io::write_run(&args.out.join("result.mcap"), &info, &frames)?;
+    moe_io::write_atomic(&args.out.join("report.json"), report_text.as_bytes())?;
+    for (name, ply) in &plys {
+        moe_io::write_ply(&args.out.join(name), ply)?;
+    }
+    moe_io::write_atomic(&args.out.join("figure.png"), &png)?;
+    print_table(&report, best, &args.out);
+    Ok(())
+}
+
+fn print_table(r: &RunReport, best: usize, out: &Path) {
+    let opt = |v: Option<f64>, unit: &str| v.map_or("—".to_owned(), |v| format!("{v:.2} {unit}"));
+    super::outln!("MOE-Touch demo: plate pressing the tip of finger 0, seen by the wrist camera");
+    super::outln!("  frames                      {}", r.frames);
+    if let Some(m) = &r.markers {
+        super::outln!(
+            "  markers found               {:.1} % of the visible ones ({} of {}), {:.2} mm off",
+            100.0 * m.detection_rate,
+            m.detected,
+            m.visible,
+            m.mean_error_mm
+        );
+    }
+    super::outln!(
+        "  shape BCD                   {}",
+        opt(r.shape_bcd_mm, "mm")
+    );
+    if let Some(c) = &r.contact {
+        super::outln!(
+            "  contact BCD / UCD           {} / {} ({} of {} contact frames found, {} false alarms)",
+            opt(Some(c.bcd_mm).filter(|v| v.is_finite()), "mm"),
+            opt(Some(c.ucd_mm).filter(|v| v.is_finite()), "mm"),
+            c.contact_frames - c.misses,
+            c.contact_frames,
+            c.false_alarms
+        );
+    }
+    super::outln!(
+        "  frames per second           {:.1} (median frame {:.1} ms: markers {:.2}, shape {:.2}, contact {:.2})",
+        r.frames_per_second,
+        r.total_ms.median_ms,
+        r.markers_ms.median_ms,
+        r.shape_ms.median_ms,
+        r.contact_ms.median_ms
+    );
+    super::outln!(
+        "wrote {}: result.mcap (open in Foxglove with fixtures/foxglove/run_layout.json), report.json, figure.png, frame_{best}_*.ply",
+        out.display()
+    );
+}
