@@ -13,6 +13,8 @@ pub mod datagen;
 pub mod episode;
 /// The crate's error type.
 pub mod error;
+/// Temporal filters: a Kalman filter on the keypoints, smoothing of the contact map.
+pub mod filter;
 /// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
 pub mod perception;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.

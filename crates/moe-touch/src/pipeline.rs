@@ -12,6 +12,7 @@ use moe_geom::{
 use serde::Serialize;
 
 use crate::TouchError;
+use crate::filter::{ContactSmoother, KeypointFilter};
 use crate::perception::{MarkerDetector, MarkerDiagnostics};
 
 /// One wrist-camera frame: colour (RGB8, row-major) and depth (metres along the optical axis,
@@ -40,7 +41,8 @@ pub struct StageTimings {
 /// Everything the pipeline estimates about one frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrameEstimate {
-    /// Every marker in the hand frame, `None` where it was not seen.
+    /// Every marker in the hand frame, `None` where it was not seen (filtered, when the
+    /// pipeline filters keypoints).
     pub keypoints: HandKeypoints,
     /// The estimated surface of every finger, hand frame.
     pub shape: HandShape,
@@ -69,6 +71,8 @@ pub struct Pipeline<S, C> {
     shape: S,
     contact: C,
     threshold: Real,
+    keypoint_filter: Option<KeypointFilter>,
+    contact_smoother: Option<ContactSmoother>,
 }
 
 impl<S, C> Pipeline<S, C>
@@ -100,7 +104,22 @@ where
             shape,
             contact,
             threshold,
+            keypoint_filter: None,
+            contact_smoother: None,
         })
+    }
+
+    /// Filters the detected keypoints over time before the shape stage (off by default: see
+    /// the README's measurement).
+    pub fn with_keypoint_filter(mut self, filter: KeypointFilter) -> Self {
+        self.keypoint_filter = Some(filter);
+        self
+    }
+
+    /// Smooths the contact map over time before thresholding (off by default).
+    pub fn with_contact_smoothing(mut self, smoother: ContactSmoother) -> Self {
+        self.contact_smoother = Some(smoother);
+        self
     }
 
     /// The hand.
@@ -122,6 +141,12 @@ where
     pub fn reset(&mut self) {
         self.detector.reset();
         self.shape.reset();
+        if let Some(f) = &mut self.keypoint_filter {
+            f.reset();
+        }
+        if let Some(s) = &mut self.contact_smoother {
+            s.reset();
+        }
     }
 
     /// Runs every stage on one frame of a hand at `world_from_hand`.
@@ -134,14 +159,20 @@ where
         world_from_hand: WorldFromHand,
     ) -> Result<FrameEstimate, TouchError> {
         let start = Instant::now();
-        let detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
+        let mut detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
+        if let Some(f) = &mut self.keypoint_filter {
+            detection.keypoints = f.filter(&detection.keypoints);
+        }
         let t_markers = Instant::now();
         let shape = self
             .shape
             .estimate_shape(&detection.keypoints)
             .map_err(|e| TouchError::ShapeEstimation(Box::new(e)))?;
         let t_shape = Instant::now();
-        let contact = self.contact.estimate(&shape, Some(&detection.keypoints))?;
+        let mut contact = self.contact.estimate(&shape, Some(&detection.keypoints))?;
+        if let Some(s) = &mut self.contact_smoother {
+            contact = s.smooth(&contact);
+        }
         let contacts_in_hand = contact.contacts_above(self.threshold, &shape)?;
         let contacts_in_world = contacts_in_hand
             .iter()

@@ -9,6 +9,7 @@ use clap::Args;
 use moe_arap::ShapeOptions;
 use moe_geom::Transform;
 use moe_touch::Pipeline;
+use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
 use moe_touch::perception::score::{check_hand, episode_intrinsics};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
@@ -47,6 +48,13 @@ pub(crate) struct RunArgs {
     /// Start each frame's shape from the previous one (tracking; the paper starts from rest).
     #[arg(long)]
     warm_start: bool,
+    /// Filter the keypoints over time with a constant-velocity Kalman filter per marker
+    /// (default noise levels of `KalmanConfig`).
+    #[arg(long)]
+    kalman: bool,
+    /// Smooth the contact map over time with this weight on the new frame, in (0, 1].
+    #[arg(long, value_name = "ALPHA")]
+    smooth_contact: Option<f64>,
     /// Print the report (without the per-frame list) as one JSON object.
     #[arg(long)]
     json: bool,
@@ -93,6 +101,12 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     };
     let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &options)?;
     let mut pipeline = Pipeline::new(hand, detector, shape, model, threshold)?;
+    if args.kalman {
+        pipeline = pipeline.with_keypoint_filter(KeypointFilter::new(KalmanConfig::default())?);
+    }
+    if let Some(alpha) = args.smooth_contact {
+        pipeline = pipeline.with_contact_smoothing(ContactSmoother::new(alpha)?);
+    }
     let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, truncated)
         .with_context(|| format!("episode {}", args.episode.display()))?;
     let model_name = args
