@@ -16,7 +16,6 @@
 //!
 //! The file holds no timings, so the same episode and model give the same bytes.
 
-use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
@@ -25,8 +24,9 @@ use moe_geom::{Iso3, Point3};
 use serde::{Deserialize, Serialize};
 
 use crate::episode::{
-    CameraInfo, ObstacleMesh, camera_calibration, color_image, encode, fg_color, fg_transform,
-    format_err, mcap_err, mesh_entity, schema_of, spheres_entity,
+    EpisodeInfo, ObstacleMesh, add_channel, camera_calibration, color_image, contact_mesh_entity,
+    encode, fg_color, fg_transform, format_err, mcap_err, mcap_writer, mesh_entity, schema_of,
+    spheres_entity, write_info,
 };
 use crate::error::IoError;
 
@@ -34,22 +34,12 @@ use crate::error::IoError;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RunInfo {
-    /// Scene of the input episode.
-    pub scene: String,
     /// The contact model that ran (its file name).
     pub model: String,
     /// Its contact threshold.
     pub threshold: f64,
-    /// The camera.
-    pub camera: CameraInfo,
-    /// Camera frame to hand frame.
-    pub hand_from_camera: Iso3,
-    /// Each finger's base pose on the palm.
-    pub hand_from_finger: Vec<Iso3>,
-    /// Each finger's surface triangles.
-    pub finger_faces: Vec<Vec<[u32; 3]>>,
-    /// Each finger's vertex count.
-    pub finger_num_vertices: Vec<usize>,
+    /// The input episode's fixed information (scene, camera, finger layout).
+    pub episode: EpisodeInfo,
 }
 
 /// The ground truth of a frame.
@@ -120,7 +110,7 @@ pub struct RunWriter<W: Write + Seek> {
 impl<W: Write + Seek> std::fmt::Debug for RunWriter<W> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RunWriter")
-            .field("scene", &self.info.scene)
+            .field("scene", &self.info.episode.scene)
             .field("messages", &self.sequence)
             .finish()
     }
@@ -131,67 +121,27 @@ impl<W: Write + Seek> RunWriter<W> {
     /// destination in errors.
     ///
     /// # Errors
-    /// Finger lists of different lengths, or a write failure.
+    /// Inconsistent episode info (as for episodes), or a write failure.
     pub fn new(sink: W, info: &RunInfo, path: &Path) -> Result<Self, IoError> {
-        let n = info.hand_from_finger.len();
-        if info.finger_faces.len() != n || info.finger_num_vertices.len() != n {
-            return Err(format_err(path, "run info: finger lists differ in length"));
-        }
-        let options = mcap::WriteOptions::new()
-            .profile("")
-            .library("moe-touch")
-            .compression(Some(mcap::Compression::Zstd))
-            .compression_threads(0)
-            .use_chunks(true)
-            .chunk_size(None);
-        let mut writer = options.create(sink).map_err(|e| mcap_err(path, e))?;
-        let mut channel = |topic: &str,
-                           (name, encoding, data): (String, String, Vec<u8>),
-                           message_encoding: &str| {
-            let schema = writer
-                .add_schema(&name, &encoding, &data)
-                .map_err(|e| mcap_err(path, e))?;
-            writer
-                .add_channel(schema, topic, message_encoding, &BTreeMap::new())
-                .map_err(|e| mcap_err(path, e))
-        };
-        let json = (
-            "moe.RunInfo".to_owned(),
-            "jsonschema".to_owned(),
-            br#"{"type":"object"}"#.to_vec(),
-        );
-        let info_channel = channel("/run/info", json, "json")?;
+        crate::episode::check_info(path, &info.episode)?;
+        let mut writer = mcap_writer(sink, path)?;
+        write_info(&mut writer, path, "/run/info", "moe.RunInfo", info)?;
         let scene = || schema_of::<fg::SceneUpdate>();
-        let channels = [
-            channel(RUN_TOPICS[0], schema_of::<fg::RawImage>(), "protobuf")?,
-            channel(
-                RUN_TOPICS[1],
-                schema_of::<fg::CameraCalibration>(),
-                "protobuf",
-            )?,
-            channel(
-                RUN_TOPICS[2],
-                schema_of::<fg::FrameTransforms>(),
-                "protobuf",
-            )?,
-            channel(RUN_TOPICS[3], scene(), "protobuf")?,
-            channel(RUN_TOPICS[4], scene(), "protobuf")?,
-            channel(RUN_TOPICS[5], scene(), "protobuf")?,
-            channel(RUN_TOPICS[6], scene(), "protobuf")?,
-            channel(RUN_TOPICS[7], scene(), "protobuf")?,
-            channel(RUN_TOPICS[8], scene(), "protobuf")?,
+        let schemas = [
+            schema_of::<fg::RawImage>(),
+            schema_of::<fg::CameraCalibration>(),
+            schema_of::<fg::FrameTransforms>(),
+            scene(),
+            scene(),
+            scene(),
+            scene(),
+            scene(),
+            scene(),
         ];
-        let body = serde_json::to_vec(info).map_err(|e| format_err(path, e.to_string()))?;
-        let header = mcap::records::MessageHeader {
-            channel_id: info_channel,
-            sequence: 0,
-            log_time: 0,
-            publish_time: 0,
-        };
-        writer
-            .write_to_known_channel(&header, &body)
-            .map_err(|e| mcap_err(path, e))?;
-        writer.flush().map_err(|e| mcap_err(path, e))?;
+        let mut channels = [0u16; RUN_TOPICS.len()];
+        for ((slot, topic), schema) in channels.iter_mut().zip(RUN_TOPICS).zip(schemas) {
+            *slot = add_channel(&mut writer, path, topic, schema, "protobuf")?;
+        }
         Ok(Self {
             path: path.to_path_buf(),
             writer,
@@ -235,7 +185,7 @@ impl<W: Write + Seek> RunWriter<W> {
 
     fn encode(&self, frame: &RunFrame) -> Result<Vec<Option<Vec<u8>>>, IoError> {
         let path = self.path.as_path();
-        let info = &self.info;
+        let info = &self.info.episode;
         let t = frame.time_ns;
         let cam = &info.camera;
         let fingers = info.finger_faces.len();
@@ -341,18 +291,15 @@ impl<W: Write + Seek> RunWriter<W> {
                 let mut entities = Vec::with_capacity(fingers);
                 let mut points = Vec::new();
                 for f in 0..fingers {
-                    let mut colors = vec![rgba([190, 190, 185]); info.finger_num_vertices[f]];
                     for &v in &tr.contact_vertices[f] {
-                        colors[v as usize] = rgba([220, 25, 25]);
                         points.push(frame.world_from_hand * tr.vertices_in_hand[f][v as usize]);
                     }
-                    entities.push(mesh_entity(
+                    entities.push(contact_mesh_entity(
                         t,
-                        "hand",
                         format!("true_finger_{f}"),
                         &tr.vertices_in_hand[f],
                         &info.finger_faces[f],
-                        Some(colors),
+                        &tr.contact_vertices[f],
                     ));
                 }
                 let obstacles = tr
@@ -416,21 +363,24 @@ mod tests {
 
     fn info() -> RunInfo {
         RunInfo {
-            scene: "unit".into(),
             model: "m.safetensors".into(),
             threshold: 0.5,
-            camera: CameraInfo {
-                width: 2,
-                height: 2,
-                fx: 100.0,
-                fy: 100.0,
-                cx: 0.5,
-                cy: 0.5,
+            episode: EpisodeInfo {
+                scene: "unit".into(),
+                camera: crate::CameraInfo {
+                    width: 2,
+                    height: 2,
+                    fx: 100.0,
+                    fy: 100.0,
+                    cx: 0.5,
+                    cy: 0.5,
+                },
+                hand_from_camera: Iso3::identity(),
+                hand_from_finger: vec![Iso3::identity()],
+                finger_faces: vec![vec![[0, 1, 2]]],
+                finger_num_vertices: vec![3],
+                tendons_per_finger: 1,
             },
-            hand_from_camera: Iso3::identity(),
-            hand_from_finger: vec![Iso3::identity()],
-            finger_faces: vec![vec![[0, 1, 2]]],
-            finger_num_vertices: vec![3],
         }
     }
 

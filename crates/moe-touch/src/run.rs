@@ -202,13 +202,8 @@ where
 /// The run file's fixed information for an episode and a model.
 pub fn run_info(info: &EpisodeInfo, model: &str, threshold: Real) -> moe_io::RunInfo {
     moe_io::RunInfo {
-        scene: info.scene.clone(),
         model: model.to_owned(),
         threshold,
-        camera: info.camera,
-        hand_from_camera: info.hand_from_camera,
-        hand_from_finger: info.hand_from_finger.clone(),
-        finger_faces: info.finger_faces.clone(),
-        finger_num_vertices: info.finger_num_vertices.clone(),
+        episode: info.clone(),
     }
 }

@@ -1,5 +1,7 @@
 //! Foxglove message helpers shared by episodes and run files.
 
+use std::collections::BTreeMap;
+use std::io::{Seek, Write};
 use std::path::Path;
 
 use foxglove::messages as fg;
@@ -247,4 +249,83 @@ pub(crate) fn first_triangles<'a>(
     e.triangles
         .first()
         .ok_or_else(|| format_err(path, format!("{topic}: entity '{}' has no triangles", e.id)))
+}
+
+/// An MCAP writer with the project's settings: one zstd chunk per frame (closed by `flush`, so no
+/// size limit), compressed on the writing thread so that the bytes do not depend on the core
+/// count.
+pub(crate) fn mcap_writer<W: Write + Seek>(
+    sink: W,
+    path: &Path,
+) -> Result<mcap::Writer<W>, IoError> {
+    mcap::WriteOptions::new()
+        .profile("")
+        .library("moe-touch")
+        .compression(Some(mcap::Compression::Zstd))
+        .compression_threads(0)
+        .use_chunks(true)
+        .chunk_size(None)
+        .create(sink)
+        .map_err(|e| mcap_err(path, e))
+}
+
+/// Adds a channel on `topic` with its schema (name, encoding, data) and message encoding.
+pub(crate) fn add_channel<W: Write + Seek>(
+    writer: &mut mcap::Writer<W>,
+    path: &Path,
+    topic: &str,
+    (name, encoding, data): (String, String, Vec<u8>),
+    message_encoding: &str,
+) -> Result<u16, IoError> {
+    let schema = writer
+        .add_schema(&name, &encoding, &data)
+        .map_err(|e| mcap_err(path, e))?;
+    writer
+        .add_channel(schema, topic, message_encoding, &BTreeMap::new())
+        .map_err(|e| mcap_err(path, e))
+}
+
+/// Writes `info` as the one JSON message of `topic` (schema `schema_name`) at time 0 and closes
+/// its chunk.
+pub(crate) fn write_info<W: Write + Seek, T: serde::Serialize>(
+    writer: &mut mcap::Writer<W>,
+    path: &Path,
+    topic: &str,
+    schema_name: &str,
+    info: &T,
+) -> Result<(), IoError> {
+    let schema = (
+        schema_name.to_owned(),
+        "jsonschema".to_owned(),
+        br#"{"type":"object"}"#.to_vec(),
+    );
+    let channel = add_channel(writer, path, topic, schema, "json")?;
+    let body = serde_json::to_vec(info).map_err(|e| format_err(path, e.to_string()))?;
+    let header = mcap::records::MessageHeader {
+        channel_id: channel,
+        sequence: 0,
+        log_time: 0,
+        publish_time: 0,
+    };
+    writer
+        .write_to_known_channel(&header, &body)
+        .map_err(|e| mcap_err(path, e))?;
+    writer.flush().map_err(|e| mcap_err(path, e))
+}
+
+/// A true mesh of finger `f`: grey, its contact vertices red.
+pub(crate) fn contact_mesh_entity(
+    time_ns: u64,
+    id: String,
+    vertices: &[Point3],
+    faces: &[[u32; 3]],
+    contact_vertices: &[u32],
+) -> fg::SceneEntity {
+    let mut colors = vec![fg_color(FREE_COLOR).expect("some"); vertices.len()];
+    for &v in contact_vertices {
+        if let Some(c) = colors.get_mut(v as usize) {
+            *c = fg_color(CONTACT_COLOR).expect("some");
+        }
+    }
+    mesh_entity(time_ns, "hand", id, vertices, faces, Some(colors))
 }

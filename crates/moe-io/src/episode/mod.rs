@@ -40,8 +40,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::IoError;
 pub(crate) use foxglove::{
-    camera_calibration, color_image, encode, fg_color, fg_transform, format_err, mcap_err,
-    mesh_entity, schema_of, spheres_entity,
+    add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color,
+    fg_transform, format_err, mcap_err, mcap_writer, mesh_entity, schema_of, spheres_entity,
+    write_info,
 };
 pub use read::{parse_episode, parse_episode_prefix, read_episode};
 pub use write::{EpisodeWriter, create_episode, write_episode};
@@ -127,7 +128,7 @@ pub struct Episode {
     pub frames: Vec<EpisodeFrame>,
 }
 
-pub(super) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError> {
+pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError> {
     let n = info.hand_from_finger.len();
     if info.finger_faces.len() != n || info.finger_num_vertices.len() != n {
         return Err(format_err(

@@ -8,9 +8,9 @@ use moe_geom::{Iso3, Point3};
 use serde::{Deserialize, Serialize};
 
 use super::foxglove::{
-    CONTACT_COLOR, FREE_COLOR, camera_calibration, color_image, decode, encode, faces_of, fg_color,
-    fg_transform, first_triangles, format_err, iso_from, mesh_entity, points_of, schema_of,
-    spheres_entity, timestamp,
+    camera_calibration, color_image, contact_mesh_entity, decode, encode, faces_of, fg_transform,
+    first_triangles, format_err, iso_from, mesh_entity, points_of, schema_of, spheres_entity,
+    timestamp,
 };
 use super::{EpisodeFrame, EpisodeInfo, ObstacleMesh};
 use crate::error::IoError;
@@ -195,18 +195,12 @@ impl Topic {
                     .iter()
                     .enumerate()
                     .map(|(f, faces)| {
-                        let mut colors =
-                            vec![fg_color(FREE_COLOR).expect("some"); info.finger_num_vertices[f]];
-                        for &v in &frame.contact_vertices[f] {
-                            colors[v as usize] = fg_color(CONTACT_COLOR).expect("some");
-                        }
-                        mesh_entity(
+                        contact_mesh_entity(
                             t,
-                            "hand",
                             format!("finger_{f}"),
                             &frame.finger_vertices_in_hand[f],
                             faces,
-                            Some(colors),
+                            &frame.contact_vertices[f],
                         )
                     })
                     .collect(),

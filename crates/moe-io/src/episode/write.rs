@@ -1,10 +1,9 @@
 //! Writing episodes.
 
-use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
-use super::foxglove::{format_err, mcap_err};
+use super::foxglove::{add_channel, format_err, mcap_err, mcap_writer, write_info};
 use super::topic::{INFO_TOPIC, Topic};
 use super::{EpisodeFrame, EpisodeInfo, check_frame, check_info};
 use crate::atomic::AtomicFile;
@@ -38,48 +37,13 @@ impl<W: Write + Seek> EpisodeWriter<W> {
     /// `path` names the destination in errors (use [`crate::MEMORY`] for an in-memory sink).
     pub fn new(sink: W, info: &EpisodeInfo, path: &Path) -> Result<Self, IoError> {
         check_info(path, info)?;
-        // One chunk per frame (closed by `flush` after each frame, so no size limit), compressed
-        // on this thread: the output does not depend on the machine's core count.
-        let options = mcap::WriteOptions::new()
-            .profile("")
-            .library("moe-touch")
-            .compression(Some(mcap::Compression::Zstd))
-            .compression_threads(0)
-            .use_chunks(true)
-            .chunk_size(None);
-        let mut writer = options.create(sink).map_err(|e| mcap_err(path, e))?;
-        let mut channel = |topic: &str,
-                           (name, encoding, data): (String, String, Vec<u8>),
-                           message_encoding: &str| {
-            let schema = writer
-                .add_schema(&name, &encoding, &data)
-                .map_err(|e| mcap_err(path, e))?;
-            writer
-                .add_channel(schema, topic, message_encoding, &BTreeMap::new())
-                .map_err(|e| mcap_err(path, e))
-        };
-        let info_schema = (
-            "moe.EpisodeInfo".to_owned(),
-            "jsonschema".to_owned(),
-            br#"{"type":"object"}"#.to_vec(),
-        );
-        let info_channel = channel(INFO_TOPIC, info_schema, "json")?;
+        let mut writer = mcap_writer(sink, path)?;
+        write_info(&mut writer, path, INFO_TOPIC, "moe.EpisodeInfo", info)?;
         let mut channels = [0u16; Topic::ALL.len()];
         for (slot, topic) in channels.iter_mut().zip(Topic::ALL) {
             let (schema, encoding) = topic.schema();
-            *slot = channel(topic.name(), schema, encoding)?;
+            *slot = add_channel(&mut writer, path, topic.name(), schema, encoding)?;
         }
-        let body = serde_json::to_vec(info).map_err(|e| format_err(path, e.to_string()))?;
-        let header = mcap::records::MessageHeader {
-            channel_id: info_channel,
-            sequence: 0,
-            log_time: 0,
-            publish_time: 0,
-        };
-        writer
-            .write_to_known_channel(&header, &body)
-            .map_err(|e| mcap_err(path, e))?;
-        writer.flush().map_err(|e| mcap_err(path, e))?;
         Ok(Self {
             path: path.to_path_buf(),
             writer,
