@@ -37,7 +37,7 @@ mod segment;
 mod track;
 
 use linfa::traits::Transformer;
-use linfa_clustering::Dbscan;
+use linfa_clustering::{Dbscan, DbscanParamsError};
 use moe_geom::{HandFromCamera, HandKeypoints, HandModel, Point3, Real};
 use moe_tendon_sim::camera::CameraIntrinsics;
 use serde::{Deserialize, Serialize};
@@ -369,13 +369,16 @@ impl MarkerDetector {
         let labels = Dbscan::params(self.config.dbscan_min_points)
             .tolerance(self.config.dbscan_eps_m)
             .transform(&obs)
-            .map_err(|e| TouchError::InvalidDetector {
-                name: "dbscan",
-                value: self.config.dbscan_eps_m,
-                reason: if e.to_string().contains("points") {
-                    "min_points must be at least 2"
-                } else {
-                    "tolerance must be positive"
+            .map_err(|e| match e {
+                DbscanParamsError::MinPoints => TouchError::InvalidDetector {
+                    name: "dbscan_min_points",
+                    value: self.config.dbscan_min_points as Real,
+                    reason: "must be at least 2",
+                },
+                DbscanParamsError::Tolerance => TouchError::InvalidDetector {
+                    name: "dbscan_eps_m",
+                    value: self.config.dbscan_eps_m,
+                    reason: "must be positive",
                 },
             })?;
         Ok(labels.to_vec())
