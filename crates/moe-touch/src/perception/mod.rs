@@ -2,9 +2,9 @@
 //! position of every marker of every finger, or `None` where a marker is not seen.
 //!
 //! Per frame:
-//! 1. **Segmentation**: a pixel is a marker pixel when its HSV colour passes
-//!    [`DetectorConfig`]'s hue window, saturation and value thresholds (integer arithmetic; the
-//!    grey silicone fails on saturation before any hue is computed).
+//! 1. **Segmentation**: a pixel is a marker pixel when its HSV colour passes the hue window,
+//!    saturation and value thresholds of [`DetectorConfig`](crate::perception::DetectorConfig)
+//!    (integer arithmetic; the grey silicone fails on saturation before any hue is computed).
 //! 2. **Back-projection**: marker pixels with valid depth (finite, positive; NaN, zero and
 //!    negative depth are missing) are lifted into the camera frame with the pinhole intrinsics.
 //! 3. **Pre-grouping**: the lifted points are binned into cubic voxels of `voxel_m` (1 mm) in
@@ -16,12 +16,12 @@
 //!    `dbscan_eps_m`, core size `dbscan_min_points` (counting the point itself). Clusters with
 //!    fewer than `min_cluster_pixels` pixels or a radius above `max_cluster_radius_m` are
 //!    rejected (red noise, a red object).
-//! 5. **Centre**: [`CentreMethod::SurfaceFit`] by default (see [`centre`](self) for why a plain
-//!    centroid is biased on a curved finger), mapped into the hand frame with the calibrated
-//!    `hand_from_camera`.
+//! 5. **Centre**: [`CentreMethod::SurfaceFit`](crate::perception::CentreMethod::SurfaceFit)
+//!    by default (the private `centre` module explains why a plain centroid is biased on a
+//!    curved finger), mapped into the hand frame with the calibrated `hand_from_camera`.
 //! 6. **Identity**: clusters are assigned to markers by optimal (minimum total distance)
 //!    one-to-one assignment within per-marker gates. Without a usable prior (the first frame,
-//!    after [`MarkerDetector::reset`], or when every track has been lost) the expected positions
+//!    after [`MarkerDetector::reset`](crate::perception::MarkerDetector::reset), or when every track has been lost) the expected positions
 //!    are the rest markers; after that each marker's own track predicts it by constant
 //!    velocity. Markers still unmatched are then predicted along their finger from the
 //!    neighbours found in this frame and matched in further rounds, which finds the markers of
