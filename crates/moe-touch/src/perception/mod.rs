@@ -21,8 +21,8 @@
 //!    curved finger), mapped into the hand frame with the calibrated `hand_from_camera`.
 //! 6. **Identity**: clusters are assigned to markers by optimal (minimum total distance)
 //!    one-to-one assignment within per-marker gates. Without a usable prior (the first frame,
-//!    after [`MarkerDetector::reset`](crate::perception::MarkerDetector::reset), or when every track has been lost) the expected positions
-//!    are the rest markers; after that each marker's own track predicts it by constant
+//!    after [`reset`](crate::perception::MarkerDetector::reset), or when every track has been
+//!    lost) the expected positions are the rest markers; after that each marker's own track predicts it by constant
 //!    velocity. Markers still unmatched are then predicted along their finger from the
 //!    neighbours found in this frame and matched in further rounds, which finds the markers of
 //!    a finger that starts out bent. A marker no cluster matches is `None` — never a guess —
