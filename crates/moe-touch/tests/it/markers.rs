@@ -585,3 +585,41 @@ fn lost_tracks_fall_back_to_the_rest_pose_and_reset_forgets_them() {
         }
     }
 }
+
+#[test]
+fn a_finger_bent_in_the_first_frame_is_found_along_its_chain() {
+    use moe_touch::perception::{ClusterFate, Prior};
+    let hand = two_finger();
+    let camera = ideal_camera();
+    // 0.3 rad at the tip moves the upper markers of finger 1 by more than the 5 mm rest gate.
+    let fingers = bent_fingers(&hand, 0.3);
+    let (img, truth, visible) = render(&camera, &hand, &fingers, &[], 0);
+    let rest = hand.rest_keypoints();
+    let far = (0..7)
+        .filter(|&m| (rest.fingers[1][m].unwrap() - truth[1][m]).norm() > 5e-3)
+        .count();
+    assert!(far >= 2, "the bend moves {far} markers past the rest gate");
+    let det = detector(&camera, &hand, DetectorConfig::default())
+        .detect(&img.color, &img.depth_m)
+        .unwrap();
+    for m in 0..7 {
+        assert!(visible[1][m]);
+        let e = (det.keypoints.fingers[1][m].expect("found") - truth[1][m]).norm();
+        assert!(e < 6e-4, "marker 1.{m}: {:.2} mm", 1e3 * e);
+    }
+    let chained = det
+        .diagnostics
+        .clusters
+        .iter()
+        .filter(|c| {
+            matches!(
+                c.fate,
+                ClusterFate::Assigned {
+                    prior: Prior::Chain,
+                    ..
+                }
+            )
+        })
+        .count();
+    assert!(chained >= far, "{chained} markers found along the chain");
+}
