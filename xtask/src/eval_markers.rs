@@ -14,7 +14,7 @@ use moe_tendon_sim::randomize::run_saving;
 use moe_tendon_sim::{Scene, SceneConfig};
 use moe_touch::episode::EpisodeRecorder;
 use moe_touch::perception::overlay::draw_detection;
-use moe_touch::perception::score::{EpisodeMarkerReport, evaluate_episode};
+use moe_touch::perception::score::{EpisodeMarkerReport, MarkerScore, evaluate_episode};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use serde_json::json;
 
@@ -150,27 +150,22 @@ fn summary_of(plates: &[&EpisodeMarkerReport]) -> serde_json::Value {
         return serde_json::Value::Null;
     }
     let n = plates.len() as f64;
-    let visible: usize = plates.iter().map(|r| r.markers.visible).sum();
-    let detected: usize = plates.iter().map(|r| r.markers.detected).sum();
-    let frames: usize = plates.iter().map(|r| r.markers.frames).sum();
-    let weighted_error: f64 = plates
-        .iter()
-        .map(|r| r.markers.mean_error_mm * (r.markers.detected + r.markers.detected_hidden) as f64)
-        .sum();
-    let found: usize = plates
-        .iter()
-        .map(|r| r.markers.detected + r.markers.detected_hidden)
-        .sum();
+    let mut pooled = MarkerScore::default();
+    for r in plates {
+        pooled.merge(&r.score);
+    }
+    let m = pooled.report();
     json!({
         "scenes": plates.len(),
-        "frames": frames,
-        "visible": visible,
-        "detected": detected,
-        "detection_rate": if visible == 0 { 1.0 } else { detected as f64 / visible as f64 },
-        "mean_error_mm": weighted_error / found.max(1) as f64,
-        "max_error_mm": plates.iter().map(|r| r.markers.max_error_mm).fold(0.0, f64::max),
-        "false_detections": plates.iter().map(|r| r.markers.false_detections).sum::<usize>(),
-        "identity_swaps": plates.iter().map(|r| r.markers.identity_swaps).sum::<usize>(),
+        "frames": m.frames,
+        "visible": m.visible,
+        "detected": m.detected,
+        "detection_rate": m.detection_rate,
+        "mean_error_mm": m.mean_error_mm,
+        "p95_error_mm": m.p95_error_mm,
+        "max_error_mm": m.max_error_mm,
+        "false_detections": m.false_detections,
+        "identity_swaps": m.identity_swaps,
         "shape_bcd_detected_mm": plates.iter().map(|r| r.shape_bcd_detected_mm).sum::<f64>() / n,
         "shape_bcd_truth_mm": plates.iter().map(|r| r.shape_bcd_truth_mm).sum::<f64>() / n,
         "shape_bcd_truth_visible_mm": plates.iter().map(|r| r.shape_bcd_truth_visible_mm).sum::<f64>() / n,
@@ -205,10 +200,11 @@ fn format_table(reports: &[EpisodeMarkerReport], plates: &serde_json::Value) -> 
     if !plates.is_null() {
         let f = |k: &str| plates[k].as_f64().unwrap_or(f64::NAN);
         s.push_str(&format!(
-            "plates pooled: {:.2} % of {} visible markers detected, mean error {:.2} mm (max {:.2}), {} false, {} swaps; shape BCD {:.3} mm from detections, {:.3} mm from the visible true markers, {:.3} mm from every true marker (worst frame +{:.3} mm)",
+            "plates pooled: {:.2} % of {} visible markers detected, error mean {:.2} / p95 {:.2} / max {:.2} mm, {} false, {} swaps; shape BCD {:.3} mm from detections, {:.3} mm from the visible true markers, {:.3} mm from every true marker (worst frame +{:.3} mm)",
             100.0 * f("detection_rate"),
             f("visible"),
             f("mean_error_mm"),
+            f("p95_error_mm"),
             f("max_error_mm"),
             f("false_detections"),
             f("identity_swaps"),

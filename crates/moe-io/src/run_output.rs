@@ -25,8 +25,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::episode::{
     EpisodeInfo, ObstacleMesh, add_channel, camera_calibration, color_image, contact_mesh_entity,
-    encode, fg_color, fg_transform, format_err, mcap_err, mcap_writer, mesh_entity, schema_of,
-    spheres_entity, write_info,
+    encode, fg_color, fg_transform, format_err, mcap_err, mcap_writer, mesh_entity,
+    obstacle_entities, schema_of, spheres_entity, write_info, write_message,
 };
 use crate::error::IoError;
 
@@ -160,16 +160,14 @@ impl<W: Write + Seek> RunWriter<W> {
         let messages = self.encode(frame)?;
         for (channel, data) in self.channels.iter().zip(messages) {
             let Some(data) = data else { continue };
-            let header = mcap::records::MessageHeader {
-                channel_id: *channel,
-                sequence: self.sequence,
-                log_time: frame.time_ns,
-                publish_time: frame.time_ns,
-            };
-            self.writer
-                .write_to_known_channel(&header, &data)
-                .map_err(|e| mcap_err(&path, e))?;
-            self.sequence += 1;
+            write_message(
+                &mut self.writer,
+                &path,
+                *channel,
+                &mut self.sequence,
+                frame.time_ns,
+                &data,
+            )?;
         }
         self.writer.flush().map_err(|e| mcap_err(&path, e))
     }
@@ -302,20 +300,7 @@ impl<W: Write + Seek> RunWriter<W> {
                         &tr.contact_vertices[f],
                     ));
                 }
-                let obstacles = tr
-                    .obstacles
-                    .iter()
-                    .map(|o| {
-                        mesh_entity(
-                            t,
-                            "world",
-                            o.name.clone(),
-                            &o.vertices_in_world,
-                            &o.faces,
-                            None,
-                        )
-                    })
-                    .collect();
+                let obstacles = obstacle_entities(t, &tr.obstacles);
                 (
                     Some(update(entities)),
                     Some(update(vec![spheres_entity(

@@ -8,8 +8,7 @@ use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_arap::{MultiShapeEstimator, ShapeOptions};
-use moe_geom::{FingerParams, HandModel, HandPreset, Transform, WorldFromHand};
-use moe_touch::perception::score::episode_intrinsics;
+use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::{Pipeline, RgbdFrame};
@@ -23,13 +22,8 @@ fn pipeline(
     let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
         .expect("the shipped model loads");
     let threshold = model.threshold();
-    let detector = MarkerDetector::new(
-        episode_intrinsics(&episode.info),
-        Transform::new(episode.info.hand_from_camera),
-        hand,
-        DetectorConfig::default(),
-    )
-    .expect("detector");
+    let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())
+        .expect("detector");
     let shape = moe_touch::contact_eval::study_shape_estimator(hand, &options).expect("SR-ARAP");
     Pipeline::new(hand.clone(), detector, shape, model, threshold).expect("pipeline")
 }

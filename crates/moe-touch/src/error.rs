@@ -54,6 +54,16 @@ pub enum TouchError {
         /// Size given.
         got: usize,
     },
+    /// A parameter of the pipeline (contact threshold, temporal filter) is out of range.
+    #[error("{name} = {value}: {reason}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// A marker-detector parameter is out of range.
     #[error("marker detector: {name} = {value}: {reason}")]
     InvalidDetector {

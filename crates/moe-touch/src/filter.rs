@@ -32,14 +32,14 @@ impl KalmanConfig {
     /// Checks the noise levels.
     ///
     /// # Errors
-    /// [`TouchError::InvalidDetector`] for a level that is not finite and positive.
+    /// [`TouchError::InvalidParameter`] for a level that is not finite and positive.
     pub fn validate(&self) -> Result<(), TouchError> {
         for (name, value) in [
-            ("measurement_std_m", self.measurement_std_m),
-            ("acceleration_std_m", self.acceleration_std_m),
+            ("kalman measurement_std_m", self.measurement_std_m),
+            ("kalman acceleration_std_m", self.acceleration_std_m),
         ] {
             if !(value.is_finite() && value > 0.0) {
-                return Err(TouchError::InvalidDetector {
+                return Err(TouchError::InvalidParameter {
                     name,
                     value,
                     reason: "must be finite and positive",
@@ -193,10 +193,10 @@ impl ContactSmoother {
     /// A smoother with weight `alpha` on the new frame.
     ///
     /// # Errors
-    /// [`TouchError::InvalidDetector`] for `alpha` outside `(0, 1]`.
+    /// [`TouchError::InvalidParameter`] for `alpha` outside `(0, 1]`.
     pub fn new(alpha: Real) -> Result<Self, TouchError> {
         if !(alpha > 0.0 && alpha <= 1.0) {
-            return Err(TouchError::InvalidDetector {
+            return Err(TouchError::InvalidParameter {
                 name: "contact smoothing",
                 value: alpha,
                 reason: "must be in (0, 1]",
@@ -314,14 +314,25 @@ mod tests {
         assert_eq!(s.smooth(&map(1.0)), map(1.0));
         assert_eq!(s.smooth(&map(0.0)).fingers[0], vec![0.5, 0.5]);
         assert_eq!(s.smooth(&map(0.0)).fingers[0], vec![0.25, 0.75]);
-        assert!(ContactSmoother::new(0.0).is_err());
-        assert!(ContactSmoother::new(Real::NAN).is_err());
-        assert!(
+        for alpha in [0.0, 1.5, Real::NAN] {
+            assert!(matches!(
+                ContactSmoother::new(alpha),
+                Err(TouchError::InvalidParameter {
+                    name: "contact smoothing",
+                    ..
+                })
+            ));
+        }
+        assert!(ContactSmoother::new(1.0).is_ok());
+        assert!(matches!(
             KeypointFilter::new(KalmanConfig {
                 measurement_std_m: -1.0,
                 ..KalmanConfig::default()
+            }),
+            Err(TouchError::InvalidParameter {
+                name: "kalman measurement_std_m",
+                ..
             })
-            .is_err()
-        );
+        ));
     }
 }

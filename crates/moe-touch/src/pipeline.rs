@@ -85,7 +85,7 @@ where
     /// (the model card's, for a trained model) are contact points.
     ///
     /// # Errors
-    /// [`TouchError::InvalidEvaluation`] for a threshold outside `[0, 1]`.
+    /// [`TouchError::InvalidParameter`] for a threshold outside `[0, 1]`.
     pub fn new(
         hand: HandModel,
         detector: MarkerDetector,
@@ -94,8 +94,10 @@ where
         threshold: Real,
     ) -> Result<Self, TouchError> {
         if !(0.0..=1.0).contains(&threshold) {
-            return Err(TouchError::InvalidEvaluation {
-                reason: format!("contact threshold {threshold} is not in [0, 1]"),
+            return Err(TouchError::InvalidParameter {
+                name: "contact threshold",
+                value: threshold,
+                reason: "must be in [0, 1]",
             });
         }
         Ok(Self {

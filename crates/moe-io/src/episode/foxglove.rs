@@ -10,7 +10,7 @@ use moe_geom::math::UnitQuat;
 use moe_geom::nalgebra;
 use moe_geom::{Iso3, Point3, Vector3};
 
-use super::CameraInfo;
+use super::{CameraInfo, ObstacleMesh};
 use crate::error::IoError;
 
 /// Colour of contact vertices on true meshes.
@@ -328,4 +328,43 @@ pub(crate) fn contact_mesh_entity(
         }
     }
     mesh_entity(time_ns, "hand", id, vertices, faces, Some(colors))
+}
+
+/// The obstacles' meshes as entities in the world frame.
+pub(crate) fn obstacle_entities(time_ns: u64, obstacles: &[ObstacleMesh]) -> Vec<fg::SceneEntity> {
+    obstacles
+        .iter()
+        .map(|o| {
+            mesh_entity(
+                time_ns,
+                "world",
+                o.name.clone(),
+                &o.vertices_in_world,
+                &o.faces,
+                None,
+            )
+        })
+        .collect()
+}
+
+/// Writes one message of a frame on `channel` and advances the sequence number.
+pub(crate) fn write_message<W: Write + Seek>(
+    writer: &mut mcap::Writer<W>,
+    path: &Path,
+    channel: u16,
+    sequence: &mut u32,
+    time_ns: u64,
+    data: &[u8],
+) -> Result<(), IoError> {
+    let header = mcap::records::MessageHeader {
+        channel_id: channel,
+        sequence: *sequence,
+        log_time: time_ns,
+        publish_time: time_ns,
+    };
+    writer
+        .write_to_known_channel(&header, data)
+        .map_err(|e| mcap_err(path, e))?;
+    *sequence += 1;
+    Ok(())
 }

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::foxglove::{
     camera_calibration, color_image, contact_mesh_entity, decode, encode, faces_of, fg_transform,
-    first_triangles, format_err, iso_from, mesh_entity, points_of, schema_of, spheres_entity,
+    first_triangles, format_err, iso_from, obstacle_entities, points_of, schema_of, spheres_entity,
     timestamp,
 };
 use super::{EpisodeFrame, EpisodeInfo, ObstacleMesh};
@@ -226,22 +226,7 @@ impl Topic {
                     })
                     .collect(),
             ),
-            Topic::Obstacles => update(
-                frame
-                    .obstacles
-                    .iter()
-                    .map(|o| {
-                        mesh_entity(
-                            t,
-                            "world",
-                            o.name.clone(),
-                            &o.vertices_in_world,
-                            &o.faces,
-                            None,
-                        )
-                    })
-                    .collect(),
-            ),
+            Topic::Obstacles => update(obstacle_entities(t, &frame.obstacles)),
         })
     }
 

@@ -3,7 +3,7 @@
 use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
-use super::foxglove::{add_channel, format_err, mcap_err, mcap_writer, write_info};
+use super::foxglove::{add_channel, format_err, mcap_err, mcap_writer, write_info, write_message};
 use super::topic::{INFO_TOPIC, Topic};
 use super::{EpisodeFrame, EpisodeInfo, check_frame, check_info};
 use crate::atomic::AtomicFile;
@@ -71,16 +71,14 @@ impl<W: Write + Seek> EpisodeWriter<W> {
         self.last_time_ns = Some(frame.time_ns);
         for (channel, topic) in self.channels.iter().zip(Topic::ALL) {
             let data = topic.encode(path, &self.info, frame)?;
-            let header = mcap::records::MessageHeader {
-                channel_id: *channel,
-                sequence: self.sequence,
-                log_time: frame.time_ns,
-                publish_time: frame.time_ns,
-            };
-            self.writer
-                .write_to_known_channel(&header, &data)
-                .map_err(|e| mcap_err(path, e))?;
-            self.sequence += 1;
+            write_message(
+                &mut self.writer,
+                path,
+                *channel,
+                &mut self.sequence,
+                frame.time_ns,
+                &data,
+            )?;
         }
         // Close the frame's chunk: everything up to here survives a cut.
         self.writer.flush().map_err(|e| mcap_err(path, e))

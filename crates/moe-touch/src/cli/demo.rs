@@ -8,11 +8,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::ShapeOptions;
-use moe_geom::{HandModel, Point3, Transform};
+use moe_geom::{HandModel, Point3};
 use moe_touch::Pipeline;
 use moe_touch::contact_eval::contact_ply;
 use moe_touch::perception::overlay::draw_keypoints;
-use moe_touch::perception::score::{check_hand, episode_intrinsics};
+use moe_touch::perception::score::check_hand;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::run::{RunReport, run_episode, run_info};
@@ -56,14 +56,9 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
     let model = load_contact_model(&model_path, &hand)
         .with_context(|| format!("model {}", model_path.display()))?;
     let threshold = model.threshold();
-    let intrinsics = episode_intrinsics(&episode.info);
-    let hand_from_camera = Transform::new(episode.info.hand_from_camera);
-    let detector = MarkerDetector::new(
-        intrinsics,
-        hand_from_camera,
-        &hand,
-        DetectorConfig::default(),
-    )?;
+    let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())?;
+    let intrinsics = *detector.intrinsics();
+    let hand_from_camera = detector.hand_from_camera();
     let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &ShapeOptions::default())?;
     let mut pipeline = Pipeline::new(hand.clone(), detector, shape, model, threshold)?;
     let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, None)?;

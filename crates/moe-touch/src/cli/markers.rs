@@ -8,11 +8,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::ShapeOptions;
-use moe_geom::{Point3, Transform};
+use moe_geom::Point3;
 use moe_touch::perception::overlay::draw_detection;
-use moe_touch::perception::score::{
-    EpisodeMarkerReport, check_hand, episode_intrinsics, evaluate_episode,
-};
+use moe_touch::perception::score::{EpisodeMarkerReport, check_hand, evaluate_episode};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use serde::Serialize;
 
@@ -72,13 +70,8 @@ pub(crate) fn run(args: MarkersArgs) -> Result<()> {
     let hand = super::load_hand(&args.hand)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
-    let mut detector = MarkerDetector::new(
-        episode_intrinsics(&episode.info),
-        Transform::new(episode.info.hand_from_camera),
-        &hand,
-        config,
-    )
-    .with_context(|| format!("the camera of {}", args.episode.display()))?;
+    let mut detector = MarkerDetector::for_episode(&episode.info, &hand, config)
+        .with_context(|| format!("the camera of {}", args.episode.display()))?;
     let (detections, report) = evaluate_episode(
         &hand,
         &episode.info,

@@ -7,10 +7,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::ShapeOptions;
-use moe_geom::Transform;
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
-use moe_touch::perception::score::{check_hand, episode_intrinsics};
+use moe_touch::perception::score::check_hand;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::run::{RunReport, run_episode, run_info};
@@ -87,13 +86,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let model = load_contact_model(&args.model, &hand)
         .with_context(|| format!("model {} on hand '{}'", args.model.display(), args.hand))?;
     let threshold = model.threshold();
-    let detector = MarkerDetector::new(
-        episode_intrinsics(&episode.info),
-        Transform::new(episode.info.hand_from_camera),
-        &hand,
-        config,
-    )
-    .with_context(|| format!("the camera of {}", args.episode.display()))?;
+    let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
+        .with_context(|| format!("the camera of {}", args.episode.display()))?;
     let options = ShapeOptions {
         iterations: args.iterations,
         warm_start: args.warm_start,

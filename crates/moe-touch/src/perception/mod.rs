@@ -295,6 +295,23 @@ impl MarkerDetector {
         })
     }
 
+    /// A detector for the camera of a recorded episode (its intrinsics and mounting).
+    ///
+    /// # Errors
+    /// As [`MarkerDetector::new`].
+    pub fn for_episode(
+        info: &moe_io::EpisodeInfo,
+        hand: &HandModel,
+        config: DetectorConfig,
+    ) -> Result<Self, TouchError> {
+        Self::new(
+            score::episode_intrinsics(info),
+            moe_geom::Transform::new(info.hand_from_camera),
+            hand,
+            config,
+        )
+    }
+
     /// The parameters.
     pub fn config(&self) -> &DetectorConfig {
         &self.config
@@ -403,13 +420,19 @@ impl MarkerDetector {
             .map(|points| {
                 let c = centre::centroid(&points);
                 let radius_m = points.iter().map(|p| (p - c).norm()).fold(0.0, Real::max);
-                let centre_cam = centre::marker_centre(&points, self.config.centre);
                 let fate = if points.len() < self.config.min_cluster_pixels {
                     Some(ClusterFate::TooSmall)
                 } else if radius_m > self.config.max_cluster_radius_m {
                     Some(ClusterFate::TooLarge)
                 } else {
                     None
+                };
+                // Rejected clusters (a red card can have thousands of pixels) are reported at
+                // their centroid: the surface fit is for markers.
+                let centre_cam = if fate.is_none() {
+                    centre::marker_centre(&points, self.config.centre)
+                } else {
+                    c
                 };
                 let centre_px = self
                     .intrinsics

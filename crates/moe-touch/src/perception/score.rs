@@ -249,6 +249,9 @@ pub struct EpisodeMarkerReport {
     pub shape_bcd_worst_excess_mm: Real,
     /// Mean detection time per frame, milliseconds (this machine, this build).
     pub detect_ms: Real,
+    /// The tallies behind `markers`, to pool several episodes with [`MarkerScore::merge`].
+    #[serde(skip)]
+    pub score: MarkerScore,
 }
 
 /// Runs `detector` over an episode's frames in order (tracks carry from frame to frame) and
@@ -330,6 +333,7 @@ pub fn evaluate_episode(
         shape_bcd_truth_visible_mm: 1e3 * visible_sum / n,
         shape_bcd_worst_excess_mm: if frames.is_empty() { 0.0 } else { 1e3 * worst },
         detect_ms: 1e3 * seconds / n,
+        score,
     });
     Ok((detections, report))
 }

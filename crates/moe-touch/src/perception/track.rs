@@ -109,7 +109,7 @@ impl Tracker {
     pub(super) fn chain_prediction(&self, k: usize, found: &[Option<Point3>]) -> Point3 {
         let (f, m) = self.ids[k];
         let base = self.first[f];
-        let count = self.ids.iter().filter(|id| id.0 == f).count();
+        let count = self.first.get(f + 1).copied().unwrap_or(self.len()) - base;
         let at = |mm: isize| -> Option<Point3> {
             (0..count as isize)
                 .contains(&mm)

@@ -2,9 +2,8 @@
 
 use moe_arap::ShapeOptions;
 use moe_contact::ContactEstimator;
-use moe_geom::{FingerParams, HandModel, HandPreset, Transform, WorldFromHand};
+use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
 use moe_touch::contact_eval::study_shape_estimator;
-use moe_touch::perception::score::episode_intrinsics;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::{Pipeline, RgbdFrame, TouchError};
@@ -20,13 +19,7 @@ fn episode() -> moe_io::Episode {
 }
 
 fn detector(hand: &HandModel, episode: &moe_io::Episode) -> MarkerDetector {
-    MarkerDetector::new(
-        episode_intrinsics(&episode.info),
-        Transform::new(episode.info.hand_from_camera),
-        hand,
-        DetectorConfig::default(),
-    )
-    .unwrap()
+    MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default()).unwrap()
 }
 
 fn model_path() -> std::path::PathBuf {
@@ -295,4 +288,30 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
     let data = moe_io::read_ply(&out.join(ply)).unwrap();
     assert_eq!(data.points.len(), 1024);
     assert!(data.scalars.iter().any(|(n, _)| n == "contact_probability"));
+}
+
+#[test]
+fn a_contact_threshold_outside_the_unit_interval_is_refused() {
+    let hand = hand();
+    let episode = episode();
+    for threshold in [-0.1, 1.5, f64::NAN] {
+        let err = Pipeline::new(
+            hand.clone(),
+            detector(&hand, &episode),
+            study_shape_estimator(&hand, &ShapeOptions::default()).unwrap(),
+            load_contact_model(&model_path(), &hand).unwrap(),
+            threshold,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TouchError::InvalidParameter {
+                    name: "contact threshold",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
 }
