@@ -4,8 +4,8 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_arap::{MultiShapeEstimator, ShapeOptions};
-use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, Vector3};
+use moe_arap::{ArapConfig, ArapSolver, ComponentSolver, MultiShapeEstimator, ShapeOptions, Start};
+use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, TriMesh, Vector3};
 
 /// Keypoints of a gentle bend toward each finger's +x side: marker `m` moves by a displacement
 /// growing with its height (deterministic, no randomness needed).
@@ -61,5 +61,59 @@ fn arap(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, arap);
+/// The hand as one mesh (the fingers' meshes in the hand frame, side by side) with its base and
+/// marker vertices fixed at the bent keypoints: what `moe-touch arap` solves for an exported hand.
+fn hand_as_one_mesh(
+    hand: &HandModel,
+    keypoints: &HandKeypoints,
+) -> (TriMesh, Vec<u32>, Vec<Point3>) {
+    let mut vertices = Vec::new();
+    let mut faces = Vec::new();
+    let mut fixed = Vec::new();
+    let mut targets = Vec::new();
+    for (i, (f, kp)) in hand.fingers().iter().zip(&keypoints.fingers).enumerate() {
+        let offset = vertices.len() as u32;
+        let rest = hand.rest_vertices_in_hand(i);
+        faces.extend(f.model.mesh().faces().iter().map(|t| t.map(|v| v + offset)));
+        for &b in f.model.base_vertices() {
+            fixed.push(b + offset);
+            targets.push(rest[b as usize]);
+        }
+        for (&m, p) in f.model.marker_vertices().iter().zip(kp) {
+            fixed.push(m + offset);
+            targets.push(p.expect("every marker seen"));
+        }
+        vertices.extend(rest);
+    }
+    (TriMesh::new(vertices, faces).expect("mesh"), fixed, targets)
+}
+
+fn arap_single_mesh(c: &mut Criterion) {
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("preset");
+    let (mesh, fixed, targets) = hand_as_one_mesh(&hand, &bent_keypoints(&hand, 0.015));
+    let config = ArapConfig::default();
+    let split = ComponentSolver::new(&mesh, &config, &fixed, &[]).expect("solver");
+    assert_eq!(split.num_parts(), 2);
+    c.bench_function("arap/two-finger-one-mesh/50-iterations-by-part", |b| {
+        b.iter(|| {
+            black_box(
+                split
+                    .solve(black_box(&targets), &[], Start::Rest)
+                    .expect("solve"),
+            )
+        })
+    });
+    let whole = ArapSolver::new(&mesh, &config, &fixed, &[]).expect("solver");
+    c.bench_function("arap/two-finger-one-mesh/50-iterations-whole", |b| {
+        b.iter(|| {
+            black_box(
+                whole
+                    .solve(black_box(&targets), &[], Start::Rest)
+                    .expect("solve"),
+            )
+        })
+    });
+}
+
+criterion_group!(benches, arap, arap_single_mesh);
 criterion_main!(benches);

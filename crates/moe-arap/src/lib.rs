@@ -69,6 +69,8 @@
 
 /// ARAP cells (spokes, spokes and rims) and per-edge data.
 mod cells;
+/// Meshes of several connected parts, one solver per part.
+mod components;
 /// Solver configuration.
 mod config;
 /// The crate's error type.
@@ -88,6 +90,7 @@ mod targets;
 #[cfg(test)]
 mod testmesh;
 
+pub use components::ComponentSolver;
 pub use config::{ArapConfig, ArapEnergy};
 pub use error::ArapError;
 pub use moe_geom::HandShape;

@@ -274,7 +274,12 @@ impl ArapSolver {
         start: Start<'_>,
         info: &mut ArapInfo,
     ) -> Result<(), ArapError> {
-        self.check_inputs(fixed_targets, handle_targets, start)?;
+        check_inputs(
+            [self.rest.len(), self.fixed.len(), self.handles.len()],
+            fixed_targets,
+            handle_targets,
+            start,
+        )?;
         info.iterations = 0;
         info.energy.clear();
         info.handles_used.clear();
@@ -340,52 +345,6 @@ impl ArapSolver {
             e += s * sum;
         }
         e
-    }
-
-    fn check_inputs(
-        &self,
-        fixed_targets: &[Point3],
-        handle_targets: &[Option<Point3>],
-        start: Start<'_>,
-    ) -> Result<(), ArapError> {
-        let count = |what, expected, got| {
-            if expected == got {
-                Ok(())
-            } else {
-                Err(ArapError::LengthMismatch {
-                    what,
-                    expected,
-                    got,
-                })
-            }
-        };
-        count("fixed targets", self.fixed.len(), fixed_targets.len())?;
-        count("handle targets", self.handles.len(), handle_targets.len())?;
-        if let Some(index) = fixed_targets.iter().position(|p| !is_finite_point(p)) {
-            return Err(ArapError::NonFiniteTarget {
-                what: "fixed target",
-                index,
-            });
-        }
-        if let Some(index) = handle_targets
-            .iter()
-            .position(|p| p.is_some_and(|p| !is_finite_point(&p)))
-        {
-            return Err(ArapError::NonFiniteTarget {
-                what: "handle target",
-                index,
-            });
-        }
-        if let Start::Positions(p) = start {
-            count("start positions", self.rest.len(), p.len())?;
-            if let Some(index) = p.iter().position(|p| !is_finite_point(p)) {
-                return Err(ArapError::NonFiniteTarget {
-                    what: "start position",
-                    index,
-                });
-            }
-        }
-        Ok(())
     }
 
     /// Per-solve set-up: fixed-vertex contributions to the right-hand side, the active handles and
@@ -617,7 +576,55 @@ fn smoothing_energy(coeff: Real, valence: usize, r: &Matrix3, sum: &Matrix3) -> 
     (coeff * (6.0 * valence as Real - 2.0 * r.dot(sum))).max(0.0)
 }
 
-fn check_id(what: &'static str, v: u32, len: usize) -> Result<usize, ArapError> {
+/// Checks a solve's inputs against `[vertices, fixed, handles]` counts: one target per fixed
+/// vertex and per handle, one start position per vertex, every coordinate finite.
+pub(crate) fn check_inputs(
+    [num_vertices, num_fixed, num_handles]: [usize; 3],
+    fixed_targets: &[Point3],
+    handle_targets: &[Option<Point3>],
+    start: Start<'_>,
+) -> Result<(), ArapError> {
+    let count = |what, expected, got| {
+        if expected == got {
+            Ok(())
+        } else {
+            Err(ArapError::LengthMismatch {
+                what,
+                expected,
+                got,
+            })
+        }
+    };
+    count("fixed targets", num_fixed, fixed_targets.len())?;
+    count("handle targets", num_handles, handle_targets.len())?;
+    if let Some(index) = fixed_targets.iter().position(|p| !is_finite_point(p)) {
+        return Err(ArapError::NonFiniteTarget {
+            what: "fixed target",
+            index,
+        });
+    }
+    if let Some(index) = handle_targets
+        .iter()
+        .position(|p| p.is_some_and(|p| !is_finite_point(&p)))
+    {
+        return Err(ArapError::NonFiniteTarget {
+            what: "handle target",
+            index,
+        });
+    }
+    if let Start::Positions(p) = start {
+        count("start positions", num_vertices, p.len())?;
+        if let Some(index) = p.iter().position(|p| !is_finite_point(p)) {
+            return Err(ArapError::NonFiniteTarget {
+                what: "start position",
+                index,
+            });
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn check_id(what: &'static str, v: u32, len: usize) -> Result<usize, ArapError> {
     let v = v as usize;
     if v < len {
         Ok(v)
