@@ -22,16 +22,14 @@
 //! **Metric.** UCD from the reconstruction's vertices to the ground-truth *surface* (exact
 //! point-to-triangle distance through parry, so the truth's tessellation does not bias it), in mm.
 
-use std::time::Instant;
-
-use moe_geom::{Aabb, Point3, Real, TriMesh, Vector3};
+use moe_geom::{Point3, Real, TriMesh, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::GpisError;
-use crate::mean::{MeanFunction, MeshSdfMean, SphereMean};
-use crate::nonprob::{NonProbConfig, nonprobabilistic};
+use crate::mean::{MeanFunction, MeshSdfMean};
 use crate::observations::Observations;
-use crate::reconstruct::{SurfaceConfig, reconstruct};
+use crate::reconstruct::SurfaceConfig;
+use crate::surface::{SurfaceMethod, SurfaceOptions, reconstruct_surface};
 use moe_geom::SeededRng;
 use moe_geom::bodies::{ArmParams, HeadParams};
 
@@ -263,45 +261,34 @@ impl SceneReport {
     }
 }
 
-// A private helper: bundling its arguments into a struct would only rename them.
-#[allow(clippy::too_many_arguments)]
-fn gp_result<M: MeanFunction>(
-    name: &str,
-    mean: M,
+/// Runs one method through [`reconstruct_surface`] and scores it against the truth.
+fn method_result(
+    options: &SurfaceOptions,
+    scene: &Scene,
     contacts: &Observations,
-    normal_offset_m: Option<Real>,
-    bounds: &Aabb,
-    surface: &SurfaceConfig,
     truth: &MeshSdfMean,
-    extra_secs: Real,
     sink: &mut MeshSink<'_>,
 ) -> Result<(MethodResult, usize), GpisError> {
-    let t = Instant::now();
-    let mut obs = contacts.clone();
-    if let Some(d) = normal_offset_m {
-        obs.add_mean_normal_offsets(&mean, d)?;
-    }
-    let (rec, _) = reconstruct(mean, &obs, bounds, surface)?;
-    let secs = t.elapsed().as_secs_f64() - rec.timings.variance_secs + extra_secs;
-    sink(name, &rec.mesh, &rec.vertex_variance);
-    let h = rec.report.hyper;
+    let (rec, _) = reconstruct_surface(contacts, Some(&scene.prior), options)?;
+    sink(rec.method, &rec.mesh, &rec.vertex_variance);
     let ucd_mm = ucd_to_surface_mm(rec.mesh.vertices(), truth)?;
     let back = reverse_ucd_mm(truth.mesh(), &rec.mesh)?;
+    let hyper = rec.condition.map(|c| c.hyper);
     Ok((
         MethodResult {
-            method: name.to_owned(),
+            method: rec.method.to_owned(),
             ucd_mm,
             ucd_truth_to_recon_mm: back,
             bcd_mm: 0.5 * (ucd_mm + back),
-            secs,
-            variance_secs: rec.timings.variance_secs,
+            secs: rec.secs,
+            variance_secs: rec.timings.map_or(0.0, |t| t.variance_secs),
             vertices: rec.mesh.num_vertices(),
-            lengthscale_mm: Some(1e3 * h.lengthscale),
-            signal_sd_mm: Some(1e3 * h.signal_variance.sqrt()),
-            noise_sd_mm: Some(1e3 * h.noise_variance.sqrt()),
+            lengthscale_mm: hyper.map(|h| 1e3 * h.lengthscale),
+            signal_sd_mm: hyper.map(|h| 1e3 * h.signal_variance.sqrt()),
+            noise_sd_mm: hyper.map(|h| 1e3 * h.noise_variance.sqrt()),
             error: None,
         },
-        rec.grid.num_nodes(),
+        rec.grid_dims.map_or(0, |d| d.iter().product()),
     ))
 }
 
@@ -357,10 +344,6 @@ pub fn evaluate_scene_with(
         noise_sd_mm: None,
         error: None,
     });
-    // GP with the task prior; building the prior's BVH is part of the timed work.
-    let t = Instant::now();
-    let prior_sdf = MeshSdfMean::new(&scene.prior)?;
-    let build = t.elapsed().as_secs_f64();
     let bounds = crate::reconstruct::bounds_of(&scene.contacts, Some(&scene.prior)).ok_or(
         GpisError::TooFewObservations {
             method: "benchmark",
@@ -369,69 +352,37 @@ pub fn evaluate_scene_with(
             got: 0,
         },
     )?;
-    // A method that fails on a scene (e.g. a sphere fit to a flat patch set) is reported as
+    // Both GP methods query the same grid, the task prior's: a narrower box around a sphere
+    // would clip it where it strays from the body and hide that error from the one-way
+    // distance. Building the prior's BVH and fitting the sphere are part of the timed work. A
+    // method that fails on a scene (e.g. a sphere fit to a flat patch set) is reported as
     // failed; the others still run.
-    let grid_nodes = match gp_result(
-        "gp_prior",
-        prior_sdf,
-        &obs,
-        normal_offset_m,
-        &bounds,
-        surface,
-        &truth,
-        build,
-        sink,
-    ) {
-        Ok((result, nodes)) => {
-            methods.push(result);
-            nodes
-        }
-        Err(e) => {
-            methods.push(MethodResult::failed("gp_prior", &e));
-            0
-        }
+    let options = |method: SurfaceMethod| SurfaceOptions {
+        method,
+        surface: *surface,
+        normal_offset_m: normal_offset_m.unwrap_or(0.0),
+        bounds: Some(bounds),
+        ..SurfaceOptions::default()
     };
-    // GP with a sphere fitted to the contacts, queried on the same grid as the task prior so that
-    // both reconstructions cover the same region (a narrower box would clip the sphere where it
-    // strays from the body and hide that error from the one-way distance).
-    let mut gp_sphere = || -> Result<MethodResult, GpisError> {
-        let t = Instant::now();
-        let sphere = SphereMean::fit(&scene.contacts)?;
-        let fit_secs = t.elapsed().as_secs_f64();
-        let (result, _) = gp_result(
-            "gp_sphere",
-            sphere,
-            &obs,
-            normal_offset_m,
-            &bounds,
-            surface,
-            &truth,
-            fit_secs,
-            &mut *sink,
-        )?;
-        Ok(result)
-    };
-    methods.push(gp_sphere().unwrap_or_else(|e| MethodResult::failed("gp_sphere", &e)));
-    // Non-probabilistic baseline.
-    let t = Instant::now();
-    let np = nonprobabilistic(&scene.prior, &scene.contacts, &NonProbConfig::default())?;
-    let secs = t.elapsed().as_secs_f64();
-    sink("nonprob", &np, &[]);
-    let ucd_mm = ucd_to_surface_mm(np.vertices(), &truth)?;
-    let back = reverse_ucd_mm(&scene.truth, &np)?;
-    methods.push(MethodResult {
-        method: "nonprob".to_owned(),
-        ucd_mm,
-        ucd_truth_to_recon_mm: back,
-        bcd_mm: 0.5 * (ucd_mm + back),
-        secs,
-        variance_secs: 0.0,
-        vertices: np.num_vertices(),
-        lengthscale_mm: None,
-        signal_sd_mm: None,
-        noise_sd_mm: None,
-        error: None,
-    });
+    let mut grid_nodes = 0;
+    for method in [
+        SurfaceMethod::Prior { registration: None },
+        SurfaceMethod::Sphere,
+        SurfaceMethod::NonProbabilistic,
+    ] {
+        let name = method.name();
+        let is_prior = matches!(method, SurfaceMethod::Prior { .. });
+        match method_result(&options(method), scene, &obs, &truth, sink) {
+            Ok((result, nodes)) => {
+                if is_prior {
+                    grid_nodes = nodes;
+                }
+                methods.push(result);
+            }
+            Err(e) if name != "nonprob" => methods.push(MethodResult::failed(name, &e)),
+            Err(e) => return Err(e),
+        }
+    }
     Ok(SceneReport {
         scene: kind,
         contacts: scene.contacts.len(),

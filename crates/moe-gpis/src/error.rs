@@ -110,6 +110,12 @@ pub enum GpisError {
         /// What went wrong.
         reason: &'static str,
     },
+    /// The method reconstructs from a prior mesh and none was given.
+    #[error("method {method} needs a prior mesh")]
+    MissingPrior {
+        /// The method's report name.
+        method: &'static str,
+    },
     /// A geometry routine rejected its input (mesh validation, k-d tree, ...).
     #[error(transparent)]
     Geom(#[from] GeomError),

@@ -94,6 +94,8 @@ pub mod reconstruct;
 pub mod register;
 /// Subset-of-regressors sparse approximation for many observations.
 pub mod sparse;
+/// One entry point for every reconstruction method.
+pub mod surface;
 
 pub use bench_scene::{
     FamilyReport, SceneConfig, SceneKind, SceneReport, build_scene, evaluate_family, evaluate_scene,
@@ -118,3 +120,7 @@ pub use register::{
     IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity, register_prior,
 };
 pub use sparse::SparseGp;
+pub use surface::{
+    PreparedMean, PreparedMeanReport, SurfaceMethod, SurfaceOptions, SurfacePosterior,
+    SurfaceResult, condition_surface, prepare_mean, query_bounds, reconstruct_surface,
+};

@@ -6,11 +6,11 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_geom::{Aabb, Point3, TriMesh, Vector3};
+use moe_geom::{Point3, TriMesh};
 use moe_gpis::{
-    ConstantMean, FitConfig, GpisConfig, Hyper, IcpConfig, KernelKind, MeanFunction, MeshSdfMean,
-    Mesher, NonProbConfig, Observations, PoissonOptions, PosePrior, RegistrationKind, SphereMean,
-    SurfaceConfig, bounds_of, condition, nonprobabilistic, reconstruct, register_prior,
+    FitConfig, GpisConfig, Hyper, IcpConfig, IcpReport, KernelKind, Mesher, Observations,
+    PoissonOptions, PosePrior, RegistrationKind, SphereMean, SurfaceConfig, SurfaceMethod,
+    SurfaceOptions, condition_surface, reconstruct_surface,
 };
 use serde_json::json;
 
@@ -173,51 +173,26 @@ fn read_observations(path: &Path) -> Result<Observations> {
     Ok(obs)
 }
 
-fn read_prior(args: &SurfaceArgs) -> Result<TriMesh> {
-    let Some(path) = &args.prior else {
-        bail!("--method {:?} needs --prior PRIOR.obj", args.method);
-    };
-    moe_io::read_mesh(path).with_context(|| format!("reading prior {}", path.display()))
-}
-
-fn grown(b: &Aabb, frac: f64) -> Aabb {
-    let g = b.extents() * frac + Vector3::repeat(1e-3);
-    Aabb {
-        min: b.min - g,
-        max: b.max + g,
+fn read_prior(args: &SurfaceArgs) -> Result<Option<TriMesh>> {
+    let method = method_of(args)?;
+    match &args.prior {
+        Some(path) => {
+            Ok(Some(moe_io::read_mesh(path).with_context(|| {
+                format!("reading prior {}", path.display())
+            })?))
+        }
+        None if method.needs_prior() => {
+            bail!("--method {:?} needs --prior PRIOR.obj", args.method)
+        }
+        None => Ok(None),
     }
 }
 
-pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
-    if args.out.is_none() && args.query.is_none() {
-        bail!(
-            "nothing to do: give --out SURFACE.obj and/or --query POINTS.csv --query-out VALUES.csv"
-        );
-    }
-    if args.variance_out.is_some() && args.out.is_none() {
-        bail!("--variance-out needs --out (the variance is attached to the output surface)");
-    }
-    if args.poisson_depth.is_some() && args.mesher != MesherArg::Poisson {
-        bail!("--poisson-depth needs --mesher poisson");
-    }
-    if args.grid < 2 {
-        bail!("--grid must be at least 2, got {}", args.grid);
-    }
-    let t0 = Instant::now();
-    let mut obs = read_observations(&args.contacts)?;
-    let contacts = obs.contacts();
-    let mut report = serde_json::Map::new();
-    report.insert(
-        "method".into(),
-        json!(format!("{:?}", args.method).to_lowercase()),
-    );
-    report.insert("contacts".into(), json!(contacts.len()));
-
-    // Mean function and query bounds.
-    let (mean, bounds): (Box<dyn MeanFunction>, Option<Aabb>) = match args.method {
-        Method::Prior => {
-            let mut prior = read_prior(&args)?;
-            if let Some(kind) = args.register {
+/// The library's method for the command line's choice.
+fn method_of(args: &SurfaceArgs) -> Result<SurfaceMethod> {
+    Ok(match args.method {
+        Method::Prior => SurfaceMethod::Prior {
+            registration: args.register.map(|kind| {
                 let pose_prior = (!args.no_pose_prior).then(|| {
                     let d = PosePrior::default();
                     PosePrior {
@@ -230,71 +205,25 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
                         ..d
                     }
                 });
-                let cfg = IcpConfig {
+                IcpConfig {
                     kind: match kind {
                         Registration::Rigid => RegistrationKind::Rigid,
                         Registration::Similarity => RegistrationKind::Similarity,
                     },
                     pose_prior,
                     ..IcpConfig::default()
-                };
-                let (registered, icp) = register_prior(&prior, &contacts, &cfg)?;
-                eprintln!(
-                    "surface: registered the prior ({} iterations, RMS {:.2} mm -> {:.2} mm)",
-                    icp.iterations,
-                    1e3 * icp.rms_before_m,
-                    1e3 * icp.rms_after_m
-                );
-                report.insert("registration".into(), serde_json::to_value(icp)?);
-                prior = registered;
-            }
-            let sdf = MeshSdfMean::new(&prior)
-                .with_context(|| "the prior mesh cannot serve as a signed distance")?;
-            let b = bounds_of(obs.points(), Some(&prior));
-            (Box::new(sdf), b)
-        }
-        Method::Sphere => {
-            let sphere = SphereMean::fit(&contacts).context("fitting a sphere to the contacts")?;
-            report.insert(
-                "sphere".into(),
-                json!({ "center_m": [sphere.center.x, sphere.center.y, sphere.center.z], "radius_m": sphere.radius }),
-            );
-            let r = Vector3::repeat(sphere.radius);
-            let b = bounds_of(obs.points(), None).map(|cb| {
-                let g = cb.extents() * 0.5;
-                Aabb {
-                    min: (sphere.center - r).sup(&(cb.min - g)).inf(&cb.min),
-                    max: (sphere.center + r).inf(&(cb.max + g)).sup(&cb.max),
                 }
-            });
-            (Box::new(sphere), b)
-        }
-        Method::Constant => {
-            if !(args.mean_value.is_finite()) {
-                bail!("--mean-value must be finite, got {}", args.mean_value);
-            }
-            if obs.num_interior() == 0 {
-                obs.add_centroid_interior()?;
-                eprintln!("surface: no inside observation; added the contacts' centroid as one");
-            }
-            let b = bounds_of(obs.points(), None).map(|b| grown(&b, 0.5));
-            (
-                Box::new(ConstantMean {
-                    value: args.mean_value,
-                }),
-                b,
-            )
-        }
-        Method::Nonprob => return run_nonprob(&args, &contacts, report),
-    };
-    if args.normal_offset < 0.0 || !args.normal_offset.is_finite() {
-        bail!("--normal-offset must be >= 0, got {}", args.normal_offset);
-    }
-    if args.normal_offset > 0.0 {
-        obs.add_mean_normal_offsets(&mean, args.normal_offset)?;
-    }
-    report.insert("observations".into(), json!(obs.len()));
+            }),
+        },
+        Method::Sphere => SurfaceMethod::Sphere,
+        Method::Constant => SurfaceMethod::Constant {
+            value: args.mean_value,
+        },
+        Method::Nonprob => SurfaceMethod::NonProbabilistic,
+    })
+}
 
+fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
     let fixed = match (args.lengthscale, args.signal_variance, args.noise_variance) {
         (Some(lengthscale), Some(signal_variance), Some(noise_variance)) => Some(Hyper {
             signal_variance,
@@ -303,7 +232,7 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
         }),
         _ => None,
     };
-    let gpis_cfg = GpisConfig {
+    let gpis = GpisConfig {
         fit: FitConfig {
             kind: match args.kernel {
                 Kernel::Rbf => KernelKind::Rbf,
@@ -329,40 +258,98 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
             Mesher::Poisson(options)
         }
     };
+    Ok(SurfaceOptions {
+        method: method_of(args)?,
+        surface: SurfaceConfig {
+            gpis,
+            max_grid_nodes: args.grid.saturating_pow(3),
+            vertex_variance: args.variance_out.is_some(),
+            mesher,
+            ..SurfaceConfig::default()
+        },
+        normal_offset_m: args.normal_offset,
+        ..SurfaceOptions::default()
+    })
+}
+
+pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
+    if args.out.is_none() && args.query.is_none() {
+        bail!(
+            "nothing to do: give --out SURFACE.obj and/or --query POINTS.csv --query-out VALUES.csv"
+        );
+    }
+    if args.variance_out.is_some() && args.out.is_none() {
+        bail!("--variance-out needs --out (the variance is attached to the output surface)");
+    }
+    if args.poisson_depth.is_some() && args.mesher != MesherArg::Poisson {
+        bail!("--poisson-depth needs --mesher poisson");
+    }
+    if args.grid < 2 {
+        bail!("--grid must be at least 2, got {}", args.grid);
+    }
+    if args.method == Method::Nonprob {
+        if args.query.is_some() || args.variance_out.is_some() {
+            bail!("--method nonprob has no posterior: --query and --variance-out need a GP method");
+        }
+        if args.mesher != MesherArg::Marching {
+            bail!("--mesher applies to the GP methods, not to --method nonprob");
+        }
+        if args.out.is_none() {
+            bail!("--method nonprob needs --out SURFACE.obj");
+        }
+    }
+    let t0 = Instant::now();
+    let obs = read_observations(&args.contacts)?;
+    let prior = read_prior(&args)?;
+    let options = options_of(&args)?;
+    let mut report = serde_json::Map::new();
     report.insert(
-        "mesher".into(),
-        json!(format!("{:?}", args.mesher).to_lowercase()),
+        "method".into(),
+        json!(format!("{:?}", args.method).to_lowercase()),
     );
-    let surface_cfg = SurfaceConfig {
-        gpis: gpis_cfg,
-        max_grid_nodes: args.grid.saturating_pow(3),
-        vertex_variance: args.variance_out.is_some(),
-        mesher,
-        ..SurfaceConfig::default()
-    };
+    report.insert("contacts".into(), json!(obs.contacts().len()));
+    if args.method == Method::Constant && obs.num_interior() == 0 {
+        eprintln!("surface: no inside observation; the contacts' centroid is added as one");
+    }
 
     let gpis = if let Some(out) = &args.out {
-        let bounds = bounds.context("no observations")?;
-        let (rec, gpis) = reconstruct(mean, &obs, &bounds, &surface_cfg)?;
+        let (rec, gpis) = reconstruct_surface(&obs, prior.as_ref(), &options)?;
         moe_io::write_mesh(out, &rec.mesh)?;
         if let Some(vpath) = &args.variance_out {
             let ply = moe_io::PlyData::with_variance(&rec.mesh, &rec.vertex_variance);
             moe_io::write_ply(vpath, &ply)?;
         }
-        insert_condition(&mut report, &rec.report)?;
+        insert_fitted(&mut report, rec.registration.as_ref(), rec.sphere.as_ref())?;
+        if let Some(cond) = &rec.condition {
+            report.insert("observations".into(), json!(rec.observations));
+            insert_condition(&mut report, cond)?;
+            report.insert("mesher".into(), json!(mesher_name(&args)));
+        }
         report.insert("vertices".into(), json!(rec.mesh.num_vertices()));
         report.insert("faces".into(), json!(rec.mesh.num_faces()));
-        report.insert("grid_dims".into(), json!(rec.grid.dims));
-        report.insert("timings".into(), serde_json::to_value(rec.timings)?);
+        if let Some(dims) = rec.grid_dims {
+            report.insert("grid_dims".into(), json!(dims));
+        }
+        match rec.timings {
+            Some(t) => report.insert("timings".into(), serde_json::to_value(t)?),
+            None => report.insert("timings".into(), json!({ "total_secs": rec.secs })),
+        };
         gpis
     } else {
-        let (gpis, cond) = condition(mean, &obs, &surface_cfg.gpis)?;
+        let (gpis, cond, fitted) = condition_surface(&obs, prior.as_ref(), &options)?;
+        insert_fitted(
+            &mut report,
+            fitted.registration.as_ref(),
+            fitted.sphere.as_ref(),
+        )?;
+        report.insert("observations".into(), json!(fitted.observations));
+        report.insert("mesher".into(), json!(mesher_name(&args)));
         insert_condition(&mut report, &cond)?;
         report.insert("timings".into(), json!({ "fit_secs": cond.secs }));
-        gpis
+        Some(gpis)
     };
 
-    if let (Some(q), Some(qout)) = (&args.query, &args.query_out) {
+    if let (Some(gpis), Some(q), Some(qout)) = (&gpis, &args.query, &args.query_out) {
         let rows = moe_io::read_points_csv(q)?;
         let pts: Vec<Point3> = rows.iter().map(|r| Point3::new(r[0], r[1], r[2])).collect();
         let t = Instant::now();
@@ -378,30 +365,32 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
     finish(&args, report)
 }
 
-/// The non-probabilistic baseline: no posterior, only a mesh.
-fn run_nonprob(
-    args: &SurfaceArgs,
-    contacts: &[Point3],
-    mut report: serde_json::Map<String, serde_json::Value>,
+fn mesher_name(args: &SurfaceArgs) -> String {
+    format!("{:?}", args.mesher).to_lowercase()
+}
+
+/// The registration and the fitted sphere, when the method produced them.
+fn insert_fitted(
+    report: &mut serde_json::Map<String, serde_json::Value>,
+    registration: Option<&IcpReport>,
+    sphere: Option<&SphereMean>,
 ) -> Result<()> {
-    if args.query.is_some() || args.variance_out.is_some() {
-        bail!("--method nonprob has no posterior: --query and --variance-out need a GP method");
+    if let Some(icp) = registration {
+        eprintln!(
+            "surface: registered the prior ({} iterations, RMS {:.2} mm -> {:.2} mm)",
+            icp.iterations,
+            1e3 * icp.rms_before_m,
+            1e3 * icp.rms_after_m
+        );
+        report.insert("registration".into(), serde_json::to_value(icp)?);
     }
-    if args.mesher != MesherArg::Marching {
-        bail!("--mesher applies to the GP methods, not to --method nonprob");
+    if let Some(s) = sphere {
+        report.insert(
+            "sphere".into(),
+            json!({ "center_m": [s.center.x, s.center.y, s.center.z], "radius_m": s.radius }),
+        );
     }
-    let Some(out) = &args.out else {
-        bail!("--method nonprob needs --out SURFACE.obj");
-    };
-    let prior = read_prior(args)?;
-    let t = Instant::now();
-    let mesh = nonprobabilistic(&prior, contacts, &NonProbConfig::default())?;
-    let secs = t.elapsed().as_secs_f64();
-    moe_io::write_mesh(out, &mesh)?;
-    report.insert("vertices".into(), json!(mesh.num_vertices()));
-    report.insert("faces".into(), json!(mesh.num_faces()));
-    report.insert("timings".into(), json!({ "total_secs": secs }));
-    finish(args, report)
+    Ok(())
 }
 
 fn insert_condition(
