@@ -153,6 +153,24 @@ pub enum GeomError {
         /// The id.
         index: usize,
     },
+    /// Too few points for the fit.
+    #[error("'{what}': {got} points, at least {needed} needed")]
+    TooFewPoints {
+        /// Which point set.
+        what: &'static str,
+        /// Points needed.
+        needed: usize,
+        /// Points given.
+        got: usize,
+    },
+    /// The points do not determine what is fitted (all collinear, all coincident).
+    #[error("'{what}' are degenerate: {reason}")]
+    DegeneratePoints {
+        /// Which point set.
+        what: &'static str,
+        /// What is wrong with them.
+        reason: &'static str,
+    },
     /// A parameter is outside its valid range.
     #[error("parameter '{name}' = {value} is invalid: {reason}")]
     InvalidParameter {

@@ -22,6 +22,8 @@ pub mod instant;
 pub mod math;
 /// Validated triangle meshes, welding, areas, normals, bounding boxes.
 pub mod mesh;
+/// Plane fitting by RANSAC with a least-squares refit.
+pub mod plane;
 /// A small seeded random-number generator (SplitMix64).
 pub mod rng;
 /// Procedural closed meshes: icospheres, star-shaped surfaces, superquadrics.
@@ -42,6 +44,7 @@ pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
 pub use instant::{ContactMap, ContactPoint, HandShape, LabelledFrame, ShapeEstimator};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
+pub use plane::{PlaneFit, RansacConfig, fit_plane_ransac};
 pub use rng::SeededRng;
 pub use topology::{Topology, largest_component};
 pub use transform::{

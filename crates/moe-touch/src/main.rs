@@ -47,6 +47,9 @@ enum Command {
     /// Reconstruct an occluded surface from contact points (GPIS with a prior, sphere or constant
     /// mean, or the non-probabilistic baseline); query the posterior at points.
     Surface(cli::surface::SurfaceArgs),
+    /// Fit a plane to 3-D points (RANSAC with a least-squares refit): unit normal, offset,
+    /// inliers and RMS distance.
+    Plane(cli::plane::PlaneArgs),
 }
 
 fn main() -> ExitCode {
@@ -61,6 +64,7 @@ fn main() -> ExitCode {
         Command::Contact(args) => cli::contact::run(args),
         Command::Sim(args) => cli::sim::run(args),
         Command::Surface(args) => cli::surface::run(args),
+        Command::Plane(args) => cli::plane::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

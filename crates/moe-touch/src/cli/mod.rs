@@ -6,6 +6,7 @@ pub(crate) mod contact;
 pub(crate) mod demo;
 pub(crate) mod hand;
 pub(crate) mod markers;
+pub(crate) mod plane;
 pub(crate) mod run;
 pub(crate) mod shape;
 pub(crate) mod sim;

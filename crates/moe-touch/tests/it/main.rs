@@ -7,5 +7,6 @@ mod episode;
 mod hand;
 mod markers;
 mod pipeline;
+mod plane;
 mod sim;
 mod surface;
