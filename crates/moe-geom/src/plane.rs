@@ -174,7 +174,7 @@ pub fn fit_plane_ransac(points: &[Point3], config: &RansacConfig) -> Result<Plan
         });
     }
     let (_, spread, _) = principal_axes(points, 0..points.len());
-    if !(spread[1] > 1e-12 * spread[2]) {
+    if spread[1].is_nan() || spread[1] <= 1e-12 * spread[2] {
         return Err(GeomError::DegeneratePoints {
             what: "plane points",
             reason: "all points are collinear or coincide",
@@ -204,7 +204,7 @@ pub fn fit_plane_ransac(points: &[Point3], config: &RansacConfig) -> Result<Plan
         }
         let normal = (points[j] - points[i]).cross(&(points[k] - points[i]));
         let len = normal.norm();
-        if !(len > 1e-9 * scale * scale) {
+        if len.is_nan() || len <= 1e-9 * scale * scale {
             continue;
         }
         let n = normal / len;
