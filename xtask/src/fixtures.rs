@@ -69,6 +69,11 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-12,
     },
     Fixture {
+        path: "fixtures/scenes/arm_patting.toml",
+        generate: || scene_value(&moe_tendon_sim::paper_scenes::arm_patting()?),
+        tolerance: 1e-12,
+    },
+    Fixture {
         path: "fixtures/scenes/inclined_plate_00.toml",
         generate: || scene_inclined_plate(0.0),
         tolerance: 1e-12,

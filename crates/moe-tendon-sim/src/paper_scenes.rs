@@ -4,6 +4,8 @@
 //!
 //! - [`head_patting`](crate::paper_scenes::head_patting): a two-finger hand pats a head-like surface at 30 poses over the top, back
 //!   and sides of the scalp (paper §5.3, where 30 contact conditions on a head are evaluated);
+//! - [`arm_patting`](crate::paper_scenes::arm_patting): the same hand pats a long arm at 15 poses along its top and outer
+//!   side (the paper's arm under a gown, §6.1);
 //! - [`inclined_plate`](crate::paper_scenes::inclined_plate): a three-finger hand presses a flat plate inclined at 0°, 30° or 45°
 //!   (paper §6.2, grasping paper on an inclined surface).
 //!
@@ -11,7 +13,7 @@
 
 use std::f64::consts::PI;
 
-use moe_geom::bodies::HeadParams;
+use moe_geom::bodies::{ArmParams, HeadParams};
 use moe_geom::math::UnitQuat;
 use moe_geom::{FingerParams, HandPreset, Point3, Real, Vector3};
 
@@ -26,6 +28,23 @@ use crate::trajectory::{
 pub const HEAD_SEED: u64 = 2024;
 /// Number of pats in [`head_patting`].
 pub const HEAD_PATS: usize = 30;
+/// Seed of the arm used by [`arm_patting`].
+pub const ARM_SEED: u64 = 2025;
+/// Number of pats in [`arm_patting`].
+pub const ARM_PATS: usize = 15;
+/// Icosphere level of the patted arm's mesh (level 3 would leave 5 cm facets along its length).
+pub const ARM_MESH_LEVEL: u32 = 4;
+/// Icosphere level of the patted head's mesh.
+pub const HEAD_MESH_LEVEL: u32 = 3;
+/// Seconds from one pat to the next.
+pub const PAT_PERIOD_SECS: Real = 0.9;
+/// Seconds from the start of a pat to the end of its hold at full press.
+pub const PAT_HOLD_END_SECS: Real = 0.6;
+
+/// The time of pat `k`'s deepest press (the end of its hold), seconds from the scene's start.
+pub fn pat_press_time(k: usize) -> Real {
+    k as Real * PAT_PERIOD_SECS + PAT_HOLD_END_SECS
+}
 
 /// A wrist keyframe that puts the fingertips (hand z = finger length) at `point`, the hand's z
 /// axis along `-normal` (fingers pointing into the surface) with a roll about it.
@@ -48,8 +67,44 @@ fn pose_facing(
     }
 }
 
-/// The outward normal of a star-shaped surface `r(d)·d` at direction `d`, by central differences.
-fn star_normal(radius: impl Fn(&Vector3) -> Real, d: &Vector3) -> (Point3, Vector3) {
+/// A wrist keyframe as [`pose_facing`], with the roll chosen so that the hand's x axis (the
+/// line through the two fingers of the two-finger hand) is as close to `x_hint` as the facing
+/// allows.
+fn pose_facing_along(
+    time_secs: Real,
+    point: &Point3,
+    normal: &Vector3,
+    standoff_m: Real,
+    x_hint: &Vector3,
+) -> PoseKeyframe {
+    let z = -normal.normalize();
+    let x = (x_hint - z * x_hint.dot(&z)).normalize();
+    let y = z.cross(&x);
+    let rotation = UnitQuat::from_matrix(&moe_geom::Matrix3::from_columns(&[x, y, z]));
+    let fingertips = FingerParams::default().length_m;
+    let origin = point + normal * (fingertips + standoff_m);
+    PoseKeyframe {
+        time_secs,
+        translation_m: origin.coords.into(),
+        rotation_rad: rotation.scaled_axis().into(),
+    }
+}
+
+/// The five keyframes of one pat starting at `t0`: above at 5 cm, approach to 3 cm, press 6 mm
+/// past first touch, hold, retreat to 5 cm.
+fn pat_keyframes(t0: Real, pose: impl Fn(Real, Real) -> PoseKeyframe) -> [PoseKeyframe; 5] {
+    [
+        pose(t0, 0.05),
+        pose(t0 + 0.2, 0.03),
+        pose(t0 + 0.5, -0.006),
+        pose(t0 + PAT_HOLD_END_SECS, -0.006),
+        pose(t0 + 0.8, 0.05),
+    ]
+}
+
+/// The outward normal of a surface given as a map of the unit sphere, at direction `d`, by
+/// central differences.
+fn mapped_normal(map: impl Fn(&Vector3) -> Point3, d: &Vector3) -> (Point3, Vector3) {
     let a = if d.z.abs() < 0.9 {
         Vector3::z()
     } else {
@@ -58,17 +113,20 @@ fn star_normal(radius: impl Fn(&Vector3) -> Real, d: &Vector3) -> (Point3, Vecto
     let t1 = d.cross(&a).normalize();
     let t2 = d.cross(&t1);
     let h = 1e-4;
-    let s = |v: Vector3| {
-        let u = v.normalize();
-        u * radius(&u)
-    };
+    let s = |v: Vector3| map(&v.normalize()).coords;
     let du = s(d + t1 * h) - s(d - t1 * h);
     let dv = s(d + t2 * h) - s(d - t2 * h);
     let mut n = du.cross(&dv).normalize();
-    if n.dot(d) < 0.0 {
+    let p = Point3::from(s(*d));
+    if n.dot(&p.coords) < 0.0 {
         n = -n;
     }
-    (Point3::from(s(*d)), n)
+    (p, n)
+}
+
+/// The outward normal of a star-shaped surface `r(d)·d` at direction `d`, by central differences.
+fn star_normal(radius: impl Fn(&Vector3) -> Real, d: &Vector3) -> (Point3, Vector3) {
+    mapped_normal(|u| Point3::from(u * radius(u)), d)
 }
 
 /// Pat directions over the scalp (head frame: x left–right, y toward the face, z up): rings of
@@ -101,22 +159,88 @@ fn pat_directions() -> Vec<Vector3> {
 /// # Errors
 /// Mesh errors from the head generator (none for the fixed seed).
 pub fn head_patting() -> Result<SceneConfig, SimError> {
-    let head = HeadParams::sample(HEAD_SEED);
-    let mesh = head.mesh(3)?;
+    head_patting_of(HEAD_SEED, HEAD_PATS)
+}
+
+/// [`head_patting`] on the head of `seed`, with the first `pats` poses (at most
+/// [`HEAD_PATS`]).
+///
+/// # Errors
+/// Mesh errors from the head generator; [`SimError::InvalidParameter`] for `pats` = 0.
+pub fn head_patting_of(seed: u64, pats: usize) -> Result<SceneConfig, SimError> {
+    check_pats(pats, HEAD_PATS)?;
+    let head = HeadParams::sample(seed);
+    let mesh = head.mesh(HEAD_MESH_LEVEL)?;
     let mut keyframes = Vec::new();
-    let period = 0.9;
-    for (k, d) in pat_directions().iter().enumerate() {
+    for (k, d) in pat_directions().iter().take(pats).enumerate() {
         let (p, n) = star_normal(|u| head.radius(u), d);
-        let t0 = k as Real * period;
         let roll = 0.5 * k as Real;
-        keyframes.push(pose_facing(t0, &p, &n, 0.05, roll));
-        keyframes.push(pose_facing(t0 + 0.2, &p, &n, 0.03, roll));
-        keyframes.push(pose_facing(t0 + 0.5, &p, &n, -0.006, roll));
-        keyframes.push(pose_facing(t0 + 0.6, &p, &n, -0.006, roll));
-        keyframes.push(pose_facing(t0 + 0.8, &p, &n, 0.05, roll));
+        keyframes.extend(pat_keyframes(k as Real * PAT_PERIOD_SECS, |t, standoff| {
+            pose_facing(t, &p, &n, standoff, roll)
+        }));
     }
+    Ok(patting_scene(keyframes, &mesh))
+}
+
+/// The arm-patting scene (the paper's arm under a gown): a two-finger hand pats the arm of seed
+/// [`ARM_SEED`] (y along the arm, x outward, z up) at [`ARM_PATS`] poses — five stations along
+/// the arm, each patted from above, from the outer side and between the two — with the fingers
+/// lined up along the arm so that both land on it.
+///
+/// # Errors
+/// Mesh errors from the arm generator (none for the fixed seed).
+pub fn arm_patting() -> Result<SceneConfig, SimError> {
+    arm_patting_of(ARM_SEED, ARM_PATS)
+}
+
+/// [`arm_patting`] on the arm of `seed`, with the first `pats` poses (at most [`ARM_PATS`]).
+///
+/// # Errors
+/// Mesh errors from the arm generator; [`SimError::InvalidParameter`] for `pats` = 0.
+pub fn arm_patting_of(seed: u64, pats: usize) -> Result<SceneConfig, SimError> {
+    check_pats(pats, ARM_PATS)?;
+    let arm = ArmParams::sample(seed);
+    let mesh = arm.mesh(ARM_MESH_LEVEL)?;
+    let mut keyframes = Vec::new();
+    let mut k = 0;
+    'stations: for (station, s) in [-0.6, -0.3, 0.0, 0.3, 0.6_f64].into_iter().enumerate() {
+        // Snake order: consecutive pats are neighbours.
+        let mut angles = [90.0, 50.0, 12.0];
+        if station % 2 == 1 {
+            angles.reverse();
+        }
+        for phi_deg in angles {
+            if k == pats {
+                break 'stations;
+            }
+            let phi = Real::to_radians(phi_deg);
+            let q: Real = (1.0 - s * s).sqrt();
+            let d = Vector3::new(q * phi.cos(), s, q * phi.sin());
+            let (p, n) = mapped_normal(|u| arm.point(u), &d);
+            keyframes.extend(pat_keyframes(k as Real * PAT_PERIOD_SECS, |t, standoff| {
+                pose_facing_along(t, &p, &n, standoff, &Vector3::y())
+            }));
+            k += 1;
+        }
+    }
+    Ok(patting_scene(keyframes, &mesh))
+}
+
+fn check_pats(pats: usize, most: usize) -> Result<(), SimError> {
+    if pats == 0 || pats > most {
+        return Err(SimError::InvalidParameter {
+            name: "pats",
+            value: pats as Real,
+            reason: "must be at least 1 and at most the scene's number of poses",
+        });
+    }
+    Ok(())
+}
+
+/// A two-finger hand moved through `keyframes` against a fixed body `mesh` (world frame).
+fn patting_scene(keyframes: Vec<PoseKeyframe>, mesh: &moe_geom::TriMesh) -> SceneConfig {
     let duration = keyframes.last().map_or(0.0, |k| k.time_secs);
-    Ok(SceneConfig {
+    SceneConfig {
         hand: HandConfig {
             preset: HandPreset::TwoFinger,
             finger: FingerParams::default(),
@@ -132,7 +256,7 @@ pub fn head_patting() -> Result<SceneConfig, SimError> {
             trajectory: PoseTrajectory::default(),
         }],
         ..SceneConfig::default()
-    })
+    }
 }
 
 /// The inclined-plate scene: a 190 × 130 mm plate on a 5 mm acrylic-like slab, inclined by

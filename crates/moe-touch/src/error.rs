@@ -44,6 +44,9 @@ pub enum TouchError {
     /// A geometric input is malformed.
     #[error(transparent)]
     Geometry(#[from] moe_geom::GeomError),
+    /// Surface reconstruction failed.
+    #[error(transparent)]
+    Surface(#[from] moe_gpis::GpisError),
     /// An image does not have the size the camera intrinsics give.
     #[error("{what}: expected {expected}, got {got}")]
     ImageSize {

@@ -19,6 +19,8 @@ pub mod filter;
 pub mod perception;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.
 pub mod pipeline;
+/// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
+pub mod patting;
 /// Running the pipeline over a recorded episode, with figures against its ground truth.
 pub mod run;
 
