@@ -35,6 +35,9 @@ pub(crate) enum EvalTarget {
     Labels(crate::eval_labels::LabelsEvalArgs),
     /// Marker perception on the paper's scenes rendered by the simulated wrist camera.
     Markers(crate::eval_markers::MarkersEvalArgs),
+    /// Patting a head and an arm through the pipeline: estimated contacts and the surfaces
+    /// reconstructed from them (paper Tables 2–3).
+    Patting(crate::eval_patting::PattingEvalArgs),
 }
 
 /// Benchmark size.
@@ -76,6 +79,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
         EvalTarget::Contact(a) => crate::eval_contact::run(a),
         EvalTarget::Labels(a) => crate::eval_labels::run(a),
         EvalTarget::Markers(a) => crate::eval_markers::run(a),
+        EvalTarget::Patting(a) => crate::eval_patting::run(a),
     }
 }
 

@@ -59,6 +59,11 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-4,
     },
     Fixture {
+        path: "fixtures/golden/eval_patting_small.json",
+        generate: crate::eval_patting::patting_fixture,
+        tolerance: 1e-3,
+    },
+    Fixture {
         path: "fixtures/golden/sim_short_scene.json",
         generate: golden_sim_short_scene,
         tolerance: 1e-6,

@@ -9,6 +9,7 @@ mod eval;
 mod eval_contact;
 mod eval_labels;
 mod eval_markers;
+mod eval_patting;
 mod figure;
 mod fixtures;
 mod gen_data;

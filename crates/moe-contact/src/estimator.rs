@@ -44,6 +44,22 @@ pub trait ContactEstimator {
     }
 }
 
+/// A borrowed estimator estimates as the estimator does (so that a large index can serve
+/// several pipelines without a copy).
+impl<T: ContactEstimator + ?Sized> ContactEstimator for &T {
+    fn estimate(
+        &self,
+        shape: &HandShape,
+        keypoints: Option<&HandKeypoints>,
+    ) -> Result<ContactMap, ContactError> {
+        (**self).estimate(shape, keypoints)
+    }
+
+    fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
+        (**self).estimate_batch(inputs)
+    }
+}
+
 /// Where one point set's rows come from: its fingers in order, and its length.
 #[derive(Debug, Clone)]
 struct SetPlan {

@@ -15,12 +15,12 @@ pub mod episode;
 pub mod error;
 /// Temporal filters: a Kalman filter on the keypoints, smoothing of the contact map.
 pub mod filter;
+/// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
+pub mod patting;
 /// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
 pub mod perception;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.
 pub mod pipeline;
-/// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
-pub mod patting;
 /// Running the pipeline over a recorded episode, with figures against its ground truth.
 pub mod run;
 

@@ -201,7 +201,9 @@ pub fn ucd_to_truth_mm(points: &[Point3], truth: &TriMesh) -> Result<Option<Real
         return Ok(None);
     }
     let sdf = moe_gpis::MeshSdfMean::new(truth)?;
-    Ok(Some(moe_gpis::bench_scene::ucd_to_surface_mm(points, &sdf)?))
+    Ok(Some(moe_gpis::bench_scene::ucd_to_surface_mm(
+        points, &sdf,
+    )?))
 }
 
 #[cfg(test)]
@@ -271,7 +273,11 @@ mod tests {
                 frames: vec![frame.clone()],
                 ..episode.clone()
             };
-            all.extend(estimate_pat_contacts(&mut pipeline, &one).unwrap().points_in_world);
+            all.extend(
+                estimate_pat_contacts(&mut pipeline, &one)
+                    .unwrap()
+                    .points_in_world,
+            );
         }
         // The frame chain (finger → hand → world) reproduces the simulator's contacts, and they
         // lie within the press rule's distance (1 mm) of the body's surface.
