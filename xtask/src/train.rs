@@ -22,10 +22,11 @@ use serde::Serialize;
 /// Arguments of `cargo xtask train`.
 #[derive(Debug, Args)]
 pub(crate) struct TrainArgs {
-    /// Data set directory (as `cargo xtask gen-data` writes it). Trajectories are split into
-    /// training, validation and test sets by the data set's seed.
-    #[arg(long)]
-    data: PathBuf,
+    /// Data set directory (as `cargo xtask gen-data` writes it); repeat to train on several data
+    /// sets of the same hand. Each data set's trajectories are split into training, validation
+    /// and test sets by its own seed; the splits are then pooled.
+    #[arg(long, required = true)]
+    data: Vec<PathBuf>,
     /// Output model path without extension: writes NAME.safetensors and the card NAME.json, and
     /// keeps NAME.checkpoint.safetensors while training.
     #[arg(long, value_name = "models/NAME")]
@@ -241,7 +242,7 @@ struct RunRecord {
 /// Writes `NAME.safetensors` and its card from the trainer's current weights.
 fn write_model(
     args: &TrainArgs,
-    reader: &DatasetReader,
+    readers: &[DatasetReader],
     arch: &DgcnnConfig,
     config: &TrainConfig,
     trainer: &Trainer,
@@ -251,6 +252,7 @@ fn write_model(
     let last = history.last().context("no epoch was trained")?;
     let mut card = ModelCard::new(arch.clone());
     card.threshold = last.validation_threshold;
+    let reader = &readers[0];
     card.hand = Some(CardHand {
         name: reader.card().generator["params"]["preset"]
             .as_str()
@@ -270,24 +272,38 @@ fn write_model(
         "wall_time_s": run.started.elapsed().as_secs_f64(),
         "command": std::env::args().collect::<Vec<_>>().join(" "),
     }));
-    card.dataset = Some(serde_json::json!({
-        "dir": args.data.display().to_string(),
-        "seed": reader.card().seed,
-        "frames": reader.card().totals.frames,
-        "trajectories": reader.card().totals.trajectories,
-        "label_rule": label_rule_of(reader),
-        // The command that regenerates the data set (default randomisation ranges).
-        "regenerate": format!(
-            "cargo run --release -p xtask -- gen-data --out {} --trajectories {} --seed {} --fingers {}",
-            args.data.display(),
-            reader.card().totals.trajectories,
-            reader.card().seed,
-            reader.card().layout.finger_num_vertices.len()
-        ),
-        "train_frames": run.train_frames,
-        "validation_frames": run.validation_frames,
-        "generator": reader.card().generator,
-    }));
+    // One data set: its record; several: the list of their records.
+    let records: Vec<serde_json::Value> = readers
+        .iter()
+        .zip(&args.data)
+        .map(|(reader, dir)| {
+            serde_json::json!({
+                "dir": dir.display().to_string(),
+                "seed": reader.card().seed,
+                "frames": reader.card().totals.frames,
+                "trajectories": reader.card().totals.trajectories,
+                "label_rule": label_rule_of(reader),
+                // The command that regenerates the data set, with its generator parameters
+                // (below) as a --params file when they are not the defaults.
+                "regenerate": format!(
+                    "cargo run --release -p xtask -- gen-data --out {} --trajectories {} --seed {} --fingers {}",
+                    dir.display(),
+                    reader.card().totals.trajectories,
+                    reader.card().seed,
+                    reader.card().layout.finger_num_vertices.len()
+                ),
+                "generator": reader.card().generator,
+            })
+        })
+        .collect();
+    let mut dataset = if records.len() == 1 {
+        records[0].clone()
+    } else {
+        serde_json::json!({ "sets": records })
+    };
+    dataset["train_frames"] = serde_json::json!(run.train_frames);
+    dataset["validation_frames"] = serde_json::json!(run.validation_frames);
+    card.dataset = Some(dataset);
     card.metrics = Some(serde_json::json!({ "epochs": history }));
     let weights = ModelWeights::of(trainer.network())?.to_bytes()?;
     let weights_path = args.out.with_extension("safetensors");
@@ -304,22 +320,43 @@ fn checkpoint_path(out: &Path) -> PathBuf {
 
 pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     let started = Instant::now();
-    let reader = DatasetReader::open(&args.data)?;
-    let hand = dataset_hand(&reader)?;
-    let train_frames = frames(&reader, Split::Train, args.max_frames)?;
-    let validation_frames = frames(
-        &reader,
-        Split::Validation,
-        args.max_frames.map(|m| m / 4 + 1),
-    )?;
-    if train_frames.is_empty() {
-        bail!("{}: no training frames", args.data.display());
-    }
-    if validation_frames.is_empty() {
-        bail!(
-            "{}: no validation frames (too few trajectories)",
-            args.data.display()
-        );
+    let readers = args
+        .data
+        .iter()
+        .map(|d| DatasetReader::open(d))
+        .collect::<Result<Vec<_>, _>>()?;
+    let hand = dataset_hand(&readers[0])?;
+    let mut train_frames = Vec::new();
+    let mut validation_frames = Vec::new();
+    for (reader, dir) in readers.iter().zip(&args.data) {
+        let other = dataset_hand(reader)?;
+        let same = other.num_fingers() == hand.num_fingers()
+            && (0..hand.num_fingers())
+                .all(|i| other.rest_vertices_in_hand(i) == hand.rest_vertices_in_hand(i));
+        if !same {
+            bail!(
+                "{}: a data set of another hand than {}'s",
+                dir.display(),
+                args.data[0].display()
+            );
+        }
+        let train = frames(reader, Split::Train, args.max_frames)?;
+        let validation = frames(
+            reader,
+            Split::Validation,
+            args.max_frames.map(|m| m / 4 + 1),
+        )?;
+        if train.is_empty() {
+            bail!("{}: no training frames", dir.display());
+        }
+        if validation.is_empty() {
+            bail!(
+                "{}: no validation frames (too few trajectories)",
+                dir.display()
+            );
+        }
+        train_frames.extend(train);
+        validation_frames.extend(validation);
     }
     // Validation metrics take the contact points on the true surfaces (the design's definition).
     let validation_truth = validation_frames.clone();
@@ -560,7 +597,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             train_frames: train_frames.len(),
             validation_frames: validation_frames.len(),
         };
-        write_model(args, &reader, &arch, &config, &trainer, &history, &run)?;
+        write_model(args, &readers, &arch, &config, &trainer, &history, &run)?;
     }
     bar.finish_and_clear();
     let last = history.last().context("no epoch was trained")?;

@@ -94,13 +94,23 @@ pub enum FingerRegion {
     Middle,
     /// 12–35 % of the length.
     Base,
+    /// The end of the rounded tip, pressed along the finger's axis or nearly (cap points 45–90°
+    /// from the radial direction): what patting a surface or pressing a plate with the
+    /// fingertips loads. [`FingerRegion::Tip`] stops at 44°.
+    Apex,
 }
 
 impl FingerRegion {
-    /// Fraction of the press depth range used in this region (1 at the tip, 0.35 at the base).
+    /// The regions the randomisation draws from unless told otherwise.
+    pub const DEFAULT: [FingerRegion; 3] = [Self::Tip, Self::Middle, Self::Base];
+}
+
+impl FingerRegion {
+    /// Fraction of the press depth range used in this region (1 at the tip and the apex, 0.35 at
+    /// the base).
     pub fn press_scale(self) -> Real {
         match self {
-            Self::Tip => 1.0,
+            Self::Tip | Self::Apex => 1.0,
             Self::Middle => 0.7,
             Self::Base => 0.35,
         }
@@ -120,6 +130,8 @@ pub struct RandomSceneParams {
     pub finger: FingerParams,
     /// Families to draw from (uniformly).
     pub families: Vec<ObjectFamily>,
+    /// Finger regions to press (uniformly). Default [`FingerRegion::DEFAULT`].
+    pub regions: Vec<FingerRegion>,
     /// Gap between the object and the target at the start, metres. Default 0.003.
     pub gap_m: Real,
     /// Press depth range beyond first touch at the tip, metres (scaled by
@@ -148,6 +160,7 @@ impl Default for RandomSceneParams {
             preset: HandPreset::TwoFinger,
             finger: FingerParams::default(),
             families: ObjectFamily::ALL.to_vec(),
+            regions: FingerRegion::DEFAULT.to_vec(),
             gap_m: 0.003,
             press_depth_m: [0.002, 0.008],
             max_pull_m: 0.006,
@@ -202,8 +215,7 @@ pub fn sample_scene(
     for _ in 0..MAX_ATTEMPTS {
         let family = params.families[rng.below(params.families.len() as u64) as usize];
         let finger = rng.below(hand.num_fingers() as u64) as usize;
-        let region =
-            [FingerRegion::Tip, FingerRegion::Middle, FingerRegion::Base][rng.below(3) as usize];
+        let region = params.regions[rng.below(params.regions.len() as u64) as usize];
         let (target_f, normal_f) = target_on_finger(&params.finger, region, &mut rng);
         let hff = hand.fingers()[finger].hand_from_finger;
         let target = hff.transform_point(&target_f);
@@ -281,6 +293,9 @@ fn validate(params: &RandomSceneParams) -> Result<(), SimError> {
     if params.families.is_empty() {
         return bad("families", 0.0, "at least one object family is needed");
     }
+    if params.regions.is_empty() {
+        return bad("regions", 0.0, "at least one finger region is needed");
+    }
     params.contact.validate()?;
     let [lo, hi] = params.press_depth_m;
     if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
@@ -320,6 +335,20 @@ fn target_on_finger(
         FingerRegion::Tip => (0.8, 1.0),
         FingerRegion::Middle => (0.4, 0.7),
         FingerRegion::Base => (0.12, 0.35),
+        FingerRegion::Apex => {
+            // Elevation above the cap's equator uniform in [45°, 90°).
+            let phi = rng.uniform_range(0.0, TAU);
+            let theta = rng.uniform_range(0.25 * PI, 0.5 * PI);
+            let n = Vector3::new(
+                theta.cos() * phi.cos(),
+                theta.cos() * phi.sin(),
+                theta.sin(),
+            );
+            return (
+                Point3::new(0.0, 0.0, f.cap_start_z()) + n * f.tip_radius_m,
+                n,
+            );
+        }
     };
     let phi = rng.uniform_range(0.0, TAU);
     let zc = f.cap_start_z();
@@ -658,6 +687,57 @@ mod tests {
         for f in 0..3 {
             assert!(scenes.iter().any(|s| s.finger == f));
         }
+    }
+
+    #[test]
+    fn the_apex_is_pressed_along_the_finger_and_labelled_at_its_end() {
+        let params = RandomSceneParams {
+            regions: vec![FingerRegion::Apex],
+            families: vec![ObjectFamily::Sphere, ObjectFamily::ThinPlate],
+            ..quick()
+        };
+        let hand = HandModel::preset(params.preset, &params.finger).unwrap();
+        for t in 0..4 {
+            let (sampled, frames) = simulate_trajectory(&params, 3, t).unwrap();
+            assert_eq!(sampled.region, FingerRegion::Apex);
+            let finger = &hand.fingers()[sampled.finger];
+            let n = finger
+                .hand_from_finger
+                .inverse()
+                .transform_vector(&sampled.normal_in_hand);
+            // 45–90° above the cap's equator: the normal is within 45° of the finger's axis.
+            assert!(n.z >= std::f64::consts::FRAC_1_SQRT_2 - 1e-12, "{n}");
+            // At full press the labelled vertices are on the rounded end.
+            let pressed = frames
+                .iter()
+                .min_by(|a, b| {
+                    (a.frame.time_secs - params.press_secs)
+                        .abs()
+                        .total_cmp(&(b.frame.time_secs - params.press_secs).abs())
+                })
+                .unwrap();
+            let rest = finger.model.mesh().vertices();
+            let labels = &pressed.frame.fingers[sampled.finger].labels;
+            let labelled: Vec<usize> = (0..labels.len()).filter(|&v| labels[v]).collect();
+            assert!(
+                !labelled.is_empty(),
+                "trajectory {t}: no label at full press"
+            );
+            for v in labelled {
+                assert!(rest[v].z > params.finger.cap_start_z() - 1e-3, "vertex {v}");
+            }
+        }
+        let none = RandomSceneParams {
+            regions: vec![],
+            ..RandomSceneParams::default()
+        };
+        assert!(matches!(
+            sample_scene(&none, 0, 0),
+            Err(SimError::InvalidParameter {
+                name: "regions",
+                ..
+            })
+        ));
     }
 
     #[test]
