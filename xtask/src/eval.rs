@@ -38,6 +38,9 @@ pub(crate) enum EvalTarget {
     /// Patting a head and an arm through the pipeline: estimated contacts and the surfaces
     /// reconstructed from them (paper Tables 2–3).
     Patting(crate::eval_patting::PattingEvalArgs),
+    /// Grasping on the inclined plates: press, fit the plane, reorient, press again (paper
+    /// Table 4).
+    Grasp(crate::eval_grasp::GraspEvalArgs),
 }
 
 /// Benchmark size.
@@ -80,6 +83,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
         EvalTarget::Labels(a) => crate::eval_labels::run(a),
         EvalTarget::Markers(a) => crate::eval_markers::run(a),
         EvalTarget::Patting(a) => crate::eval_patting::run(a),
+        EvalTarget::Grasp(a) => crate::eval_grasp::run(a),
     }
 }
 

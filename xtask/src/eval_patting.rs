@@ -457,7 +457,8 @@ pub(crate) fn run(args: &PattingEvalArgs) -> Result<()> {
     Ok(())
 }
 
-fn round3(v: &mut Value) {
+/// Rounds every float of `v` to 1e-3 (golden fixtures compare across machines).
+pub(crate) fn round3(v: &mut Value) {
     match v {
         Value::Number(n) => {
             if let Some(f) = n.as_f64()

@@ -64,6 +64,11 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-3,
     },
     Fixture {
+        path: "fixtures/golden/eval_grasp_small.json",
+        generate: crate::eval_grasp::grasp_fixture,
+        tolerance: 1e-3,
+    },
+    Fixture {
         path: "fixtures/golden/sim_short_scene.json",
         generate: golden_sim_short_scene,
         tolerance: 1e-6,

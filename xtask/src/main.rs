@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 mod ci;
 mod eval;
 mod eval_contact;
+mod eval_grasp;
 mod eval_labels;
 mod eval_markers;
 mod eval_patting;

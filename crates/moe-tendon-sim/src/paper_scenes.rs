@@ -324,6 +324,76 @@ pub fn inclined_plate(incline_deg: Real) -> Result<SceneConfig, SimError> {
     })
 }
 
+/// Seconds of one press of [`inclined_plate_press`]: approach until 0.7 s, hold until 1.0 s,
+/// retract until 1.4 s.
+pub const PLATE_PRESS_TIMES_SECS: [Real; 4] = [0.0, 0.7, 1.0, 1.4];
+
+/// The inclined plate of [`inclined_plate`] pressed by the three-finger hand held at
+/// `hand_rotation` (world from hand; the fingers point along the hand's z axis), moving along
+/// its own axis toward the plate point `aim` (metres, in the plate's top plane or off it: the
+/// hand's axis passes through it): from 2 cm before the first fingertip touches, to `press_m`
+/// past first touch, hold, and back — the guarded move of a robot that does not know where the
+/// plate is. Times are [`PLATE_PRESS_TIMES_SECS`].
+///
+/// # Errors
+/// [`SimError::InvalidParameter`] for an incline outside `[0°, 60°]`, a negative press, or a
+/// hand whose axis does not point into the plate (less than 20° from parallel to it).
+pub fn inclined_plate_press(
+    incline_deg: Real,
+    hand_rotation: UnitQuat,
+    aim: Point3,
+    press_m: Real,
+) -> Result<SceneConfig, SimError> {
+    let mut config = inclined_plate(incline_deg)?;
+    if !(press_m.is_finite() && press_m >= 0.0) {
+        return Err(SimError::InvalidParameter {
+            name: "press_m",
+            value: press_m,
+            reason: "must be finite and non-negative",
+        });
+    }
+    let incline = incline_deg.to_radians();
+    let n = Vector3::new(0.0, -incline.sin(), incline.cos());
+    let axis = hand_rotation * Vector3::z();
+    let into = n.dot(&axis);
+    if into > -(20.0_f64.to_radians().sin()) {
+        return Err(SimError::InvalidParameter {
+            name: "hand_rotation",
+            value: into,
+            reason: "the hand's axis must point into the plate (at least 20° from parallel)",
+        });
+    }
+    let finger = FingerParams::default();
+    let palm = HandPreset::ThreeFinger.palm_radius_m();
+    // The wrist at `aim − λ·axis`: fingertip k's sphere (centre `aim − λ·axis + tip_k`) touches
+    // the top surface n·x = 0 when its centre is one tip radius above it, at λ = λ_k; coming
+    // from far, the first to touch has the largest λ.
+    let lambda_touch = (0..3)
+        .map(|k| {
+            let th = 2.0 * PI * k as Real / 3.0;
+            let tip = hand_rotation
+                * Vector3::new(palm * th.cos(), palm * th.sin(), finger.cap_start_z());
+            (finger.tip_radius_m - n.dot(&(aim.coords + tip))) / -into
+        })
+        .fold(Real::MIN, Real::max);
+    let [t0, t1, t2, t3] = PLATE_PRESS_TIMES_SECS;
+    let at = |t: Real, lambda: Real| PoseKeyframe {
+        time_secs: t,
+        translation_m: (aim.coords - axis * lambda).into(),
+        rotation_rad: hand_rotation.scaled_axis().into(),
+    };
+    config.duration_secs = t3;
+    config.wrist = PoseTrajectory {
+        keyframes: vec![
+            at(t0, lambda_touch + 0.02),
+            at(t1, lambda_touch - press_m),
+            at(t2, lambda_touch - press_m),
+            at(t3, lambda_touch + 0.02),
+        ],
+    };
+    Ok(config)
+}
+
 /// A short regression scene (8 steps) whose rounded state digest is pinned by the golden
 /// fixture `fixtures/golden/sim_short_scene.json`: a two-finger hand, finger 0 pulls its +x
 /// tendon, a plate presses finger 1's outer side, the wrist moves up slowly.
@@ -393,6 +463,42 @@ mod tests {
                 "keyframe {k}: {d} vs {expected}"
             );
         }
+    }
+
+    #[test]
+    fn a_press_along_the_hand_axis_starts_2_cm_away_and_ends_past_first_touch() {
+        // A hand tilted 10° about y, aimed 5 mm off the plate's centre, on the 30° plate.
+        let rotation = UnitQuat::from_scaled_axis(Vector3::x() * PI)
+            * UnitQuat::from_axis_angle(&Vector3::y_axis(), 10f64.to_radians());
+        let aim = Point3::new(0.005, 0.0, 0.0);
+        let press = 0.006;
+        let config = inclined_plate_press(30.0, rotation, aim, press).unwrap();
+        let hand =
+            moe_geom::HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
+        // The plate's top surface is the plane n·x = 0 (the slab is 5 mm thick, so its signed
+        // distance folds over past 2.5 mm of penetration: measure against the plane).
+        let n = Vector3::new(0.0, -30f64.to_radians().sin(), 30f64.to_radians().cos());
+        let into = -n.dot(&(rotation * Vector3::z()));
+        let closest_at = |t: Real| {
+            let wrist = config.wrist.pose_at(t);
+            (0..3)
+                .flat_map(|i| hand.rest_vertices_in_hand(i))
+                .map(|p| n.dot(&(wrist * p).coords))
+                .fold(Real::INFINITY, Real::min)
+        };
+        // 2 cm along the axis before first touch, `press` along it past first touch (the
+        // surface mesh approximates the round tip within 0.3 mm).
+        let start = closest_at(0.0);
+        assert!(
+            (start - 0.02 * into).abs() < 3e-4,
+            "{start} vs {}",
+            0.02 * into
+        );
+        let pressed = closest_at(PLATE_PRESS_TIMES_SECS[1]);
+        assert!((pressed + press * into).abs() < 3e-4, "{pressed}");
+        let parallel = UnitQuat::from_axis_angle(&Vector3::y_axis(), PI / 2.0);
+        assert!(inclined_plate_press(30.0, parallel, aim, press).is_err());
+        assert!(inclined_plate_press(30.0, rotation, aim, -1.0).is_err());
     }
 
     #[test]

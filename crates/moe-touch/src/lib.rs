@@ -15,6 +15,8 @@ pub mod episode;
 pub mod error;
 /// Temporal filters: a Kalman filter on the keypoints, smoothing of the contact map.
 pub mod filter;
+/// Grasping paper on an unknown incline: press, fit the plane, reorient, press again.
+pub mod grasp;
 /// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
 pub mod patting;
 /// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
