@@ -107,7 +107,7 @@ fn print_table(v: &Value) {
                     .map_or("no fit".to_owned(), |e| format!("{e:.2}°")),
                 t["estimated_contacts"],
                 t["inliers"],
-                t["first_press"]["contact_vertices"].to_string(),
+                t["first_press"]["contact_vertices"],
                 if t["success_with"].as_bool() == Some(true) {
                     "success"
                 } else {
