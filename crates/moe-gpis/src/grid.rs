@@ -5,6 +5,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::GpisError;
 
+/// The most nodes a query grid may have: 256³ (the values alone take 128 MiB; the meshing
+/// buffers several times that).
+pub const MAX_GRID_NODES: usize = 256 * 256 * 256;
+
 /// A regular grid of `nx × ny × nz` nodes with isotropic spacing `h`:
 /// node `(i, j, k)` is at `origin + h·(i, j, k)` and has linear index `i + nx·(j + ny·k)`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -57,7 +61,8 @@ impl Grid3 {
     /// nodes along their long axis, not a coarser spacing everywhere.
     ///
     /// # Errors
-    /// [`GpisError::InvalidParameter`] for a non-finite box or padding, or `max_nodes < 8`.
+    /// [`GpisError::InvalidParameter`] for a non-finite box or padding, `max_nodes < 8`, or
+    /// `max_nodes` above [`MAX_GRID_NODES`].
     pub fn covering(bounds: &Aabb, padding: Real, max_nodes: usize) -> Result<Self, GpisError> {
         if !(padding.is_finite() && padding >= 0.0) {
             return Err(GpisError::InvalidParameter {
@@ -71,6 +76,13 @@ impl Grid3 {
                 name: "grid_max_nodes",
                 value: max_nodes as Real,
                 reason: "need at least 8 nodes",
+            });
+        }
+        if max_nodes > MAX_GRID_NODES {
+            return Err(GpisError::InvalidParameter {
+                name: "grid_max_nodes",
+                value: max_nodes as Real,
+                reason: "at most 256³ = 16,777,216 nodes (the query and meshing buffers grow with it)",
             });
         }
         let e = bounds.extents() + Vector3::repeat(2.0 * padding);
@@ -167,5 +179,23 @@ mod tests {
         assert_eq!(p[g.index(3, 2, 1)], g.point(3, 2, 1));
         assert!(Grid3::new(Point3::origin(), 0.0, [2, 2, 2]).is_err());
         assert!(Grid3::new(Point3::origin(), 1.0, [2, 1, 2]).is_err());
+    }
+
+    #[test]
+    fn a_budget_beyond_the_limit_is_refused_before_allocating() {
+        let b = Aabb {
+            min: Point3::origin(),
+            max: Point3::new(0.1, 0.1, 0.1),
+        };
+        assert!(Grid3::covering(&b, 0.0, MAX_GRID_NODES).is_ok());
+        for too_many in [MAX_GRID_NODES + 1, usize::MAX] {
+            assert!(matches!(
+                Grid3::covering(&b, 0.0, too_many),
+                Err(GpisError::InvalidParameter {
+                    name: "grid_max_nodes",
+                    ..
+                })
+            ));
+        }
     }
 }

@@ -103,7 +103,7 @@ pub use bench_scene::{
 pub use error::GpisError;
 pub use fit::{FitConfig, FitReport, HyperBounds, fit_hyper};
 pub use gp::{ExactGp, Jitter, log_marginal_likelihood_and_grad};
-pub use grid::Grid3;
+pub use grid::{Grid3, MAX_GRID_NODES};
 pub use kernel::{Hyper, Kernel, KernelKind};
 pub use lbfgs::{LbfgsConfig, LbfgsReport, minimize_bounded};
 pub use marching::{MeshingOptions, extract_surface};

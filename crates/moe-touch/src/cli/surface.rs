@@ -284,8 +284,11 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
     if args.poisson_depth.is_some() && args.mesher != MesherArg::Poisson {
         bail!("--poisson-depth needs --mesher poisson");
     }
-    if args.grid < 2 {
-        bail!("--grid must be at least 2, got {}", args.grid);
+    if args.grid < 2 || args.grid > 256 {
+        bail!(
+            "--grid must be between 2 and 256 nodes per axis, got {}",
+            args.grid
+        );
     }
     if args.method == Method::Nonprob {
         if args.query.is_some() || args.variance_out.is_some() {

@@ -358,6 +358,22 @@ fn bad_inputs_give_one_line_errors() {
         o,
     ]));
     assert!(err.contains("--prior"), "{err}");
+    // A grid that would not fit in memory is refused before anything is read or allocated.
+    for grid in ["1", "257", "100000"] {
+        let err = assert_one_line_error(&run(&[
+            "surface",
+            "--contacts",
+            contacts.to_str().unwrap(),
+            "--method",
+            "sphere",
+            "--grid",
+            grid,
+            "--out",
+            o,
+        ]));
+        assert!(err.contains("between 2 and 256"), "{grid}: {err}");
+    }
+    assert!(!out_path.exists());
     // A non-watertight prior.
     let (v, mut f) = icosphere(2, 0.05).into_parts();
     f.pop();
