@@ -154,15 +154,7 @@ fn write_surfaces(size: Size, noise_m: Option<f64>, dir: &Path) -> Result<Vec<Pa
             Ok(())
         };
         put("truth", &PlyData::from_mesh(&scene.truth))?;
-        put(
-            "contacts",
-            &PlyData {
-                points: scene.contacts.clone(),
-                faces: Vec::new(),
-                colors: None,
-                scalars: Vec::new(),
-            },
-        )?;
+        put("contacts", &PlyData::from_points(&scene.contacts))?;
         // The written surfaces carry their variance whatever the size.
         let surface = SurfaceConfig {
             vertex_variance: true,
@@ -175,11 +167,7 @@ fn write_surfaces(size: Size, noise_m: Option<f64>, dir: &Path) -> Result<Vec<Pa
             &surface,
             Some(NORMAL_OFFSET_M),
             &mut |name, mesh, variance| {
-                let ply = if variance.is_empty() {
-                    PlyData::from_mesh(mesh)
-                } else {
-                    PlyData::with_variance(mesh, variance)
-                };
+                let ply = PlyData::with_variance(mesh, variance);
                 if let Err(e) = put(name, &ply) {
                     failure.get_or_insert(e);
                 }

@@ -19,7 +19,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use moe_arap::ShapeOptions;
 use moe_contact::{ContactEstimator, KnnIndex};
-use moe_geom::{FingerParams, HandModel, HandPreset, Point3, Real};
+use moe_geom::{FingerParams, HandModel, HandPreset, Real};
 use moe_gpis::bench_scene::{Scene, SceneReport, Spread, evaluate_scene_with};
 use moe_gpis::{SceneKind, SurfaceConfig};
 use moe_io::{DatasetReader, PlyData, SplitFractions};
@@ -286,17 +286,20 @@ fn evaluate_pair(
         }
         Ok(())
     };
-    let points = |p: &[Point3]| PlyData {
-        points: p.to_vec(),
-        faces: Vec::new(),
-        colors: None,
-        scalars: Vec::new(),
-    };
     put("truth", &PlyData::from_mesh(&episode.truth))?;
     put("prior", &PlyData::from_mesh(&prior))?;
-    put("contacts_dgcnn", &points(&dgcnn_contacts.points_in_world))?;
-    put("contacts_knn_all", &points(&knn_contacts.points_in_world))?;
-    put("contacts_true", &points(&true_contacts.points_in_world))?;
+    put(
+        "contacts_dgcnn",
+        &PlyData::from_points(&dgcnn_contacts.points_in_world),
+    )?;
+    put(
+        "contacts_knn_all",
+        &PlyData::from_points(&knn_contacts.points_in_world),
+    )?;
+    put(
+        "contacts_true",
+        &PlyData::from_points(&true_contacts.points_in_world),
+    )?;
     let surfaces = |contacts: &PatContacts, tag: &str| -> Result<Option<SceneReport>> {
         if contacts.points_in_world.is_empty() {
             return Ok(None);
@@ -317,11 +320,7 @@ fn evaluate_pair(
             &surface,
             Some(NORMAL_OFFSET_M),
             &mut |name, mesh, variance| {
-                let ply = if variance.is_empty() {
-                    PlyData::from_mesh(mesh)
-                } else {
-                    PlyData::with_variance(mesh, variance)
-                };
+                let ply = PlyData::with_variance(mesh, variance);
                 if let Err(e) = put(&format!("{name}_{tag}"), &ply) {
                     failure.get_or_insert(e);
                 }

@@ -63,11 +63,25 @@ impl PlyData {
     }
 
     /// A surface with its GP posterior `variance` (m²) and standard deviation `std` (m) per
-    /// vertex, as the `surface` command and the surface benchmark write it.
+    /// vertex, as the `surface` command and the surface benchmark write it; without a variance
+    /// (an empty slice: the prior, the non-probabilistic baseline), the bare mesh.
     pub fn with_variance(mesh: &TriMesh, variance: &[f64]) -> Self {
+        if variance.is_empty() {
+            return Self::from_mesh(mesh);
+        }
         Self::from_mesh(mesh)
             .with_scalar("variance", variance.iter().copied())
             .with_scalar("std", variance.iter().map(|v| v.sqrt()))
+    }
+
+    /// A point cloud (no faces, colours or scalars).
+    pub fn from_points(points: &[Point3]) -> Self {
+        Self {
+            points: points.to_vec(),
+            faces: Vec::new(),
+            colors: None,
+            scalars: Vec::new(),
+        }
     }
 
     /// The validated triangle mesh (colours and scalars are dropped).

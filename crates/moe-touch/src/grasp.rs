@@ -10,9 +10,7 @@
 //! initial orientation: its second press is its first.
 
 use moe_geom::math::UnitQuat;
-use moe_geom::{
-    HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, WorldFromHand, fit_plane_ransac,
-};
+use moe_geom::{HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, fit_plane_ransac};
 use moe_tendon_sim::Scene;
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
 use moe_tendon_sim::randomize::{TrajectoryFrame, run_saving};
@@ -21,7 +19,7 @@ use serde::Serialize;
 use crate::TouchError;
 use crate::episode::EpisodeRecorder;
 use crate::perception::{DetectorConfig, MarkerDetector};
-use crate::pipeline::{Pipeline, RgbdFrame};
+use crate::pipeline::Pipeline;
 use moe_arap::ShapeOptions;
 use moe_contact::ContactEstimator;
 
@@ -224,13 +222,7 @@ pub fn run_grasp_trial<C: ContactEstimator>(
         }
         let episode_frame = recorder.frame(&scene, f, k as u64)?;
         pipeline.reset();
-        let estimate = pipeline.process(
-            RgbdFrame {
-                color_rgb8: &episode_frame.color_rgb8,
-                depth_m: &episode_frame.depth_m,
-            },
-            WorldFromHand::new(episode_frame.world_from_hand),
-        )?;
+        let estimate = pipeline.process_episode_frame(&episode_frame)?;
         wrist = Point3::from(episode_frame.world_from_hand.translation.vector);
         points.extend(estimate.contacts_in_world.iter().map(|c| c.point));
     }

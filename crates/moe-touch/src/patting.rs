@@ -8,7 +8,7 @@
 //! simulator's own contact vertices (the upper bound a perfect estimator would reach).
 
 use moe_geom::bodies::{ArmParams, HeadParams};
-use moe_geom::{Iso3, Point3, Real, ShapeEstimator, TriMesh, WorldFromHand};
+use moe_geom::{Iso3, Point3, Real, ShapeEstimator, TriMesh};
 use moe_gpis::SceneKind;
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
@@ -18,7 +18,7 @@ use serde::Serialize;
 
 use crate::TouchError;
 use crate::episode::EpisodeRecorder;
-use crate::pipeline::{Pipeline, RgbdFrame};
+use crate::pipeline::Pipeline;
 use moe_contact::ContactEstimator;
 
 /// The number of poses of a body's patting scene.
@@ -152,13 +152,7 @@ where
     let mut out = PatContacts::default();
     for frame in &episode.frames {
         pipeline.reset();
-        let estimate = pipeline.process(
-            RgbdFrame {
-                color_rgb8: &frame.color_rgb8,
-                depth_m: &frame.depth_m,
-            },
-            WorldFromHand::new(frame.world_from_hand),
-        )?;
+        let estimate = pipeline.process_episode_frame(frame)?;
         out.per_pat.push(estimate.contacts_in_world.len());
         out.points_in_world
             .extend(estimate.contacts_in_world.iter().map(|c| c.point));

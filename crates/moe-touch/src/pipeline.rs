@@ -151,6 +151,23 @@ where
         }
     }
 
+    /// Runs every stage on a recorded episode frame: its images and its wrist pose.
+    ///
+    /// # Errors
+    /// As [`Pipeline::process`].
+    pub fn process_episode_frame(
+        &mut self,
+        frame: &moe_io::EpisodeFrame,
+    ) -> Result<FrameEstimate, TouchError> {
+        self.process(
+            RgbdFrame {
+                color_rgb8: &frame.color_rgb8,
+                depth_m: &frame.depth_m,
+            },
+            WorldFromHand::new(frame.world_from_hand),
+        )
+    }
+
     /// Runs every stage on one frame of a hand at `world_from_hand`.
     ///
     /// # Errors

@@ -2,12 +2,12 @@
 //! the figures against the ground truth where the episode has it.
 
 use moe_contact::{ContactEstimator, ContactMetrics, ContactReport};
-use moe_geom::{HandShape, Real, ShapeEstimator, WorldFromHand, bcd};
+use moe_geom::{HandShape, Real, ShapeEstimator, bcd};
 use moe_io::{EpisodeFrame, EpisodeInfo, RunFrame, RunTruth};
 use serde::Serialize;
 
 use crate::perception::score::{MarkerReport, MarkerScore, has_ground_truth, visible_markers};
-use crate::{Pipeline, RgbdFrame, StageTimings, TouchError};
+use crate::{Pipeline, StageTimings, TouchError};
 
 /// One frame of a run report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -109,13 +109,7 @@ where
     let mut out = Vec::with_capacity(frames.len());
     let mut per_frame = Vec::with_capacity(frames.len());
     for frame in frames {
-        let est = pipeline.process(
-            RgbdFrame {
-                color_rgb8: &frame.color_rgb8,
-                depth_m: &frame.depth_m,
-            },
-            WorldFromHand::new(frame.world_from_hand),
-        )?;
+        let est = pipeline.process_episode_frame(frame)?;
         let mut shape_bcd_mm = None;
         let mut true_contact_vertices = None;
         let run_truth = if truth {
