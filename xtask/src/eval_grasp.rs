@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
-use moe_touch::grasp::{GraspOptions, GraspTrial, run_grasp_trial};
+use moe_touch::grasp::{GraspContacts, GraspOptions, GraspTrial, run_grasp_trial};
 use moe_touch::pipeline::load_contact_model;
 use serde_json::{Value, json};
 
@@ -32,12 +32,16 @@ pub(crate) struct GraspEvalArgs {
     /// Seed of the camera noise.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Fit the plane to the simulator's own contacts instead of the pipeline's (the upper bound
+    /// a perfect contact estimator reaches).
+    #[arg(long)]
+    true_contacts: bool,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
 }
 
-fn evaluate(trials: u64, model: &std::path::Path, seed: u64) -> Result<Value> {
+fn evaluate(trials: u64, model: &std::path::Path, seed: u64, truth: bool) -> Result<Value> {
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
     let estimator = load_contact_model(&workspace_root().join(model), &hand)?;
     let threshold = estimator.threshold();
@@ -46,7 +50,17 @@ fn evaluate(trials: u64, model: &std::path::Path, seed: u64) -> Result<Value> {
     for (incline, paper_with, paper_without) in INCLINES {
         let t = std::time::Instant::now();
         let results: Vec<GraspTrial> = (0..trials)
-            .map(|k| run_grasp_trial(&hand, &estimator, threshold, incline, k, seed, &options))
+            .map(|k| {
+                let contacts = if truth {
+                    GraspContacts::Simulator
+                } else {
+                    GraspContacts::Pipeline {
+                        contact: &estimator,
+                        threshold,
+                    }
+                };
+                run_grasp_trial(&hand, contacts, incline, k, seed, &options)
+            })
             .collect::<Result<_, _>>()?;
         eprintln!(
             "eval grasp: {incline}°: {trials} trials in {:.1} s",
@@ -70,7 +84,7 @@ fn evaluate(trials: u64, model: &std::path::Path, seed: u64) -> Result<Value> {
             "trials_detail": results,
         }));
     }
-    Ok(json!({ "options": options, "threshold": threshold, "rows": rows }))
+    Ok(json!({ "options": options, "threshold": threshold, "true_contacts": truth, "rows": rows }))
 }
 
 fn print_table(v: &Value) {
@@ -119,7 +133,7 @@ fn print_table(v: &Value) {
 }
 
 pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
-    let v = evaluate(args.trials, &args.model, args.seed)?;
+    let v = evaluate(args.trials, &args.model, args.seed, args.true_contacts)?;
     if args.json {
         println!("{}", serde_json::to_string(&v)?);
     } else {
@@ -130,7 +144,7 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
 
 /// The golden content of one trial per incline, rounded to 1e-3.
 pub(crate) fn grasp_fixture() -> Result<Value> {
-    let mut v = evaluate(1, std::path::Path::new(SHIPPED_MODEL), 0)?;
+    let mut v = evaluate(1, std::path::Path::new(SHIPPED_MODEL), 0, false)?;
     crate::eval_patting::round3(&mut v);
     Ok(v)
 }

@@ -178,18 +178,31 @@ fn outcome(
     })
 }
 
+/// Where a trial's contacts come from.
+#[derive(Debug)]
+pub enum GraspContacts<C> {
+    /// The pipeline on the wrist camera's frames, with this contact estimator and threshold.
+    Pipeline {
+        /// The contact stage.
+        contact: C,
+        /// Its contact threshold.
+        threshold: Real,
+    },
+    /// The simulator's own contact vertices (the upper bound a perfect estimator reaches).
+    Simulator,
+}
+
 /// Runs trial `trial` on the plate inclined by `incline_deg`: the first press from a perturbed
-/// level start, contacts estimated by `contact` through the pipeline on the wrist camera's frames
-/// of the press's hold (`camera_seed` seeds the noise), the plane fit, and the second press
-/// reoriented to the fitted normal.
+/// level start, the contacts of the press's hold (from the pipeline on the wrist camera's
+/// frames, `camera_seed` seeding the noise, or from the simulator), the plane fit, and the
+/// second press reoriented to the fitted normal.
 ///
 /// # Errors
 /// An incline outside `[0°, 60°]`, a diverging simulation, a failing pipeline stage (a plane
 /// that cannot be fitted is reported in the trial, not as an error).
 pub fn run_grasp_trial<C: ContactEstimator>(
     hand: &HandModel,
-    contact: C,
-    threshold: Real,
+    contacts: GraspContacts<C>,
     incline_deg: Real,
     trial: u64,
     camera_seed: u64,
@@ -207,24 +220,48 @@ pub fn run_grasp_trial<C: ContactEstimator>(
     let (scene, frames) = simulate_press(incline_deg, rotation, aim, options.press_m)?;
     let first_press = outcome(&frames, &rotation, &normal, options)?;
 
-    // Contacts over the hold, from the wrist camera's frames.
-    let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
-    let detector = MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
-    let shape = crate::contact_eval::study_shape_estimator(hand, &ShapeOptions::default())?;
-    let mut pipeline = Pipeline::new(hand.clone(), detector, shape, contact, threshold)?;
+    // Contacts over the hold.
     let [_, hold_start, hold_end, _] = PLATE_PRESS_TIMES_SECS;
+    let hold: Vec<(usize, &TrajectoryFrame)> = frames
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| {
+            let t = f.frame.time_secs;
+            t >= hold_start - 1e-9 && t <= hold_end + 1e-9
+        })
+        .collect();
+    let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
+        Point3::from(f.frame.world_from_hand.translation.vector)
+    });
     let mut points: Vec<Point3> = Vec::new();
-    let mut wrist = Point3::origin();
-    for (k, f) in frames.iter().enumerate() {
-        let t = f.frame.time_secs;
-        if t < hold_start - 1e-9 || t > hold_end + 1e-9 {
-            continue;
+    match contacts {
+        GraspContacts::Pipeline { contact, threshold } => {
+            let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
+            let detector =
+                MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
+            let shape = crate::contact_eval::study_shape_estimator(hand, &ShapeOptions::default())?;
+            let mut pipeline = Pipeline::new(hand.clone(), detector, shape, contact, threshold)?;
+            for (k, f) in hold {
+                let episode_frame = recorder.frame(&scene, f, k as u64)?;
+                pipeline.reset();
+                let estimate = pipeline.process_episode_frame(&episode_frame)?;
+                points.extend(estimate.contacts_in_world.iter().map(|c| c.point));
+            }
         }
-        let episode_frame = recorder.frame(&scene, f, k as u64)?;
-        pipeline.reset();
-        let estimate = pipeline.process_episode_frame(&episode_frame)?;
-        wrist = Point3::from(episode_frame.world_from_hand.translation.vector);
-        points.extend(estimate.contacts_in_world.iter().map(|c| c.point));
+        GraspContacts::Simulator => {
+            for (_, f) in hold {
+                for finger in &f.frame.fingers {
+                    points.extend(
+                        finger
+                            .labels
+                            .iter()
+                            .zip(&finger.vertices_in_world)
+                            .filter(|(l, _)| **l)
+                            .map(|(_, p)| *p),
+                    );
+                }
+            }
+        }
     }
     let mut trial_report = GraspTrial {
         incline_deg,
