@@ -1,7 +1,8 @@
 //! One entry point for every surface-reconstruction method: the GP with a task prior, with a
 //! sphere or a constant mean, and the non-probabilistic baseline, each with its own defaults for
 //! the query region, registration and observations. `moe-touch surface`, the head and arm
-//! benchmark and the patting evaluation all call [`reconstruct_surface`].
+//! benchmark and the patting evaluation all call
+//! [`reconstruct_surface`](crate::surface::reconstruct_surface).
 
 use std::time::Instant;
 

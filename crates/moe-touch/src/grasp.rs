@@ -4,9 +4,11 @@
 //! simulator judges the second press.
 //!
 //! **Success** is the state from which the paper's hand folds the sheet: at the deepest point of
-//! the second press every finger touches the plate (at least [`GraspOptions::min_contact_vertices`]
-//! labelled vertices each) and the hand's axis is within [`GraspOptions::max_axis_error_deg`] of
-//! the plate's normal, so the palm faces the sheet squarely. Without MOE-Touch the hand keeps its
+//! the second press every finger touches the plate (at least
+//! [`GraspOptions::min_contact_vertices`](crate::grasp::GraspOptions::min_contact_vertices)
+//! labelled vertices each) and the hand's axis is within
+//! [`GraspOptions::max_axis_error_deg`](crate::grasp::GraspOptions::max_axis_error_deg) of the
+//! plate's normal, so the palm faces the sheet squarely. Without MOE-Touch the hand keeps its
 //! initial orientation: its second press is its first.
 
 use moe_geom::math::UnitQuat;

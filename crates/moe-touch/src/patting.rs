@@ -3,9 +3,11 @@
 //! pipeline (markers → SR-ARAP → contact model) turns each frame into contact points in the
 //! world, and the contact points of all pats feed the surface reconstruction.
 //!
-//! [`simulate_patting`] renders the pats as episode frames with their ground truth,
-//! [`estimate_pat_contacts`] runs a pipeline over them, and [`true_pat_contacts`] gives the
-//! simulator's own contact vertices (the upper bound a perfect estimator would reach).
+//! [`simulate_patting`](crate::patting::simulate_patting) renders the pats as episode frames
+//! with their ground truth, [`estimate_pat_contacts`](crate::patting::estimate_pat_contacts)
+//! runs a pipeline over them, and [`true_pat_contacts`](crate::patting::true_pat_contacts)
+//! gives the simulator's own contact vertices (the upper bound a perfect estimator would
+//! reach).
 
 use moe_geom::bodies::{ArmParams, HeadParams};
 use moe_geom::{Iso3, Point3, Real, ShapeEstimator, TriMesh};
