@@ -1,6 +1,6 @@
 //! `cargo xtask eval markers`: marker perception on the paper's scenes rendered by the
-//! simulator's wrist camera with its noise model — the six plate scenes of Table 2, head
-//! patting and the three inclined plates. Per scene: detection rate of the markers visible in
+//! simulator's wrist camera with its noise model — the six plate scenes of Table 2, head and
+//! arm patting and the three inclined plates. Per scene: detection rate of the markers visible in
 //! the ground truth, position error, false detections, identity swaps, and SR-ARAP shape BCD
 //! from the detected keypoints against from every true marker.
 
@@ -20,8 +20,8 @@ use serde_json::json;
 
 use crate::ci::workspace_root;
 
-/// The scenes, in the order of the report: Table 2's plates, head patting, the inclines.
-const SCENES: [&str; 10] = [
+/// The scenes, in the order of the report: Table 2's plates, head and arm patting, the inclines.
+const SCENES: [&str; 11] = [
     "plate_tip_front",
     "plate_tip_side",
     "plate_middle_front",
@@ -29,6 +29,7 @@ const SCENES: [&str; 10] = [
     "plate_base_front",
     "plate_base_side",
     "head_patting",
+    "arm_patting",
     "inclined_plate_00",
     "inclined_plate_30",
     "inclined_plate_45",
@@ -37,7 +38,7 @@ const SCENES: [&str; 10] = [
 /// Arguments of `cargo xtask eval markers`.
 #[derive(Debug, Args)]
 pub(crate) struct MarkersEvalArgs {
-    /// Only these scenes (repeatable; default: all ten).
+    /// Only these scenes (repeatable; default: all eleven).
     #[arg(long = "scene", value_name = "NAME")]
     scenes: Vec<String>,
     /// Seed of the camera noise.
