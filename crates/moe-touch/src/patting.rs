@@ -79,8 +79,8 @@ pub fn simulate_patting(
     camera_seed: u64,
 ) -> Result<PattingEpisode, TouchError> {
     let config = patting_scene(body, truth_seed, pats)?;
-    let truth = match &config.obstacles[0].shape {
-        moe_tendon_sim::ObstacleShape::TriangleMesh { vertices_m, faces } => TriMesh::new(
+    let truth = match config.obstacles.first().map(|o| &o.shape) {
+        Some(moe_tendon_sim::ObstacleShape::TriangleMesh { vertices_m, faces }) => TriMesh::new(
             vertices_m.iter().map(|p| Point3::from(*p)).collect(),
             faces.clone(),
         )?,
