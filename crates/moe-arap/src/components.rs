@@ -27,16 +27,16 @@ struct Part {
 
 #[derive(Debug)]
 enum Layout {
-    /// A connected mesh, or one with vertices outside every face: one solver.
+    /// A connected mesh: one solver.
     Whole(Box<ArapSolver>),
-    /// Two or more parts, every vertex in a face; `rest` is the whole rest mesh.
+    /// Two or more parts; `rest` is the whole rest mesh.
     Parts { parts: Vec<Part>, rest: Vec<Point3> },
 }
 
 /// An SR-ARAP solver for a whole mesh that splits it into its connected parts and solves them in
 /// parallel, one [`ArapSolver`] per part; the interface and the errors are [`ArapSolver`]'s.
 ///
-/// A connected mesh (or one with a vertex outside every face, or a part without area) is solved by one [`ArapSolver`],
+/// A connected mesh is solved by one [`ArapSolver`],
 /// unchanged. Otherwise each part gets its own factorised system with the sequential local step
 /// (the parts already fill the cores) and the whole mesh's smoothing weight (α is relative to the
 /// whole surface area, as for [`ArapSolver`]), and a solve returns the vertices in the mesh's order, the
@@ -66,30 +66,19 @@ impl ComponentSolver {
         let n = mesh.num_vertices();
         let topology = Topology::new(mesh);
         let (label, count) = topology.connected_components();
-        let mut in_face = vec![false; n];
-        for f in mesh.faces() {
-            for &v in f {
-                in_face[v as usize] = true;
-            }
-        }
-        // Each part's share of the surface area (a part without area keeps the whole solver:
-        // its smoothing weight could not be expressed relative to its own area).
-        let mut part_area = vec![0.0; count];
-        for (f, a) in mesh.faces().iter().zip(mesh.face_areas()) {
-            part_area[label[f[0] as usize] as usize] += a;
-        }
-        if count < 2
-            || in_face.contains(&false)
-            || part_area
-                .iter()
-                .any(|a| a.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
-        {
+        // Every vertex of a `TriMesh` is in a face and every face has area, so every part has
+        // cells and a positive area.
+        if count < 2 {
             return Ok(Self {
                 num_vertices: n,
                 fixed: fixed.to_vec(),
                 handles: handles.to_vec(),
                 layout: Layout::Whole(Box::new(ArapSolver::new(mesh, config, fixed, handles)?)),
             });
+        }
+        let mut part_area = vec![0.0; count];
+        for (f, a) in mesh.faces().iter().zip(mesh.face_areas()) {
+            part_area[label[f[0] as usize] as usize] += a;
         }
         // The checks of `ArapSolver::new`, in its order, on global ids.
         let mut is_fixed = vec![false; n];
