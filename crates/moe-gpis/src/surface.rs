@@ -105,8 +105,6 @@ pub struct PreparedMean {
     pub registration: Option<IcpReport>,
     /// The fitted sphere ([`SurfaceMethod::Sphere`]).
     pub sphere: Option<SphereMean>,
-    /// Wall time of the preparation (registration, prior BVH, sphere fit, offsets), seconds.
-    pub secs: Real,
 }
 
 impl std::fmt::Debug for PreparedMean {
@@ -210,7 +208,6 @@ pub fn prepare_mean(
     prior: Option<&TriMesh>,
     options: &SurfaceOptions,
 ) -> Result<PreparedMean, GpisError> {
-    let t = Instant::now();
     let d = options.normal_offset_m;
     if !(d.is_finite() && d >= 0.0) {
         return Err(GpisError::InvalidParameter {
@@ -228,14 +225,18 @@ pub fn prepare_mean(
     let mut sphere = None;
     let (mean, bounds): (Box<dyn MeanFunction>, Option<Aabb>) = match &options.method {
         SurfaceMethod::Prior { registration: icp } => {
-            let mut prior = require_prior(&options.method, prior)?.clone();
-            if let Some(cfg) = icp {
-                let (registered, report) = register_prior(&prior, &contacts, cfg)?;
-                registration = Some(report);
-                prior = registered;
-            }
-            let sdf = MeshSdfMean::new(&prior)?;
-            let bounds = query_bounds(&obs, Some(&prior), None);
+            let given = require_prior(&options.method, prior)?;
+            let registered = match icp {
+                Some(cfg) => {
+                    let (moved, report) = register_prior(given, &contacts, cfg)?;
+                    registration = Some(report);
+                    Some(moved)
+                }
+                None => None,
+            };
+            let prior = registered.as_ref().unwrap_or(given);
+            let sdf = MeshSdfMean::new(prior)?;
+            let bounds = query_bounds(&obs, Some(prior), None);
             (Box::new(sdf), bounds)
         }
         SurfaceMethod::Sphere => {
@@ -278,7 +279,6 @@ pub fn prepare_mean(
         bounds,
         registration,
         sphere,
-        secs: t.elapsed().as_secs_f64(),
     })
 }
 
