@@ -77,6 +77,16 @@ pub fn camera_info(k: &CameraIntrinsics) -> CameraInfo {
     }
 }
 
+/// The saved frame nearest in time to `t` seconds, with its index (`None` when nothing was
+/// saved).
+pub fn saved_frame_at(frames: &[TrajectoryFrame], t: f64) -> Option<(usize, &TrajectoryFrame)> {
+    frames.iter().enumerate().min_by(|a, b| {
+        (a.1.frame.time_secs - t)
+            .abs()
+            .total_cmp(&(b.1.frame.time_secs - t).abs())
+    })
+}
+
 /// Records a scene's saved frames as episode frames.
 #[derive(Debug)]
 pub struct EpisodeRecorder {

@@ -19,7 +19,7 @@ use moe_tendon_sim::randomize::{TrajectoryFrame, run_saving};
 use serde::Serialize;
 
 use crate::TouchError;
-use crate::episode::EpisodeRecorder;
+use crate::episode::{EpisodeRecorder, saved_frame_at};
 use crate::perception::{DetectorConfig, MarkerDetector};
 use crate::pipeline::Pipeline;
 use moe_arap::ShapeOptions;
@@ -142,22 +142,13 @@ fn simulate_press(
     Ok((scene, frames))
 }
 
-/// The saved frame nearest to `t`.
-fn frame_at(frames: &[TrajectoryFrame], t: Real) -> Option<(usize, &TrajectoryFrame)> {
-    frames.iter().enumerate().min_by(|a, b| {
-        (a.1.frame.time_secs - t)
-            .abs()
-            .total_cmp(&(b.1.frame.time_secs - t).abs())
-    })
-}
-
 fn outcome(
     frames: &[TrajectoryFrame],
     rotation: &UnitQuat,
     normal: &Vector3,
     options: &GraspOptions,
 ) -> Result<PressOutcome, TouchError> {
-    let (_, deepest) = frame_at(frames, PLATE_PRESS_TIMES_SECS[2]).ok_or_else(|| {
+    let (_, deepest) = saved_frame_at(frames, PLATE_PRESS_TIMES_SECS[2]).ok_or_else(|| {
         TouchError::InvalidEvaluation {
             reason: "the press saved no frame".into(),
         }
@@ -330,7 +321,7 @@ mod tests {
         let press = outcome(&frames, &turned, &normal, &options).unwrap();
         assert!(press.contact_vertices.iter().all(|&n| n >= 3), "{press:?}");
         assert!(press.success, "within 10° of the normal: {press:?}");
-        let (_, deepest) = frame_at(&frames, PLATE_PRESS_TIMES_SECS[2]).unwrap();
+        let (_, deepest) = saved_frame_at(&frames, PLATE_PRESS_TIMES_SECS[2]).unwrap();
         let points: Vec<Point3> = deepest
             .frame
             .fingers

@@ -19,7 +19,7 @@ use moe_tendon_sim::{Scene, SceneConfig};
 use serde::Serialize;
 
 use crate::TouchError;
-use crate::episode::EpisodeRecorder;
+use crate::episode::{EpisodeRecorder, saved_frame_at};
 use crate::pipeline::Pipeline;
 use moe_contact::ContactEstimator;
 
@@ -101,15 +101,8 @@ pub fn simulate_patting(
     let mut frames = Vec::with_capacity(pats);
     for k in 0..pats {
         let t = pat_press_time(k);
-        let (index, frame) = saved
-            .iter()
-            .enumerate()
-            .min_by(|a, b| {
-                (a.1.frame.time_secs - t)
-                    .abs()
-                    .total_cmp(&(b.1.frame.time_secs - t).abs())
-            })
-            .ok_or_else(|| TouchError::InvalidEvaluation {
+        let (index, frame) =
+            saved_frame_at(&saved, t).ok_or_else(|| TouchError::InvalidEvaluation {
                 reason: format!("{name}: the simulation saved no frame"),
             })?;
         frames.push(recorder.frame(&scene, frame, index as u64)?);
