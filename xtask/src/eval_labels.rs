@@ -14,8 +14,10 @@
 use anyhow::Result;
 use clap::Args;
 use moe_geom::{Real, Topology};
-use moe_tendon_sim::randomize::{RandomSceneParams, TrajectoryFrame, run_saving, sample_scene};
-use moe_tendon_sim::{LabelRule, Scene, SurfaceContact, contact_labels};
+use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
+use moe_tendon_sim::{
+    LabelRule, Scene, SurfaceContact, TrajectoryFrame, contact_labels, run_saving,
+};
 use serde::Serialize;
 use serde_json::json;
 

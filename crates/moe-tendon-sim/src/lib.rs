@@ -91,6 +91,8 @@ pub mod paper_scenes;
 pub mod polar;
 /// Randomised contact scenes for training data.
 pub mod randomize;
+/// Running a scene and keeping its saved frames.
+mod run;
 /// Hand-level scenes with explicit state.
 pub mod scene;
 /// Triangle meshes of obstacle surfaces.
@@ -118,6 +120,7 @@ pub use error::SimError;
 pub use fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn};
 pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
+pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
 pub use scene::{
     BodyState, FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig,
     SolverMode, StepInfo,

@@ -25,7 +25,8 @@ use serde::{Deserialize, Serialize};
 use crate::contact::ContactParams;
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
-use crate::scene::{Frame, HandConfig, Scene, SceneConfig, SimState, StepInfo};
+use crate::run::{TrajectoryFrame, run_saving};
+use crate::scene::{HandConfig, Scene, SceneConfig};
 use crate::surface::obstacle_surface;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
 
@@ -538,87 +539,6 @@ fn build_config(
     };
     config.solver.dt_secs = params.dt_secs;
     config
-}
-
-/// One saved frame of a simulated trajectory.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrajectoryFrame {
-    /// Surfaces, distances and labels.
-    pub frame: Frame,
-    /// Commanded tendon values at this time (metres of pull in displacement mode):
-    /// `[finger][tendon]`.
-    pub tendon_values: Vec<Vec<Real>>,
-}
-
-/// What a run leaves besides its saved frames.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunOutcome {
-    /// The state after the last step.
-    pub final_state: SimState,
-    /// Figures of the last step (`None` for a run of zero steps).
-    pub last_step: Option<StepInfo>,
-}
-
-/// Runs `scene` for `steps` steps from its initial state, calling `on_frame` with the state at
-/// every saved frame: the initial one, every `save_every_steps` steps, and the last one.
-///
-/// # Errors
-/// Divergence, naming the step and the element (see [`Scene::step`]), or the first error of
-/// `on_frame`; the run stops there.
-pub fn run_with<E: From<SimError>>(
-    scene: &mut Scene,
-    steps: u64,
-    mut on_frame: impl FnMut(&Scene, &SimState) -> Result<(), E>,
-) -> Result<RunOutcome, E> {
-    let every = scene.config().save_every_steps.max(1);
-    let mut state = scene.initial_state();
-    on_frame(scene, &state)?;
-    // One `StepInfo` reused by every step: the stepping itself does not allocate.
-    let mut info = StepInfo::default();
-    for k in 1..=steps {
-        scene.step_into(&mut state, &mut info)?;
-        if k % every == 0 || k == steps {
-            on_frame(scene, &state)?;
-        }
-    }
-    Ok(RunOutcome {
-        final_state: state,
-        last_step: (steps > 0).then_some(info),
-    })
-}
-
-/// Runs `scene` for `steps` steps from its initial state and returns the frames saved every
-/// `save_every_steps` steps (the initial frame and the last one included).
-///
-/// # Errors
-/// Divergence, naming the step and the element (see [`Scene::step`]).
-pub fn run_saving(scene: &mut Scene, steps: u64) -> Result<Vec<TrajectoryFrame>, SimError> {
-    let mut frames = Vec::new();
-    run_with(scene, steps, |scene, state| {
-        frames.push(saved(scene, state));
-        Ok::<(), SimError>(())
-    })?;
-    Ok(frames)
-}
-
-fn saved(scene: &Scene, state: &SimState) -> TrajectoryFrame {
-    let t = state.time_secs;
-    let config = scene.config();
-    let tendon_values = scene
-        .hand()
-        .fingers()
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            (0..f.model.tendon_routes().len())
-                .map(|j| config.actuation.get(i).map_or(0.0, |s| s.value_at(j, t)))
-                .collect()
-        })
-        .collect();
-    TrajectoryFrame {
-        frame: scene.frame(state),
-        tendon_values,
-    }
 }
 
 /// Samples and simulates trajectory `trajectory_id` of a data set with `seed`.

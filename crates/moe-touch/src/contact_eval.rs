@@ -25,8 +25,7 @@ use moe_geom::{
     HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng, Vector3,
     WorldFromHand, bcd,
 };
-use moe_tendon_sim::randomize::run_saving;
-use moe_tendon_sim::{Scene, SceneConfig};
+use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use serde::Serialize;
 
 use crate::error::TouchError;

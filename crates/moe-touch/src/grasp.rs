@@ -13,9 +13,8 @@
 
 use moe_geom::math::UnitQuat;
 use moe_geom::{HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, fit_plane_ransac};
-use moe_tendon_sim::Scene;
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
-use moe_tendon_sim::randomize::{TrajectoryFrame, run_saving};
+use moe_tendon_sim::{Scene, TrajectoryFrame, run_saving};
 use serde::Serialize;
 
 use crate::TouchError;

@@ -14,8 +14,7 @@ use moe_geom::{Iso3, Point3, Real, ShapeEstimator, TriMesh};
 use moe_gpis::SceneKind;
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
-use moe_tendon_sim::randomize::run_saving;
-use moe_tendon_sim::{Scene, SceneConfig};
+use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use serde::Serialize;
 
 use crate::TouchError;

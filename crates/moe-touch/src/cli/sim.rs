@@ -7,8 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_tendon_sim::randomize::run_with;
-use moe_tendon_sim::{Frame, Scene, SceneConfig, SimState};
+use moe_tendon_sim::{Frame, Scene, SceneConfig, SimState, run_with};
 use serde::Serialize;
 
 /// Mesh format of the saved frames.
@@ -313,7 +312,7 @@ fn record_episode(mut scene: Scene, args: &SimArgs) -> Result<()> {
         .scene
         .file_stem()
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    let frames = moe_tendon_sim::randomize::run_saving(&mut scene, steps)
+    let frames = moe_tendon_sim::run_saving(&mut scene, steps)
         .with_context(|| format!("simulating {}", args.scene.display()))?;
     let recorder = moe_touch::episode::EpisodeRecorder::new(&scene, &name, args.seed)?;
     let mut writer = moe_io::create_episode(&args.out, recorder.info())?;
