@@ -1,0 +1,144 @@
+//! Lazy reading of a data set directory: the card, then shards one at a time.
+
+use std::path::{Path, PathBuf};
+
+use moe_geom::LabelledFrame;
+
+use super::card::{CARD_FILE, DatasetCard};
+use super::frame::DatasetFrame;
+use super::shard::read_shard;
+use super::split::{Split, SplitFractions, split_of};
+use crate::error::IoError;
+
+/// Reads a data set directory lazily: the card at once, shards one at a time while iterating.
+#[derive(Debug, Clone)]
+pub struct DatasetReader {
+    dir: PathBuf,
+    card: DatasetCard,
+}
+
+impl DatasetReader {
+    /// Opens a data set directory by reading its card.
+    ///
+    /// # Errors
+    /// A missing or malformed card.
+    pub fn open(dir: &Path) -> Result<Self, IoError> {
+        let card: DatasetCard = crate::config::read_json(&dir.join(CARD_FILE))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            card,
+        })
+    }
+
+    /// The card.
+    pub fn card(&self) -> &DatasetCard {
+        &self.card
+    }
+
+    /// Like [`DatasetReader::frames`], as the in-memory vocabulary ([`LabelledFrame`]: per-finger
+    /// vertices, labels and markers, typed wrist pose).
+    pub fn labelled_frames(
+        &self,
+        split: Option<Split>,
+        fractions: SplitFractions,
+    ) -> LabelledFrames<'_> {
+        LabelledFrames {
+            frames: self.frames(split, fractions),
+        }
+    }
+
+    /// Frames of `split` (all frames for `None`), shard by shard in card order; each item is a
+    /// frame or the error that stopped reading a shard.
+    pub fn frames(&self, split: Option<Split>, fractions: SplitFractions) -> DatasetFrames<'_> {
+        DatasetFrames {
+            reader: self,
+            split,
+            fractions,
+            shard: 0,
+            buffer: Vec::new().into_iter(),
+            failed: false,
+        }
+    }
+}
+
+/// Iterator over a data set's frames as [`LabelledFrame`]s; see
+/// [`DatasetReader::labelled_frames`].
+#[derive(Debug)]
+pub struct LabelledFrames<'a> {
+    frames: DatasetFrames<'a>,
+}
+
+impl Iterator for LabelledFrames<'_> {
+    type Item = Result<LabelledFrame, IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let frame = match self.frames.next()? {
+            Ok(frame) => frame,
+            Err(e) => return Some(Err(e)),
+        };
+        let reader = self.frames.reader;
+        Some(frame.to_labelled(&reader.card.layout).map_err(|e| {
+            self.frames.failed = true;
+            IoError::invalid(
+                &reader.dir,
+                format!(
+                    "trajectory {}, frame {}",
+                    frame.trajectory_id, frame.frame_index
+                ),
+                e.to_string(),
+            )
+        }))
+    }
+}
+
+/// Iterator over a data set's frames; see [`DatasetReader::frames`].
+#[derive(Debug)]
+pub struct DatasetFrames<'a> {
+    reader: &'a DatasetReader,
+    split: Option<Split>,
+    fractions: SplitFractions,
+    shard: usize,
+    buffer: std::vec::IntoIter<DatasetFrame>,
+    failed: bool,
+}
+
+impl Iterator for DatasetFrames<'_> {
+    type Item = Result<DatasetFrame, IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            if self.failed {
+                return None;
+            }
+            if let Some(frame) = self.buffer.next() {
+                let keep = self.split.is_none_or(|s| {
+                    split_of(frame.trajectory_id, self.reader.card.seed, self.fractions) == s
+                });
+                if keep {
+                    return Some(Ok(frame));
+                }
+                continue;
+            }
+            let entry = self.reader.card.shards.get(self.shard)?;
+            self.shard += 1;
+            let path = self.reader.dir.join(&entry.file);
+            match read_shard(&path) {
+                Ok((layout, frames)) if layout == self.reader.card.layout => {
+                    self.buffer = frames.into_iter()
+                }
+                Ok(_) => {
+                    self.failed = true;
+                    return Some(Err(IoError::invalid(
+                        &path,
+                        "layout",
+                        "differs from the data set card",
+                    )));
+                }
+                Err(e) => {
+                    self.failed = true;
+                    return Some(Err(e));
+                }
+            }
+        }
+    }
+}
