@@ -6,7 +6,9 @@ use moe_geom::{FingerModel, Point3, Real, Vector3};
 use crate::contact::{ContactParams, PosedObstacles, add_contact_terms};
 use crate::embedding::Embedding;
 use crate::error::SimError;
-use crate::fem::{Advance, FemModel, FemWorkspace, Integrator, StepContext, StepReport};
+use crate::fem::{
+    Advance, BodyState, FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport,
+};
 use crate::material::Material;
 use crate::tendon::{Tendon, TendonCommand, TendonParams};
 use crate::terms::Terms;
@@ -153,11 +155,10 @@ impl FingerBody {
         ws: &mut FemWorkspace,
         ctx: StepContext,
         integrator: Integrator,
-        x: &mut [Point3],
-        v: &mut [Vector3],
+        state: &mut BodyState,
         inputs: &FingerInputs<'_>,
     ) -> Result<StepReport, SimError> {
-        Ok(self.advance(ws, ctx, integrator, x, v, inputs)?.report(ws))
+        Ok(self.advance(ws, ctx, integrator, state, inputs)?.report(ws))
     }
 
     /// [`FingerBody::step`] without allocating (the rank-one values stay in the workspace).
@@ -166,21 +167,16 @@ impl FingerBody {
         ws: &mut FemWorkspace,
         ctx: StepContext,
         integrator: Integrator,
-        x: &mut [Point3],
-        v: &mut [Vector3],
+        state: &mut BodyState,
         inputs: &FingerInputs<'_>,
     ) -> Result<Advance, SimError> {
         self.check_commands(inputs)?;
-        self.fem.advance(
-            ws,
-            ctx,
-            integrator,
-            x,
-            v,
-            inputs.targets,
-            &inputs.gravity,
-            &mut self.terms_fn(inputs),
-        )
+        let fem_inputs = FemInputs {
+            targets: inputs.targets,
+            gravity: inputs.gravity,
+            terms: &mut self.terms_fn(inputs),
+        };
+        self.fem.advance(ws, ctx, integrator, state, fem_inputs)
     }
 
     /// The tendon and contact terms of a step.

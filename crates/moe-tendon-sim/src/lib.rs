@@ -117,13 +117,15 @@ pub use contact::{
 };
 pub use embedding::{Embedded, Embedding};
 pub use error::SimError;
-pub use fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn};
+pub use fem::{
+    BodyState, FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn,
+};
 pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
 pub use scene::{
-    BodyState, FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig,
-    SolverMode, StepInfo,
+    FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig, SolverMode,
+    StepInfo,
 };
 pub use tendon::{Tendon, TendonCommand, TendonParams, TendonState};
 pub use terms::{PairTerm, PointTerm, RankOneTerm, Terms};

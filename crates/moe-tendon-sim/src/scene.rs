@@ -13,7 +13,7 @@ use crate::body::{FingerBody, FingerInputs};
 use crate::camera::RgbdCamera;
 use crate::contact::{ContactParams, PosedObstacles, contact_labels, surface_contact};
 use crate::error::{SimError, require_non_negative, require_positive};
-use crate::fem::{FemWorkspace, Integrator, StepContext};
+use crate::fem::{BodyState, FemWorkspace, Integrator, StepContext};
 use crate::material::Material;
 use crate::obstacle::{Obstacle, ObstacleConfig};
 use crate::tendon::{TendonCommand, TendonParams, TendonState};
@@ -128,15 +128,6 @@ impl Default for SceneConfig {
             camera: RgbdCamera::default(),
         }
     }
-}
-
-/// Node positions and velocities of one finger, world frame.
-#[derive(Debug, Clone, PartialEq)]
-pub struct BodyState {
-    /// Node positions, metres.
-    pub x: Vec<Point3>,
-    /// Node velocities, m/s.
-    pub v: Vec<Vector3>,
 }
 
 /// The full state of a scene: everything a step reads and writes besides the scene itself.
@@ -491,14 +482,7 @@ impl Scene {
                 finger: i,
             };
             let fs = &mut state.fingers[i];
-            let report = match body.advance(
-                &mut self.workspaces[i],
-                ctx,
-                integrator,
-                &mut fs.x,
-                &mut fs.v,
-                &inputs,
-            ) {
+            let report = match body.advance(&mut self.workspaces[i], ctx, integrator, fs, &inputs) {
                 Ok(r) => r,
                 Err(e) => {
                     result = Err(e);

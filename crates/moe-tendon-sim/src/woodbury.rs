@@ -234,7 +234,7 @@ mod tests {
     use moe_geom::{Point3, Vector3};
 
     use crate::error::SimError;
-    use crate::fem::{FemModel, Integrator, StepContext};
+    use crate::fem::{BodyState, FemInputs, FemModel, Integrator, StepContext};
     use crate::material::Material;
     use crate::terms::RankOneTerm;
     use crate::tetmesh::TetMesh;
@@ -247,28 +247,30 @@ mod tests {
         let fixed: Vec<bool> = mesh.nodes().iter().map(|p| p.z < 1e-9).collect();
         let free = fixed.iter().position(|&f| !f).unwrap() as u32;
         let model = FemModel::new(mesh, Material::default(), fixed, &[], 1).unwrap();
-        let mut x = model.mesh().nodes().to_vec();
+        let x = model.mesh().nodes().to_vec();
         let targets = x.clone();
-        let mut v = vec![Vector3::zeros(); x.len()];
+        let v = vec![Vector3::zeros(); x.len()];
+        let mut state = BodyState { x, v };
         let mut ws = model.workspace();
         model
             .step(
                 &mut ws,
                 StepContext { step: 3, finger: 2 },
                 Integrator::Dynamic { dt_secs: 0.01 },
-                &mut x,
-                &mut v,
-                &targets,
-                &Vector3::zeros(),
-                &mut |_, _, t| {
-                    let mut g = t.gradient_buffer();
-                    g.push((free, gradient));
-                    t.rank_ones.push(RankOneTerm {
-                        gradient: g,
-                        stiffness,
-                        value: 1e-3,
-                        unilateral: false,
-                    });
+                &mut state,
+                FemInputs {
+                    targets: &targets,
+                    gravity: Vector3::zeros(),
+                    terms: &mut |_, _, t| {
+                        let mut g = t.gradient_buffer();
+                        g.push((free, gradient));
+                        t.rank_ones.push(RankOneTerm {
+                            gradient: g,
+                            stiffness,
+                            value: 1e-3,
+                            unilateral: false,
+                        });
+                    },
                 },
             )
             .map(|r| r.rank_one_values)

@@ -3,9 +3,9 @@
 
 use moe_geom::{FingerParams, Point3, Real, Topology, Vector3};
 use moe_tendon_sim::{
-    ContactParams, FingerBody, FingerInputs, Integrator, Obstacle, ObstacleConfig, ObstacleShape,
-    PoseKeyframe, PoseTrajectory, PosedObstacles, StepContext, TendonCommand, TendonParams,
-    contact_labels, surface_contact,
+    BodyState, ContactParams, FingerBody, FingerInputs, Integrator, Obstacle, ObstacleConfig,
+    ObstacleShape, PoseKeyframe, PoseTrajectory, PosedObstacles, StepContext, TendonCommand,
+    TendonParams, contact_labels, surface_contact,
 };
 
 use crate::tendons::default_finger;
@@ -30,8 +30,10 @@ fn press_with(
     contact: &ContactParams,
 ) -> (Vec<Point3>, Vec<Real>, Vec<bool>) {
     let rest = body.fem().mesh().nodes().to_vec();
-    let mut x = rest.clone();
-    let mut v = vec![Vector3::zeros(); x.len()];
+    let mut state = BodyState {
+        x: rest.clone(),
+        v: vec![Vector3::zeros(); rest.len()],
+    };
     let commands = [TendonCommand::Displacement { pull_m: 0.0 }; 4];
     let tendon = TendonParams::default();
     let obstacles = std::slice::from_ref(obstacle);
@@ -51,13 +53,12 @@ fn press_with(
             &mut ws,
             StepContext { step, finger: 0 },
             Integrator::Dynamic { dt_secs: DT },
-            &mut x,
-            &mut v,
+            &mut state,
             &inputs,
         )
         .unwrap();
     }
-    let surface = body.surface().positions(&x);
+    let surface = body.surface().positions(&state.x);
     let t_end = steps as Real * DT;
     let c = surface_contact(
         &surface,

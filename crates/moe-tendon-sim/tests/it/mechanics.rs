@@ -1,7 +1,9 @@
 //! Corotational FEM against analytic solutions on structured box meshes.
 
 use moe_geom::{Matrix3, Point3, Real, Vector3};
-use moe_tendon_sim::{FemModel, Integrator, Material, StepContext, Terms, TetMesh};
+use moe_tendon_sim::{
+    BodyState, FemInputs, FemModel, Integrator, Material, StepContext, Terms, TetMesh,
+};
 
 const E: Real = 1e5;
 const NU: Real = 0.1;
@@ -22,9 +24,10 @@ fn bar(w: Real, len: Real, n: usize, m: usize) -> FemModel {
 }
 
 fn static_solve(model: &FemModel, loads: Vec<(u32, Vector3)>) -> Vec<Point3> {
-    let mut x = model.mesh().nodes().to_vec();
-    let mut v = vec![Vector3::zeros(); x.len()];
+    let x = model.mesh().nodes().to_vec();
+    let v = vec![Vector3::zeros(); x.len()];
     let targets = x.clone();
+    let mut state = BodyState { x, v };
     let mut ws = model.workspace();
     let report = model
         .step(
@@ -34,15 +37,16 @@ fn static_solve(model: &FemModel, loads: Vec<(u32, Vector3)>) -> Vec<Point3> {
                 tolerance_m: 1e-10,
                 max_iterations: 100,
             },
-            &mut x,
-            &mut v,
-            &targets,
-            &Vector3::zeros(),
-            &mut |_, _, t: &mut Terms| t.nodal_forces.clone_from(&loads),
+            &mut state,
+            FemInputs {
+                targets: &targets,
+                gravity: Vector3::zeros(),
+                terms: &mut |_, _, t: &mut Terms| t.nodal_forces.clone_from(&loads),
+            },
         )
         .unwrap();
     assert!(report.iterations < 100);
-    x
+    state.x
 }
 
 /// Consistent nodal loads of a uniform traction `t` on the top face z = len of a Kuhn box
@@ -176,8 +180,9 @@ fn linear_displacement_patch_test_is_reproduced_exactly() {
     let exact = |p: &Point3| Point3::from(a * p.coords + c);
     let model = FemModel::new(mesh, material(), fixed, &[], 0).unwrap();
     let targets: Vec<Point3> = model.mesh().nodes().iter().map(exact).collect();
-    let mut x = model.mesh().nodes().to_vec();
-    let mut v = vec![Vector3::zeros(); x.len()];
+    let x = model.mesh().nodes().to_vec();
+    let v = vec![Vector3::zeros(); x.len()];
+    let mut state = BodyState { x, v };
     let mut ws = model.workspace();
     model
         .step(
@@ -187,16 +192,18 @@ fn linear_displacement_patch_test_is_reproduced_exactly() {
                 tolerance_m: 1e-14,
                 max_iterations: 200,
             },
-            &mut x,
-            &mut v,
-            &targets,
-            &Vector3::zeros(),
-            &mut |_, _, _| {},
+            &mut state,
+            FemInputs {
+                targets: &targets,
+                gravity: Vector3::zeros(),
+                terms: &mut |_, _, _| {},
+            },
         )
         .unwrap();
     let interior = model.fixed().iter().filter(|&&f| !f).count();
     assert!(interior >= 27);
-    let err = x
+    let err = state
+        .x
         .iter()
         .zip(&targets)
         .map(|(p, q)| (p - q).norm())
@@ -212,8 +219,10 @@ fn damped_dynamics_settle_to_the_static_gravity_sag() {
     let g = Vector3::new(-9.81, 0.0, 0.0);
     let rest = model.mesh().nodes().to_vec();
     let mut ws = model.workspace();
-    let mut xs = rest.clone();
-    let mut vs = vec![Vector3::zeros(); rest.len()];
+    let mut statics = BodyState {
+        x: rest.clone(),
+        v: vec![Vector3::zeros(); rest.len()],
+    };
     model
         .step(
             &mut ws,
@@ -222,37 +231,43 @@ fn damped_dynamics_settle_to_the_static_gravity_sag() {
                 tolerance_m: 1e-10,
                 max_iterations: 100,
             },
-            &mut xs,
-            &mut vs,
-            &rest,
-            &g,
-            &mut |_, _, _| {},
+            &mut statics,
+            FemInputs {
+                targets: &rest,
+                gravity: g,
+                terms: &mut |_, _, _| {},
+            },
         )
         .unwrap();
-    let mut x = rest.clone();
-    let mut v = vec![Vector3::zeros(); rest.len()];
+    let mut dynamic = BodyState {
+        x: rest.clone(),
+        v: vec![Vector3::zeros(); rest.len()],
+    };
     for step in 0..400 {
         model
             .step(
                 &mut ws,
                 StepContext { step, finger: 0 },
                 Integrator::Dynamic { dt_secs: 0.01 },
-                &mut x,
-                &mut v,
-                &rest,
-                &g,
-                &mut |_, _, _| {},
+                &mut dynamic,
+                FemInputs {
+                    targets: &rest,
+                    gravity: g,
+                    terms: &mut |_, _, _| {},
+                },
             )
             .unwrap();
     }
-    let sag = xs
+    let sag = statics
+        .x
         .iter()
         .zip(&rest)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, Real::max);
-    let err = x
+    let err = dynamic
+        .x
         .iter()
-        .zip(&xs)
+        .zip(&statics.x)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, Real::max);
     assert!(sag > 1e-4, "sag {sag:e}");
@@ -265,11 +280,12 @@ fn damped_dynamics_settle_to_the_static_gravity_sag() {
         &mut ws,
         StepContext::default(),
         Integrator::Dynamic { dt_secs: 0.0 },
-        &mut x,
-        &mut v,
-        &rest,
-        &g,
-        &mut |_, _, _| {},
+        &mut dynamic,
+        FemInputs {
+            targets: &rest,
+            gravity: g,
+            terms: &mut |_, _, _| {},
+        },
     );
     assert!(matches!(
         err,
@@ -305,9 +321,10 @@ fn an_unreachable_static_tolerance_is_reported() {
     let model = bar(0.01, 0.1, 2, 20);
     let area = 0.01 * 0.01;
     let loads = top_traction(&model, 0.1, Vector3::new(1e-3 / area, 0.0, 0.0));
-    let mut x = model.mesh().nodes().to_vec();
-    let mut v = vec![Vector3::zeros(); x.len()];
+    let x = model.mesh().nodes().to_vec();
+    let v = vec![Vector3::zeros(); x.len()];
     let targets = x.clone();
+    let mut state = BodyState { x, v };
     let mut ws = model.workspace();
     let result = model.step(
         &mut ws,
@@ -316,11 +333,12 @@ fn an_unreachable_static_tolerance_is_reported() {
             tolerance_m: 1e-18,
             max_iterations: 20,
         },
-        &mut x,
-        &mut v,
-        &targets,
-        &Vector3::zeros(),
-        &mut |_, _, t: &mut Terms| t.nodal_forces.clone_from(&loads),
+        &mut state,
+        FemInputs {
+            targets: &targets,
+            gravity: Vector3::zeros(),
+            terms: &mut |_, _, t: &mut Terms| t.nodal_forces.clone_from(&loads),
+        },
     );
     assert!(
         matches!(

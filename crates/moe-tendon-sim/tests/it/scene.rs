@@ -2,9 +2,9 @@
 
 use moe_geom::{FingerModel, FingerParams, Point3, TendonRoute, Vector3};
 use moe_tendon_sim::{
-    ActuationKeyframe, ActuationMode, ActuationSchedule, FemModel, FingerBody, Integrator,
-    Material, ObstacleConfig, ObstacleShape, PoseKeyframe, PoseTrajectory, Scene, SceneConfig,
-    SimError, StepContext, TetMesh, VoxelParams,
+    ActuationKeyframe, ActuationMode, ActuationSchedule, BodyState, FemInputs, FemModel,
+    FingerBody, Integrator, Material, ObstacleConfig, ObstacleShape, PoseKeyframe, PoseTrajectory,
+    Scene, SceneConfig, SimError, StepContext, TetMesh, VoxelParams,
 };
 
 /// The regression scene whose digest the golden fixture pins.
@@ -97,24 +97,26 @@ fn divergence_is_reported_with_step_and_element() {
         TetMesh::box_grid(Point3::origin(), Point3::new(0.01, 0.01, 0.01), [1, 1, 2]).unwrap();
     let fixed: Vec<bool> = mesh.nodes().iter().map(|p| p.z < 1e-9).collect();
     let model = FemModel::new(mesh, Material::default(), fixed, &[], 0).unwrap();
-    let mut x: Vec<Point3> = model
+    let x: Vec<Point3> = model
         .mesh()
         .nodes()
         .iter()
         .map(|p| Point3::new(p.x, p.y, -p.z))
         .collect();
     let targets = x.clone();
-    let mut v = vec![Vector3::zeros(); x.len()];
+    let v = vec![Vector3::zeros(); x.len()];
+    let mut state = BodyState { x, v };
     let mut ws = model.workspace();
     let err = model.step(
         &mut ws,
         StepContext { step: 7, finger: 1 },
         Integrator::Dynamic { dt_secs: 0.01 },
-        &mut x,
-        &mut v,
-        &targets,
-        &Vector3::zeros(),
-        &mut |_, _, _| {},
+        &mut state,
+        FemInputs {
+            targets: &targets,
+            gravity: Vector3::zeros(),
+            terms: &mut |_, _, _| {},
+        },
     );
     assert!(
         matches!(

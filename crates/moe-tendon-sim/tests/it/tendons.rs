@@ -2,8 +2,8 @@
 
 use moe_geom::{FingerModel, FingerParams, Point3, Real, Vector3};
 use moe_tendon_sim::{
-    ContactParams, FingerBody, FingerInputs, Integrator, Material, PosedObstacles, StepContext,
-    TendonCommand, TendonParams, VoxelParams,
+    BodyState, ContactParams, FingerBody, FingerInputs, Integrator, Material, PosedObstacles,
+    StepContext, TendonCommand, TendonParams, VoxelParams,
 };
 
 pub(crate) fn default_finger() -> (FingerModel, FingerBody) {
@@ -23,8 +23,10 @@ fn solve(body: &FingerBody, pulls: [Real; 4]) -> Vec<Point3> {
 /// Static equilibrium under tendon `commands`.
 fn solve_commands(body: &FingerBody, commands: [TendonCommand; 4]) -> Vec<Point3> {
     let rest = body.fem().mesh().nodes().to_vec();
-    let mut x = rest.clone();
-    let mut v = vec![Vector3::zeros(); x.len()];
+    let mut state = BodyState {
+        x: rest.clone(),
+        v: vec![Vector3::zeros(); rest.len()],
+    };
     let posed = PosedObstacles::new(&[], 0.0, 0.0);
     let inputs = FingerInputs {
         targets: &rest,
@@ -42,12 +44,11 @@ fn solve_commands(body: &FingerBody, commands: [TendonCommand; 4]) -> Vec<Point3
             tolerance_m: 1e-9,
             max_iterations: 200,
         },
-        &mut x,
-        &mut v,
+        &mut state,
         &inputs,
     )
     .unwrap();
-    x
+    state.x
 }
 
 /// Mean displacement of the surface vertices in the top 5 % of the finger.

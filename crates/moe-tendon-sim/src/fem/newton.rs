@@ -1,0 +1,145 @@
+//! The static Newton iterations and the total potential their line search decreases.
+
+use moe_geom::{Matrix3, Point3, Real, Vector3};
+
+use super::solve::Coefficients;
+use super::step::Advance;
+use super::{BodyState, Drive, FemModel, FemWorkspace, StepContext};
+use crate::error::SimError;
+use crate::terms::Terms;
+
+impl FemModel {
+    /// Newton iterations on the static equilibrium with a backtracking line search; the
+    /// velocities are set to zero.
+    pub(super) fn static_step(
+        &self,
+        ws: &mut FemWorkspace,
+        ctx: StepContext,
+        tolerance_m: Real,
+        max_iterations: usize,
+        state: &mut BodyState,
+        drive: &mut Drive<'_, '_>,
+    ) -> Result<Advance, SimError> {
+        crate::error::require_positive("tolerance_m", tolerance_m)?;
+        let c = Coefficients {
+            mass: 0.0,
+            stiffness: 1.0,
+            external: 1.0,
+            damping: 0.0,
+            force: 1.0,
+            momentum: 0.0,
+        };
+        let gravity = drive.inputs.gravity;
+        state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+        let mut update = Real::INFINITY;
+        for it in 0..max_iterations.max(1) {
+            drive.terms.clear();
+            (drive.inputs.terms)(&state.x, &state.v, drive.terms);
+            let (x, targets) = (&state.x, drive.inputs.targets);
+            let moves_fixed = it == 0 && (0..x.len()).any(|i| self.fixed[i] && targets[i] != x[i]);
+            self.solve(ws, ctx, c, state, drive, it == 0)?;
+            let (x, t) = (&mut state.x, &*drive.terms);
+            // Backtracking line search on the total potential (exact elastic energy,
+            // quadratic models of the interaction terms): the corotational tangent omits
+            // the derivative of the rotations, so a full step can overshoot.
+            let mut alpha: Real = 1.0;
+            if !moves_fixed {
+                let slope: Real = ws.force_dot_dx();
+                let e0 = self.potential(x, &ws.dx, 0.0, &gravity, t, &mut ws.trial)?;
+                let mut accepted = false;
+                for _ in 0..30 {
+                    match self.potential(x, &ws.dx, alpha, &gravity, t, &mut ws.trial) {
+                        Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => {
+                            accepted = true;
+                            break;
+                        }
+                        _ => alpha *= 0.5,
+                    }
+                }
+                // No decrease found: the energy change is below round-off (near the
+                // solution) or the model is poor; take the Newton step and let the
+                // convergence test below judge it.
+                if !accepted {
+                    alpha = 1.0;
+                }
+            }
+            // Convergence is judged on the full Newton step, not the damped one: a
+            // heavily damped step is small without the state being near equilibrium.
+            update = 0.0;
+            for (xi, d) in x.iter_mut().zip(&ws.dx) {
+                *xi += d * alpha;
+                update = update.max(d.norm());
+            }
+            self.check_finite(&state.x, &state.v, ctx)?;
+            if update < tolerance_m {
+                self.check_elements(&state.x, ctx)?;
+                return Ok(Advance {
+                    kinetic_energy_j: 0.0,
+                    iterations: it + 1,
+                });
+            }
+        }
+        Err(SimError::StaticNotConverged {
+            step: ctx.step,
+            finger: ctx.finger,
+            iterations: max_iterations,
+            update_m: update,
+        })
+    }
+
+    /// Total potential at `x + α·d`: exact corotated elastic energy
+    /// `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the gravity and nodal-load potentials, and the quadratic
+    /// models of the interaction terms around `x`.
+    fn potential(
+        &self,
+        x: &[Point3],
+        d: &[Vector3],
+        alpha: Real,
+        gravity: &Vector3,
+        terms: &Terms,
+        trial: &mut [Point3],
+    ) -> Result<Real, SimError> {
+        for ((t, xi), di) in trial.iter_mut().zip(x).zip(d) {
+            *t = xi + di * alpha;
+        }
+        let mut e = 0.0;
+        for t in 0..self.mesh.num_tets() {
+            let (r, _) = self.element_state(t, trial, StepContext::default())?;
+            let f = self.deformation_gradient(t, trial);
+            let eps = r.transpose() * f - Matrix3::identity();
+            let eps = (eps + eps.transpose()) * 0.5;
+            e += self.volumes[t]
+                * (self.mu * eps.norm_squared() + 0.5 * self.lambda * eps.trace().powi(2));
+        }
+        let disp = |i: u32| d[i as usize] * alpha;
+        for (i, m) in self.mass.iter().enumerate() {
+            e -= m * gravity.dot(&disp(i as u32));
+        }
+        for &(n, f) in &terms.nodal_forces {
+            e -= f.dot(&disp(n));
+        }
+        let at = |p: &crate::embedding::Embedded| {
+            (0..4).fold(Vector3::zeros(), |acc, k| {
+                acc + disp(p.nodes[k]) * p.weights[k]
+            })
+        };
+        for p in &terms.points {
+            let dp = at(&p.point);
+            e += 0.5 * dp.dot(&(p.stiffness * dp)) - p.force.dot(&dp);
+        }
+        for p in &terms.pairs {
+            let dd = at(&p.a) - at(&p.b);
+            e += 0.5 * dd.dot(&(p.stiffness * dd));
+        }
+        for r in &terms.rank_ones {
+            let g = r.value
+                + r.gradient
+                    .iter()
+                    .map(|&(n, gr)| gr.dot(&disp(n)))
+                    .sum::<Real>();
+            let g = if r.unilateral { g.max(0.0) } else { g };
+            e += 0.5 * r.stiffness * g * g;
+        }
+        Ok(e)
+    }
+}
