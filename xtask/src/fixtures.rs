@@ -103,7 +103,7 @@ const FIXTURES: &[Fixture] = &[
 /// The simulator's regression scene: its state digest (positions rounded to 1 nm) after all
 /// steps, and the contact labels and penetration of its last frame.
 fn golden_sim_short_scene() -> Result<Value> {
-    let mut scene = moe_tendon_sim::Scene::new(moe_tendon_sim::paper_scenes::golden_short_scene())?;
+    let mut scene = moe_tendon_sim::Scene::new(moe_tendon_sim::testing::golden_short_scene())?;
     let mut state = scene.initial_state();
     for _ in 0..scene.num_steps() {
         scene.step(&mut state)?;

@@ -3,7 +3,7 @@
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use moe_geom::{FingerModel, FingerParams};
-use moe_tendon_sim::paper_scenes::golden_short_scene;
+use moe_tendon_sim::testing::golden_short_scene;
 use moe_tendon_sim::{Scene, VoxelParams, voxelize};
 
 fn bench_sim_step(c: &mut Criterion) {

@@ -101,6 +101,7 @@ pub mod surface;
 pub mod tendon;
 /// Interaction terms (forces at embedded points, couplings, rank-one penalties).
 pub mod terms;
+pub mod testing;
 /// Tetrahedral meshes.
 pub mod tetmesh;
 /// Pose and actuation keyframes.

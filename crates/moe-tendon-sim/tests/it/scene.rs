@@ -9,7 +9,7 @@ use moe_tendon_sim::{
 
 /// The regression scene whose digest the golden fixture pins.
 pub(crate) fn short_scene() -> SceneConfig {
-    moe_tendon_sim::paper_scenes::golden_short_scene()
+    moe_tendon_sim::testing::golden_short_scene()
 }
 
 /// The committed golden figures of [`short_scene`] (`fixtures/golden/sim_short_scene.json`,
