@@ -3,8 +3,9 @@
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use moe_geom::{FingerModel, FingerParams};
+use moe_tendon_sim::mechanics::voxelize;
 use moe_tendon_sim::testing::golden_short_scene;
-use moe_tendon_sim::{Scene, VoxelParams, voxelize};
+use moe_tendon_sim::{Scene, VoxelParams};
 
 fn bench_sim_step(c: &mut Criterion) {
     // The regression scene (default two-finger hand and resolution, finger 0 pulling a tendon, a

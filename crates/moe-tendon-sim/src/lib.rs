@@ -6,29 +6,30 @@
 //! files are parsed by `moe-io` (`moe_io::read_config::<SceneConfig>`), and results are returned
 //! as in-memory values. Every loop that feeds the state is sequential (faer runs with
 //! `Par::Seq`), so a scene is bit-for-bit deterministic on a given machine. The per-step path
-//! does not allocate: [`Scene::step_into`] reuses per-scene, per-finger ([`FemWorkspace`]) and
+//! does not allocate: [`Scene::step_into`] reuses per-scene, per-finger
+//! ([`mechanics::FemWorkspace`]) and
 //! per-term scratch sized when the scene is built (tendon node maps are precomputed, contact
 //! buffers hold a term per surface vertex and obstacle); `tests/alloc.rs` counts the heap
 //! allocations of steps with a counting global allocator.
 //!
 //! # Pipeline
 //!
-//! 1. **Volume** ([`voxelize()`]): a background grid of cubes of edge `cell_size_m` (3.5 mm by
+//! 1. **Volume** ([`mechanics::voxelize()`]): a background grid of cubes of edge `cell_size_m` (3.5 mm by
 //!    default, ≈ 3 000 tets per default finger), each split into six Kuhn tetrahedra (a
 //!    conforming split), keeping the tetrahedra whose centroid is inside the closed surface
 //!    (parry's oriented-mesh inside test) and the largest node-connected component. The grid's
 //!    lowest layer lies on the base plane, so base nodes sit exactly at z = 0. Measured at the
 //!    default resolution: volume ratio 1.003, surface vertices at most 1.6 mm (mean 0.2 mm)
 //!    from the tets.
-//! 2. **Embedding** ([`Embedding`]): each surface vertex is mapped to its containing tet, or
+//! 2. **Embedding** ([`mechanics::Embedding`]): each surface vertex is mapped to its containing tet, or
 //!    (≈ 45 % of the vertices of a voxel mesh) to the nearest tet with *unclamped*
 //!    barycentric weights, so `x_s = Σ_k w_k x_{n_k}` reproduces the rest surface exactly and
 //!    follows the body affinely (SOFA's barycentric mapping). Surface vertex `i` of the
 //!    simulation is vertex `i` of the finger mesh. Tendon points are embedded the same way but
 //!    must lie inside (else [`SimError::TendonOutsideBody`]).
-//! 3. **Elasticity** ([`FemModel`]): linear tets with shape gradients `g_a`, deformation
+//! 3. **Elasticity** ([`mechanics::FemModel`]): linear tets with shape gradients `g_a`, deformation
 //!    gradient `F = Σ_a x_a g_aᵀ`, rotation `R` from the polar decomposition `F = R S`
-//!    ([`polar::polar_rotation`], Higham's scaled Newton iteration; `det F ≤ 0` is an inverted
+//!    ([`mechanics::polar_rotation`], Higham's scaled Newton iteration; `det F ≤ 0` is an inverted
 //!    element). Corotated linear stress `σ = λ tr(ε) I + 2μ ε` with `ε = S − I`, nodal force
 //!    `f_a = −V R σ g_a` (the exact gradient of the energy `V (μ‖S − I‖² + ½λ tr²(S − I))`, zero
 //!    for rigid motions) and the per-step corotated stiffness blocks
@@ -46,17 +47,17 @@
 //!    enter with their prescribed `Δx`, moved to the right-hand side. The matrix is SPD on the
 //!    free nodes; its block pattern (element couplings plus tendon-segment couplings) is
 //!    analysed once (AMD + symbolic Cholesky) and refactorised numerically every step.
-//!    **Quasi-static mode** ([`Integrator::Static`]): Newton iterations `K Δx = f(x)` with a
+//!    **Quasi-static mode** ([`mechanics::Integrator::Static`]): Newton iterations `K Δx = f(x)` with a
 //!    backtracking line search on the total potential (needed because the corotated tangent
 //!    omits `∂R/∂x`, so a full step can overshoot under large stress).
-//! 5. **Tendons** ([`tendon`]): polylines through the body, cable force
+//! 5. **Tendons** ([`mechanics::Tendon`], [`TendonParams`]): polylines through the body, cable force
 //!    `f_k = T (u_k − u_{k−1})` at each embedded point, distributed by barycentric weights.
 //!    Displacement drive (the paper's input): `T = k_t max(0, L − (L₀ − pull))`, the
 //!    rank-one stiffness `k_t ∇L ∇Lᵀ` solved exactly by a Woodbury update with a pull-only
 //!    active set (no fill in the sparse pattern), plus the geometric stiffness
 //!    `(T/ℓ)(I − u uᵀ)` of each segment in the pattern. Force drive: `T` given. A negative pull
 //!    pays cable out: the scenes drive an antagonistic pair like a pulley, `(+d, −d)`.
-//! 6. **Contact** ([`contact`]): implicit penalty on each surface vertex inside an obstacle at
+//! 6. **Contact** ([`ContactParams`]): implicit penalty on each surface vertex inside an obstacle at
 //!    its end-of-step pose: force `−k d n` with stiffness `k n nᵀ` in the system matrix
 //!    (k = 1e4 N/m per vertex), optional regularised Coulomb friction as an implicit tangential
 //!    damping. Every saved frame reports each vertex's penalty force (N). **Label rule** (default,
@@ -67,60 +68,60 @@
 //!    divergence (NaN, inverted element, kinetic energy above a limit) stops with a
 //!    [`SimError`] naming the step, the finger and the element or node.
 
-/// A simulated finger: tet mesh, fixed base, embedded surface and tendons.
-pub mod body;
+// The user-facing API is re-exported at the root; the lower layers that tools and tests
+// drive directly are gathered in `mechanics`; `camera`, `paper_scenes`, `randomize` and
+// `testing` are separate namespaces. Every item has one public path.
+
+// A simulated finger: tet mesh, fixed base, embedded surface and tendons.
+mod body;
 /// The virtual wrist RGB-D camera (rasteriser and noise model).
 pub mod camera;
-/// Penalty contact, friction and contact labels.
-pub mod contact;
-/// Linear embedding of points in tetrahedra.
-pub mod embedding;
-/// The crate's error type.
-pub mod error;
-/// Corotational elasticity, mass, damping and the implicit step.
-pub mod fem;
-/// The sparse system pattern and its Cholesky factorisation.
+// Penalty contact, friction and contact labels.
+mod contact;
+// Linear embedding of points in tetrahedra.
+mod embedding;
+// The crate's error type.
+mod error;
+// Corotational elasticity, mass, damping and the implicit step.
+mod fem;
+// The sparse system pattern and its Cholesky factorisation.
 mod linsys;
-/// Material parameters.
-pub mod material;
-/// Rigid obstacles from parry3d shapes.
-pub mod obstacle;
-/// The scenes of the paper's experiments (head patting, inclined plates).
+// Material parameters.
+mod material;
+pub mod mechanics;
+// Rigid obstacles from parry3d shapes.
+mod obstacle;
+/// The scenes of the paper's experiments (head patting, arm patting, inclined plates).
 pub mod paper_scenes;
-/// Polar decomposition.
-pub mod polar;
+// Polar decomposition.
+mod polar;
 /// Randomised contact scenes for training data.
 pub mod randomize;
-/// Running a scene and keeping its saved frames.
+// Running a scene and keeping its saved frames.
 mod run;
-/// Hand-level scenes with explicit state.
-pub mod scene;
-/// Triangle meshes of obstacle surfaces.
-pub mod surface;
-/// Tendons: embedded cables driven by displacement or force.
-pub mod tendon;
-/// Interaction terms (forces at embedded points, couplings, rank-one penalties).
-pub mod terms;
+// Hand-level scenes with explicit state.
+mod scene;
+// Triangle meshes of obstacle surfaces.
+mod surface;
+// Tendons: embedded cables driven by displacement or force.
+mod tendon;
+// Interaction terms (forces at embedded points, couplings, rank-one penalties).
+mod terms;
 pub mod testing;
-/// Tetrahedral meshes.
-pub mod tetmesh;
-/// Pose and actuation keyframes.
-pub mod trajectory;
-/// Surface-to-volume discretisation.
-pub mod voxelize;
-/// Rank-one (Woodbury) updates of the factorised system.
+// Tetrahedral meshes.
+mod tetmesh;
+// Pose and actuation keyframes.
+mod trajectory;
+// Surface-to-volume discretisation.
+mod voxelize;
+// Rank-one (Woodbury) updates of the factorised system.
 mod woodbury;
 
-pub use body::{BASE_TOLERANCE_M, FingerBody, FingerInputs};
 pub use contact::{
-    ContactParams, LabelRule, PosedObstacles, SurfaceContact, contact_labels, surface_contact,
-    surface_distances,
+    ContactParams, LabelRule, SurfaceContact, contact_labels, surface_contact, surface_distances,
 };
-pub use embedding::{Embedded, Embedding};
 pub use error::SimError;
-pub use fem::{
-    BodyState, FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn,
-};
+pub use fem::BodyState;
 pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
@@ -128,10 +129,9 @@ pub use scene::{
     FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig, SolverMode,
     StepInfo,
 };
-pub use tendon::{Tendon, TendonCommand, TendonParams, TendonState};
-pub use terms::{PairTerm, PointTerm, RankOneTerm, Terms};
-pub use tetmesh::TetMesh;
+pub use surface::obstacle_surface;
+pub use tendon::{TendonParams, TendonState};
 pub use trajectory::{
     ActuationKeyframe, ActuationMode, ActuationSchedule, PoseKeyframe, PoseTrajectory,
 };
-pub use voxelize::{VolumeMesh, VoxelParams, VoxelStats, voxelize};
+pub use voxelize::VoxelParams;

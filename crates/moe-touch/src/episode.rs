@@ -4,8 +4,7 @@
 use moe_geom::{HandModel, Iso3, Point3};
 use moe_io::{CameraInfo, EpisodeFrame, EpisodeInfo, ObstacleMesh};
 use moe_tendon_sim::camera::{CameraIntrinsics, RenderItem, RgbdCamera};
-use moe_tendon_sim::surface::obstacle_surface;
-use moe_tendon_sim::{Scene, SimError, TrajectoryFrame};
+use moe_tendon_sim::{Scene, SimError, TrajectoryFrame, obstacle_surface};
 
 /// Radius of the painted red markers, metres (5 mm stickers).
 pub const MARKER_RADIUS_M: f64 = 0.0025;

@@ -9,7 +9,7 @@ use crate::woodbury::Woodbury;
 /// Reusable per-body scratch memory: keeping one per body makes the step allocation-free
 /// (everything is sized by [`FemModel::workspace`](super::FemModel::workspace); only the interaction terms' buffers grow
 /// while a step needs more terms than any step before, unless reserved up front as
-/// [`FingerBody::workspace`](crate::FingerBody::workspace) does). [`FemModel::step`](super::FemModel::step) still
+/// [`FingerBody::workspace`](crate::mechanics::FingerBody::workspace) does). [`FemModel::step`](super::FemModel::step) still
 /// allocates the [`StepReport::rank_one_values`](super::StepReport::rank_one_values) it returns when there are rank-one terms;
 /// [`Scene::step_into`](crate::Scene::step_into) does not.
 pub struct FemWorkspace {

@@ -2,10 +2,12 @@
 //! default time step, gravity off so that only the obstacle loads the finger).
 
 use moe_geom::{FingerParams, Point3, Real, Topology, Vector3};
+use moe_tendon_sim::mechanics::{
+    FingerBody, FingerInputs, Integrator, PosedObstacles, StepContext, TendonCommand,
+};
 use moe_tendon_sim::{
-    BodyState, ContactParams, FingerBody, FingerInputs, Integrator, Obstacle, ObstacleConfig,
-    ObstacleShape, PoseKeyframe, PoseTrajectory, PosedObstacles, StepContext, TendonCommand,
-    TendonParams, contact_labels, surface_contact,
+    BodyState, ContactParams, Obstacle, ObstacleConfig, ObstacleShape, PoseKeyframe,
+    PoseTrajectory, TendonParams, contact_labels, surface_contact,
 };
 
 use crate::tendons::default_finger;

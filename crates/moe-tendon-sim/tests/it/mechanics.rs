@@ -1,9 +1,8 @@
 //! Corotational FEM against analytic solutions on structured box meshes.
 
 use moe_geom::{Matrix3, Point3, Real, Vector3};
-use moe_tendon_sim::{
-    BodyState, FemInputs, FemModel, Integrator, Material, StepContext, Terms, TetMesh,
-};
+use moe_tendon_sim::mechanics::{FemInputs, FemModel, Integrator, StepContext, Terms, TetMesh};
+use moe_tendon_sim::{BodyState, Material};
 
 const E: Real = 1e5;
 const NU: Real = 0.1;

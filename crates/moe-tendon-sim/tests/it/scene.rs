@@ -1,10 +1,12 @@
 //! Hand-level scenes: determinism (golden digest), wrist following, divergence and bad input.
 
 use moe_geom::{FingerModel, FingerParams, Point3, TendonRoute, Vector3};
+use moe_tendon_sim::mechanics::{
+    FemInputs, FemModel, FingerBody, Integrator, StepContext, TetMesh,
+};
 use moe_tendon_sim::{
-    ActuationKeyframe, ActuationMode, ActuationSchedule, BodyState, FemInputs, FemModel,
-    FingerBody, Integrator, Material, ObstacleConfig, ObstacleShape, PoseKeyframe, PoseTrajectory,
-    Scene, SceneConfig, SimError, StepContext, TetMesh, VoxelParams,
+    ActuationKeyframe, ActuationMode, ActuationSchedule, BodyState, Material, ObstacleConfig,
+    ObstacleShape, PoseKeyframe, PoseTrajectory, Scene, SceneConfig, SimError, VoxelParams,
 };
 
 /// The regression scene whose digest the golden fixture pins.
@@ -219,7 +221,7 @@ fn bad_geometry_gives_typed_errors() {
     let open =
         moe_geom::TriMesh::new(mesh.vertices().to_vec(), mesh.faces()[1..].to_vec()).unwrap();
     assert!(matches!(
-        moe_tendon_sim::voxelize(&open, &VoxelParams::default()),
+        moe_tendon_sim::mechanics::voxelize(&open, &VoxelParams::default()),
         Err(SimError::Geometry(moe_geom::GeomError::OpenMesh { .. }))
     ));
     // A non-manifold surface is rejected when the mesh is built; the error converts.
@@ -335,5 +337,5 @@ fn scenes_and_states_can_move_between_threads() {
     assert_send::<Scene>();
     assert_send::<moe_tendon_sim::SimState>();
     assert_sync::<moe_tendon_sim::SimState>();
-    assert_sync::<moe_tendon_sim::FingerBody>();
+    assert_sync::<moe_tendon_sim::mechanics::FingerBody>();
 }

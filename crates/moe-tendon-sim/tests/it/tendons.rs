@@ -1,10 +1,10 @@
 //! Tendon actuation of the default finger (finger frame, no gravity, quasi-static).
 
 use moe_geom::{FingerModel, FingerParams, Point3, Real, Vector3};
-use moe_tendon_sim::{
-    BodyState, ContactParams, FingerBody, FingerInputs, Integrator, Material, PosedObstacles,
-    StepContext, TendonCommand, TendonParams, VoxelParams,
+use moe_tendon_sim::mechanics::{
+    FingerBody, FingerInputs, Integrator, PosedObstacles, StepContext, TendonCommand,
 };
+use moe_tendon_sim::{BodyState, ContactParams, Material, TendonParams, VoxelParams};
 
 pub(crate) fn default_finger() -> (FingerModel, FingerBody) {
     let model = FingerModel::from_params(&FingerParams::default()).unwrap();
