@@ -12,8 +12,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use moe_gpis::bench_scene::{FamilyReport, evaluate_family, evaluate_scene_with};
-use moe_gpis::{SceneConfig, SceneReport, SurfaceConfig, build_scene};
+use moe_gpis::SurfaceConfig;
+use moe_gpis::bench_scene::{
+    FamilyReport, SceneConfig, SceneReport, build_scene, evaluate_family, evaluate_scene_with,
+};
 use moe_io::PlyData;
 use serde_json::{Value, json};
 

@@ -7,9 +7,11 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use moe_gpis::bench_scene::{SceneConfig, build_scene};
+use moe_gpis::parts::{extract_surface, poisson_surface};
 use moe_gpis::{
-    MeshSdfMean, MeshingOptions, Observations, PoissonOptions, SceneConfig, SurfaceConfig,
-    bounds_of, build_scene, condition, extract_surface, poisson_surface, reconstruct,
+    MeshSdfMean, MeshingOptions, Observations, PoissonOptions, SurfaceConfig, bounds_of, condition,
+    reconstruct,
 };
 
 fn head_inputs() -> (moe_gpis::bench_scene::Scene, MeshSdfMean, Observations) {

@@ -3,10 +3,10 @@
 //!
 //! `cargo run --release -p moe-gpis --example poisson_head -- [depth] [cg_iterations] [refine] [screening]`
 
-use moe_gpis::bench_scene::{Scene, ucd_to_surface_mm};
+use moe_gpis::bench_scene::{Scene, SceneConfig, build_scene, ucd_to_surface_mm};
 use moe_gpis::{
-    GpisError, MeshSdfMean, Mesher, Observations, PoissonOptions, SceneConfig, SurfaceConfig,
-    bounds_of, build_scene, reconstruct,
+    GpisError, MeshSdfMean, Mesher, Observations, PoissonOptions, SurfaceConfig, bounds_of,
+    reconstruct,
 };
 
 fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {

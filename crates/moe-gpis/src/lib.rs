@@ -16,11 +16,11 @@
 //! ```
 //!
 //! Inference is exact by a dense Cholesky factorisation (faer) up to 5 000 observations
-//! ([`GpisConfig::exact_limit`]), with a documented diagonal-jitter fallback ([`gp`]); beyond,
-//! a subset-of-regressors approximation on farthest-point inducing points ([`sparse`]), whose
+//! ([`GpisConfig::exact_limit`]), with a documented diagonal-jitter fallback ([`Jitter`]); beyond,
+//! a subset-of-regressors approximation on farthest-point inducing points ([`parts::SparseGp`]), whose
 //! error against exact inference is measured in its tests. The hyper-parameters `(σ², l, σ_n²)`
 //! maximise the exact log marginal likelihood (Eq. 4) with its analytic gradient, by a bounded
-//! L-BFGS on the log-parameters ([`lbfgs`], [`fit`]).
+//! L-BFGS on the log-parameters ([`parts::minimize_bounded`], [`parts::fit_hyper`]).
 //!
 //! # Method decisions
 //!
@@ -37,9 +37,9 @@
 //!   stay well below the body's half-thickness (the inner point must remain inside): on the
 //!   15 mm-thick arm, 5 mm gives 0.85 mm UCD and 20 mm gives 5.8 mm.
 //! - **Meshing** is marching tetrahedra (Freudenthal split of every cell) with vertices welded
-//!   per grid edge: always closed, manifold and outward oriented ([`marching`]); no ambiguous
+//!   per grid edge: always closed, manifold and outward oriented ([`parts::extract_surface`]); no ambiguous
 //!   cases. The paper's final screened Poisson reconstruction is an option
-//!   ([`Mesher::Poisson`], [`poisson`]): the `poisson_reconstruction` crate solves for an
+//!   ([`Mesher::Poisson`], [`parts::poisson_surface`]): the `poisson_reconstruction` crate solves for an
 //!   indicator from the marching-tetrahedra vertices and normals; its value, calibrated to a
 //!   signed distance, replaces the posterior mean at grid nodes within one octree cell of the
 //!   surface, and the same marching tetrahedra mesh it (the crate's marching cubes can leave
@@ -50,11 +50,11 @@
 //! - **Fast grid queries**: the RBF residual is separable over the axes, so its value at all
 //!   `64³` nodes is one matrix product; the expensive prior SDF is evaluated exactly only in a
 //!   certified narrow band around the zero level set, giving the same mesh as a dense evaluation
-//!   ([`posterior`]).
+//!   ([`Gpis::grid_values_for_meshing`]).
 //! - **Baselines**: the non-probabilistic method moves the prior vertices nearest to the contacts
-//!   onto them and smooths with a normalised cotangent Laplacian filter ([`nonprob`]); GP with a
+//!   onto them and smooths with a normalised cotangent Laplacian filter ([`parts::nonprobabilistic`]); GP with a
 //!   sphere mean. Optional ICP registration (rigid or similarity, point-to-plane with a Gaussian
-//!   pose prior by default) of the prior ([`register`]).
+//!   pose prior by default) of the prior ([`parts::register_prior`], [`PosePrior`]).
 //!
 //! The benchmark of [`bench_scene`] (procedural heads and 2:20:1 arms, patting contacts, UCD to
 //! the ground truth) is run by `cargo xtask eval surface`.
@@ -62,64 +62,60 @@
 //! Architecture invariant: depends only on `moe-geom`, faer, parry3d-f64, poisson_reconstruction,
 //! rayon and serde. No file IO: observations, meshes and grids come in and go out as values.
 
-/// Reproducible head and arm benchmark scenes and their evaluation.
-pub mod bench_scene;
-/// The crate's error type.
-pub mod error;
-/// Hyper-parameter fitting by maximum marginal likelihood.
-pub mod fit;
-/// Exact GP regression, marginal likelihood and its gradient.
-pub mod gp;
-/// Regular query grids.
-pub mod grid;
-/// Covariance kernels (RBF, Matérn 3/2) and hyper-parameters.
-pub mod kernel;
-/// A bounded limited-memory BFGS minimiser.
-pub mod lbfgs;
-/// Marching tetrahedra: closed, manifold iso-surfaces.
-pub mod marching;
-/// Mean functions: constant, fitted sphere, prior-mesh signed distance.
-pub mod mean;
-/// The non-probabilistic baseline: nearest-vertex pull and Laplacian smoothing.
-pub mod nonprob;
-/// SDF observations: contacts, normal offsets, free space, interior points.
-pub mod observations;
-/// Screened Poisson surface reconstruction of the level-set mesh (paper §6.1), meshed crack-free.
-pub mod poisson;
-/// The GPIS posterior and its grid queries (dense and narrow band).
-pub mod posterior;
-/// Conditioning, grid query, meshing and per-vertex variance.
-pub mod reconstruct;
-/// ICP registration of the prior mesh to the contacts.
-pub mod register;
-/// Subset-of-regressors sparse approximation for many observations.
-pub mod sparse;
-/// One entry point for every reconstruction method.
-pub mod surface;
+// The surface pipeline's API is re-exported at the root; its stages, for tools, tests and
+// benchmarks that run one alone, are gathered in `parts`; the benchmark is the separate
+// namespace `bench_scene`. Every item has one public path.
 
-pub use bench_scene::{
-    FamilyReport, SceneConfig, SceneKind, SceneReport, build_scene, evaluate_family, evaluate_scene,
-};
+pub mod bench_scene;
+// The crate's error type.
+mod error;
+// Hyper-parameter fitting by maximum marginal likelihood.
+mod fit;
+// Exact GP regression, marginal likelihood and its gradient.
+mod gp;
+// Regular query grids.
+mod grid;
+// Covariance kernels (RBF, Matérn 3/2) and hyper-parameters.
+mod kernel;
+// A bounded limited-memory BFGS minimiser.
+mod lbfgs;
+// Marching tetrahedra: closed, manifold iso-surfaces.
+mod marching;
+// Mean functions: constant, fitted sphere, prior-mesh signed distance.
+mod mean;
+// The non-probabilistic baseline: nearest-vertex pull and Laplacian smoothing.
+mod nonprob;
+// SDF observations: contacts, normal offsets, free space, interior points.
+mod observations;
+pub mod parts;
+// Screened Poisson surface reconstruction of the level-set mesh (paper §6.1), meshed crack-free.
+mod poisson;
+// The GPIS posterior and its grid queries (dense and narrow band).
+mod posterior;
+// Conditioning, grid query, meshing and per-vertex variance.
+mod reconstruct;
+// ICP registration of the prior mesh to the contacts.
+mod register;
+// Subset-of-regressors sparse approximation for many observations.
+mod sparse;
+// One entry point for every reconstruction method.
+mod surface;
+
 pub use error::GpisError;
-pub use fit::{FitConfig, FitReport, HyperBounds, fit_hyper};
-pub use gp::{ExactGp, Jitter, log_marginal_likelihood_and_grad};
-pub use grid::{Grid3, MAX_GRID_NODES};
-pub use kernel::{Hyper, Kernel, KernelKind};
-pub use lbfgs::{LbfgsConfig, LbfgsReport, minimize_bounded};
-pub use marching::{MeshingOptions, extract_surface};
+pub use fit::{FitConfig, FitReport, HyperBounds};
+pub use gp::Jitter;
+pub use kernel::{Hyper, KernelKind};
+pub use marching::MeshingOptions;
 pub use mean::{ConstantMean, MeanFunction, MeshSdfMean, SphereMean};
-pub use nonprob::{NonProbConfig, nonprobabilistic};
+pub use nonprob::NonProbConfig;
 pub use observations::{ObservationKind, Observations};
-pub use poisson::{MIN_POISSON_SAMPLES, PoissonField, PoissonOptions, poisson_surface};
+pub use poisson::PoissonOptions;
 pub use posterior::{Gpis, ResidualGp};
 pub use reconstruct::{
     ConditionReport, GpisConfig, Mesher, Reconstruction, SurfaceConfig, Timings, bounds_of,
     condition, reconstruct,
 };
-pub use register::{
-    IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity, register_prior,
-};
-pub use sparse::SparseGp;
+pub use register::{IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity};
 pub use surface::{
     PreparedMean, PreparedMeanReport, SurfaceMethod, SurfaceOptions, SurfacePosterior,
     SurfaceResult, condition_surface, prepare_mean, query_bounds, reconstruct_surface,

@@ -29,7 +29,7 @@ pub struct GpisConfig {
     /// Fixed hyper-parameters; `None` fits them by maximum marginal likelihood.
     pub fixed: Option<Hyper>,
     /// Largest number of observations conditioned exactly (default 5000); beyond, the sparse
-    /// approximation of [`crate::sparse`] is used.
+    /// approximation of [`crate::parts::SparseGp`] is used.
     pub exact_limit: usize,
     /// Inducing points of the sparse approximation (default 1000).
     pub inducing_points: usize,
@@ -136,7 +136,7 @@ pub enum Mesher {
     #[default]
     MarchingTetrahedra,
     /// The paper's final step: screened Poisson reconstruction from the vertices and normals of
-    /// the marching-tetrahedra mesh, meshed crack-free on the query grid ([`crate::poisson`]).
+    /// the marching-tetrahedra mesh, meshed crack-free on the query grid ([`crate::parts::poisson_surface`]).
     Poisson(PoissonOptions),
 }
 

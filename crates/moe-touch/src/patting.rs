@@ -11,7 +11,7 @@
 
 use moe_geom::bodies::{ArmParams, HeadParams};
 use moe_geom::{Iso3, Point3, Real, ShapeEstimator, TriMesh};
-use moe_gpis::SceneKind;
+use moe_gpis::bench_scene::SceneKind;
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
 use moe_tendon_sim::{Scene, SceneConfig, run_saving};

@@ -3,9 +3,10 @@
 
 use moe_geom::shapes::icosphere;
 use moe_geom::{Point3, Real, TriMesh};
+use moe_gpis::parts::nonprobabilistic;
 use moe_gpis::{
     FitConfig, GpisConfig, GpisError, Hyper, Jitter, MeshSdfMean, NonProbConfig, Observations,
-    SphereMean, SurfaceConfig, bounds_of, condition, nonprobabilistic, reconstruct,
+    SphereMean, SurfaceConfig, bounds_of, condition, reconstruct,
 };
 
 fn contacts(n: usize) -> Vec<Point3> {

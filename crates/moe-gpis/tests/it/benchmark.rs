@@ -2,8 +2,8 @@
 //! the GP with the task prior beats the prior itself and both baselines on the head, and the
 //! prior and the non-probabilistic baseline on the 2:20:1 arm.
 
-use moe_gpis::bench_scene::evaluate_family;
-use moe_gpis::{SceneConfig, SceneReport, SurfaceConfig};
+use moe_gpis::SurfaceConfig;
+use moe_gpis::bench_scene::{SceneConfig, SceneReport, evaluate_family};
 
 fn small(base: SceneConfig) -> SceneReport {
     let scene = SceneConfig {
