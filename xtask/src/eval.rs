@@ -14,7 +14,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use moe_gpis::SurfaceConfig;
 use moe_gpis::bench_scene::{
-    FamilyReport, SceneConfig, SceneReport, build_scene, evaluate_family, evaluate_scene_with,
+    BenchSceneConfig, FamilyReport, SceneReport, build_scene, evaluate_family, evaluate_scene_with,
 };
 use moe_io::PlyData;
 use serde_json::{Value, json};
@@ -103,17 +103,17 @@ fn parse_noise_mm(s: &str) -> Result<f64, String> {
 
 /// The scene and surface configurations of a benchmark size, with the contact noise (metres)
 /// overridden when given.
-fn configs(size: Size, noise_m: Option<f64>) -> Vec<(SceneConfig, SurfaceConfig)> {
-    [SceneConfig::head(), SceneConfig::arm()]
+fn configs(size: Size, noise_m: Option<f64>) -> Vec<(BenchSceneConfig, SurfaceConfig)> {
+    [BenchSceneConfig::head(), BenchSceneConfig::arm()]
         .into_iter()
-        .map(|base| SceneConfig {
+        .map(|base| BenchSceneConfig {
             noise_m: noise_m.unwrap_or(base.noise_m),
             ..base
         })
         .map(|base| match size {
             Size::Full => (base, SurfaceConfig::default()),
             Size::Small => (
-                SceneConfig {
+                BenchSceneConfig {
                     mesh_level: 4,
                     contacts_per_patch: 20,
                     ..base

@@ -21,7 +21,7 @@ use moe_arap::ShapeOptions;
 use moe_contact::{ContactEstimator, KnnIndex};
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
 use moe_gpis::SurfaceConfig;
-use moe_gpis::bench_scene::{Scene, SceneKind, SceneReport, Spread, evaluate_scene_with};
+use moe_gpis::bench_scene::{BenchScene, SceneKind, SceneReport, Spread, evaluate_scene_with};
 use moe_io::{DatasetReader, PlyData, SplitFractions};
 use moe_tendon_sim::paper_scenes::{ARM_SEED, HEAD_SEED};
 use moe_touch::contact_eval::study_shape_estimator;
@@ -304,7 +304,7 @@ fn evaluate_pair(
         if contacts.points_in_world.is_empty() {
             return Ok(None);
         }
-        let scene = Scene {
+        let scene = BenchScene {
             truth: episode.truth.clone(),
             prior: prior.clone(),
             contacts: contacts.points_in_world.clone(),

@@ -7,15 +7,15 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_gpis::bench_scene::{SceneConfig, build_scene};
+use moe_gpis::bench_scene::{BenchSceneConfig, build_scene};
 use moe_gpis::parts::{extract_surface, poisson_surface};
 use moe_gpis::{
     MeshSdfMean, MeshingOptions, Observations, PoissonOptions, SurfaceConfig, bounds_of, condition,
     reconstruct,
 };
 
-fn head_inputs() -> (moe_gpis::bench_scene::Scene, MeshSdfMean, Observations) {
-    let scene = build_scene(&SceneConfig::head()).expect("head scene");
+fn head_inputs() -> (moe_gpis::bench_scene::BenchScene, MeshSdfMean, Observations) {
+    let scene = build_scene(&BenchSceneConfig::head()).expect("head scene");
     let prior = MeshSdfMean::new(&scene.prior).expect("watertight prior");
     let mut obs = Observations::from_contacts(&scene.contacts).expect("finite contacts");
     obs.add_mean_normal_offsets(&prior, 0.005).expect("offsets");

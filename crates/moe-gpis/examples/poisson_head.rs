@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release -p moe-gpis --example poisson_head -- [depth] [cg_iterations] [refine] [screening]`
 
-use moe_gpis::bench_scene::{Scene, SceneConfig, build_scene, ucd_to_surface_mm};
+use moe_gpis::bench_scene::{BenchScene, BenchSceneConfig, build_scene, ucd_to_surface_mm};
 use moe_gpis::{
     GpisError, MeshSdfMean, Mesher, Observations, PoissonOptions, SurfaceConfig, bounds_of,
     reconstruct,
@@ -16,7 +16,7 @@ fn arg<T: std::str::FromStr>(i: usize, default: T) -> T {
         .unwrap_or(default)
 }
 
-fn run(scene: &Scene, mesher: Mesher) -> Result<(), GpisError> {
+fn run(scene: &BenchScene, mesher: Mesher) -> Result<(), GpisError> {
     let mean = MeshSdfMean::new(&scene.prior)?;
     let truth = MeshSdfMean::new(&scene.truth)?;
     let mut obs = Observations::from_contacts(&scene.contacts)?;
@@ -40,7 +40,7 @@ fn run(scene: &Scene, mesher: Mesher) -> Result<(), GpisError> {
 }
 
 fn main() -> Result<(), GpisError> {
-    let scene = build_scene(&SceneConfig::head())?;
+    let scene = build_scene(&BenchSceneConfig::head())?;
     let defaults = PoissonOptions::default();
     let depth = arg(1, defaults.depth);
     let options = PoissonOptions {

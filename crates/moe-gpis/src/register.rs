@@ -598,16 +598,16 @@ mod tests {
 
     #[test]
     fn the_pose_prior_keeps_a_patted_head_from_rolling() {
-        use crate::bench_scene::{SceneConfig, build_scene};
+        use crate::bench_scene::{BenchSceneConfig, build_scene};
         // Another person's head, patted on top, back and sides: plain ICP trades the pose
         // for the shape mismatch and rolls the prior far from the (correct) initial pose.
-        let scene = build_scene(&SceneConfig {
+        let scene = build_scene(&BenchSceneConfig {
             truth_seed: 11,
             prior_seed: 12,
             contact_seed: 13,
             contacts_per_patch: 20,
             mesh_level: 3,
-            ..SceneConfig::head()
+            ..BenchSceneConfig::head()
         })
         .unwrap();
         let angle = |pose_prior| {

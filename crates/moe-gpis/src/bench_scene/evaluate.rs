@@ -3,7 +3,7 @@
 use moe_geom::{Point3, Real, TriMesh};
 use serde::{Deserialize, Serialize};
 
-use super::scene::{Scene, SceneKind};
+use super::scene::{BenchScene, SceneKind};
 use crate::error::GpisError;
 use crate::mean::{MeanFunction, MeshSdfMean};
 use crate::observations::Observations;
@@ -100,7 +100,7 @@ impl SceneReport {
 /// Runs one method through [`reconstruct_surface`] and scores it against the truth.
 fn method_result(
     options: &SurfaceOptions,
-    scene: &Scene,
+    scene: &BenchScene,
     contacts: &Observations,
     truth: &MeshSdfMean,
     sink: &mut MeshSink<'_>,
@@ -143,7 +143,7 @@ pub type MeshSink<'a> = dyn FnMut(&str, &TriMesh, &[Real]) + 'a;
 /// Any reconstruction error.
 pub fn evaluate_scene(
     kind: SceneKind,
-    scene: &Scene,
+    scene: &BenchScene,
     surface: &SurfaceConfig,
     normal_offset_m: Option<Real>,
 ) -> Result<SceneReport, GpisError> {
@@ -156,7 +156,7 @@ pub fn evaluate_scene(
 /// As [`evaluate_scene`].
 pub fn evaluate_scene_with(
     kind: SceneKind,
-    scene: &Scene,
+    scene: &BenchScene,
     surface: &SurfaceConfig,
     normal_offset_m: Option<Real>,
     sink: &mut MeshSink<'_>,

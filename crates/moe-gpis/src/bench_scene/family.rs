@@ -4,7 +4,7 @@ use moe_geom::Real;
 use serde::{Deserialize, Serialize};
 
 use super::evaluate::{MethodResult, SceneReport, evaluate_scene};
-use super::scene::{SceneConfig, SceneKind, build_scene};
+use super::scene::{BenchSceneConfig, SceneKind, build_scene};
 use crate::error::GpisError;
 use crate::reconstruct::SurfaceConfig;
 
@@ -65,7 +65,7 @@ pub struct FamilyReport {
 /// `pairs == 0`, or any error of [`build_scene`] / [`evaluate_scene`] (a method failing on one
 /// scene is counted in [`MethodSummary::failures`] instead).
 pub fn evaluate_family(
-    base: &SceneConfig,
+    base: &BenchSceneConfig,
     pairs: usize,
     surface: &SurfaceConfig,
     normal_offset_m: Option<Real>,
@@ -80,7 +80,7 @@ pub fn evaluate_family(
     }
     let mut scenes = Vec::with_capacity(pairs);
     for k in 0..pairs as u64 {
-        let config = SceneConfig {
+        let config = BenchSceneConfig {
             truth_seed: base.truth_seed + 10 * k,
             prior_seed: base.prior_seed + 10 * k,
             contact_seed: base.contact_seed + 10 * k,

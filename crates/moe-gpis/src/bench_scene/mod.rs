@@ -34,4 +34,4 @@ pub use evaluate::{
     MeshSink, MethodResult, SceneReport, evaluate_scene, evaluate_scene_with, ucd_to_surface_mm,
 };
 pub use family::{FamilyReport, MethodSummary, Spread, evaluate_family};
-pub use scene::{Scene, SceneConfig, SceneKind, build_scene};
+pub use scene::{BenchScene, BenchSceneConfig, SceneKind, build_scene};

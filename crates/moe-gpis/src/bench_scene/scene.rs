@@ -18,7 +18,7 @@ pub enum SceneKind {
 
 /// How to build a scene.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct SceneConfig {
+pub struct BenchSceneConfig {
     /// Head or arm.
     pub kind: SceneKind,
     /// Seed of the ground-truth shape.
@@ -35,7 +35,7 @@ pub struct SceneConfig {
     pub mesh_level: u32,
 }
 
-impl SceneConfig {
+impl BenchSceneConfig {
     /// The default head scene (6 patches × 50 contacts).
     pub fn head() -> Self {
         Self {
@@ -61,7 +61,7 @@ impl SceneConfig {
 
 /// A ground truth, a prior and contacts.
 #[derive(Debug, Clone)]
-pub struct Scene {
+pub struct BenchScene {
     /// The hidden surface.
     pub truth: TriMesh,
     /// The task prior (another member of the family).
@@ -89,7 +89,7 @@ fn direction_in_cap(rng: &mut SeededRng, axis: &Vector3, alpha: Real) -> Vector3
 ///
 /// # Errors
 /// Mesh validation (never for the built-in families).
-pub fn build_scene(config: &SceneConfig) -> Result<Scene, GpisError> {
+pub fn build_scene(config: &BenchSceneConfig) -> Result<BenchScene, GpisError> {
     let mut rng = SeededRng::new(config.contact_seed);
     let noise = |rng: &mut SeededRng| {
         Vector3::new(rng.normal(), rng.normal(), rng.normal()) * config.noise_m
@@ -116,7 +116,7 @@ pub fn build_scene(config: &SceneConfig) -> Result<Scene, GpisError> {
                     contacts.push(p + noise(&mut rng));
                 }
             }
-            Ok(Scene {
+            Ok(BenchScene {
                 truth: truth.mesh(config.mesh_level)?,
                 prior: prior.mesh(config.mesh_level)?,
                 contacts,
@@ -138,7 +138,7 @@ pub fn build_scene(config: &SceneConfig) -> Result<Scene, GpisError> {
                     }
                 }
             }
-            Ok(Scene {
+            Ok(BenchScene {
                 truth: truth.mesh(config.mesh_level)?,
                 prior: prior.mesh(config.mesh_level)?,
                 contacts,
@@ -153,9 +153,9 @@ mod tests {
 
     #[test]
     fn scenes_are_reproducible_closed_and_plausible() {
-        let cfg = SceneConfig {
+        let cfg = BenchSceneConfig {
             mesh_level: 3,
-            ..SceneConfig::head()
+            ..BenchSceneConfig::head()
         };
         let a = build_scene(&cfg).unwrap();
         let b = build_scene(&cfg).unwrap();
@@ -171,9 +171,9 @@ mod tests {
             "{ext}"
         );
         assert!(ext.z > 0.22 && ext.z < 0.32, "{ext}");
-        let arm = build_scene(&SceneConfig {
+        let arm = build_scene(&BenchSceneConfig {
             mesh_level: 3,
-            ..SceneConfig::arm()
+            ..BenchSceneConfig::arm()
         })
         .unwrap();
         let e = arm.truth.aabb().extents();

@@ -3,10 +3,10 @@
 //! prior and the non-probabilistic baseline on the 2:20:1 arm.
 
 use moe_gpis::SurfaceConfig;
-use moe_gpis::bench_scene::{SceneConfig, SceneReport, evaluate_family};
+use moe_gpis::bench_scene::{BenchSceneConfig, SceneReport, evaluate_family};
 
-fn small(base: SceneConfig) -> SceneReport {
-    let scene = SceneConfig {
+fn small(base: BenchSceneConfig) -> SceneReport {
+    let scene = BenchSceneConfig {
         mesh_level: 4,
         contacts_per_patch: 20,
         ..base
@@ -29,7 +29,7 @@ fn ucd(report: &SceneReport, method: &str) -> f64 {
 
 #[test]
 fn gp_with_the_task_prior_is_ahead_of_the_baselines_on_the_head() {
-    let r = small(SceneConfig::head());
+    let r = small(BenchSceneConfig::head());
     let gp = ucd(&r, "gp_prior");
     assert!(gp < 3.6, "GP + prior UCD {gp} mm (paper 3.64 mm)");
     for other in ["prior", "gp_sphere", "nonprob"] {
@@ -40,7 +40,7 @@ fn gp_with_the_task_prior_is_ahead_of_the_baselines_on_the_head() {
 
 #[test]
 fn gp_with_the_task_prior_is_ahead_on_the_arm() {
-    let r = small(SceneConfig::arm());
+    let r = small(BenchSceneConfig::arm());
     let gp = ucd(&r, "gp_prior");
     for other in ["prior", "nonprob"] {
         let o = ucd(&r, other);
