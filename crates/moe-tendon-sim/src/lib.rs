@@ -126,7 +126,7 @@ pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
 pub use scene::{
-    FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig, SolverMode,
+    FingerSimFrame, HandConfig, Scene, SceneConfig, SimFrame, SimState, SolverConfig, SolverMode,
     StepInfo,
 };
 pub use surface::obstacle_surface;

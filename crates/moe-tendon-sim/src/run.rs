@@ -4,13 +4,13 @@
 use moe_geom::Real;
 
 use crate::error::SimError;
-use crate::scene::{Frame, Scene, SimState, StepInfo};
+use crate::scene::{Scene, SimFrame, SimState, StepInfo};
 
 /// One saved frame of a simulated trajectory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrajectoryFrame {
     /// Surfaces, distances and labels.
-    pub frame: Frame,
+    pub frame: SimFrame,
     /// Commanded tendon values at this time (metres of pull in displacement mode):
     /// `[finger][tendon]`.
     pub tendon_values: Vec<Vec<Real>>,

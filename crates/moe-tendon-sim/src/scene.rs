@@ -206,9 +206,9 @@ pub struct StepInfo {
     pub tendons: Vec<Vec<TendonState>>,
 }
 
-/// The surface of one finger at a saved frame.
+/// The surface of one finger in a [`SimFrame`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct FingerFrame {
+pub struct FingerSimFrame {
     /// Surface vertices in the hand frame (same order as the finger mesh), metres.
     pub vertices_in_hand: Vec<Point3>,
     /// Surface vertices in the world frame, metres.
@@ -221,9 +221,11 @@ pub struct FingerFrame {
     pub labels: Vec<bool>,
 }
 
-/// The hand's surfaces at one instant.
+/// The hand's surfaces at one instant: a time sample of the simulation, as saved every
+/// [`SceneConfig::save_every_steps`] steps (not a coordinate frame: those are the markers of
+/// `moe_geom::transform::frame`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Frame {
+pub struct SimFrame {
     /// Steps taken.
     pub step: u64,
     /// Time, seconds.
@@ -231,7 +233,7 @@ pub struct Frame {
     /// `world_from_hand` at this time.
     pub world_from_hand: Iso3,
     /// One per finger.
-    pub fingers: Vec<FingerFrame>,
+    pub fingers: Vec<FingerSimFrame>,
 }
 
 /// A runnable scene: the built hand, finger bodies, obstacles and per-finger scratch memory.
@@ -525,7 +527,7 @@ impl Scene {
     }
 
     /// The surfaces, distances and contact labels of `state`.
-    pub fn frame(&self, state: &SimState) -> Frame {
+    pub fn frame(&self, state: &SimState) -> SimFrame {
         let t = state.time_secs;
         let world_from_hand = self.config.wrist.pose_at(t);
         let hand_from_world = world_from_hand.inverse();
@@ -544,7 +546,7 @@ impl Scene {
                 );
                 let labels =
                     contact_labels(&contact, b.movable_surface_vertices(), &self.config.contact);
-                FingerFrame {
+                FingerSimFrame {
                     vertices_in_hand: world.iter().map(|p| hand_from_world * p).collect(),
                     vertices_in_world: world,
                     distances_m: contact.distances_m,
@@ -553,7 +555,7 @@ impl Scene {
                 }
             })
             .collect();
-        Frame {
+        SimFrame {
             step: state.step,
             time_secs: t,
             world_from_hand,

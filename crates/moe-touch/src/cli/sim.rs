@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_tendon_sim::{Frame, Scene, SceneConfig, SimState, run_with};
+use moe_tendon_sim::{Scene, SceneConfig, SimFrame, SimState, run_with};
 use serde::Serialize;
 
 /// Mesh format of the saved frames.
@@ -227,7 +227,7 @@ fn report(summary: &SimSummary, args: &SimArgs) -> Result<()> {
 }
 
 fn save_frame(scene: &Scene, state: &SimState, args: &SimArgs, dir: &Path) -> Result<FrameRecord> {
-    let frame: Frame = scene.frame(state);
+    let frame: SimFrame = scene.frame(state);
     let k = frame.step;
     let mut record = FrameRecord {
         step: k,
