@@ -126,8 +126,8 @@ pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
 pub use scene::{
-    FingerSimFrame, HandConfig, Scene, SceneConfig, SimFrame, SimState, SolverConfig, SolverMode,
-    StepInfo,
+    FingerSimFrame, PresetHandConfig, Scene, SceneConfig, SimFrame, SimState, SolverConfig,
+    SolverMode, StepInfo,
 };
 pub use surface::obstacle_surface;
 pub use tendon::{TendonParams, TendonState};

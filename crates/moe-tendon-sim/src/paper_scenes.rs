@@ -19,7 +19,7 @@ use moe_geom::{FingerParams, HandPreset, Point3, Real, Vector3};
 
 use crate::error::SimError;
 use crate::obstacle::{ObstacleConfig, ObstacleShape};
-use crate::scene::{HandConfig, SceneConfig};
+use crate::scene::{PresetHandConfig, SceneConfig};
 use crate::trajectory::{PoseKeyframe, PoseTrajectory};
 
 /// Seed of the head used by [`head_patting`].
@@ -239,7 +239,7 @@ fn check_pats(pats: usize, most: usize) -> Result<(), SimError> {
 fn patting_scene(keyframes: Vec<PoseKeyframe>, mesh: &moe_geom::TriMesh) -> SceneConfig {
     let duration = keyframes.last().map_or(0.0, |k| k.time_secs);
     SceneConfig {
-        hand: HandConfig {
+        hand: PresetHandConfig {
             preset: HandPreset::TwoFinger,
             finger: FingerParams::default(),
         },
@@ -298,7 +298,7 @@ pub fn inclined_plate(incline_deg: Real) -> Result<SceneConfig, SimError> {
     let rotation = Vector3::x() * incline;
     let centre = -n * half_thickness;
     Ok(SceneConfig {
-        hand: HandConfig {
+        hand: PresetHandConfig {
             preset: HandPreset::ThreeFinger,
             finger,
         },

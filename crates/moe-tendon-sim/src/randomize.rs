@@ -26,7 +26,7 @@ use crate::contact::ContactParams;
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
 use crate::run::{TrajectoryFrame, run_saving};
-use crate::scene::{HandConfig, Scene, SceneConfig};
+use crate::scene::{PresetHandConfig, Scene, SceneConfig};
 use crate::surface::obstacle_surface;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
 
@@ -525,7 +525,7 @@ fn build_config(
         })
         .collect();
     let mut config = SceneConfig {
-        hand: HandConfig {
+        hand: PresetHandConfig {
             preset: params.preset,
             finger: params.finger.clone(),
         },

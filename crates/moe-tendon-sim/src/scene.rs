@@ -20,17 +20,19 @@ use crate::tendon::{TendonCommand, TendonParams, TendonState};
 use crate::trajectory::{ActuationMode, ActuationSchedule, PoseTrajectory};
 use crate::voxelize::VoxelParams;
 
-/// Which hand to build.
+/// Which hand to build: a preset layout of identical parametric fingers. (A hand-model file,
+/// with explicitly placed or mesh fingers, is `moe_io::HandConfig`; the `HandModel` it builds
+/// goes to [`Scene::with_hand`].)
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct HandConfig {
+pub struct PresetHandConfig {
     /// Layout preset. Default two-finger.
     pub preset: HandPreset,
     /// Parametric finger geometry (all fingers identical).
     pub finger: FingerParams,
 }
 
-impl Default for HandConfig {
+impl Default for PresetHandConfig {
     fn default() -> Self {
         Self {
             preset: HandPreset::TwoFinger,
@@ -83,7 +85,7 @@ impl Default for SolverConfig {
 #[serde(default, deny_unknown_fields)]
 pub struct SceneConfig {
     /// The hand.
-    pub hand: HandConfig,
+    pub hand: PresetHandConfig,
     /// Silicone body.
     pub material: Material,
     /// Tet-mesh resolution.
@@ -113,7 +115,7 @@ pub struct SceneConfig {
 impl Default for SceneConfig {
     fn default() -> Self {
         Self {
-            hand: HandConfig::default(),
+            hand: PresetHandConfig::default(),
             material: Material::default(),
             voxel: VoxelParams::default(),
             tendon: TendonParams::default(),

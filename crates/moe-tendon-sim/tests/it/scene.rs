@@ -309,7 +309,7 @@ fn three_and_five_finger_hands_step() {
         moe_geom::HandPreset::FiveFinger,
     ] {
         let config = SceneConfig {
-            hand: moe_tendon_sim::HandConfig {
+            hand: moe_tendon_sim::PresetHandConfig {
                 preset,
                 finger: FingerParams {
                     vertex_budget: 256,
