@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use moe_gpis::SurfaceConfig;
+use moe_gpis::ReconstructOptions;
 use moe_gpis::bench_scene::{
     BenchSceneConfig, FamilyReport, SceneReport, build_scene, evaluate_family, evaluate_scene_with,
 };
@@ -103,7 +103,7 @@ fn parse_noise_mm(s: &str) -> Result<f64, String> {
 
 /// The scene and surface configurations of a benchmark size, with the contact noise (metres)
 /// overridden when given.
-fn configs(size: Size, noise_m: Option<f64>) -> Vec<(BenchSceneConfig, SurfaceConfig)> {
+fn configs(size: Size, noise_m: Option<f64>) -> Vec<(BenchSceneConfig, ReconstructOptions)> {
     [BenchSceneConfig::head(), BenchSceneConfig::arm()]
         .into_iter()
         .map(|base| BenchSceneConfig {
@@ -111,17 +111,17 @@ fn configs(size: Size, noise_m: Option<f64>) -> Vec<(BenchSceneConfig, SurfaceCo
             ..base
         })
         .map(|base| match size {
-            Size::Full => (base, SurfaceConfig::default()),
+            Size::Full => (base, ReconstructOptions::default()),
             Size::Small => (
                 BenchSceneConfig {
                     mesh_level: 4,
                     contacts_per_patch: 20,
                     ..base
                 },
-                SurfaceConfig {
+                ReconstructOptions {
                     max_grid_nodes: 32 * 32 * 32,
                     vertex_variance: false,
-                    ..SurfaceConfig::default()
+                    ..ReconstructOptions::default()
                 },
             ),
         })
@@ -158,7 +158,7 @@ fn write_surfaces(size: Size, noise_m: Option<f64>, dir: &Path) -> Result<Vec<Pa
         put("truth", &PlyData::from_mesh(&scene.truth))?;
         put("contacts", &PlyData::from_points(&scene.contacts))?;
         // The written surfaces carry their variance whatever the size.
-        let surface = SurfaceConfig {
+        let surface = ReconstructOptions {
             vertex_variance: true,
             ..surface
         };

@@ -20,7 +20,7 @@ use clap::{Args, ValueEnum};
 use moe_arap::ShapeOptions;
 use moe_contact::{ContactEstimator, KnnIndex};
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
-use moe_gpis::SurfaceConfig;
+use moe_gpis::ReconstructOptions;
 use moe_gpis::bench_scene::{BenchScene, SceneKind, SceneReport, Spread, evaluate_scene_with};
 use moe_io::{DatasetReader, PlyData, SplitFractions};
 use moe_tendon_sim::paper_scenes::{ARM_SEED, HEAD_SEED};
@@ -199,13 +199,13 @@ fn summary(pairs: &[PairReport]) -> Value {
     json!({ "table2": table2, "table3_estimated": table3(true), "table3_true_contacts": table3(false) })
 }
 
-fn surface_config(size: Size) -> SurfaceConfig {
+fn reconstruct_options(size: Size) -> ReconstructOptions {
     match size {
-        Size::Full => SurfaceConfig::default(),
-        Size::Small => SurfaceConfig {
+        Size::Full => ReconstructOptions::default(),
+        Size::Small => ReconstructOptions {
             max_grid_nodes: 24 * 24 * 24,
             vertex_variance: false,
-            ..SurfaceConfig::default()
+            ..ReconstructOptions::default()
         },
     }
 }
@@ -278,7 +278,7 @@ fn evaluate_pair(
         Size::Small => 4,
     };
     let prior = body_mesh(body.kind(), prior_seed, prior_level)?;
-    let surface = surface_config(size);
+    let surface = reconstruct_options(size);
     let put = |name: &str, ply: &PlyData| -> Result<()> {
         if let Some(dir) = write {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -309,7 +309,7 @@ fn evaluate_pair(
             prior: prior.clone(),
             contacts: contacts.points_in_world.clone(),
         };
-        let surface = SurfaceConfig {
+        let surface = ReconstructOptions {
             vertex_variance: write.is_some(),
             ..surface
         };

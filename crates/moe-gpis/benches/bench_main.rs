@@ -10,8 +10,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use moe_gpis::bench_scene::{BenchSceneConfig, build_scene};
 use moe_gpis::parts::{extract_surface, poisson_surface};
 use moe_gpis::{
-    MeshSdfMean, MeshingOptions, Observations, PoissonOptions, SurfaceConfig, bounds_of, condition,
-    reconstruct,
+    MeshSdfMean, MeshingOptions, Observations, PoissonOptions, ReconstructOptions, bounds_of,
+    condition, reconstruct,
 };
 
 fn head_inputs() -> (moe_gpis::bench_scene::BenchScene, MeshSdfMean, Observations) {
@@ -25,9 +25,9 @@ fn head_inputs() -> (moe_gpis::bench_scene::BenchScene, MeshSdfMean, Observation
 fn bench_head(c: &mut Criterion) {
     let (scene, prior, obs) = head_inputs();
     let bounds = bounds_of(&scene.contacts, Some(&scene.prior)).expect("bounds");
-    let no_variance = SurfaceConfig {
+    let no_variance = ReconstructOptions {
         vertex_variance: false,
-        ..SurfaceConfig::default()
+        ..ReconstructOptions::default()
     };
     let mut group = c.benchmark_group("head_gp_prior");
     group.sample_size(20);
@@ -67,9 +67,9 @@ fn bench_head(c: &mut Criterion) {
 fn bench_head_poisson(c: &mut Criterion) {
     let (scene, prior, obs) = head_inputs();
     let bounds = bounds_of(&scene.contacts, Some(&scene.prior)).expect("bounds");
-    let no_variance = SurfaceConfig {
+    let no_variance = ReconstructOptions {
         vertex_variance: false,
-        ..SurfaceConfig::default()
+        ..ReconstructOptions::default()
     };
     let (rec, gpis) = reconstruct(&prior, &obs, &bounds, &no_variance).expect("rec");
     let values = gpis.grid_values_for_meshing(&rec.grid);

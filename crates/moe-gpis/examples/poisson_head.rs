@@ -5,7 +5,7 @@
 
 use moe_gpis::bench_scene::{BenchScene, BenchSceneConfig, build_scene, ucd_to_surface_mm};
 use moe_gpis::{
-    GpisError, MeshSdfMean, Mesher, Observations, PoissonOptions, SurfaceConfig, bounds_of,
+    GpisError, MeshSdfMean, Mesher, Observations, PoissonOptions, ReconstructOptions, bounds_of,
     reconstruct,
 };
 
@@ -22,10 +22,10 @@ fn run(scene: &BenchScene, mesher: Mesher) -> Result<(), GpisError> {
     let mut obs = Observations::from_contacts(&scene.contacts)?;
     obs.add_mean_normal_offsets(&mean, 0.005)?;
     let bounds = bounds_of(&scene.contacts, Some(&scene.prior)).expect("the scene has contacts");
-    let config = SurfaceConfig {
+    let config = ReconstructOptions {
         mesher,
         vertex_variance: false,
-        ..SurfaceConfig::default()
+        ..ReconstructOptions::default()
     };
     let (rec, _) = reconstruct(&mean, &obs, &bounds, &config)?;
     rec.mesh.require_closed()?;

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::GpisError;
 use crate::gp::{Jitter, log_marginal_likelihood_and_grad};
 use crate::kernel::{Hyper, KernelKind};
-use crate::lbfgs::{LbfgsConfig, minimize_bounded};
+use crate::lbfgs::{LbfgsOptions, minimize_bounded};
 
 /// Box bounds on the hyper-parameters (in their natural units; the optimiser works on logs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -172,11 +172,11 @@ pub fn fit_hyper(
         log_marginal_likelihood_and_grad(&pts, &res, config.kind, &hyper, &config.jitter)
             .map(|(lml, g)| (-lml, g.iter().map(|v| -v).collect()))
     };
-    let lbfgs = LbfgsConfig {
+    let lbfgs = LbfgsOptions {
         max_iterations: config.max_iterations,
         gradient_tolerance: 1e-4,
         function_tolerance: 1e-9,
-        ..LbfgsConfig::default()
+        ..LbfgsOptions::default()
     };
     let report = minimize_bounded(objective, &start.to_log(), &lower, &upper, &lbfgs)?;
     Ok(FitReport {

@@ -14,7 +14,7 @@ use moe_geom::Real;
 
 /// Stopping rules and memory of [`minimize_bounded`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LbfgsConfig {
+pub struct LbfgsOptions {
     /// Number of curvature pairs kept (default 6).
     pub memory: usize,
     /// Maximum number of iterations (default 100).
@@ -26,7 +26,7 @@ pub struct LbfgsConfig {
     pub function_tolerance: Real,
 }
 
-impl Default for LbfgsConfig {
+impl Default for LbfgsOptions {
     fn default() -> Self {
         Self {
             memory: 6,
@@ -78,7 +78,7 @@ pub fn minimize_bounded<E>(
     x0: &[Real],
     lower: &[Real],
     upper: &[Real],
-    config: &LbfgsConfig,
+    config: &LbfgsOptions,
 ) -> Result<LbfgsReport, E> {
     let n = x0.len();
     assert!(
@@ -220,11 +220,11 @@ mod tests {
 
     #[test]
     fn finds_the_rosenbrock_minimum() {
-        let cfg = LbfgsConfig {
+        let cfg = LbfgsOptions {
             max_iterations: 500,
             gradient_tolerance: 1e-9,
             function_tolerance: 0.0,
-            ..LbfgsConfig::default()
+            ..LbfgsOptions::default()
         };
         let r = minimize_bounded(rosenbrock, &[-1.2, 1.0], &[-5.0; 2], &[5.0; 2], &cfg).unwrap();
         assert!(
@@ -241,10 +241,10 @@ mod tests {
             &[0.0, 0.0],
             &[-2.0, -2.0],
             &[0.5, 2.0],
-            &LbfgsConfig {
+            &LbfgsOptions {
                 max_iterations: 500,
                 function_tolerance: 0.0,
-                ..LbfgsConfig::default()
+                ..LbfgsOptions::default()
             },
         )
         .unwrap();

@@ -112,7 +112,7 @@ pub use observations::{ObservationKind, Observations};
 pub use poisson::PoissonOptions;
 pub use posterior::{Gpis, ResidualGp};
 pub use reconstruct::{
-    ConditionReport, GpisConfig, Mesher, Reconstruction, SurfaceConfig, Timings, bounds_of,
+    ConditionReport, GpisConfig, Mesher, ReconstructOptions, Reconstruction, Timings, bounds_of,
     condition, reconstruct,
 };
 pub use register::{IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity};

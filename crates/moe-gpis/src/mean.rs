@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::GpisError;
-use crate::lbfgs::{LbfgsConfig, minimize_bounded};
+use crate::lbfgs::{LbfgsOptions, minimize_bounded};
 
 /// The prior signed distance `m(x)` of a GPIS (negative inside).
 pub trait MeanFunction: Send + Sync + std::fmt::Debug {
@@ -186,11 +186,11 @@ impl SphereMean {
             }
             Ok((f, g.to_vec()))
         };
-        let cfg = LbfgsConfig {
+        let cfg = LbfgsOptions {
             max_iterations: 200,
             gradient_tolerance: 1e-10,
             function_tolerance: 1e-14,
-            ..LbfgsConfig::default()
+            ..LbfgsOptions::default()
         };
         let big = 1e3;
         let report = minimize_bounded(

@@ -10,7 +10,7 @@
 //!   farthest-point inducing points, used beyond
 //!   [`GpisConfig::exact_limit`](crate::GpisConfig::exact_limit).
 //! - **Fitting** ([`fit_hyper`], [`default_initial`]) by the bounded L-BFGS
-//!   [`minimize_bounded`] ([`LbfgsConfig`], [`LbfgsReport`]).
+//!   [`minimize_bounded`] ([`LbfgsOptions`], [`LbfgsReport`]).
 //! - **Query grids** ([`Grid3`], [`MAX_GRID_NODES`]) and **meshing** by marching tetrahedra
 //!   ([`extract_surface`]: closed, manifold, outward oriented).
 //! - **Screened Poisson** remeshing of a level set ([`poisson_surface`], [`PoissonField`],
@@ -28,7 +28,7 @@ pub use crate::fit::{default_initial, fit_hyper};
 pub use crate::gp::{ExactGp, log_marginal_likelihood_and_grad};
 pub use crate::grid::{Grid3, MAX_GRID_NODES};
 pub use crate::kernel::Kernel;
-pub use crate::lbfgs::{LbfgsConfig, LbfgsReport, minimize_bounded};
+pub use crate::lbfgs::{LbfgsOptions, LbfgsReport, minimize_bounded};
 pub use crate::marching::extract_surface;
 pub use crate::nonprob::nonprobabilistic;
 pub use crate::poisson::{MIN_POISSON_SAMPLES, PoissonField, poisson_surface};

@@ -142,7 +142,7 @@ pub enum Mesher {
 
 /// Grid and meshing options of [`reconstruct`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SurfaceConfig {
+pub struct ReconstructOptions {
     /// Conditioning.
     pub gpis: GpisConfig,
     /// Node budget of the query grid (default 64³).
@@ -157,7 +157,7 @@ pub struct SurfaceConfig {
     pub vertex_variance: bool,
 }
 
-impl Default for SurfaceConfig {
+impl Default for ReconstructOptions {
     fn default() -> Self {
         Self {
             gpis: GpisConfig::default(),
@@ -210,7 +210,7 @@ pub fn reconstruct<M: MeanFunction>(
     mean: M,
     observations: &Observations,
     bounds: &Aabb,
-    config: &SurfaceConfig,
+    config: &ReconstructOptions,
 ) -> Result<(Reconstruction, Gpis<M>), GpisError> {
     let (gpis, report) = condition(mean, observations, &config.gpis)?;
     let grid = Grid3::covering(bounds, config.padding_m, config.max_grid_nodes)?;
@@ -308,7 +308,7 @@ mod tests {
     #[test]
     fn reconstruction_from_sphere_points_lies_within_half_a_millimetre() {
         let (r, obs, mean, b) = points_on_a_sphere_and_a_wrong_sphere_mean();
-        let (rec, gpis) = reconstruct(mean, &obs, &b, &SurfaceConfig::default()).unwrap();
+        let (rec, gpis) = reconstruct(mean, &obs, &b, &ReconstructOptions::default()).unwrap();
         rec.mesh.require_closed().unwrap();
         assert_eq!(Topology::new(&rec.mesh).euler_characteristic(), 2);
         let worst = max_radial_deviation(&rec.mesh, r);
@@ -354,10 +354,10 @@ mod tests {
         let mut obs = Observations::from_contacts(&pts).unwrap();
         obs.add_mean_normal_offsets(&prior, 0.01).unwrap();
         let b = bounds_of(&pts, Some(&prior_mesh)).unwrap();
-        let cfg = SurfaceConfig {
+        let cfg = ReconstructOptions {
             max_grid_nodes: 40 * 40 * 40,
             vertex_variance: false,
-            ..SurfaceConfig::default()
+            ..ReconstructOptions::default()
         };
         let (rec, gpis) = reconstruct(&prior, &obs, &b, &cfg).unwrap();
         assert_dense_grid_gives_the_same_mesh(&gpis, &rec);
@@ -366,10 +366,10 @@ mod tests {
     #[test]
     fn poisson_mesher_gives_a_closed_sphere_with_variance_on_its_vertices() {
         let (r, obs, mean, b) = points_on_a_sphere_and_a_wrong_sphere_mean();
-        let cfg = SurfaceConfig {
+        let cfg = ReconstructOptions {
             max_grid_nodes: 40 * 40 * 40,
             mesher: Mesher::Poisson(PoissonOptions::default()),
-            ..SurfaceConfig::default()
+            ..ReconstructOptions::default()
         };
         let (rec, _) = reconstruct(mean, &obs, &b, &cfg).unwrap();
         rec.mesh.require_closed().unwrap();
@@ -421,7 +421,7 @@ mod tests {
         let pts = sphere_points(0.05, 200, 4);
         let mut obs = Observations::from_contacts(&pts).unwrap();
         obs.add_centroid_interior().unwrap();
-        let config = SurfaceConfig {
+        let config = ReconstructOptions {
             gpis: GpisConfig {
                 fixed: Some(Hyper {
                     signal_variance: 1e-3,
@@ -434,7 +434,7 @@ mod tests {
                 },
                 ..GpisConfig::default()
             },
-            ..SurfaceConfig::default()
+            ..ReconstructOptions::default()
         };
         let b = bounds_of(&pts, None).unwrap();
         let (rec, _) = reconstruct(ConstantMean { value: 0.02 }, &obs, &b, &config).unwrap();

@@ -15,7 +15,7 @@ use crate::nonprob::{NonProbConfig, nonprobabilistic};
 use crate::observations::Observations;
 use crate::posterior::Gpis;
 use crate::reconstruct::{
-    ConditionReport, SurfaceConfig, Timings, bounds_of, condition, reconstruct,
+    ConditionReport, ReconstructOptions, Timings, bounds_of, condition, reconstruct,
 };
 use crate::register::{IcpConfig, IcpReport, register_prior};
 
@@ -66,7 +66,7 @@ pub struct SurfaceOptions {
     /// The method.
     pub method: SurfaceMethod,
     /// Fit, grid, meshing and variance settings of the GP methods.
-    pub surface: SurfaceConfig,
+    pub surface: ReconstructOptions,
     /// Distance `d` of the `±d` observations added along the mean's normals at every contact
     /// (see [`Observations::add_mean_normal_offsets`]), metres; 0 for none. Default 5 mm.
     pub normal_offset_m: Real,
@@ -80,7 +80,7 @@ impl Default for SurfaceOptions {
     fn default() -> Self {
         Self {
             method: SurfaceMethod::Prior { registration: None },
-            surface: SurfaceConfig::default(),
+            surface: ReconstructOptions::default(),
             normal_offset_m: 0.005,
             bounds: None,
             nonprob: NonProbConfig::default(),
@@ -129,7 +129,7 @@ pub struct SurfaceResult {
     /// the baseline.
     pub observations: usize,
     /// Posterior variance at every vertex (m²); empty for the baseline or when
-    /// [`SurfaceConfig::vertex_variance`] is off.
+    /// [`ReconstructOptions::vertex_variance`] is off.
     pub vertex_variance: Vec<Real>,
     /// Hyper-parameters and conditioning (GP methods).
     pub condition: Option<ConditionReport>,
@@ -394,10 +394,10 @@ mod tests {
     fn small(method: SurfaceMethod) -> SurfaceOptions {
         SurfaceOptions {
             method,
-            surface: SurfaceConfig {
+            surface: ReconstructOptions {
                 max_grid_nodes: 24 * 24 * 24,
                 vertex_variance: false,
-                ..SurfaceConfig::default()
+                ..ReconstructOptions::default()
             },
             ..SurfaceOptions::default()
         }

@@ -7,7 +7,7 @@ use super::scene::{BenchScene, SceneKind};
 use crate::error::GpisError;
 use crate::mean::{MeanFunction, MeshSdfMean};
 use crate::observations::Observations;
-use crate::reconstruct::SurfaceConfig;
+use crate::reconstruct::ReconstructOptions;
 use crate::surface::{SurfaceMethod, SurfaceOptions, reconstruct_surface};
 
 /// UCD (mm) from `points` to the surface of `truth`.
@@ -130,7 +130,7 @@ fn method_result(
 
 /// Receives each method's surface as [`evaluate_scene_with`] computes it: the method's name,
 /// the mesh and the posterior variance per vertex (empty for the prior and the
-/// non-probabilistic baseline, or when [`SurfaceConfig::vertex_variance`] is off).
+/// non-probabilistic baseline, or when [`ReconstructOptions::vertex_variance`] is off).
 pub type MeshSink<'a> = dyn FnMut(&str, &TriMesh, &[Real]) + 'a;
 
 /// Runs the prior, GP + prior, GP + sphere and the non-probabilistic baseline on a scene.
@@ -144,7 +144,7 @@ pub type MeshSink<'a> = dyn FnMut(&str, &TriMesh, &[Real]) + 'a;
 pub fn evaluate_scene(
     kind: SceneKind,
     scene: &BenchScene,
-    surface: &SurfaceConfig,
+    surface: &ReconstructOptions,
     normal_offset_m: Option<Real>,
 ) -> Result<SceneReport, GpisError> {
     evaluate_scene_with(kind, scene, surface, normal_offset_m, &mut |_, _, _| {})
@@ -157,7 +157,7 @@ pub fn evaluate_scene(
 pub fn evaluate_scene_with(
     kind: SceneKind,
     scene: &BenchScene,
-    surface: &SurfaceConfig,
+    surface: &ReconstructOptions,
     normal_offset_m: Option<Real>,
     sink: &mut MeshSink<'_>,
 ) -> Result<SceneReport, GpisError> {

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use super::evaluate::{MethodResult, SceneReport, evaluate_scene};
 use super::scene::{BenchSceneConfig, SceneKind, build_scene};
 use crate::error::GpisError;
-use crate::reconstruct::SurfaceConfig;
+use crate::reconstruct::ReconstructOptions;
 
 /// Mean and sample standard deviation of one figure over the scenes of a family.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -67,7 +67,7 @@ pub struct FamilyReport {
 pub fn evaluate_family(
     base: &BenchSceneConfig,
     pairs: usize,
-    surface: &SurfaceConfig,
+    surface: &ReconstructOptions,
     normal_offset_m: Option<Real>,
 ) -> Result<FamilyReport, GpisError> {
     if pairs == 0 {

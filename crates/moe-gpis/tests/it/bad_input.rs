@@ -6,7 +6,7 @@ use moe_geom::{Point3, Real, TriMesh};
 use moe_gpis::parts::nonprobabilistic;
 use moe_gpis::{
     FitConfig, GpisConfig, GpisError, Hyper, Jitter, MeshSdfMean, NonProbConfig, Observations,
-    SphereMean, SurfaceConfig, bounds_of, condition, reconstruct,
+    ReconstructOptions, SphereMean, bounds_of, condition, reconstruct,
 };
 
 fn contacts(n: usize) -> Vec<Point3> {
@@ -164,9 +164,9 @@ fn invalid_hyper_parameters_and_grids_are_named() {
         })
     ));
     let b = bounds_of(&contacts(20), None).unwrap();
-    let tiny = SurfaceConfig {
+    let tiny = ReconstructOptions {
         max_grid_nodes: 4,
-        ..SurfaceConfig::default()
+        ..ReconstructOptions::default()
     };
     assert!(matches!(
         reconstruct(&prior, &obs, &b, &tiny),

@@ -2,7 +2,7 @@
 //! the GP with the task prior beats the prior itself and both baselines on the head, and the
 //! prior and the non-probabilistic baseline on the 2:20:1 arm.
 
-use moe_gpis::SurfaceConfig;
+use moe_gpis::ReconstructOptions;
 use moe_gpis::bench_scene::{BenchSceneConfig, SceneReport, evaluate_family};
 
 fn small(base: BenchSceneConfig) -> SceneReport {
@@ -11,10 +11,10 @@ fn small(base: BenchSceneConfig) -> SceneReport {
         contacts_per_patch: 20,
         ..base
     };
-    let surface = SurfaceConfig {
+    let surface = ReconstructOptions {
         max_grid_nodes: 32 * 32 * 32,
         vertex_variance: false,
-        ..SurfaceConfig::default()
+        ..ReconstructOptions::default()
     };
     let family = evaluate_family(&scene, 1, &surface, Some(0.005)).unwrap();
     assert_eq!(family.summary.len(), 4);

@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 use moe_geom::{Point3, TriMesh};
 use moe_gpis::{
     FitConfig, GpisConfig, Hyper, IcpConfig, IcpReport, KernelKind, Mesher, Observations,
-    PoissonOptions, PosePrior, RegistrationKind, SphereMean, SurfaceConfig, SurfaceMethod,
+    PoissonOptions, PosePrior, ReconstructOptions, RegistrationKind, SphereMean, SurfaceMethod,
     SurfaceOptions, condition_surface, reconstruct_surface,
 };
 use serde_json::json;
@@ -260,12 +260,12 @@ fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
     };
     Ok(SurfaceOptions {
         method: method_of(args)?,
-        surface: SurfaceConfig {
+        surface: ReconstructOptions {
             gpis,
             max_grid_nodes: args.grid.saturating_pow(3),
             vertex_variance: args.variance_out.is_some(),
             mesher,
-            ..SurfaceConfig::default()
+            ..ReconstructOptions::default()
         },
         normal_offset_m: args.normal_offset,
         ..SurfaceOptions::default()
