@@ -25,7 +25,8 @@ use serde::{Deserialize, Serialize};
 use crate::contact::ContactParams;
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
-use crate::scene::{Frame, HandConfig, Scene, SceneConfig, SimState, StepInfo};
+use crate::scene::{Frame, HandConfig, Scene, SceneConfig, SimState, StepInfo, command};
+use crate::tendon::TendonCommand;
 use crate::surface::obstacle_surface;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
 
@@ -545,9 +546,33 @@ fn build_config(
 pub struct TrajectoryFrame {
     /// Surfaces, distances and labels.
     pub frame: Frame,
-    /// Commanded tendon values at this time (metres of pull in displacement mode):
-    /// `[finger][tendon]`.
-    pub tendon_values: Vec<Vec<Real>>,
+    /// The command of every tendon at this time, each with its unit (a pull in metres or a
+    /// tension in newtons): `[finger][tendon]`.
+    pub tendons: Vec<Vec<TendonCommand>>,
+}
+
+impl TrajectoryFrame {
+    /// The pulled length of every tendon, metres: `[finger][tendon]`.
+    ///
+    /// # Errors
+    /// [`SimError::ForceDriven`] naming the first tendon driven by force, whose command is a
+    /// tension, not a length.
+    pub fn tendon_pulls_m(&self) -> Result<Vec<Vec<Real>>, SimError> {
+        self.tendons
+            .iter()
+            .enumerate()
+            .map(|(finger, commands)| {
+                commands
+                    .iter()
+                    .enumerate()
+                    .map(|(tendon, c)| match *c {
+                        TendonCommand::Displacement { pull_m } => Ok(pull_m),
+                        TendonCommand::Force { .. } => Err(SimError::ForceDriven { finger, tendon }),
+                    })
+                    .collect()
+            })
+            .collect()
+    }
 }
 
 /// What a run leaves besides its saved frames.
@@ -604,20 +629,20 @@ pub fn run_saving(scene: &mut Scene, steps: u64) -> Result<Vec<TrajectoryFrame>,
 fn saved(scene: &Scene, state: &SimState) -> TrajectoryFrame {
     let t = state.time_secs;
     let config = scene.config();
-    let tendon_values = scene
+    let tendons = scene
         .hand()
         .fingers()
         .iter()
         .enumerate()
         .map(|(i, f)| {
             (0..f.model.tendon_routes().len())
-                .map(|j| config.actuation.get(i).map_or(0.0, |s| s.value_at(j, t)))
+                .map(|j| command(config.actuation.get(i), j, t))
                 .collect()
         })
         .collect();
     TrajectoryFrame {
         frame: scene.frame(state),
-        tendon_values,
+        tendons,
     }
 }
 
@@ -629,12 +654,12 @@ pub fn simulate_trajectory(
     params: &RandomSceneParams,
     seed: u64,
     trajectory_id: u64,
-) -> Result<(SampledScene, Vec<TrajectoryFrame>), SimError> {
+) -> Result<(SampledScene, Scene, Vec<TrajectoryFrame>), SimError> {
     let sampled = sample_scene(params, seed, trajectory_id)?;
     let mut scene = Scene::new(sampled.config.clone())?;
     let steps = scene.num_steps();
     let frames = run_saving(&mut scene, steps)?;
-    Ok((sampled, frames))
+    Ok((sampled, scene, frames))
 }
 
 #[cfg(test)]
@@ -698,7 +723,7 @@ mod tests {
         };
         let hand = HandModel::preset(params.preset, &params.finger).unwrap();
         for t in 0..4 {
-            let (sampled, frames) = simulate_trajectory(&params, 3, t).unwrap();
+            let (sampled, _, frames) = simulate_trajectory(&params, 3, t).unwrap();
             assert_eq!(sampled.region, FingerRegion::Apex);
             let finger = &hand.fingers()[sampled.finger];
             let n = finger
@@ -778,7 +803,7 @@ mod tests {
                 families: vec![family],
                 ..quick()
             };
-            let (sampled, frames) = simulate_trajectory(&params, 5, t as u64).unwrap();
+            let (sampled, _, frames) = simulate_trajectory(&params, 5, t as u64).unwrap();
             let scene = Scene::new(sampled.config.clone()).unwrap();
             let obstacle = &scene.obstacles()[0];
             // At the end of the press the hand is pushed past first touch.

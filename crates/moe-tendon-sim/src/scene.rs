@@ -583,7 +583,8 @@ impl Scene {
     }
 }
 
-fn command(schedule: Option<&ActuationSchedule>, j: usize, t: Real) -> TendonCommand {
+/// The command of tendon `j` at time `t` under `schedule` (none: no pull).
+pub(crate) fn command(schedule: Option<&ActuationSchedule>, j: usize, t: Real) -> TendonCommand {
     match schedule {
         None => TendonCommand::Displacement { pull_m: 0.0 },
         Some(s) => {

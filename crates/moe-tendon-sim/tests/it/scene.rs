@@ -335,3 +335,54 @@ fn scenes_and_states_can_move_between_threads() {
     assert_sync::<moe_tendon_sim::SimState>();
     assert_sync::<moe_tendon_sim::FingerBody>();
 }
+
+/// Saved frames carry each tendon's command with its unit, and only pulls are read as metres.
+#[test]
+fn saved_frames_keep_the_unit_of_each_tendon() {
+    let schedule = |mode, values: Vec<f64>| ActuationSchedule {
+        mode,
+        keyframes: vec![
+            ActuationKeyframe {
+                time_secs: 0.0,
+                values: vec![0.0; 4],
+            },
+            ActuationKeyframe {
+                time_secs: 0.02,
+                values,
+            },
+        ],
+    };
+    let config = |second: ActuationMode| SceneConfig {
+        duration_secs: 0.02,
+        save_every_steps: 1,
+        actuation: vec![
+            schedule(ActuationMode::Displacement, vec![0.002, -0.002, 0.0, 0.0]),
+            schedule(second, vec![0.0, 0.001, 0.0, 0.0]),
+        ],
+        ..SceneConfig::default()
+    };
+    let mut scene = Scene::new(config(ActuationMode::Force)).unwrap();
+    let steps = scene.num_steps();
+    let frames = moe_tendon_sim::randomize::run_saving(&mut scene, steps).unwrap();
+    let last = frames.last().unwrap();
+    assert_eq!(
+        last.tendons[0][0],
+        moe_tendon_sim::TendonCommand::Displacement { pull_m: 0.002 }
+    );
+    assert_eq!(
+        last.tendons[1][1],
+        moe_tendon_sim::TendonCommand::Force { tension_n: 0.001 }
+    );
+    assert!(matches!(
+        last.tendon_pulls_m(),
+        Err(SimError::ForceDriven {
+            finger: 1,
+            tendon: 0
+        })
+    ));
+    let mut scene = Scene::new(config(ActuationMode::Displacement)).unwrap();
+    let frames = moe_tendon_sim::randomize::run_saving(&mut scene, steps).unwrap();
+    let pulls = frames.last().unwrap().tendon_pulls_m().unwrap();
+    assert_eq!(pulls[0], vec![0.002, -0.002, 0.0, 0.0]);
+    assert_eq!(pulls[1], vec![0.0, 0.001, 0.0, 0.0]);
+}
