@@ -100,7 +100,7 @@ pub mod surface;
 pub use bench_scene::{
     FamilyReport, SceneConfig, SceneKind, SceneReport, build_scene, evaluate_family, evaluate_scene,
 };
-pub use error::GpisError;
+pub use error::{GpisError, MAX_ITERATIONS};
 pub use fit::{FitConfig, FitReport, HyperBounds, fit_hyper};
 pub use gp::{ExactGp, Jitter, log_marginal_likelihood_and_grad};
 pub use grid::{Grid3, MAX_GRID_NODES};
@@ -113,8 +113,8 @@ pub use observations::{ObservationKind, Observations};
 pub use poisson::{MIN_POISSON_SAMPLES, PoissonField, PoissonOptions, poisson_surface};
 pub use posterior::{Gpis, ResidualGp};
 pub use reconstruct::{
-    ConditionReport, GpisConfig, Mesher, Reconstruction, SurfaceConfig, Timings, bounds_of,
-    condition, reconstruct,
+    ConditionReport, GpisConfig, MAX_EXACT_OBSERVATIONS, Mesher, Reconstruction, SurfaceConfig,
+    Timings, bounds_of, condition, reconstruct,
 };
 pub use register::{
     IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity, register_prior,

@@ -119,8 +119,8 @@ pub use fem::{FemModel, FemWorkspace, Integrator, StepContext, StepReport, Terms
 pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use scene::{
-    BodyState, FingerFrame, Frame, HandConfig, Scene, SceneConfig, SimState, SolverConfig,
-    SolverMode, StepInfo,
+    BodyState, FingerFrame, Frame, HandConfig, MAX_SAVED_FRAMES, MAX_STATIC_ITERATIONS, MAX_STEPS,
+    Scene, SceneConfig, SimState, SolverConfig, SolverMode, StepInfo,
 };
 pub use tendon::{Tendon, TendonCommand, TendonParams, TendonState};
 pub use terms::{PairTerm, PointTerm, RankOneTerm, Terms};

@@ -26,8 +26,8 @@ use crate::contact::ContactParams;
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
 use crate::scene::{Frame, HandConfig, Scene, SceneConfig, SimState, StepInfo, command};
-use crate::tendon::TendonCommand;
 use crate::surface::obstacle_surface;
+use crate::tendon::TendonCommand;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
 
 /// Object families of the randomised scenes.
@@ -567,7 +567,9 @@ impl TrajectoryFrame {
                     .enumerate()
                     .map(|(tendon, c)| match *c {
                         TendonCommand::Displacement { pull_m } => Ok(pull_m),
-                        TendonCommand::Force { .. } => Err(SimError::ForceDriven { finger, tendon }),
+                        TendonCommand::Force { .. } => {
+                            Err(SimError::ForceDriven { finger, tendon })
+                        }
                     })
                     .collect()
             })

@@ -46,6 +46,11 @@ pub struct GenPlan {
     pub machines: u32,
 }
 
+/// Most trajectories of one data set.
+pub const MAX_TRAJECTORIES: u64 = 10_000_000;
+/// Most trajectories of one shard (a shard's frames are held in memory until it is written).
+pub const MAX_TRAJECTORIES_PER_SHARD: u64 = 1_000;
+
 impl GenPlan {
     /// Checks the plan.
     ///
@@ -53,11 +58,18 @@ impl GenPlan {
     /// [`TouchError::InvalidPlan`].
     pub fn validate(&self) -> Result<(), TouchError> {
         let bad = |reason: String| Err(TouchError::InvalidPlan { reason });
-        if self.trajectories == 0 {
-            return bad("at least one trajectory is needed".into());
+        if !(1..=MAX_TRAJECTORIES).contains(&self.trajectories) {
+            return bad(format!(
+                "{} trajectories: a data set holds between 1 and {MAX_TRAJECTORIES}",
+                self.trajectories
+            ));
         }
-        if self.trajectories_per_shard == 0 {
-            return bad("trajectories per shard must be positive".into());
+        if !(1..=MAX_TRAJECTORIES_PER_SHARD).contains(&self.trajectories_per_shard) {
+            return bad(format!(
+                "{} trajectories per shard: a shard (held in memory while it is written) holds \
+                 between 1 and {MAX_TRAJECTORIES_PER_SHARD}",
+                self.trajectories_per_shard
+            ));
         }
         if self.machines == 0 || self.machine == 0 || self.machine > self.machines {
             return bad(format!(
@@ -381,7 +393,10 @@ pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, Tou
         });
     }
     Ok(DatasetLayout {
-        finger_num_vertices: fingers.iter().map(|f| f.model.mesh().num_vertices()).collect(),
+        finger_num_vertices: fingers
+            .iter()
+            .map(|f| f.model.mesh().num_vertices())
+            .collect(),
         markers_per_finger: fingers
             .iter()
             .map(|f| f.model.marker_vertices().len())
@@ -709,24 +724,53 @@ mod tests {
             ..plan(2, 2)
         };
         let err = run(&other_seed, &dir, serde_json::json!({"a": 1}), 10).unwrap_err();
-        assert!(matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir), "{err:?}");
+        assert!(
+            matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir),
+            "{err:?}"
+        );
         let err = run(&plan(2, 2), &dir, serde_json::json!({"a": 2}), 9).unwrap_err();
-        assert!(matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir), "{err:?}");
+        assert!(
+            matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir),
+            "{err:?}"
+        );
         run(&plan(2, 2), &dir, serde_json::json!({"a": 1}), 9).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn plans_are_checked() {
-        assert!(plan(0, 2).validate().is_err());
-        assert!(plan(3, 2).validate().is_err());
+        let refused = |p: GenPlan, what: &str| match p.validate() {
+            Err(TouchError::InvalidPlan { reason }) => assert!(reason.contains(what), "{reason}"),
+            other => panic!("{what}: {other:?}"),
+        };
+        refused(plan(0, 2), "shard 0/2");
+        refused(plan(3, 2), "shard 3/2");
+        for (trajectories, what) in [(0, "0 trajectories"), (MAX_TRAJECTORIES + 1, "between 1")] {
+            refused(
+                GenPlan {
+                    trajectories,
+                    ..plan(1, 1)
+                },
+                what,
+            );
+        }
+        for per_shard in [0, MAX_TRAJECTORIES_PER_SHARD + 1] {
+            refused(
+                GenPlan {
+                    trajectories_per_shard: per_shard,
+                    ..plan(1, 1)
+                },
+                "trajectories per shard",
+            );
+        }
         assert!(
             GenPlan {
-                trajectories: 0,
+                trajectories: MAX_TRAJECTORIES,
+                trajectories_per_shard: MAX_TRAJECTORIES_PER_SHARD,
                 ..plan(1, 1)
             }
             .validate()
-            .is_err()
+            .is_ok()
         );
         assert_eq!(plan(2, 3).shards_for_machine(), vec![1, 4]);
         assert_eq!(plan(1, 1).trajectories_of(5), 20..23);

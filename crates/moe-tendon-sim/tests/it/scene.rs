@@ -139,6 +139,29 @@ fn bad_scene_input_gives_typed_errors() {
     let mut c = SceneConfig::default();
     c.solver.dt_secs = 0.0;
     check(c, "dt_secs");
+    // The limits on what a scene may cost, each side of the bound.
+    let mut c = SceneConfig::default();
+    c.solver.static_max_iterations = 0;
+    check(c, "static_max_iterations");
+    let mut c = SceneConfig::default();
+    c.solver.static_max_iterations = moe_tendon_sim::MAX_STATIC_ITERATIONS + 1;
+    check(c, "static_max_iterations");
+    let mut c = SceneConfig::default();
+    c.duration_secs = c.solver.dt_secs * (moe_tendon_sim::MAX_STEPS as f64 + 2.0);
+    c.save_every_steps = 1_000;
+    check(c, "duration_secs / dt_secs (steps)");
+    let mut c = SceneConfig::default();
+    c.duration_secs = c.solver.dt_secs * (moe_tendon_sim::MAX_SAVED_FRAMES as f64 + 2.0);
+    c.save_every_steps = 1;
+    check(
+        c,
+        "duration_secs / dt_secs / save_every_steps (saved frames)",
+    );
+    let mut c = SceneConfig::default();
+    c.duration_secs = c.solver.dt_secs * moe_tendon_sim::MAX_SAVED_FRAMES as f64;
+    c.save_every_steps = 1;
+    c.solver.static_max_iterations = moe_tendon_sim::MAX_STATIC_ITERATIONS;
+    assert!(Scene::new(c).is_ok());
     let mut c = SceneConfig::default();
     c.solver.dt_secs = -0.01;
     check(c, "dt_secs");

@@ -104,3 +104,42 @@ fn diverging_scene_names_the_step_and_leaves_no_output() {
     );
     assert!(!out.exists(), "partial output left behind");
 }
+
+#[test]
+fn steps_beyond_the_scene_and_scenes_beyond_the_step_limit_are_refused() {
+    let dir = scratch("sim-limits");
+    let scene = fixtures().join("scenes/plate_tip_side.toml");
+    let out = dir.join("out");
+    let o = run(&[
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--steps",
+        "100000000000",
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(
+        err.contains("--steps 100000000000") && err.contains("covers"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // A duration of 10^7 steps and one more.
+    let long = dir.join("long.toml");
+    std::fs::write(
+        &long,
+        "duration_secs = 10000.002\n[solver]\ndt_secs = 0.001\n",
+    )
+    .unwrap();
+    let o = run(&[
+        "sim",
+        "--scene",
+        long.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(err.contains("at most 10,000,000 steps"), "{err}");
+    assert!(!out.exists());
+}
