@@ -82,7 +82,11 @@ mod tests {
             &["--max-frames", "0"],
         ] {
             let err = parse(&with(bad)).unwrap_err();
-            assert_eq!(err.kind(), clap::error::ErrorKind::ValueValidation, "{bad:?}");
+            assert_eq!(
+                err.kind(),
+                clap::error::ErrorKind::ValueValidation,
+                "{bad:?}"
+            );
         }
         let heldout = |extra: &[&'static str]| {
             let mut v = vec!["heldout-shard", "--data", "d"];
