@@ -472,11 +472,11 @@ pub(crate) struct HeldoutArgs {
     /// Output data set directory.
     #[arg(long, default_value = HELDOUT_DIR)]
     pub(crate) out: PathBuf,
-    /// Test trajectories to take frames from (the first ones with contact).
-    #[arg(long, default_value_t = 2)]
+    /// Test trajectories to take frames from (the first ones with contact), at least 1.
+    #[arg(long, default_value_t = 2, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub(crate) trajectories: usize,
-    /// Frames per trajectory (every other frame from the first contact on).
-    #[arg(long, default_value_t = 6)]
+    /// Frames per trajectory (every other frame from the first contact on), at least 1.
+    #[arg(long, default_value_t = 6, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub(crate) frames: usize,
 }
 

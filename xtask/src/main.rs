@@ -57,3 +57,44 @@ fn main() -> ExitCode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Options that size a run are refused outside their range when they are parsed, before any
+    /// data is loaded.
+    #[test]
+    fn sizing_options_are_bounded_when_parsed() {
+        let parse = |args: &[&str]| Cli::try_parse_from(["xtask"].iter().chain(args));
+        let train = ["train", "--data", "d", "--out", "o"];
+        let with = |extra: &[&'static str]| {
+            let mut v: Vec<&str> = train.to_vec();
+            v.extend_from_slice(extra);
+            v
+        };
+        assert!(parse(&with(&["--epochs", "10000", "--batch-size", "4096"])).is_ok());
+        for bad in [
+            &["--epochs", "0"][..],
+            &["--epochs", "10001"],
+            &["--batch-size", "0"],
+            &["--batch-size", "4097"],
+            &["--max-frames", "0"],
+        ] {
+            let err = parse(&with(bad)).unwrap_err();
+            assert_eq!(
+                err.kind(),
+                clap::error::ErrorKind::ValueValidation,
+                "{bad:?}"
+            );
+        }
+        let heldout = |extra: &[&'static str]| {
+            let mut v = vec!["heldout-shard", "--data", "d"];
+            v.extend_from_slice(extra);
+            parse(&v)
+        };
+        assert!(heldout(&["--trajectories", "1", "--frames", "1"]).is_ok());
+        assert!(heldout(&["--trajectories", "0"]).is_err());
+        assert!(heldout(&["--frames", "0"]).is_err());
+    }
+}

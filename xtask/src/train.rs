@@ -31,8 +31,8 @@ pub(crate) struct TrainArgs {
     /// keeps NAME.checkpoint.safetensors while training.
     #[arg(long, value_name = "models/NAME")]
     out: PathBuf,
-    /// Epochs in the whole run (a resumed run continues up to this many).
-    #[arg(long, default_value_t = 10)]
+    /// Epochs in the whole run (a resumed run continues up to this many), 1–10,000.
+    #[arg(long, default_value_t = 10, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=moe_contact::train::MAX_EPOCHS as u64))]
     epochs: usize,
     /// Seed of the weights, the order and the dropout.
     #[arg(long, default_value_t = 0)]
@@ -40,8 +40,8 @@ pub(crate) struct TrainArgs {
     /// Continue from NAME.checkpoint.safetensors.
     #[arg(long)]
     resume: bool,
-    /// Point sets per step.
-    #[arg(long, default_value_t = 32)]
+    /// Point sets per step, 1–4096.
+    #[arg(long, default_value_t = 32, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     batch_size: usize,
     /// Optimiser: adamw, or sgd (the paper's: momentum 0.3).
     #[arg(long, value_enum, default_value = "adamw")]
@@ -62,7 +62,7 @@ pub(crate) struct TrainArgs {
     #[arg(long, default_value = "max")]
     aggregation: Aggregation,
     /// Use at most this many training frames (the first ones, in data set order).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     max_frames: Option<usize>,
     /// Shapes the network learns from: the SR-ARAP estimate from each frame's markers (what it
     /// sees at run time), or the simulated surface.

@@ -138,10 +138,8 @@ impl ComponentSolver {
             .zip(part_handles)
             .zip(part_area)
             .map(|((((vertices, faces), fixed_k), handles_k), sub_area)| {
-                let sub = TriMesh::new(vertices.iter().map(|&v| rest[v as usize]).collect(), faces)
-                    .map_err(|e| ArapError::Factorization {
-                        reason: format!("part of the mesh: {e}"),
-                    })?;
+                let sub =
+                    TriMesh::new(vertices.iter().map(|&v| rest[v as usize]).collect(), faces)?;
                 // The smoothing weight is α times the surface area of the whole mesh.
                 let sub_config = ArapConfig {
                     parallel: false,

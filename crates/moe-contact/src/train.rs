@@ -115,6 +115,9 @@ impl Default for TrainConfig {
     }
 }
 
+/// Most epochs of one training run.
+pub const MAX_EPOCHS: usize = 10_000;
+
 impl TrainConfig {
     /// Checks the fields.
     ///
@@ -124,6 +127,12 @@ impl TrainConfig {
         let bad = |field: &'static str, message: String| {
             Err(ContactError::InvalidConfig { field, message })
         };
+        if !(1..=MAX_EPOCHS).contains(&self.epochs) {
+            return bad(
+                "epochs",
+                format!("{} is not in 1..={MAX_EPOCHS}", self.epochs),
+            );
+        }
         if self.batch_size == 0 || self.batch_size > 4096 {
             return bad(
                 "batch_size",

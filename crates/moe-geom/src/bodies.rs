@@ -148,7 +148,8 @@ impl HeadParams {
     /// The closed head mesh on a subdivided icosahedron of the given level.
     ///
     /// # Errors
-    /// Mesh validation (never for the sampled family).
+    /// A `level` above [`crate::shapes::MAX_SUBDIVISION_LEVEL`]; mesh validation (never for the
+    /// sampled family).
     pub fn mesh(&self, level: u32) -> Result<TriMesh, GeomError> {
         star_shaped(level, Point3::origin(), |d| self.radius(d))
     }
@@ -200,8 +201,10 @@ impl ArmParams {
     /// The closed arm mesh.
     ///
     /// # Errors
-    /// Mesh validation (never for the sampled family).
+    /// A `level` above [`crate::shapes::MAX_SUBDIVISION_LEVEL`]; mesh validation (never for the
+    /// sampled family).
     pub fn mesh(&self, level: u32) -> Result<TriMesh, GeomError> {
+        crate::shapes::check_subdivision_level(level)?;
         let (dirs, faces) = unit_icosphere(level);
         TriMesh::new(dirs.iter().map(|d| self.point(d)).collect(), faces)
     }

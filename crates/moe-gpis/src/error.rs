@@ -120,3 +120,19 @@ pub enum GpisError {
     #[error(transparent)]
     Geom(#[from] GeomError),
 }
+
+/// The most iterations any iterative method of the crate (hyper-parameter fit, ICP,
+/// non-probabilistic smoothing) may be asked for.
+pub const MAX_ITERATIONS: usize = 10_000;
+
+/// Checks an iteration count against [`MAX_ITERATIONS`].
+pub(crate) fn check_iterations(name: &'static str, n: usize) -> Result<(), GpisError> {
+    if n > MAX_ITERATIONS {
+        return Err(GpisError::InvalidParameter {
+            name,
+            value: n as Real,
+            reason: "at most 10,000 iterations",
+        });
+    }
+    Ok(())
+}

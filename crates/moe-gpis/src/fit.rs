@@ -142,6 +142,14 @@ pub fn fit_hyper(
             got: points.len(),
         });
     }
+    crate::error::check_iterations("fit_max_iterations", config.max_iterations)?;
+    if config.max_fit_points > crate::reconstruct::MAX_EXACT_OBSERVATIONS {
+        return Err(GpisError::InvalidParameter {
+            name: "max_fit_points",
+            value: config.max_fit_points as Real,
+            reason: "the likelihood is evaluated on at most 20,000 observations",
+        });
+    }
     let stride = points.len().div_ceil(config.max_fit_points.max(3));
     let (pts, res): (Vec<Point3>, Vec<Real>) = points
         .iter()

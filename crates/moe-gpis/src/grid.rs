@@ -25,8 +25,8 @@ impl Grid3 {
     /// A grid from its origin, spacing and node counts.
     ///
     /// # Errors
-    /// [`GpisError::InvalidParameter`] for a non-positive spacing, a non-finite origin or fewer
-    /// than 2 nodes along an axis.
+    /// [`GpisError::InvalidParameter`] for a non-positive spacing, a non-finite origin, fewer
+    /// than 2 nodes along an axis or more than [`MAX_GRID_NODES`] in all.
     pub fn new(origin: Point3, spacing: Real, dims: [usize; 3]) -> Result<Self, GpisError> {
         if !(spacing.is_finite() && spacing > 0.0) {
             return Err(GpisError::InvalidParameter {
@@ -47,6 +47,17 @@ impl Grid3 {
                 name: "grid_nodes_per_axis",
                 value: d as Real,
                 reason: "need at least 2 nodes per axis",
+            });
+        }
+        let nodes = dims
+            .iter()
+            .try_fold(1usize, |n, &d| n.checked_mul(d))
+            .unwrap_or(usize::MAX);
+        if nodes > MAX_GRID_NODES {
+            return Err(GpisError::InvalidParameter {
+                name: "grid_nodes",
+                value: nodes as Real,
+                reason: "at most 256³ = 16,777,216 nodes (the query and meshing buffers grow with it)",
             });
         }
         Ok(Self {
@@ -196,6 +207,24 @@ mod tests {
                     ..
                 })
             ));
+        }
+    }
+
+    #[test]
+    fn explicit_grids_beyond_the_limit_are_refused() {
+        let o = Point3::origin();
+        assert!(Grid3::new(o, 0.01, [256, 256, 256]).is_ok());
+        for dims in [[256, 256, 257], [usize::MAX, 2, 2], [1 << 40, 1 << 40, 2]] {
+            assert!(
+                matches!(
+                    Grid3::new(o, 0.01, dims),
+                    Err(GpisError::InvalidParameter {
+                        name: "grid_nodes",
+                        ..
+                    })
+                ),
+                "{dims:?}"
+            );
         }
     }
 }

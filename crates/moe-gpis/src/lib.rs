@@ -101,7 +101,7 @@ mod sparse;
 // One entry point for every reconstruction method.
 mod surface;
 
-pub use error::GpisError;
+pub use error::{GpisError, MAX_ITERATIONS};
 pub use fit::{FitConfig, FitReport, HyperBounds};
 pub use gp::Jitter;
 pub use kernel::{Hyper, KernelKind};
@@ -112,8 +112,8 @@ pub use observations::{ObservationKind, Observations};
 pub use poisson::PoissonOptions;
 pub use posterior::{Gpis, ResidualGp};
 pub use reconstruct::{
-    ConditionReport, GpisConfig, Mesher, ReconstructOptions, Reconstruction, Timings, bounds_of,
-    condition, reconstruct,
+    ConditionReport, GpisConfig, MAX_EXACT_OBSERVATIONS, Mesher, ReconstructOptions,
+    Reconstruction, Timings, bounds_of, condition, reconstruct,
 };
 pub use register::{IcpConfig, IcpMetric, IcpReport, PosePrior, RegistrationKind, Similarity};
 pub use surface::{

@@ -49,6 +49,7 @@ pub fn nonprobabilistic(
         });
     }
     crate::observations::check_finite(contacts, "contact")?;
+    crate::error::check_iterations("nonprob_iterations", config.iterations)?;
     if !(config.lambda > 0.0 && config.lambda <= 1.0) {
         return Err(GpisError::InvalidParameter {
             name: "lambda",

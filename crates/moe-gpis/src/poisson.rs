@@ -700,7 +700,26 @@ mod tests {
         for (p, v) in fine.points().iter().zip(&fv) {
             assert!((f(p) - v).abs() < 1e-12);
         }
-        assert!(refine_grid(&grid, &values, 0).is_err());
-        assert!(refine_grid(&grid, &values[1..], 2).is_err());
+        assert!(matches!(
+            refine_grid(&grid, &values, 0),
+            Err(GpisError::InvalidParameter { .. })
+        ));
+        assert!(matches!(
+            refine_grid(&grid, &values[1..], 2),
+            Err(GpisError::LengthMismatch {
+                what: "grid values",
+                ..
+            })
+        ));
+        // A refined grid is bounded like any other: 129³ nodes refined by 3 would be 385³.
+        let big = Grid3::new(Point3::origin(), 0.01, [129, 129, 129]).unwrap();
+        let zeros = vec![0.0; big.num_nodes()];
+        assert!(matches!(
+            refine_grid(&big, &zeros, 3),
+            Err(GpisError::InvalidParameter {
+                name: "grid_nodes",
+                ..
+            })
+        ));
     }
 }

@@ -35,6 +35,35 @@ pub struct GpisConfig {
     pub inducing_points: usize,
 }
 
+/// The largest `exact_limit` and `inducing_points` of a [`GpisConfig`]: exact inference on
+/// 20,000 observations holds a 3.2 GB kernel matrix.
+pub const MAX_EXACT_OBSERVATIONS: usize = 20_000;
+
+impl GpisConfig {
+    /// Checks the sizes: `exact_limit` and `1 ≤ inducing_points` at most
+    /// [`MAX_EXACT_OBSERVATIONS`].
+    ///
+    /// # Errors
+    /// [`GpisError::InvalidParameter`] naming the field.
+    pub fn validate(&self) -> Result<(), GpisError> {
+        if self.exact_limit > MAX_EXACT_OBSERVATIONS {
+            return Err(GpisError::InvalidParameter {
+                name: "exact_limit",
+                value: self.exact_limit as Real,
+                reason: "at most 20,000 observations are conditioned exactly (a 3.2 GB kernel matrix)",
+            });
+        }
+        if !(1..=MAX_EXACT_OBSERVATIONS).contains(&self.inducing_points) {
+            return Err(GpisError::InvalidParameter {
+                name: "inducing_points",
+                value: self.inducing_points as Real,
+                reason: "must be between 1 and 20,000",
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for GpisConfig {
     fn default() -> Self {
         Self {
@@ -66,14 +95,16 @@ pub struct ConditionReport {
 /// Conditions a GPIS with mean `mean` on `observations`.
 ///
 /// # Errors
-/// No observations, non-finite observations, fitting with fewer than 3 observations, invalid
-/// hyper-parameters, or a singular kernel matrix.
+/// An invalid configuration ([`GpisConfig::validate`]), no observations, non-finite
+/// observations, fitting with fewer than 3 observations, invalid hyper-parameters, or a
+/// singular kernel matrix.
 pub fn condition<M: MeanFunction>(
     mean: M,
     observations: &Observations,
     config: &GpisConfig,
 ) -> Result<(Gpis<M>, ConditionReport), GpisError> {
     let t0 = Instant::now();
+    config.validate()?;
     if observations.is_empty() {
         return Err(GpisError::TooFewObservations {
             method: "gpis",
@@ -414,6 +445,35 @@ mod tests {
             .fold(0.0, Real::max);
         // 250 inducing points for 600 observations: the SDF differs by well under a millimetre.
         assert!(worst < 3e-4, "max |exact - sparse| = {worst} m");
+        // The sizes are bounded before anything is allocated.
+        for (bad, name) in [
+            (
+                GpisConfig {
+                    exact_limit: MAX_EXACT_OBSERVATIONS + 1,
+                    ..exact_cfg
+                },
+                "exact_limit",
+            ),
+            (
+                GpisConfig {
+                    inducing_points: 0,
+                    ..exact_cfg
+                },
+                "inducing_points",
+            ),
+            (
+                GpisConfig {
+                    inducing_points: MAX_EXACT_OBSERVATIONS + 1,
+                    ..exact_cfg
+                },
+                "inducing_points",
+            ),
+        ] {
+            match condition(mean, &obs, &bad) {
+                Err(GpisError::InvalidParameter { name: got, .. }) => assert_eq!(got, name),
+                other => panic!("{name}: {:?}", other.map(|_| ())),
+            }
+        }
     }
 
     #[test]

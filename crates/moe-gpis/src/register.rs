@@ -375,6 +375,7 @@ pub fn register_prior(
         });
     }
     crate::observations::check_finite(contacts, "contact")?;
+    crate::error::check_iterations("icp_max_iterations", config.max_iterations)?;
     if let Some(pp) = &config.pose_prior {
         pp.validate()?;
     }

@@ -201,6 +201,18 @@ pub enum SimError {
         /// What differs.
         what: &'static str,
     },
+    /// A tendon pull (metres) was asked of a tendon driven by force, whose commanded value is a
+    /// tension (newtons): data sets and episodes record pulls only.
+    #[error(
+        "finger {finger}, tendon {tendon} is force-driven (tension in newtons); only \
+         displacement-driven tendons have a pull in metres to record"
+    )]
+    ForceDriven {
+        /// Index of the finger.
+        finger: usize,
+        /// Index of the tendon in its finger.
+        tendon: usize,
+    },
 }
 
 /// Checks that `value` is finite and strictly positive.

@@ -126,11 +126,11 @@ pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
 pub use scene::{
-    FingerSimFrame, PresetHandConfig, Scene, SceneConfig, SimFrame, SimState, SolverConfig,
-    SolverMode, StepInfo,
+    FingerSimFrame, MAX_SAVED_FRAMES, MAX_STATIC_ITERATIONS, MAX_STEPS, PresetHandConfig, Scene,
+    SceneConfig, SimFrame, SimState, SolverConfig, SolverMode, StepInfo,
 };
 pub use surface::obstacle_surface;
-pub use tendon::{TendonParams, TendonState};
+pub use tendon::{TendonCommand, TendonParams, TendonState};
 pub use trajectory::{
     ActuationKeyframe, ActuationMode, ActuationSchedule, PoseKeyframe, PoseTrajectory,
 };

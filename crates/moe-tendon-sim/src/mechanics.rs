@@ -18,7 +18,7 @@ pub use crate::fem::{
     FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn,
 };
 pub use crate::polar::polar_rotation;
-pub use crate::tendon::{Tendon, TendonCommand};
+pub use crate::tendon::Tendon;
 pub use crate::terms::{PairTerm, PointTerm, RankOneTerm, Terms};
 pub use crate::tetmesh::TetMesh;
 pub use crate::voxelize::{VolumeMesh, VoxelStats, voxelize};

@@ -549,12 +549,12 @@ pub fn simulate_trajectory(
     params: &RandomSceneParams,
     seed: u64,
     trajectory_id: u64,
-) -> Result<(SampledScene, Vec<TrajectoryFrame>), SimError> {
+) -> Result<(SampledScene, Scene, Vec<TrajectoryFrame>), SimError> {
     let sampled = sample_scene(params, seed, trajectory_id)?;
     let mut scene = Scene::new(sampled.config.clone())?;
     let steps = scene.num_steps();
     let frames = run_saving(&mut scene, steps)?;
-    Ok((sampled, frames))
+    Ok((sampled, scene, frames))
 }
 
 #[cfg(test)]
@@ -618,7 +618,7 @@ mod tests {
         };
         let hand = HandModel::preset(params.preset, &params.finger).unwrap();
         for t in 0..4 {
-            let (sampled, frames) = simulate_trajectory(&params, 3, t).unwrap();
+            let (sampled, _, frames) = simulate_trajectory(&params, 3, t).unwrap();
             assert_eq!(sampled.region, FingerRegion::Apex);
             let finger = &hand.fingers()[sampled.finger];
             let n = finger
@@ -698,7 +698,7 @@ mod tests {
                 families: vec![family],
                 ..quick()
             };
-            let (sampled, frames) = simulate_trajectory(&params, 5, t as u64).unwrap();
+            let (sampled, _, frames) = simulate_trajectory(&params, 5, t as u64).unwrap();
             let scene = Scene::new(sampled.config.clone()).unwrap();
             let obstacle = &scene.obstacles()[0];
             // At the end of the press the hand is pushed past first touch.

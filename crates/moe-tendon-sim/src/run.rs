@@ -4,16 +4,43 @@
 use moe_geom::Real;
 
 use crate::error::SimError;
-use crate::scene::{Scene, SimFrame, SimState, StepInfo};
+use crate::scene::{Scene, SimFrame, SimState, StepInfo, command};
+use crate::tendon::TendonCommand;
 
 /// One saved frame of a simulated trajectory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrajectoryFrame {
     /// Surfaces, distances and labels.
     pub frame: SimFrame,
-    /// Commanded tendon values at this time (metres of pull in displacement mode):
-    /// `[finger][tendon]`.
-    pub tendon_values: Vec<Vec<Real>>,
+    /// The command of every tendon at this time, each with its unit (a pull in metres or a
+    /// tension in newtons): `[finger][tendon]`.
+    pub tendons: Vec<Vec<TendonCommand>>,
+}
+
+impl TrajectoryFrame {
+    /// The pulled length of every tendon, metres: `[finger][tendon]`.
+    ///
+    /// # Errors
+    /// [`SimError::ForceDriven`] naming the first tendon driven by force, whose command is a
+    /// tension, not a length.
+    pub fn tendon_pulls_m(&self) -> Result<Vec<Vec<Real>>, SimError> {
+        self.tendons
+            .iter()
+            .enumerate()
+            .map(|(finger, commands)| {
+                commands
+                    .iter()
+                    .enumerate()
+                    .map(|(tendon, c)| match *c {
+                        TendonCommand::Displacement { pull_m } => Ok(pull_m),
+                        TendonCommand::Force { .. } => {
+                            Err(SimError::ForceDriven { finger, tendon })
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
 }
 
 /// What a run leaves besides its saved frames.
@@ -70,19 +97,19 @@ pub fn run_saving(scene: &mut Scene, steps: u64) -> Result<Vec<TrajectoryFrame>,
 fn saved(scene: &Scene, state: &SimState) -> TrajectoryFrame {
     let t = state.time_secs;
     let config = scene.config();
-    let tendon_values = scene
+    let tendons = scene
         .hand()
         .fingers()
         .iter()
         .enumerate()
         .map(|(i, f)| {
             (0..f.model.tendon_routes().len())
-                .map(|j| config.actuation.get(i).map_or(0.0, |s| s.value_at(j, t)))
+                .map(|j| command(config.actuation.get(i), j, t))
                 .collect()
         })
         .collect();
     TrajectoryFrame {
         frame: scene.frame(state),
-        tendon_values,
+        tendons,
     }
 }

@@ -80,6 +80,14 @@ impl Default for SolverConfig {
     }
 }
 
+/// Most steps a scene may run (`duration_secs / dt_secs`).
+pub const MAX_STEPS: u64 = 10_000_000;
+/// Most frames a scene may save (`steps / save_every_steps`): every saved frame of a run is
+/// kept in memory by [`crate::randomize::run_saving`].
+pub const MAX_SAVED_FRAMES: u64 = 100_000;
+/// Most Newton iterations of a quasi-static step.
+pub const MAX_STATIC_ITERATIONS: usize = 10_000;
+
 /// A complete scripted scene (TOML/JSON through serde; every field has a default).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -285,6 +293,28 @@ impl Scene {
                 name: "save_every_steps",
                 value: 0.0,
                 reason: "must be at least 1",
+            });
+        }
+        if !(1..=MAX_STATIC_ITERATIONS).contains(&s.static_max_iterations) {
+            return Err(SimError::InvalidParameter {
+                name: "static_max_iterations",
+                value: s.static_max_iterations as Real,
+                reason: "must be between 1 and 10,000",
+            });
+        }
+        let steps = config.duration_secs / s.dt_secs;
+        if steps > MAX_STEPS as Real {
+            return Err(SimError::InvalidParameter {
+                name: "duration_secs / dt_secs (steps)",
+                value: steps,
+                reason: "a scene may run at most 10,000,000 steps",
+            });
+        }
+        if steps / config.save_every_steps as Real > MAX_SAVED_FRAMES as Real {
+            return Err(SimError::InvalidParameter {
+                name: "duration_secs / dt_secs / save_every_steps (saved frames)",
+                value: steps / config.save_every_steps as Real,
+                reason: "a scene may save at most 100,000 frames",
             });
         }
         if let Some(&g) = config.gravity_m_s2.iter().find(|g| !g.is_finite()) {
@@ -571,7 +601,8 @@ impl Scene {
     }
 }
 
-fn command(schedule: Option<&ActuationSchedule>, j: usize, t: Real) -> TendonCommand {
+/// The command of tendon `j` at time `t` under `schedule` (none: no pull).
+pub(crate) fn command(schedule: Option<&ActuationSchedule>, j: usize, t: Real) -> TendonCommand {
     match schedule {
         None => TendonCommand::Displacement { pull_m: 0.0 },
         Some(s) => {

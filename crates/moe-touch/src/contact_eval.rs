@@ -228,7 +228,7 @@ fn labels_above(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
 pub fn study_shape_estimator(
     hand: &HandModel,
     options: &ShapeOptions,
-) -> Result<MultiShapeEstimator, TouchError> {
+) -> Result<MultiShapeEstimator, moe_arap::ArapError> {
     let mut arap = MultiShapeEstimator::new(hand.clone(), options.clone())?;
     arap.assign_handles(&hand.rest_keypoints())?;
     Ok(arap)
@@ -251,9 +251,7 @@ pub fn with_estimated_shapes(
         .map_init(
             || study_shape_estimator(hand, options),
             |arap, frame| {
-                let arap = arap.as_mut().map_err(|e| TouchError::InvalidEvaluation {
-                    reason: format!("shape estimator: {e}"),
-                })?;
+                let arap = arap.as_mut().map_err(|e| TouchError::Shape(e.clone()))?;
                 let shape = arap.estimate(&frame.markers)?.shape;
                 Ok(LabelledFrame {
                     shape,

@@ -46,6 +46,11 @@ pub struct GenPlan {
     pub machines: u32,
 }
 
+/// Most trajectories of one data set.
+pub const MAX_TRAJECTORIES: u64 = 10_000_000;
+/// Most trajectories of one shard (a shard's frames are held in memory until it is written).
+pub const MAX_TRAJECTORIES_PER_SHARD: u64 = 1_000;
+
 impl GenPlan {
     /// Checks the plan.
     ///
@@ -53,11 +58,18 @@ impl GenPlan {
     /// [`TouchError::InvalidPlan`].
     pub fn validate(&self) -> Result<(), TouchError> {
         let bad = |reason: String| Err(TouchError::InvalidPlan { reason });
-        if self.trajectories == 0 {
-            return bad("at least one trajectory is needed".into());
+        if !(1..=MAX_TRAJECTORIES).contains(&self.trajectories) {
+            return bad(format!(
+                "{} trajectories: a data set holds between 1 and {MAX_TRAJECTORIES}",
+                self.trajectories
+            ));
         }
-        if self.trajectories_per_shard == 0 {
-            return bad("trajectories per shard must be positive".into());
+        if !(1..=MAX_TRAJECTORIES_PER_SHARD).contains(&self.trajectories_per_shard) {
+            return bad(format!(
+                "{} trajectories per shard: a shard (held in memory while it is written) holds \
+                 between 1 and {MAX_TRAJECTORIES_PER_SHARD}",
+                self.trajectories_per_shard
+            ));
         }
         if self.machines == 0 || self.machine == 0 || self.machine > self.machines {
             return bad(format!(
@@ -162,8 +174,8 @@ pub fn parse_shard_spec(
 /// with these settings.
 ///
 /// # Errors
-/// [`TouchError::InvalidPlan`] naming the missing shards, settings that differ from the
-/// directory's, or file-system errors.
+/// [`TouchError::NotADataset`], [`TouchError::SettingsMismatch`] (settings that differ from the
+/// directory's), [`TouchError::MissingShards`] naming the missing shards, or file-system errors.
 pub fn merge_card(
     plan: &GenPlan,
     dir: &Path,
@@ -172,8 +184,9 @@ pub fn merge_card(
 ) -> Result<DatasetCard, TouchError> {
     plan.validate()?;
     if !dir.join(SETTINGS_FILE).exists() {
-        return Err(TouchError::InvalidPlan {
-            reason: format!("{} holds no data set (no {SETTINGS_FILE})", dir.display()),
+        return Err(TouchError::NotADataset {
+            dir: dir.to_owned(),
+            file: SETTINGS_FILE,
         });
     }
     check_settings(plan, dir, layout, &generator)?;
@@ -181,17 +194,22 @@ pub fn merge_card(
         .filter(|&k| !dir.join(plan.shard_file(k)).exists())
         .collect();
     if !missing.is_empty() {
-        return Err(TouchError::InvalidPlan {
-            reason: format!(
-                "{} of {} shards are missing in {}: {missing:?}",
-                missing.len(),
-                plan.num_shards(),
-                dir.display()
-            ),
+        return Err(TouchError::MissingShards {
+            dir: dir.to_owned(),
+            missing,
+            total: plan.num_shards(),
         });
     }
-    write_card_if_complete(plan, dir, layout, generator)?.ok_or_else(|| TouchError::InvalidPlan {
-        reason: "a shard disappeared while the card was written".into(),
+    // `None` only if a shard vanished between the check above and the card.
+    write_card_if_complete(plan, dir, layout, generator)?.ok_or_else(|| {
+        let missing: Vec<u64> = (0..plan.num_shards())
+            .filter(|&k| !dir.join(plan.shard_file(k)).exists())
+            .collect();
+        TouchError::MissingShards {
+            dir: dir.to_owned(),
+            missing,
+            total: plan.num_shards(),
+        }
     })
 }
 
@@ -262,9 +280,7 @@ pub fn generate(
             .collect::<Result<_, TouchError>>()?;
         let frames: Vec<DatasetFrame> = per_trajectory.into_iter().flatten().collect();
         if frames.is_empty() {
-            return Err(TouchError::InvalidPlan {
-                reason: format!("shard {k} produced no frames"),
-            });
+            return Err(TouchError::EmptyShard { shard: k });
         }
         let path = dir.join(plan.shard_file(k));
         let (stats, families) = shard_stats(layout, &frames);
@@ -316,12 +332,8 @@ fn check_settings(
     if path.exists() {
         let existing: Settings = moe_io::read_json(&path)?;
         if existing != settings {
-            return Err(TouchError::InvalidPlan {
-                reason: format!(
-                    "{} holds a data set generated with other settings (seed, trajectories, \
-                     shard size, layout or randomisation); use another directory",
-                    dir.display()
-                ),
+            return Err(TouchError::SettingsMismatch {
+                dir: dir.to_owned(),
             });
         }
         return Ok(());
@@ -363,25 +375,33 @@ pub const MAX_DRAWS: u64 = 4;
 /// The frame layout of a data set simulated with `params`.
 ///
 /// # Errors
-/// Invalid finger parameters.
+/// [`TouchError::Geometry`] for invalid finger parameters; [`TouchError::UnevenTendons`] when
+/// the fingers do not all have the same number of tendons.
 pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, TouchError> {
-    let hand = moe_geom::HandModel::preset(params.preset, &params.finger).map_err(|e| {
-        TouchError::InvalidPlan {
-            reason: e.to_string(),
-        }
-    })?;
+    let hand = moe_geom::HandModel::preset(params.preset, &params.finger)?;
+    let fingers = hand.fingers();
+    let tendons_per_finger = fingers[0].model.tendon_routes().len();
+    if let Some((finger, f)) = fingers
+        .iter()
+        .enumerate()
+        .find(|(_, f)| f.model.tendon_routes().len() != tendons_per_finger)
+    {
+        return Err(TouchError::UnevenTendons {
+            finger,
+            expected: tendons_per_finger,
+            got: f.model.tendon_routes().len(),
+        });
+    }
     Ok(DatasetLayout {
-        finger_num_vertices: hand
-            .fingers()
+        finger_num_vertices: fingers
             .iter()
             .map(|f| f.model.mesh().num_vertices())
             .collect(),
-        markers_per_finger: hand
-            .fingers()
+        markers_per_finger: fingers
             .iter()
             .map(|f| f.model.marker_vertices().len())
             .collect(),
-        tendons_per_finger: hand.fingers()[0].model.tendon_routes().len(),
+        tendons_per_finger,
         object_param_len: OBJECT_PARAM_LEN,
         object_families: ObjectFamily::ALL
             .iter()
@@ -394,8 +414,10 @@ pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, Tou
 /// (all fingers concatenated in the hand frame; markers are the marker vertices).
 ///
 /// # Errors
-/// [`TouchError::Trajectory`] naming the trajectory and carrying the simulator's error (which
-/// names the step and element on divergence).
+/// [`TouchError::Trajectory`] naming the trajectory and carrying the simulator's error of the
+/// last draw (which names the step and element on divergence);
+/// [`TouchError::Simulation`] with [`moe_tendon_sim::SimError::ForceDriven`] for a scene whose
+/// tendons are force-driven (a data set records pulls in metres).
 pub fn simulated_frames(
     params: &RandomSceneParams,
     seed: u64,
@@ -404,33 +426,29 @@ pub fn simulated_frames(
     // A draw whose simulation diverges (an element inverted by an extreme press, say) is
     // replaced by a redraw from a derived seed; the redraws are part of the pure function of
     // (seed, trajectory), so determinism holds.
-    let mut last_error = String::new();
-    let mut result = None;
-    for attempt in 0..MAX_DRAWS {
+    let mut attempt: u64 = 0;
+    let (sampled, scene, frames) = loop {
         let attempt_seed = seed ^ attempt.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        attempt += 1;
         match simulate_trajectory(params, attempt_seed, trajectory_id) {
-            Ok(r) => {
-                result = Some(r);
-                break;
+            Ok(r) => break r,
+            Err(source) if attempt == MAX_DRAWS => {
+                return Err(TouchError::Trajectory {
+                    trajectory: trajectory_id,
+                    draws: MAX_DRAWS,
+                    source,
+                });
             }
-            Err(e) => last_error = e.to_string(),
+            Err(_) => {}
         }
-    }
-    let (sampled, frames) = result.ok_or_else(|| TouchError::Trajectory {
-        trajectory: trajectory_id,
-        message: format!("{MAX_DRAWS} draws failed; the last: {last_error}"),
-    })?;
-    let hand = moe_geom::HandModel::preset(params.preset, &params.finger).map_err(|e| {
-        TouchError::Trajectory {
-            trajectory: trajectory_id,
-            message: e.to_string(),
-        }
-    })?;
+    };
+    let hand = scene.hand();
     let object_params: Vec<f32> = sampled.object_params.iter().map(|&v| v as f32).collect();
-    Ok(frames
+    frames
         .iter()
         .enumerate()
         .map(|(k, f)| {
+            let pulls = f.tendon_pulls_m()?;
             let to32 = |p: &moe_geom::Point3| [p.x as f32, p.y as f32, p.z as f32];
             let vertices = f
                 .frame
@@ -470,7 +488,7 @@ pub fn simulated_frames(
                 .collect();
             let iso = f.frame.world_from_hand;
             let (t, q) = (iso.translation.vector, iso.rotation.quaternion());
-            DatasetFrame {
+            Ok(DatasetFrame {
                 trajectory_id,
                 frame_index: k as u32,
                 vertices,
@@ -479,17 +497,12 @@ pub fn simulated_frames(
                 obstacle_distance_m,
                 markers,
                 world_from_hand: [t.x, t.y, t.z, q.i, q.j, q.k, q.w],
-                tendon_pull_m: f
-                    .tendon_values
-                    .iter()
-                    .flatten()
-                    .map(|&v| v as f32)
-                    .collect(),
+                tendon_pull_m: pulls.iter().flatten().map(|&v| v as f32).collect(),
                 object_family: sampled.family.code(),
                 object_params: object_params.clone(),
-            }
+            })
         })
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]
@@ -657,7 +670,12 @@ mod tests {
             if t == 13 {
                 Err(TouchError::Trajectory {
                     trajectory: t,
-                    message: "diverged at step 7".into(),
+                    draws: MAX_DRAWS,
+                    source: moe_tendon_sim::SimError::NonFinite {
+                        step: 7,
+                        finger: 0,
+                        node: 3,
+                    },
                 })
             } else {
                 good(t)
@@ -672,7 +690,17 @@ mod tests {
             &|_, _| {},
         )
         .unwrap_err();
-        assert!(err.to_string().contains("trajectory 13"), "{err}");
+        assert!(
+            matches!(
+                err,
+                TouchError::Trajectory {
+                    trajectory: 13,
+                    source: moe_tendon_sim::SimError::NonFinite { step: 7, .. },
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
         // Shards 0..=2 (trajectories 0..12) finished; shard 3 holds trajectory 13 and is absent.
         let names: Vec<String> = files(&dir)
             .into_keys()
@@ -696,24 +724,53 @@ mod tests {
             ..plan(2, 2)
         };
         let err = run(&other_seed, &dir, serde_json::json!({"a": 1}), 10).unwrap_err();
-        assert!(err.to_string().contains("other settings"), "{err}");
+        assert!(
+            matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir),
+            "{err:?}"
+        );
         let err = run(&plan(2, 2), &dir, serde_json::json!({"a": 2}), 9).unwrap_err();
-        assert!(err.to_string().contains("other settings"), "{err}");
+        assert!(
+            matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir),
+            "{err:?}"
+        );
         run(&plan(2, 2), &dir, serde_json::json!({"a": 1}), 9).unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn plans_are_checked() {
-        assert!(plan(0, 2).validate().is_err());
-        assert!(plan(3, 2).validate().is_err());
+        let refused = |p: GenPlan, what: &str| match p.validate() {
+            Err(TouchError::InvalidPlan { reason }) => assert!(reason.contains(what), "{reason}"),
+            other => panic!("{what}: {other:?}"),
+        };
+        refused(plan(0, 2), "shard 0/2");
+        refused(plan(3, 2), "shard 3/2");
+        for (trajectories, what) in [(0, "0 trajectories"), (MAX_TRAJECTORIES + 1, "between 1")] {
+            refused(
+                GenPlan {
+                    trajectories,
+                    ..plan(1, 1)
+                },
+                what,
+            );
+        }
+        for per_shard in [0, MAX_TRAJECTORIES_PER_SHARD + 1] {
+            refused(
+                GenPlan {
+                    trajectories_per_shard: per_shard,
+                    ..plan(1, 1)
+                },
+                "trajectories per shard",
+            );
+        }
         assert!(
             GenPlan {
-                trajectories: 0,
+                trajectories: MAX_TRAJECTORIES,
+                trajectories_per_shard: MAX_TRAJECTORIES_PER_SHARD,
                 ..plan(1, 1)
             }
             .validate()
-            .is_err()
+            .is_ok()
         );
         assert_eq!(plan(2, 3).shards_for_machine(), vec![1, 4]);
         assert_eq!(plan(1, 1).trajectories_of(5), 20..23);

@@ -4,7 +4,7 @@
 use moe_geom::{HandModel, Iso3, Point3};
 use moe_io::{CameraInfo, EpisodeFrame, EpisodeInfo, ObstacleMesh};
 use moe_tendon_sim::camera::{CameraIntrinsics, RenderItem, RgbdCamera};
-use moe_tendon_sim::{Scene, SimError, TrajectoryFrame, obstacle_surface};
+use moe_tendon_sim::{ActuationMode, Scene, SimError, TrajectoryFrame, obstacle_surface};
 
 /// Radius of the painted red markers, metres (5 mm stickers).
 pub const MARKER_RADIUS_M: f64 = 0.0025;
@@ -100,8 +100,17 @@ impl EpisodeRecorder {
     /// sensor noise.
     ///
     /// # Errors
-    /// An obstacle whose surface cannot be meshed.
+    /// An obstacle whose surface cannot be meshed; [`SimError::ForceDriven`] for a scene with a
+    /// force-driven finger (an episode records tendon pulls in metres, not tensions).
     pub fn new(scene: &Scene, name: &str, seed: u64) -> Result<Self, SimError> {
+        if let Some(finger) = scene
+            .config()
+            .actuation
+            .iter()
+            .position(|s| s.mode == ActuationMode::Force)
+        {
+            return Err(SimError::ForceDriven { finger, tendon: 0 });
+        }
         let camera = scene.config().camera;
         let hand = scene.hand();
         let info = EpisodeInfo {
@@ -150,7 +159,8 @@ impl EpisodeRecorder {
     /// Renders the camera images of a saved frame and packs it with its ground truth.
     ///
     /// # Errors
-    /// Invalid camera parameters.
+    /// Invalid camera parameters; [`SimError::ForceDriven`] for a force-driven tendon, which
+    /// an episode cannot record (it records pulls in metres).
     pub fn frame(
         &self,
         scene: &Scene,
@@ -196,7 +206,7 @@ impl EpisodeRecorder {
             color_rgb8: image.color,
             depth_m: image.depth_m,
             world_from_hand: frame.world_from_hand,
-            tendon_pull_m: saved.tendon_values.clone(),
+            tendon_pull_m: saved.tendon_pulls_m()?,
             finger_vertices_in_hand: frame
                 .fingers
                 .iter()
@@ -217,5 +227,34 @@ impl EpisodeRecorder {
             markers_in_hand,
             obstacles,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use moe_tendon_sim::{ActuationKeyframe, ActuationSchedule, SceneConfig};
+
+    #[test]
+    fn force_driven_scenes_are_not_recorded() {
+        let schedule = |mode| ActuationSchedule {
+            mode,
+            keyframes: vec![ActuationKeyframe {
+                time_secs: 0.0,
+                values: vec![0.0; 4],
+            }],
+        };
+        let config = |second| SceneConfig {
+            duration_secs: 0.01,
+            actuation: vec![schedule(ActuationMode::Displacement), schedule(second)],
+            ..SceneConfig::default()
+        };
+        let scene = Scene::new(config(ActuationMode::Force)).unwrap();
+        assert!(matches!(
+            EpisodeRecorder::new(&scene, "force", 0),
+            Err(SimError::ForceDriven { finger: 1, .. })
+        ));
+        let scene = Scene::new(config(ActuationMode::Displacement)).unwrap();
+        assert!(EpisodeRecorder::new(&scene, "pull", 0).is_ok());
     }
 }

@@ -9,19 +9,72 @@ pub enum TouchError {
     /// Reading or writing a file failed (the error names the file).
     #[error(transparent)]
     Io(#[from] IoError),
-    /// A generation plan is inconsistent (zero trajectories, a machine index out of range, ...).
+    /// A generation plan is inconsistent (zero trajectories, a machine index out of range, a
+    /// malformed `--shard` split, ...).
     #[error("invalid generation plan: {reason}")]
     InvalidPlan {
         /// What is wrong.
         reason: String,
     },
-    /// Producing the frames of one trajectory failed.
-    #[error("trajectory {trajectory}: {message}")]
+    /// A directory given as a data set holds none (no settings file).
+    #[error("{}: holds no data set (no {file})", dir.display())]
+    NotADataset {
+        /// The directory.
+        dir: std::path::PathBuf,
+        /// The file that is missing.
+        file: &'static str,
+    },
+    /// A data set directory was generated with other settings than the ones given (seed,
+    /// trajectories, shard size, layout or randomisation).
+    #[error(
+        "{}: holds a data set generated with other settings (seed, trajectories, shard size, \
+         layout or randomisation); use another directory",
+        dir.display()
+    )]
+    SettingsMismatch {
+        /// The directory.
+        dir: std::path::PathBuf,
+    },
+    /// Shards of a data set are missing when its card is written.
+    #[error("{}: {} of {total} shards are missing: {missing:?}", dir.display(), missing.len())]
+    MissingShards {
+        /// The directory.
+        dir: std::path::PathBuf,
+        /// Indices of the missing shards.
+        missing: Vec<u64>,
+        /// Number of shards of the data set.
+        total: u64,
+    },
+    /// A shard's trajectories produced no frames.
+    #[error("shard {shard} produced no frames")]
+    EmptyShard {
+        /// Index of the shard.
+        shard: u64,
+    },
+    /// The fingers of a hand have different numbers of tendons, which a data set's layout (one
+    /// count per hand) cannot hold.
+    #[error(
+        "finger {finger} has {got} tendons but finger 0 has {expected}: a data set needs the \
+         same number on every finger"
+    )]
+    UnevenTendons {
+        /// The first finger that differs.
+        finger: usize,
+        /// Tendons of finger 0.
+        expected: usize,
+        /// Tendons of this finger.
+        got: usize,
+    },
+    /// Every draw of one trajectory failed to simulate.
+    #[error("trajectory {trajectory}: {draws} draws failed; the last: {source}")]
     Trajectory {
         /// The trajectory id.
         trajectory: u64,
-        /// What went wrong (e.g. the simulator's error, which names the step and element).
-        message: String,
+        /// How many draws were tried.
+        draws: u64,
+        /// The simulator's error of the last draw (it names the step and element).
+        #[source]
+        source: moe_tendon_sim::SimError,
     },
     /// A simulation failed (the error names the step, finger and element).
     #[error(transparent)]

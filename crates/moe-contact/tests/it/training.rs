@@ -244,3 +244,27 @@ fn the_evaluation_of_probabilities_matches_the_network_s_loss() {
     let via = moe_contact::evaluation_of(&p, (0..sets.len()).flat_map(|s| sets.labels_of(s)), w);
     assert_eq!(via, direct);
 }
+
+#[test]
+fn training_configs_are_bounded() {
+    let field_of = |c: TrainConfig| match c.validate() {
+        Err(moe_contact::ContactError::InvalidConfig { field, .. }) => field,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(field_of(config(adamw(), 0)), "epochs");
+    assert_eq!(
+        field_of(config(adamw(), moe_contact::train::MAX_EPOCHS + 1)),
+        "epochs"
+    );
+    assert!(
+        config(adamw(), moe_contact::train::MAX_EPOCHS)
+            .validate()
+            .is_ok()
+    );
+    let mut c = config(adamw(), 1);
+    c.batch_size = 0;
+    assert_eq!(field_of(c), "batch_size");
+    let mut c = config(adamw(), 1);
+    c.batch_size = 4097;
+    assert_eq!(field_of(c), "batch_size");
+}

@@ -176,3 +176,51 @@ fn invalid_hyper_parameters_and_grids_are_named() {
         })
     ));
 }
+
+/// Iteration counts and problem sizes are bounded, each side of the bound.
+#[test]
+fn iteration_counts_and_sizes_are_bounded() {
+    use moe_gpis::parts::{fit_hyper, register_prior};
+    use moe_gpis::{IcpConfig, MAX_ITERATIONS};
+    let name_of = |r: Result<(), GpisError>| match r {
+        Err(GpisError::InvalidParameter { name, .. }) => name,
+        other => panic!("{other:?}"),
+    };
+    let prior = icosphere(2, 0.05);
+    let pts = contacts(20);
+    let too_many = MAX_ITERATIONS + 1;
+    let icp = |max_iterations| IcpConfig {
+        max_iterations,
+        ..IcpConfig::default()
+    };
+    assert_eq!(
+        name_of(register_prior(&prior, &pts, &icp(too_many)).map(|_| ())),
+        "icp_max_iterations"
+    );
+    assert!(register_prior(&prior, &pts, &icp(MAX_ITERATIONS)).is_ok());
+    let nonprob = |iterations| NonProbConfig {
+        iterations,
+        ..NonProbConfig::default()
+    };
+    assert_eq!(
+        name_of(nonprobabilistic(&prior, &pts, &nonprob(too_many)).map(|_| ())),
+        "nonprob_iterations"
+    );
+    let residuals = vec![0.0; pts.len()];
+    let fit = FitConfig {
+        max_iterations: too_many,
+        ..FitConfig::default()
+    };
+    assert_eq!(
+        name_of(fit_hyper(&pts, &residuals, &fit).map(|_| ())),
+        "fit_max_iterations"
+    );
+    let fit = FitConfig {
+        max_fit_points: moe_gpis::MAX_EXACT_OBSERVATIONS + 1,
+        ..FitConfig::default()
+    };
+    assert_eq!(
+        name_of(fit_hyper(&pts, &residuals, &fit).map(|_| ())),
+        "max_fit_points"
+    );
+}

@@ -174,6 +174,15 @@ pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError>
             format!("finger {f} declares {nv} vertices, more than {MAX_FINGER_VERTICES}"),
         ));
     }
+    if info.tendons_per_finger > MAX_TENDONS_PER_FINGER {
+        return Err(format_err(
+            path,
+            format!(
+                "{} tendons per finger declared, more than {MAX_TENDONS_PER_FINGER}",
+                info.tendons_per_finger
+            ),
+        ));
+    }
     Ok(())
 }
 
@@ -181,6 +190,8 @@ pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError>
 pub const MAX_IMAGE_SIDE: u32 = 8192;
 /// Most vertices a finger of an episode may declare.
 pub const MAX_FINGER_VERTICES: usize = 1 << 22;
+/// Most tendons a finger of an episode may declare.
+pub const MAX_TENDONS_PER_FINGER: usize = 64;
 /// Largest uncompressed size a chunk may declare, bytes (a 640 × 480 frame takes 2.5 MB).
 pub const MAX_CHUNK_BYTES: u64 = 1 << 30;
 
@@ -624,6 +635,27 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("2 finger poses"), "{err}");
+    }
+
+    #[test]
+    fn declared_sizes_are_bounded() {
+        let path = Path::new("b.mcap");
+        assert!(check_info(path, &info()).is_ok());
+        let limit = |mut bad: EpisodeInfo, edit: &dyn Fn(&mut EpisodeInfo), limit: &str| {
+            edit(&mut bad);
+            let err = check_info(path, &bad).unwrap_err();
+            assert!(matches!(err, IoError::Parse { .. }), "{err:?}");
+            assert!(err.to_string().contains(limit), "{err}");
+        };
+        limit(
+            info(),
+            &|i| i.tendons_per_finger = MAX_TENDONS_PER_FINGER + 1,
+            "more than 64",
+        );
+        limit(info(), &|i| i.camera.width = MAX_IMAGE_SIDE + 1, "1..=8192");
+        let mut at_limit = info();
+        at_limit.tendons_per_finger = MAX_TENDONS_PER_FINGER;
+        assert!(check_info(path, &at_limit).is_ok());
     }
 
     #[test]

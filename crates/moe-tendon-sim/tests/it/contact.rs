@@ -3,11 +3,11 @@
 
 use moe_geom::{FingerParams, Point3, Real, Topology, Vector3};
 use moe_tendon_sim::mechanics::{
-    FingerBody, FingerInputs, Integrator, PosedObstacles, StepContext, TendonCommand,
+    FingerBody, FingerInputs, Integrator, PosedObstacles, StepContext,
 };
 use moe_tendon_sim::{
     BodyState, ContactParams, Obstacle, ObstacleConfig, ObstacleShape, PoseKeyframe,
-    PoseTrajectory, TendonParams, contact_labels, surface_contact,
+    PoseTrajectory, TendonCommand, TendonParams, contact_labels, surface_contact,
 };
 
 use crate::tendons::default_finger;

@@ -143,6 +143,29 @@ fn bad_scene_input_gives_typed_errors() {
     let mut c = SceneConfig::default();
     c.solver.dt_secs = 0.0;
     check(c, "dt_secs");
+    // The limits on what a scene may cost, each side of the bound.
+    let mut c = SceneConfig::default();
+    c.solver.static_max_iterations = 0;
+    check(c, "static_max_iterations");
+    let mut c = SceneConfig::default();
+    c.solver.static_max_iterations = moe_tendon_sim::MAX_STATIC_ITERATIONS + 1;
+    check(c, "static_max_iterations");
+    let mut c = SceneConfig::default();
+    c.duration_secs = c.solver.dt_secs * (moe_tendon_sim::MAX_STEPS as f64 + 2.0);
+    c.save_every_steps = 1_000;
+    check(c, "duration_secs / dt_secs (steps)");
+    let mut c = SceneConfig::default();
+    c.duration_secs = c.solver.dt_secs * (moe_tendon_sim::MAX_SAVED_FRAMES as f64 + 2.0);
+    c.save_every_steps = 1;
+    check(
+        c,
+        "duration_secs / dt_secs / save_every_steps (saved frames)",
+    );
+    let mut c = SceneConfig::default();
+    c.duration_secs = c.solver.dt_secs * moe_tendon_sim::MAX_SAVED_FRAMES as f64;
+    c.save_every_steps = 1;
+    c.solver.static_max_iterations = moe_tendon_sim::MAX_STATIC_ITERATIONS;
+    assert!(Scene::new(c).is_ok());
     let mut c = SceneConfig::default();
     c.solver.dt_secs = -0.01;
     check(c, "dt_secs");
@@ -338,4 +361,55 @@ fn scenes_and_states_can_move_between_threads() {
     assert_send::<moe_tendon_sim::SimState>();
     assert_sync::<moe_tendon_sim::SimState>();
     assert_sync::<moe_tendon_sim::mechanics::FingerBody>();
+}
+
+/// Saved frames carry each tendon's command with its unit, and only pulls are read as metres.
+#[test]
+fn saved_frames_keep_the_unit_of_each_tendon() {
+    let schedule = |mode, values: Vec<f64>| ActuationSchedule {
+        mode,
+        keyframes: vec![
+            ActuationKeyframe {
+                time_secs: 0.0,
+                values: vec![0.0; 4],
+            },
+            ActuationKeyframe {
+                time_secs: 0.02,
+                values,
+            },
+        ],
+    };
+    let config = |second: ActuationMode| SceneConfig {
+        duration_secs: 0.02,
+        save_every_steps: 1,
+        actuation: vec![
+            schedule(ActuationMode::Displacement, vec![0.002, -0.002, 0.0, 0.0]),
+            schedule(second, vec![0.0, 0.001, 0.0, 0.0]),
+        ],
+        ..SceneConfig::default()
+    };
+    let mut scene = Scene::new(config(ActuationMode::Force)).unwrap();
+    let steps = scene.num_steps();
+    let frames = moe_tendon_sim::run_saving(&mut scene, steps).unwrap();
+    let last = frames.last().unwrap();
+    assert_eq!(
+        last.tendons[0][0],
+        moe_tendon_sim::TendonCommand::Displacement { pull_m: 0.002 }
+    );
+    assert_eq!(
+        last.tendons[1][1],
+        moe_tendon_sim::TendonCommand::Force { tension_n: 0.001 }
+    );
+    assert!(matches!(
+        last.tendon_pulls_m(),
+        Err(SimError::ForceDriven {
+            finger: 1,
+            tendon: 0
+        })
+    ));
+    let mut scene = Scene::new(config(ActuationMode::Displacement)).unwrap();
+    let frames = moe_tendon_sim::run_saving(&mut scene, steps).unwrap();
+    let pulls = frames.last().unwrap().tendon_pulls_m().unwrap();
+    assert_eq!(pulls[0], vec![0.002, -0.002, 0.0, 0.0]);
+    assert_eq!(pulls[1], vec![0.0, 0.001, 0.0, 0.0]);
 }

@@ -2,9 +2,11 @@
 
 use moe_geom::{FingerModel, FingerParams, Point3, Real, Vector3};
 use moe_tendon_sim::mechanics::{
-    FingerBody, FingerInputs, Integrator, PosedObstacles, StepContext, TendonCommand,
+    FingerBody, FingerInputs, Integrator, PosedObstacles, StepContext,
 };
-use moe_tendon_sim::{BodyState, ContactParams, Material, TendonParams, VoxelParams};
+use moe_tendon_sim::{
+    BodyState, ContactParams, Material, TendonCommand, TendonParams, VoxelParams,
+};
 
 pub(crate) fn default_finger() -> (FingerModel, FingerBody) {
     let model = FingerModel::from_params(&FingerParams::default()).unwrap();

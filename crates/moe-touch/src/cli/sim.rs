@@ -145,8 +145,22 @@ pub(crate) fn run(args: SimArgs) -> Result<()> {
     }
 }
 
+/// The steps to run: the scene's duration, or fewer with `--steps` (the scene bounds its own
+/// duration, so `--steps` may only shorten it).
+fn steps_of(scene: &Scene, args: &SimArgs) -> Result<u64> {
+    let whole = scene.num_steps();
+    match args.steps {
+        Some(n) if n > whole => bail!(
+            "--steps {n}: the scene's duration covers {whole} steps, and --steps may only \
+             shorten the run (lengthen duration_secs instead)"
+        ),
+        Some(n) => Ok(n),
+        None => Ok(whole),
+    }
+}
+
 fn simulate(mut scene: Scene, args: &SimArgs, staging: &Path) -> Result<SimSummary> {
-    let steps = args.steps.unwrap_or_else(|| scene.num_steps());
+    let steps = steps_of(&scene, args)?;
     let mut frames = Vec::new();
     let start = Instant::now();
     let outcome = run_with(&mut scene, steps, |scene, state| -> Result<()> {
@@ -307,14 +321,14 @@ struct EpisodeSummary {
 /// when complete).
 fn record_episode(mut scene: Scene, args: &SimArgs) -> Result<()> {
     let started = Instant::now();
-    let steps = args.steps.unwrap_or_else(|| scene.num_steps());
+    let steps = steps_of(&scene, args)?;
     let name = args
         .scene
         .file_stem()
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let recorder = moe_touch::episode::EpisodeRecorder::new(&scene, &name, args.seed)?;
     let frames = moe_tendon_sim::run_saving(&mut scene, steps)
         .with_context(|| format!("simulating {}", args.scene.display()))?;
-    let recorder = moe_touch::episode::EpisodeRecorder::new(&scene, &name, args.seed)?;
     let mut writer = moe_io::create_episode(&args.out, recorder.info())?;
     let mut contact_frames = 0;
     for (k, saved) in frames.iter().enumerate() {

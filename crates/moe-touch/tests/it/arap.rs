@@ -2,7 +2,7 @@
 
 use moe_geom::{FingerModel, FingerParams, HandKeypoints, HandModel, HandPreset, Vector3};
 
-use crate::common::{assert_one_line_error, run, scratch};
+use crate::common::{assert_one_line_error, run, run_json, run_ok, scratch, stable};
 
 fn finger() -> FingerModel {
     FingerModel::from_params(&FingerParams {
@@ -31,7 +31,7 @@ fn arap_translates_a_mesh_whose_handles_all_move_together() {
     let c_path = dir.join("c.json");
     moe_io::write_json(&c_path, &serde_json::json!({ "handles": handles })).unwrap();
     let (out_path, log_path) = (dir.join("deformed.obj"), dir.join("energy.csv"));
-    let out = run(&[
+    let out = run_ok(&[
         "arap",
         "--mesh",
         mesh_path.to_str().unwrap(),
@@ -45,11 +45,6 @@ fn arap_translates_a_mesh_whose_handles_all_move_together() {
         log_path.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     assert_eq!(summary["iterations"], 5);
     assert_eq!(summary["num_handles"], handles.len());
@@ -120,7 +115,7 @@ fn shape_writes_every_finger_and_flags_a_fully_occluded_one() {
     let kp_path = dir.join("kp.json");
     moe_io::write_json(&kp_path, &kp).unwrap();
     let out_dir = dir.join("out");
-    let out = run(&[
+    let report = run_json(&[
         "shape",
         "--hand",
         "two-finger",
@@ -132,13 +127,8 @@ fn shape_writes_every_finger_and_flags_a_fully_occluded_one() {
         out_dir.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     let fingers = report["fingers"].as_array().unwrap();
+    insta::assert_json_snapshot!("shape_occluded_finger", stable(report.clone(), &dir));
     assert_eq!(fingers[0]["missing_markers"], serde_json::json!([2]));
     assert_eq!(fingers[0]["all_markers_missing"], false);
     assert_eq!(fingers[1]["all_markers_missing"], true);

@@ -1,12 +1,12 @@
 //! `moe-touch hand`.
 
-use crate::common::{assert_one_line_error, fixtures, run, scratch};
+use crate::common::{assert_one_line_error, fixtures, run, run_json, scratch, stable};
 
 #[test]
 fn presets_write_closed_meshes_and_matching_ids() {
     for (preset, fingers) in [("two-finger", 2), ("three-finger", 3), ("five-finger", 5)] {
         let dir = scratch(&format!("hand-{preset}"));
-        let out = run(&[
+        let summary = run_json(&[
             "hand",
             "--preset",
             preset,
@@ -14,14 +14,8 @@ fn presets_write_closed_meshes_and_matching_ids() {
             dir.to_str().unwrap(),
             "--json",
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let summary: serde_json::Value =
-            serde_json::from_slice(&out.stdout).expect("one JSON object");
         assert_eq!(summary["num_fingers"], fingers);
+        insta::assert_json_snapshot!(format!("hand_{preset}"), stable(summary.clone(), &dir));
         let written: serde_json::Value = moe_io::read_json(&dir.join("hand.json")).unwrap();
         assert_eq!(written, summary, "hand.json holds the printed summary");
         for f in summary["fingers"].as_array().unwrap() {

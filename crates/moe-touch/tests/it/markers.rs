@@ -447,12 +447,12 @@ fn bad_input_is_an_error_or_missing_markers_never_a_panic() {
 
 #[test]
 fn the_markers_command_writes_keypoints_overlays_and_a_report() {
-    use crate::common::{assert_one_line_error, run, scratch};
+    use crate::common::{assert_one_line_error, run, run_json, run_ok, scratch, stable};
     let dir = scratch("markers-cli");
     let episode = fixtures().join("episodes/plate_tip_front_small.mcap");
     let kp = dir.join("kp.jsonl");
     let overlay = dir.join("overlay");
-    let out = run(&[
+    let report = run_json(&[
         "markers",
         "--episode",
         episode.to_str().unwrap(),
@@ -462,13 +462,8 @@ fn the_markers_command_writes_keypoints_overlays_and_a_report() {
         overlay.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(report["frames"], 7);
+    insta::assert_json_snapshot!("markers_report", stable(report.clone(), &dir));
     assert_eq!(report["markers_per_frame"], 14);
     assert_eq!(report["tracking_lost_frames"], serde_json::json!([0]));
     let gt = &report["ground_truth"]["markers"];
@@ -498,7 +493,7 @@ fn the_markers_command_writes_keypoints_overlays_and_a_report() {
     let one = dir.join("frame0.json");
     std::fs::write(&one, lines[0]).unwrap();
     let shape_dir = dir.join("shape");
-    let out = run(&[
+    run_ok(&[
         "shape",
         "--hand",
         "two-finger",
@@ -508,11 +503,6 @@ fn the_markers_command_writes_keypoints_overlays_and_a_report() {
         shape_dir.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     // A cut file and the wrong hand fail with one line and write nothing.
     let cut = dir.join("cut.mcap");
     let bytes = std::fs::read(&episode).unwrap();

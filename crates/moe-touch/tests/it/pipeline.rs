@@ -139,7 +139,7 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
 
 #[test]
 fn the_run_command_writes_a_deterministic_result_and_a_report() {
-    use crate::common::{assert_one_line_error, run, scratch};
+    use crate::common::{assert_one_line_error, run, run_json, run_ok, scratch, stable};
     let dir = scratch("run-cli");
     let episode = fixtures().join("episodes/plate_tip_front_small.mcap");
     let model = model_path();
@@ -163,9 +163,8 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
         "--json".into(),
     ]);
     let a: Vec<&str> = a.iter().map(String::as_str).collect();
-    let o = run(&a);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let summary = run_json(&a);
+    insta::assert_json_snapshot!("run_summary", stable(summary.clone(), &dir));
     assert_eq!(summary["frames"], 7);
     assert!(summary["truncated"].is_null());
     assert!(summary["shape_bcd_mm"].as_f64().unwrap() < 1.0, "{summary}");
@@ -173,6 +172,7 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     let full: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(full["per_frame"].as_array().unwrap().len(), 7);
+    insta::assert_json_snapshot!("run_report", stable(full.clone(), &dir));
     // Same episode and model, same bytes.
     let again = dir.join("again.mcap");
     let b = args(&again);
@@ -185,7 +185,7 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 3 / 5]).unwrap();
     let cut_out = dir.join("cut-result.mcap");
-    let o = run(&[
+    let o = run_ok(&[
         "run",
         "--episode",
         cut.to_str().unwrap(),
@@ -195,7 +195,6 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
         cut_out.to_str().unwrap(),
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let frames = s["frames"].as_u64().unwrap();
     assert!((1..7).contains(&frames), "{frames} frames");
@@ -248,11 +247,10 @@ fn the_foxglove_layout_shows_only_topics_a_run_writes() {
 
 #[test]
 fn the_demo_needs_no_arguments_and_writes_its_outputs() {
-    use crate::common::{run, scratch};
+    use crate::common::{run_ok, scratch};
     let dir = scratch("demo");
     let out = dir.join("demo");
-    let o = run(&["demo", "--out", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run_ok(&["demo", "--out", out.to_str().unwrap()]);
     let table = String::from_utf8_lossy(&o.stdout);
     for row in [
         "frames",

@@ -2,7 +2,7 @@
 
 use moe_geom::SeededRng;
 
-use crate::common::{assert_one_line_error, run, scratch};
+use crate::common::{assert_one_line_error, run, run_ok, scratch, stable};
 
 /// 60 points on the plane z = 0.1 + 0.5 y (normal ∝ (0, −0.5, 1)) with 0.2 mm noise, and 20
 /// points scattered above it.
@@ -41,13 +41,9 @@ fn fits_an_incline_and_reports_normal_offset_inliers_and_rms() {
         "4",
         "--json",
     ];
-    let out = run(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_ok(&args);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    insta::assert_json_snapshot!("plane_incline", stable(v.clone(), &dir));
     let n: Vec<f64> = v["normal"]
         .as_array()
         .unwrap()

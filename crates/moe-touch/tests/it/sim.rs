@@ -1,12 +1,12 @@
 //! `moe-touch sim` on the shipped Fig. 5 scenes.
 
-use crate::common::{assert_one_line_error, fixtures, run, scratch};
+use crate::common::{assert_one_line_error, fixtures, run, run_json, run_ok, scratch, stable};
 
 #[test]
 fn sim_writes_ply_frames_with_contact_labels_and_a_summary() {
     let out = scratch("sim-ply");
     let scene = fixtures().join("scenes/plate_middle_front.toml");
-    let o = run(&[
+    let summary = run_json(&[
         "sim",
         "--scene",
         scene.to_str().unwrap(),
@@ -16,9 +16,8 @@ fn sim_writes_ply_frames_with_contact_labels_and_a_summary() {
         "30",
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
     assert_eq!(summary["steps"], 30);
+    insta::assert_json_snapshot!("sim_plate_middle_front", stable(summary.clone(), &out));
     let frames = summary["frames"].as_array().unwrap();
     assert_eq!(frames.len(), 4, "frames at steps 0, 10, 20, 30");
     let on_disk: serde_json::Value =
@@ -39,7 +38,7 @@ fn sim_writes_ply_frames_with_contact_labels_and_a_summary() {
 fn sim_writes_obj_frames() {
     let out = scratch("sim-obj");
     let scene = fixtures().join("scenes/plate_tip_side.toml");
-    let o = run(&[
+    run_ok(&[
         "sim",
         "--scene",
         scene.to_str().unwrap(),
@@ -50,7 +49,6 @@ fn sim_writes_obj_frames() {
         "--format",
         "obj",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for name in ["frame_000000_finger_0.obj", "frame_000002_finger_1.obj"] {
         let mesh = moe_io::read_mesh(&out.join(name)).unwrap();
         assert_eq!(mesh.num_vertices(), 1024, "{name}");
@@ -103,4 +101,43 @@ fn diverging_scene_names_the_step_and_leaves_no_output() {
         "{stderr}"
     );
     assert!(!out.exists(), "partial output left behind");
+}
+
+#[test]
+fn steps_beyond_the_scene_and_scenes_beyond_the_step_limit_are_refused() {
+    let dir = scratch("sim-limits");
+    let scene = fixtures().join("scenes/plate_tip_side.toml");
+    let out = dir.join("out");
+    let o = run(&[
+        "sim",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--steps",
+        "100000000000",
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(
+        err.contains("--steps 100000000000") && err.contains("covers"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // A duration of 10^7 steps and one more.
+    let long = dir.join("long.toml");
+    std::fs::write(
+        &long,
+        "duration_secs = 10000.002\n[solver]\ndt_secs = 0.001\n",
+    )
+    .unwrap();
+    let o = run(&[
+        "sim",
+        "--scene",
+        long.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(err.contains("at most 10,000,000 steps"), "{err}");
+    assert!(!out.exists());
 }

@@ -4,7 +4,7 @@ use moe_geom::SeededRng;
 use moe_geom::shapes::icosphere;
 use moe_geom::{Point3, TriMesh, Vector3};
 
-use crate::common::{assert_one_line_error, run, scratch};
+use crate::common::{assert_one_line_error, run, run_json, run_ok, scratch, stable};
 
 fn sphere_points(r: f64, n: usize, seed: u64) -> Vec<Vec<f64>> {
     let mut rng = SeededRng::new(seed);
@@ -16,22 +16,13 @@ fn sphere_points(r: f64, n: usize, seed: u64) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn json_of(out: &std::process::Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object on stdout")
-}
-
 #[test]
 fn sphere_method_reconstructs_a_sphere_and_reports_fitted_hyper_parameters() {
     let dir = scratch("surface-sphere");
     let contacts = dir.join("contacts.csv");
     moe_io::write_csv(&contacts, &["x", "y", "z"], &sphere_points(0.05, 200, 1)).unwrap();
     let out_path = dir.join("surface.obj");
-    let out = run(&[
+    let report = run_json(&[
         "surface",
         "--contacts",
         contacts.to_str().unwrap(),
@@ -43,7 +34,7 @@ fn sphere_method_reconstructs_a_sphere_and_reports_fitted_hyper_parameters() {
         out_path.to_str().unwrap(),
         "--json",
     ]);
-    let report = json_of(&out);
+    insta::assert_json_snapshot!("surface_sphere", stable(report.clone(), &dir));
     assert_eq!(report["contacts"], 200);
     assert_eq!(report["hyper"]["fitted"], true);
     assert!(
@@ -86,7 +77,7 @@ fn prior_method_writes_variance_and_answers_queries_in_order() {
     )
     .unwrap();
     let (out_path, var_path, q_out) = (dir.join("s.obj"), dir.join("v.ply"), dir.join("qv.csv"));
-    let out = run(&[
+    let report = run_json(&[
         "surface",
         "--contacts",
         contacts.to_str().unwrap(),
@@ -104,7 +95,6 @@ fn prior_method_writes_variance_and_answers_queries_in_order() {
         q_out.to_str().unwrap(),
         "--json",
     ]);
-    let report = json_of(&out);
     assert_eq!(report["queries"], 3);
     let ply = moe_io::read_ply(&var_path).unwrap();
     let std = ply.scalar("std").expect("std scalar");
@@ -170,7 +160,7 @@ fn nonprob_baseline_writes_a_closed_mesh() {
     let contacts = dir.join("contacts.csv");
     moe_io::write_csv(&contacts, &[], &sphere_points(0.095, 50, 3)).unwrap();
     let out_path = dir.join("np.obj");
-    let out = run(&[
+    run_ok(&[
         "surface",
         "--contacts",
         contacts.to_str().unwrap(),
@@ -181,11 +171,6 @@ fn nonprob_baseline_writes_a_closed_mesh() {
         "--out",
         out_path.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     moe_io::read_mesh(&out_path)
         .unwrap()
         .require_closed()
@@ -198,7 +183,7 @@ fn poisson_mesher_writes_a_closed_sphere_and_reports_its_time() {
     let contacts = dir.join("contacts.csv");
     moe_io::write_csv(&contacts, &["x", "y", "z"], &sphere_points(0.05, 200, 1)).unwrap();
     let out_path = dir.join("surface.ply");
-    let out = run(&[
+    let report = run_json(&[
         "surface",
         "--contacts",
         contacts.to_str().unwrap(),
@@ -214,7 +199,6 @@ fn poisson_mesher_writes_a_closed_sphere_and_reports_its_time() {
         out_path.to_str().unwrap(),
         "--json",
     ]);
-    let report = json_of(&out);
     assert_eq!(report["mesher"], "poisson");
     assert!(report["timings"]["poisson_secs"].as_f64().unwrap() > 0.0);
     let mesh = moe_io::read_mesh(&out_path).unwrap();
@@ -285,7 +269,7 @@ fn registration_moves_a_displaced_prior_onto_the_contacts() {
             "--json",
         ];
         args.extend_from_slice(extra);
-        let report = json_of(&run(&args));
+        let report = run_json(&args);
         let icp = report["registration"].clone();
         let t = &icp["prior_to_contacts"]["translation"];
         let found = Vector3::new(
