@@ -94,7 +94,24 @@ mod tests {
             parse(&v)
         };
         assert!(heldout(&["--trajectories", "1", "--frames", "1"]).is_ok());
-        assert!(heldout(&["--trajectories", "0"]).is_err());
-        assert!(heldout(&["--frames", "0"]).is_err());
+        for (bad, arg) in [
+            (
+                &["--trajectories", "0"][..],
+                "--trajectories <TRAJECTORIES>",
+            ),
+            (&["--frames", "0"], "--frames <FRAMES>"),
+        ] {
+            let err = heldout(bad).unwrap_err();
+            assert_eq!(
+                err.kind(),
+                clap::error::ErrorKind::ValueValidation,
+                "{bad:?}"
+            );
+            assert_eq!(
+                err.get(clap::error::ContextKind::InvalidArg),
+                Some(&clap::error::ContextValue::String(arg.into())),
+                "{bad:?}: {err}"
+            );
+        }
     }
 }

@@ -146,7 +146,8 @@ mod tests {
         for e in ArapEnergy::ALL {
             assert_eq!(e.name().parse::<ArapEnergy>().unwrap(), e);
         }
-        assert!("rims".parse::<ArapEnergy>().is_err());
+        let e = "rims".parse::<ArapEnergy>().unwrap_err();
+        assert!(e.contains("'rims'"), "{e}");
         let spokes = ArapConfig {
             energy: ArapEnergy::Spokes,
             ..Default::default()

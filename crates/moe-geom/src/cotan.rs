@@ -183,7 +183,14 @@ mod tests {
         let m = crate::mesh::tests::tetrahedron();
         let topo = Topology::new(&m);
         let lap = CotanLaplacian::new(&m, &topo);
-        assert!(CotanLaplacian::from_weights(&topo, vec![1.0; 5]).is_err());
+        crate::assert_err!(
+            CotanLaplacian::from_weights(&topo, vec![1.0; 5]),
+            GeomError::LengthMismatch {
+                what: "Laplacian edge weights",
+                expected: 6,
+                got: 5
+            }
+        );
         assert_eq!(
             CotanLaplacian::from_weights(&topo, lap.weights().to_vec()).unwrap(),
             lap

@@ -260,7 +260,8 @@ mod tests {
         for p in HandPreset::ALL {
             assert_eq!(p.name().parse::<HandPreset>().unwrap(), p);
         }
-        assert!("four-finger".parse::<HandPreset>().is_err());
+        let e = "four-finger".parse::<HandPreset>().unwrap_err();
+        assert!(e.contains("'four-finger'"), "{e}");
     }
 
     #[test]

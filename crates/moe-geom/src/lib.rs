@@ -50,3 +50,126 @@ pub use topology::{Topology, largest_component};
 pub use transform::{
     CameraFromHand, HandFromCamera, HandFromFinger, Transform, WorldFromHand, frame,
 };
+
+/// Asserts that `result` is an `Err` matching `pattern` (optionally with an `if` guard), showing
+/// the error otherwise: tests use it to check that an error names the offending item.
+///
+/// The pattern is matched against `&error`, so fields bind by reference; an `Ok` fails without
+/// needing `Debug` of the `Ok` type. An optional format string and arguments after the pattern
+/// are added to the failure message. The macro evaluates to the error, for further checks.
+///
+/// ```
+/// use moe_geom::{GeomError, cotan::CotanLaplacian, topology::Topology};
+///
+/// # let mesh = moe_geom::shapes::icosphere(0, 1.0);
+/// let topo = Topology::new(&mesh);
+/// let e = moe_geom::assert_err!(
+///     CotanLaplacian::from_weights(&topo, vec![1.0; 5]),
+///     GeomError::LengthMismatch { what: "Laplacian edge weights", got: 5, .. }
+/// );
+/// assert!(e.to_string().contains("got 5"));
+/// // A guard for what a pattern cannot say; a message for loops.
+/// for n in [4, 6] {
+///     moe_geom::assert_err!(
+///         CotanLaplacian::from_weights(&topo, vec![1.0; n]),
+///         GeomError::LengthMismatch { got, .. } if *got == n,
+///         "with {n} weights"
+///     );
+/// }
+/// ```
+#[macro_export]
+macro_rules! assert_err {
+    ($result:expr, $pattern:pat $(if $guard:expr)? $(,)?) => {
+        $crate::assert_err!($result, $pattern $(if $guard)?, "")
+    };
+    ($result:expr, $pattern:pat $(if $guard:expr)?, $($arg:tt)+) => {
+        match $result {
+            ::core::result::Result::Err(e) => {
+                match &e {
+                    $pattern $(if $guard)? => {}
+                    #[allow(unreachable_patterns)]
+                    other => {
+                        let context = ::std::format!($($arg)+);
+                        ::core::panic!(
+                            "expected Err({}), got Err({:?}){}{}",
+                            ::core::stringify!($pattern $(if $guard)?),
+                            other,
+                            if context.is_empty() { "" } else { ": " },
+                            context,
+                        )
+                    }
+                }
+                e
+            }
+            ::core::result::Result::Ok(_) => {
+                let context = ::std::format!($($arg)+);
+                ::core::panic!(
+                    "expected Err({}), got Ok{}{}",
+                    ::core::stringify!($pattern $(if $guard)?),
+                    if context.is_empty() { "" } else { ": " },
+                    context,
+                )
+            }
+        }
+    };
+}
+
+#[cfg(test)]
+mod assert_err_tests {
+    use crate::GeomError;
+
+    fn length_mismatch(got: usize) -> Result<(), GeomError> {
+        Err(GeomError::LengthMismatch {
+            what: "weights",
+            expected: 3,
+            got,
+        })
+    }
+
+    #[test]
+    fn passes_on_the_matching_variant_and_returns_the_error() {
+        let e = crate::assert_err!(
+            length_mismatch(2),
+            GeomError::LengthMismatch {
+                what: "weights",
+                got: 2,
+                ..
+            }
+        );
+        assert_eq!(e, length_mismatch(2).unwrap_err());
+        crate::assert_err!(
+            length_mismatch(4),
+            GeomError::LengthMismatch { got, .. } if *got > 3
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "got Err(EmptyPointSet")]
+    fn fails_on_another_variant() {
+        let r: Result<(), GeomError> = Err(GeomError::EmptyPointSet { what: "weights" });
+        crate::assert_err!(r, GeomError::LengthMismatch { .. });
+    }
+
+    #[test]
+    #[should_panic(expected = "got Err(LengthMismatch")]
+    fn fails_on_another_item() {
+        crate::assert_err!(length_mismatch(2), GeomError::LengthMismatch { got: 5, .. });
+    }
+
+    #[test]
+    #[should_panic(expected = "got Err(LengthMismatch")]
+    fn fails_when_the_guard_fails() {
+        crate::assert_err!(
+            length_mismatch(2),
+            GeomError::LengthMismatch { what, .. } if *what == "points"
+        );
+    }
+
+    #[test]
+    #[should_panic(expected = "got Ok: cut at 7")]
+    fn fails_on_ok_without_debug_of_the_value() {
+        struct NoDebug;
+        let r: Result<NoDebug, GeomError> = Ok(NoDebug);
+        crate::assert_err!(r, GeomError::EmptyPointSet { .. }, "cut at {}", 7);
+    }
+}

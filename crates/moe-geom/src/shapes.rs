@@ -263,4 +263,30 @@ mod tests {
             }
         );
     }
+
+    #[test]
+    fn subdivision_levels_are_bounded() {
+        let q = Superquadric {
+            half_axes_m: [0.03, 0.02, 0.01],
+            e1: 1.0,
+            e2: 1.0,
+        };
+        for level in [MAX_SUBDIVISION_LEVEL + 1, u32::MAX] {
+            crate::assert_err!(
+                q.mesh(level),
+                GeomError::InvalidParameter {
+                    name: "subdivision level",
+                    ..
+                }
+            );
+            crate::assert_err!(
+                star_shaped(level, Point3::origin(), |_| 1.0),
+                GeomError::InvalidParameter {
+                    name: "subdivision level",
+                    ..
+                }
+            );
+        }
+        assert!(check_subdivision_level(MAX_SUBDIVISION_LEVEL).is_ok());
+    }
 }

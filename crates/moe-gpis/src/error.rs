@@ -95,8 +95,9 @@ pub enum GpisError {
         /// Grid nodes along z.
         nz: usize,
     },
-    /// A normal given to Poisson reconstruction is NaN, infinite or zero. Every oriented point
-    /// needs a usable outward direction.
+    /// A normal (of an oriented point given to Poisson reconstruction, or of a contact given
+    /// normal offsets) is NaN, infinite or zero. Every oriented point needs a usable outward
+    /// direction.
     #[error("normal {index} is not finite or has zero length")]
     InvalidNormal {
         /// Index of the oriented point.

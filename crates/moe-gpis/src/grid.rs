@@ -188,8 +188,22 @@ mod tests {
         );
         let p = g.points();
         assert_eq!(p[g.index(3, 2, 1)], g.point(3, 2, 1));
-        assert!(Grid3::new(Point3::origin(), 0.0, [2, 2, 2]).is_err());
-        assert!(Grid3::new(Point3::origin(), 1.0, [2, 1, 2]).is_err());
+        moe_geom::assert_err!(
+            Grid3::new(Point3::origin(), 0.0, [2, 2, 2]),
+            GpisError::InvalidParameter {
+                name: "grid_spacing_m",
+                value: 0.0,
+                ..
+            }
+        );
+        moe_geom::assert_err!(
+            Grid3::new(Point3::origin(), 1.0, [2, 1, 2]),
+            GpisError::InvalidParameter {
+                name: "grid_nodes_per_axis",
+                value: 1.0,
+                ..
+            }
+        );
     }
 
     #[test]

@@ -160,6 +160,14 @@ mod tests {
             top(&out),
             top(&smooth_only)
         );
-        assert!(nonprobabilistic(&prior, &[], &NonProbConfig::default()).is_err());
+        moe_geom::assert_err!(
+            nonprobabilistic(&prior, &[], &NonProbConfig::default()),
+            GpisError::TooFewObservations {
+                method: "nonprob",
+                what: "contacts",
+                needed: 1,
+                got: 0
+            }
+        );
     }
 }

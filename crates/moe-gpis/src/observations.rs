@@ -110,7 +110,8 @@ impl Observations {
     /// (SDF `−d`). Normals are normalised.
     ///
     /// # Errors
-    /// Length mismatch, non-finite input, a zero normal, or `offset_m ≤ 0`.
+    /// Length mismatch, a non-finite contact, `offset_m ≤ 0`, or a zero or non-finite normal
+    /// ([`GpisError::InvalidNormal`], which names its index).
     pub fn add_normal_offsets(
         &mut self,
         contacts: &[Point3],
@@ -135,10 +136,7 @@ impl Observations {
         for (index, (c, n)) in contacts.iter().zip(normals).enumerate() {
             let len = n.norm();
             if !(len.is_finite() && len > 0.0) {
-                return Err(GpisError::NonFiniteObservation {
-                    what: "contact normal",
-                    index,
-                });
+                return Err(GpisError::InvalidNormal { index });
             }
             let n = n / len;
             self.push(c + n * offset_m, offset_m, ObservationKind::NormalOffset);
@@ -336,10 +334,22 @@ mod tests {
             })
         );
         let mut o = Observations::new();
-        assert!(o.add_free_space(&[Point3::origin()], None).is_err());
-        assert!(
-            o.add_normal_offsets(&[Point3::origin()], &[Vector3::zeros()], 0.01)
-                .is_err()
+        moe_geom::assert_err!(
+            o.add_free_space(&[Point3::origin()], None),
+            GpisError::TooFewObservations {
+                method: "free-space clearance",
+                what: "contacts",
+                needed: 1,
+                got: 0
+            }
+        );
+        moe_geom::assert_err!(
+            o.add_normal_offsets(
+                &[Point3::origin(); 2],
+                &[Vector3::z(), Vector3::zeros()],
+                0.01
+            ),
+            GpisError::InvalidNormal { index: 1 }
         );
     }
 }

@@ -557,7 +557,24 @@ mod tests {
         let e = parse(bad_index.as_bytes()).unwrap_err();
         assert!(e.to_string().contains("face 0"), "{e}");
         let nan = ASCII.replace("1 1 0 0 0 255 1", "1 nan 0 0 0 255 1");
-        assert!(parse(nan.as_bytes()).is_err());
+        // ply-rs reads no "nan": the line of vertex 2 is a syntax error.
+        moe_geom::assert_err!(
+            parse(nan.as_bytes()),
+            IoError::Parse {
+                path,
+                line: Some(16),
+                ..
+            } if path == Path::new("t.ply")
+        );
+        // A float property that overflows f32 reads as infinity.
+        let inf = ASCII.replace("1 1 0 0 0 255 1", "1 1e99 0 0 0 255 1");
+        moe_geom::assert_err!(
+            parse(inf.as_bytes()),
+            IoError::InvalidData { path, item, message }
+                if path == Path::new("t.ply")
+                    && item == "vertex 2 property 'y'"
+                    && message == "non-finite coordinate"
+        );
         let partial_colour = ASCII.replace("property uchar blue", "property uchar blur");
         let e = parse(partial_colour.as_bytes()).unwrap_err();
         assert!(e.to_string().contains("colour"), "{e}");

@@ -436,12 +436,20 @@ mod tests {
     fn a_frame_that_does_not_fit_is_refused() {
         let mut f = frame(true);
         f.contact_probability[0].pop();
-        assert!(write(&[f]).is_err());
+        let does_not_fit = |f: RunFrame| {
+            moe_geom::assert_err!(
+                write(&[f]),
+                IoError::Parse { path, line: None, column: None, message }
+                    if path == Path::new("r.mcap")
+                        && message.starts_with("run frame at 5 ns does not fit")
+            );
+        };
+        does_not_fit(f);
         let mut f = frame(true);
         f.truth.as_mut().unwrap().contact_vertices[0] = vec![3];
-        assert!(write(&[f]).is_err());
+        does_not_fit(f);
         let mut f = frame(false);
         f.color_rgb8.pop();
-        assert!(write(&[f]).is_err());
+        does_not_fit(f);
     }
 }

@@ -88,7 +88,11 @@ mod tests {
 
     #[test]
     fn garbage_is_an_error() {
-        assert!(parse_stl(b"solid x\nfacet nonsense\n", Path::new("t.stl")).is_err());
-        assert!(parse_stl(&[0u8; 10], Path::new("t.stl")).is_err());
+        for garbage in [&b"solid x\nfacet nonsense\n"[..], &[0u8; 10]] {
+            moe_geom::assert_err!(
+                parse_stl(garbage, Path::new("t.stl")),
+                IoError::Parse { path, .. } if path == Path::new("t.stl")
+            );
+        }
     }
 }

@@ -353,6 +353,10 @@ mod tests {
             },
             trajectory: PoseTrajectory::default(),
         };
-        assert!(Obstacle::new(0, &flat).is_err());
+        moe_geom::assert_err!(
+            Obstacle::new(2, &flat),
+            SimError::InvalidObstacle { obstacle: 2, reason }
+                if reason == "the convex hull of 3 points is degenerate"
+        );
     }
 }

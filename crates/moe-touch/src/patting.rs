@@ -284,8 +284,22 @@ mod tests {
 
     #[test]
     fn pat_counts_out_of_range_are_refused() {
-        assert!(patting_scene(SceneKind::Head, 1, 0).is_err());
-        assert!(patting_scene(SceneKind::Arm, 1, ARM_PATS + 1).is_err());
+        moe_geom::assert_err!(
+            patting_scene(SceneKind::Head, 1, 0),
+            TouchError::Simulation(moe_tendon_sim::SimError::InvalidParameter {
+                name: "pats",
+                value: 0.0,
+                ..
+            })
+        );
+        moe_geom::assert_err!(
+            patting_scene(SceneKind::Arm, 1, ARM_PATS + 1),
+            TouchError::Simulation(moe_tendon_sim::SimError::InvalidParameter {
+                name: "pats",
+                value,
+                ..
+            }) if *value == (ARM_PATS + 1) as Real
+        );
         let arm = patting_scene(SceneKind::Arm, paper_scenes::ARM_SEED, ARM_PATS).unwrap();
         assert_eq!(arm.wrist.keyframes.len(), 5 * ARM_PATS);
     }

@@ -139,7 +139,17 @@ fn a_subset_is_seeded_and_a_file_round_trips() {
         lean
     );
     for cut in (0..bytes.len()).step_by(bytes.len() / 50) {
-        assert!(KnnIndex::from_bytes(&bytes[..cut]).is_err(), "cut at {cut}");
+        moe_geom::assert_err!(
+            KnnIndex::from_bytes(&bytes[..cut]),
+            ContactError::MalformedWeights { message } if message.starts_with("KNN index: "),
+            "cut at {cut}"
+        );
     }
-    assert!(index.subset(0.0, 1).is_err());
+    moe_geom::assert_err!(
+        index.subset(0.0, 1),
+        ContactError::InvalidConfig {
+            field: "fraction",
+            ..
+        }
+    );
 }

@@ -3,7 +3,7 @@
 
 use moe_contact::candle_core::{Device, Tensor};
 use moe_contact::{
-    Aggregation, ModelWeights, OptimizerConfig, TrainConfig, Trainer, TrainingSets,
+    Aggregation, ContactError, ModelWeights, OptimizerConfig, TrainConfig, Trainer, TrainingSets,
     weighted_cross_entropy,
 };
 use moe_geom::SeededRng;
@@ -159,18 +159,37 @@ fn a_resumed_run_ends_with_the_weights_of_an_uninterrupted_one() {
 #[test]
 fn bad_training_input_is_refused() {
     let arch = small_config(Aggregation::Max);
-    assert!(Trainer::new(arch.clone(), config(adamw(), 1), &TrainingSets::new(40, 3)).is_err());
+    moe_geom::assert_err!(
+        Trainer::new(arch.clone(), config(adamw(), 1), &TrainingSets::new(40, 3)),
+        ContactError::InvalidBatch { message } if message == "no training sets"
+    );
     let mut no_contact = TrainingSets::new(20, 3);
     no_contact.push(&[0.01; 60], &[false; 20]).unwrap();
-    assert!(Trainer::new(arch.clone(), config(adamw(), 1), &no_contact).is_err());
+    moe_geom::assert_err!(
+        Trainer::new(arch.clone(), config(adamw(), 1), &no_contact),
+        ContactError::InvalidBatch { message } if message.contains("no contact point")
+    );
     let mut sets = TrainingSets::new(20, 3);
-    assert!(sets.push(&[0.0; 59], &[false; 20]).is_err());
+    moe_geom::assert_err!(
+        sets.push(&[0.0; 59], &[false; 20]),
+        ContactError::InvalidBatch { message }
+            if message.contains("59 features and 20 labels")
+    );
     let mut nan = vec![0.0; 60];
     nan[31] = f64::NAN;
-    assert!(sets.push(&nan, &[false; 20]).is_err());
+    moe_geom::assert_err!(
+        sets.push(&nan, &[false; 20]),
+        ContactError::NonFinitePoint { set: 0, index: 10 }
+    );
     let mut c = config(adamw(), 1);
     c.batch_size = 0;
-    assert!(c.validate().is_err());
+    moe_geom::assert_err!(
+        c.validate(),
+        ContactError::InvalidConfig {
+            field: "batch_size",
+            ..
+        }
+    );
 }
 
 #[test]

@@ -464,7 +464,11 @@ mod tests {
                 assert_eq!(e.frames[..], frames[..e.frames.len()]);
                 seen_partial |= !e.frames.is_empty() && e.frames.len() < frames.len();
             }
-            assert!(parse_episode(path, &data[..cut]).is_err());
+            moe_geom::assert_err!(
+                parse_episode(path, &data[..cut]),
+                IoError::Parse { path: p, .. } if p == path,
+                "cut at {cut}"
+            );
         }
         assert!(seen_partial, "some cuts keep a proper prefix of the frames");
     }
@@ -588,7 +592,11 @@ mod tests {
         );
         let mut f = frame(1);
         f.finger_vertices_in_hand[1][0].x = f64::NAN;
-        assert!(w.write_frame(&f).is_err());
+        moe_geom::assert_err!(
+            w.write_frame(&f),
+            IoError::Parse { path, message, .. } if path == Path::new("x.mcap")
+                && message == "frame at 33333333 ns: finger 1 has a non-finite value"
+        );
         w.write_frame(&frame(2)).unwrap();
         assert!(
             w.write_frame(&frame(1))
@@ -598,9 +606,10 @@ mod tests {
         );
         let mut bad = info();
         bad.finger_faces[1] = vec![[0, 1, 7]];
-        assert!(
-            EpisodeWriter::new(std::io::Cursor::new(Vec::new()), &bad, Path::new("x.mcap"))
-                .is_err()
+        moe_geom::assert_err!(
+            EpisodeWriter::new(std::io::Cursor::new(Vec::new()), &bad, Path::new("x.mcap")),
+            IoError::Parse { path, message, .. } if path == Path::new("x.mcap")
+                && message.starts_with("finger 1: face refers to vertex 7,")
         );
     }
 
@@ -661,8 +670,12 @@ mod tests {
     #[test]
     fn garbage_is_an_error_not_a_panic() {
         let path = Path::new("g.mcap");
-        assert!(parse_episode(path, b"").is_err());
-        assert!(parse_episode(path, b"not an mcap file at all").is_err());
+        for garbage in [&b""[..], b"not an mcap file at all"] {
+            moe_geom::assert_err!(
+                parse_episode(path, garbage),
+                IoError::Parse { path: p, .. } if p == path
+            );
+        }
         let mut data = bytes(&[frame(0), frame(1)]);
         let mut rng = moe_geom::SeededRng::new(5);
         for _ in 0..200 {
@@ -682,7 +695,11 @@ mod tests {
         let mut bad = frame(2);
         bad.color_rgb8.clear();
         let other = dir.join("bad.mcap");
-        assert!(write_episode(&other, &info(), &[frame(0), bad]).is_err());
+        moe_geom::assert_err!(
+            write_episode(&other, &info(), &[frame(0), bad]),
+            IoError::Parse { path, message, .. } if *path == other
+                && message.starts_with("frame at 66666666 ns: images hold 0 colour bytes")
+        );
         assert!(!other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }

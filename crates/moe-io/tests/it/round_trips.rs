@@ -1,6 +1,6 @@
 //! Exact write → read round trips through real files.
 
-use moe_geom::{Point3, TriMesh};
+use moe_geom::{GeomError, Point3, TriMesh};
 use moe_io::{PlyData, read_mesh, read_obj, read_ply, write_mesh, write_obj, write_ply};
 use proptest::prelude::*;
 
@@ -67,8 +67,15 @@ fn ply_colours_scalars_and_point_clouds_round_trip() {
     };
     write_ply(&dir.join("p.ply"), &cloud).unwrap();
     assert_eq!(read_ply(&dir.join("p.ply")).unwrap(), cloud);
-    assert!(
-        read_mesh(&dir.join("p.ply")).is_err(),
+    moe_geom::assert_err!(
+        read_mesh(&dir.join("p.ply")),
+        moe_io::IoError::Geometry {
+            path,
+            source: GeomError::EmptyMesh {
+                vertices: 2,
+                faces: 0
+            }
+        } if *path == dir.join("p.ply"),
         "a point cloud is not a mesh"
     );
 }
@@ -102,8 +109,16 @@ fn unsupported_extensions_are_rejected_naming_the_path() {
         "{e}"
     );
     assert!(e.to_string().contains("m.stl"), "{e}");
-    assert!(read_mesh(&dir.join("m.off")).is_err());
-    assert!(read_mesh(&dir.join("missing.obj")).is_err());
+    moe_geom::assert_err!(
+        read_mesh(&dir.join("m.off")),
+        moe_io::IoError::UnsupportedExtension { path, ext, .. }
+            if *path == dir.join("m.off") && ext == "off"
+    );
+    moe_geom::assert_err!(
+        read_mesh(&dir.join("missing.obj")),
+        moe_io::IoError::Io { path, source }
+            if *path == dir.join("missing.obj") && source.kind() == std::io::ErrorKind::NotFound
+    );
     assert!(crate::entries(&dir).is_empty());
 }
 

@@ -390,9 +390,10 @@ mod tests {
         let mut twice = s.clone();
         twice.merge(&s);
         assert_eq!(twice.report().visible, 4);
-        assert!(
-            s.add(&HandKeypoints { fingers: vec![] }, &truth, &visible)
-                .is_err()
+        moe_geom::assert_err!(
+            s.add(&HandKeypoints { fingers: vec![] }, &truth, &visible),
+            TouchError::InvalidEvaluation { reason }
+                if reason == "detected keypoints, true markers and visibility differ in layout"
         );
     }
 }
