@@ -3,7 +3,7 @@
 //! barycentric embedding of surfaces and tendon points ([`Embedding`]), the corotational FEM
 //! model and its step ([`FemModel`], [`FemModel::step`] with caller-supplied interaction
 //! [`Terms`]), a simulated finger gathering tendon and contact terms ([`FingerBody`]), the
-//! tendons themselves ([`Tendon`], [`TendonCommand`]), obstacles posed for a step
+//! tendons themselves ([`Tendon`], [`TendonCommand`](crate::TendonCommand)), obstacles posed for a step
 //! ([`PosedObstacles`]) and the polar decomposition ([`polar_rotation`]).
 //!
 //! Configuration and results shared with scenes ([`Material`](crate::Material),

@@ -452,8 +452,21 @@ mod tests {
         let pressed = closest_at(PLATE_PRESS_TIMES_SECS[1]);
         assert!((pressed + press * into).abs() < 3e-4, "{pressed}");
         let parallel = UnitQuat::from_axis_angle(&Vector3::y_axis(), PI / 2.0);
-        assert!(inclined_plate_press(30.0, parallel, aim, press).is_err());
-        assert!(inclined_plate_press(30.0, rotation, aim, -1.0).is_err());
+        moe_geom::assert_err!(
+            inclined_plate_press(30.0, parallel, aim, press),
+            SimError::InvalidParameter {
+                name: "hand_rotation",
+                ..
+            }
+        );
+        moe_geom::assert_err!(
+            inclined_plate_press(30.0, rotation, aim, -1.0),
+            SimError::InvalidParameter {
+                name: "press_m",
+                value,
+                ..
+            } if *value == -1.0
+        );
     }
 
     #[test]
@@ -478,6 +491,13 @@ mod tests {
             // 2 cm of approach (the surface mesh approximates the round tip within 0.3 mm).
             assert!((0.0197..0.0203).contains(&closest), "{deg}°: {closest}");
         }
-        assert!(inclined_plate(75.0).is_err());
+        moe_geom::assert_err!(
+            inclined_plate(75.0),
+            SimError::InvalidParameter {
+                name: "incline_deg",
+                value,
+                ..
+            } if *value == 75.0
+        );
     }
 }

@@ -666,12 +666,24 @@ mod tests {
             families: vec![],
             ..RandomSceneParams::default()
         };
-        assert!(sample_scene(&p, 0, 0).is_err());
+        moe_geom::assert_err!(
+            sample_scene(&p, 0, 0),
+            SimError::InvalidParameter {
+                name: "families",
+                ..
+            }
+        );
         let p = RandomSceneParams {
             press_depth_m: [0.005, 0.001],
             ..RandomSceneParams::default()
         };
-        assert!(sample_scene(&p, 0, 0).is_err());
+        moe_geom::assert_err!(
+            sample_scene(&p, 0, 0),
+            SimError::InvalidParameter {
+                name: "press_depth_m",
+                ..
+            }
+        );
     }
 
     /// A short schedule so that the test runs quickly in the dev profile.

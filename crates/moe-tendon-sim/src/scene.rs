@@ -83,7 +83,7 @@ impl Default for SolverConfig {
 /// Most steps a scene may run (`duration_secs / dt_secs`).
 pub const MAX_STEPS: u64 = 10_000_000;
 /// Most frames a scene may save (`steps / save_every_steps`): every saved frame of a run is
-/// kept in memory by [`crate::randomize::run_saving`].
+/// kept in memory by [`crate::run_saving`].
 pub const MAX_SAVED_FRAMES: u64 = 100_000;
 /// Most Newton iterations of a quasi-static step.
 pub const MAX_STATIC_ITERATIONS: usize = 10_000;
