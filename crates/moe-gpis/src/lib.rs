@@ -45,8 +45,8 @@
 //!   surface, and the same marching tetrahedra mesh it (the crate's marching cubes can leave
 //!   cracks), so the result is closed too; an unconverged solve is reported, not meshed. It is
 //!   not the default: it costs seconds (the crate's solve grows ~8× per octree level) and does
-//!   not beat marching tetrahedra on the head benchmark (UCD 1.91 mm at depth 4 in 3 s, 1.70 mm
-//!   at depth 5 in 14 s, against 1.73 mm).
+//!   not beat marching tetrahedra on the head benchmark (the figures are in the repository
+//!   README's "Validation").
 //! - **Fast grid queries**: the RBF residual is separable over the axes, so its value at all
 //!   `64³` nodes is one matrix product; the expensive prior SDF is evaluated exactly only in a
 //!   certified narrow band around the zero level set, giving the same mesh as a dense evaluation

@@ -18,9 +18,8 @@
 //!    default, ≈ 3 000 tets per default finger), each split into six Kuhn tetrahedra (a
 //!    conforming split), keeping the tetrahedra whose centroid is inside the closed surface
 //!    (parry's oriented-mesh inside test) and the largest node-connected component. The grid's
-//!    lowest layer lies on the base plane, so base nodes sit exactly at z = 0. Measured at the
-//!    default resolution: volume ratio 1.003, surface vertices at most 1.6 mm (mean 0.2 mm)
-//!    from the tets.
+//!    lowest layer lies on the base plane, so base nodes sit exactly at z = 0 (how closely the
+//!    tets fill the surface at the default resolution: repository README, "Validation").
 //! 2. **Embedding** ([`mechanics::Embedding`]): each surface vertex is mapped to its containing tet, or
 //!    (≈ 45 % of the vertices of a voxel mesh) to the nearest tet with *unclamped*
 //!    barycentric weights, so `x_s = Σ_k w_k x_{n_k}` reproduces the rest surface exactly and

@@ -24,8 +24,8 @@
 //! every chunk's contents are checked against their declared lengths before the MCAP reader
 //! sees them (a corrupt length would otherwise make it reserve that much memory — the fuzz
 //! tests found one in a damaged zstd chunk), and a panic in the MCAP or protobuf decoders
-//! becomes [`IoError::ParserPanic`](crate::IoError::ParserPanic). Compression takes a 640 × 480 frame from about
-//! 2.5 MB to 0.9 MB (the noisy depth image compresses least). Unchunked, uncompressed files (as
+//! becomes [`IoError::ParserPanic`](crate::IoError::ParserPanic). Compression shrinks a frame about threefold (the
+//! noisy depth image compresses least; sizes in the repository README, "Performance"). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
 mod foxglove;
