@@ -15,9 +15,7 @@ use anyhow::Result;
 use clap::Args;
 use moe_geom::{Real, Topology};
 use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
-use moe_tendon_sim::{
-    LabelRule, Scene, SurfaceContact, TrajectoryFrame, contact_labels, run_saving,
-};
+use moe_tendon_sim::{LabelRule, Scene, SimFrame, SurfaceContact, contact_labels, run_saving};
 use serde::Serialize;
 use serde_json::json;
 
@@ -232,15 +230,15 @@ pub(crate) fn run(args: &LabelsEvalArgs) -> Result<()> {
 
 fn tally(
     scene: &Scene,
-    f: &TrajectoryFrame,
-    free: &TrajectoryFrame,
+    f: &SimFrame,
+    free: &SimFrame,
     topologies: &[Topology],
     movable: &[Vec<bool>],
     stats: &mut [RuleStats],
 ) {
     let mut marker_def: Real = 0.0;
     let mut surface_def: Real = 0.0;
-    for (i, (a, b)) in f.frame.fingers.iter().zip(&free.frame.fingers).enumerate() {
+    for (i, (a, b)) in f.fingers.iter().zip(&free.fingers).enumerate() {
         let d = |v: usize| (a.vertices_in_hand[v] - b.vertices_in_hand[v]).norm();
         for &m in scene.hand().fingers()[i].model.marker_vertices() {
             marker_def = marker_def.max(d(m as usize));
@@ -259,7 +257,7 @@ fn tally(
         };
         let mut any = false;
         s.frames += 1;
-        for (i, finger) in f.frame.fingers.iter().enumerate() {
+        for (i, finger) in f.fingers.iter().enumerate() {
             let contact = SurfaceContact {
                 distances_m: finger.distances_m.clone(),
                 forces_n: finger.contact_force_n.clone(),

@@ -123,7 +123,7 @@ pub use error::SimError;
 pub use fem::BodyState;
 pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
-pub use run::{RunOutcome, TrajectoryFrame, run_saving, run_with};
+pub use run::{RunOutcome, run_saving, run_with};
 pub use scene::{
     FingerSimFrame, MAX_SAVED_FRAMES, MAX_STATIC_ITERATIONS, MAX_STEPS, PresetHandConfig, Scene,
     SceneConfig, SimFrame, SimState, SolverConfig, SolverMode, StepInfo,

@@ -25,8 +25,8 @@ use serde::{Deserialize, Serialize};
 use crate::contact::ContactParams;
 use crate::error::SimError;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
-use crate::run::{TrajectoryFrame, run_saving};
-use crate::scene::{PresetHandConfig, Scene, SceneConfig};
+use crate::run::run_saving;
+use crate::scene::{PresetHandConfig, Scene, SceneConfig, SimFrame};
 use crate::surface::obstacle_surface;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
 
@@ -549,7 +549,7 @@ pub fn simulate_trajectory(
     params: &RandomSceneParams,
     seed: u64,
     trajectory_id: u64,
-) -> Result<(SampledScene, Scene, Vec<TrajectoryFrame>), SimError> {
+) -> Result<(SampledScene, Scene, Vec<SimFrame>), SimError> {
     let sampled = sample_scene(params, seed, trajectory_id)?;
     let mut scene = Scene::new(sampled.config.clone())?;
     let steps = scene.num_steps();
@@ -631,13 +631,13 @@ mod tests {
             let pressed = frames
                 .iter()
                 .min_by(|a, b| {
-                    (a.frame.time_secs - params.press_secs)
+                    (a.time_secs - params.press_secs)
                         .abs()
-                        .total_cmp(&(b.frame.time_secs - params.press_secs).abs())
+                        .total_cmp(&(b.time_secs - params.press_secs).abs())
                 })
                 .unwrap();
             let rest = finger.model.mesh().vertices();
-            let labels = &pressed.frame.fingers[sampled.finger].labels;
+            let labels = &pressed.fingers[sampled.finger].labels;
             let labelled: Vec<usize> = (0..labels.len()).filter(|&v| labels[v]).collect();
             assert!(
                 !labelled.is_empty(),
@@ -717,14 +717,13 @@ mod tests {
             let pressed = frames
                 .iter()
                 .filter(|f| {
-                    (f.frame.time_secs - params.press_secs).abs()
+                    (f.time_secs - params.press_secs).abs()
                         < 0.5 * params.dt_secs * params.save_every_steps as Real
                 })
                 .collect::<Vec<_>>();
             assert!(!pressed.is_empty());
             for f in &pressed {
                 let labelled: usize = f
-                    .frame
                     .fingers
                     .iter()
                     .map(|g| g.labels.iter().filter(|&&l| l).count())
@@ -732,9 +731,9 @@ mod tests {
                 assert!(labelled > 0, "{family:?}: no label at full press");
             }
             for f in &frames {
-                let pose = obstacle.pose_at(f.frame.time_secs);
+                let pose = obstacle.pose_at(f.time_secs);
                 let mut any = false;
-                for (i, g) in f.frame.fingers.iter().enumerate() {
+                for (i, g) in f.fingers.iter().enumerate() {
                     let min = g
                         .distances_m
                         .iter()
@@ -765,12 +764,8 @@ mod tests {
                     }
                 }
                 if any {
-                    vertices_in_contact_frames += f
-                        .frame
-                        .fingers
-                        .iter()
-                        .map(|g| g.labels.len())
-                        .sum::<usize>();
+                    vertices_in_contact_frames +=
+                        f.fingers.iter().map(|g| g.labels.len()).sum::<usize>();
                 }
             }
         }

@@ -1,47 +1,8 @@
 //! Running a scene: stepping it from its initial state and keeping the saved frames
-//! ([`run_with`] calls back at each, [`run_saving`] collects them as [`TrajectoryFrame`]s).
-
-use moe_geom::Real;
+//! ([`run_with`] calls back at each, [`run_saving`] collects them as [`SimFrame`]s).
 
 use crate::error::SimError;
-use crate::scene::{Scene, SimFrame, SimState, StepInfo, command};
-use crate::tendon::TendonCommand;
-
-/// One saved frame of a simulated trajectory.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrajectoryFrame {
-    /// Surfaces, distances and labels.
-    pub frame: SimFrame,
-    /// The command of every tendon at this time, each with its unit (a pull in metres or a
-    /// tension in newtons): `[finger][tendon]`.
-    pub tendons: Vec<Vec<TendonCommand>>,
-}
-
-impl TrajectoryFrame {
-    /// The pulled length of every tendon, metres: `[finger][tendon]`.
-    ///
-    /// # Errors
-    /// [`SimError::ForceDriven`] naming the first tendon driven by force, whose command is a
-    /// tension, not a length.
-    pub fn tendon_pulls_m(&self) -> Result<Vec<Vec<Real>>, SimError> {
-        self.tendons
-            .iter()
-            .enumerate()
-            .map(|(finger, commands)| {
-                commands
-                    .iter()
-                    .enumerate()
-                    .map(|(tendon, c)| match *c {
-                        TendonCommand::Displacement { pull_m } => Ok(pull_m),
-                        TendonCommand::Force { .. } => {
-                            Err(SimError::ForceDriven { finger, tendon })
-                        }
-                    })
-                    .collect()
-            })
-            .collect()
-    }
-}
+use crate::scene::{Scene, SimFrame, SimState, StepInfo};
 
 /// What a run leaves besides its saved frames.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,31 +46,11 @@ pub fn run_with<E: From<SimError>>(
 ///
 /// # Errors
 /// Divergence, naming the step and the element (see [`Scene::step`]).
-pub fn run_saving(scene: &mut Scene, steps: u64) -> Result<Vec<TrajectoryFrame>, SimError> {
+pub fn run_saving(scene: &mut Scene, steps: u64) -> Result<Vec<SimFrame>, SimError> {
     let mut frames = Vec::new();
     run_with(scene, steps, |scene, state| {
-        frames.push(saved(scene, state));
+        frames.push(scene.frame(state));
         Ok::<(), SimError>(())
     })?;
     Ok(frames)
-}
-
-fn saved(scene: &Scene, state: &SimState) -> TrajectoryFrame {
-    let t = state.time_secs;
-    let config = scene.config();
-    let tendons = scene
-        .hand()
-        .fingers()
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            (0..f.model.tendon_routes().len())
-                .map(|j| command(config.actuation.get(i), j, t))
-                .collect()
-        })
-        .collect();
-    TrajectoryFrame {
-        frame: scene.frame(state),
-        tendons,
-    }
 }

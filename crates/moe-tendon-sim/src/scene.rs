@@ -229,6 +229,9 @@ pub struct FingerSimFrame {
     pub contact_force_n: Vec<Real>,
     /// Contact label per vertex, by the scene's [`ContactParams::label_rule`].
     pub labels: Vec<bool>,
+    /// The command of each tendon at this time, with its unit (a pull in metres or a tension in
+    /// newtons).
+    pub tendons: Vec<TendonCommand>,
 }
 
 /// The hand's surfaces at one instant: a time sample of the simulation, as saved every
@@ -244,6 +247,32 @@ pub struct SimFrame {
     pub world_from_hand: Iso3,
     /// One per finger.
     pub fingers: Vec<FingerSimFrame>,
+}
+
+impl SimFrame {
+    /// The pulled length of every tendon, metres: `[finger][tendon]`.
+    ///
+    /// # Errors
+    /// [`SimError::ForceDriven`] naming the first tendon driven by force, whose command is a
+    /// tension, not a length.
+    pub fn tendon_pulls_m(&self) -> Result<Vec<Vec<Real>>, SimError> {
+        self.fingers
+            .iter()
+            .enumerate()
+            .map(|(finger, g)| {
+                g.tendons
+                    .iter()
+                    .enumerate()
+                    .map(|(tendon, c)| match *c {
+                        TendonCommand::Displacement { pull_m } => Ok(pull_m),
+                        TendonCommand::Force { .. } => {
+                            Err(SimError::ForceDriven { finger, tendon })
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
 }
 
 /// A runnable scene: the built hand, finger bodies, obstacles and per-finger scratch memory.
@@ -558,7 +587,7 @@ impl Scene {
         Ok(())
     }
 
-    /// The surfaces, distances and contact labels of `state`.
+    /// The surfaces, distances, contact labels and tendon commands of `state`.
     pub fn frame(&self, state: &SimState) -> SimFrame {
         let t = state.time_secs;
         let world_from_hand = self.config.wrist.pose_at(t);
@@ -568,7 +597,8 @@ impl Scene {
             .bodies
             .iter()
             .zip(&state.fingers)
-            .map(|(b, fs)| {
+            .enumerate()
+            .map(|(i, (b, fs))| {
                 let world = b.surface().positions(&fs.x);
                 let contact = surface_contact(
                     &world,
@@ -584,6 +614,9 @@ impl Scene {
                     distances_m: contact.distances_m,
                     contact_force_n: contact.forces_n,
                     labels,
+                    tendons: (0..b.tendons().len())
+                        .map(|j| command(self.config.actuation.get(i), j, t))
+                        .collect(),
                 }
             })
             .collect();

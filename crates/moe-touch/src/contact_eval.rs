@@ -523,7 +523,6 @@ pub fn simulate_labelled(
         .enumerate()
         .map(|(k, f)| {
             let fingers: Vec<Vec<Point3>> = f
-                .frame
                 .fingers
                 .iter()
                 .map(|g| g.vertices_in_hand.clone())
@@ -546,9 +545,9 @@ pub fn simulate_labelled(
                 trajectory_id: 0,
                 frame_index: k as u32,
                 shape: HandShape { fingers },
-                contact: f.frame.fingers.iter().map(|g| g.labels.clone()).collect(),
+                contact: f.fingers.iter().map(|g| g.labels.clone()).collect(),
                 markers,
-                world_from_hand: WorldFromHand::new(f.frame.world_from_hand),
+                world_from_hand: WorldFromHand::new(f.world_from_hand),
             }
         })
         .collect())

@@ -451,31 +451,26 @@ pub fn simulated_frames(
             let pulls = f.tendon_pulls_m()?;
             let to32 = |p: &moe_geom::Point3| [p.x as f32, p.y as f32, p.z as f32];
             let vertices = f
-                .frame
                 .fingers
                 .iter()
                 .flat_map(|g| g.vertices_in_hand.iter().map(to32))
                 .collect();
             let contact = f
-                .frame
                 .fingers
                 .iter()
                 .flat_map(|g| g.labels.iter().map(|&l| u8::from(l)))
                 .collect();
             let contact_force_n = f
-                .frame
                 .fingers
                 .iter()
                 .flat_map(|g| g.contact_force_n.iter().map(|&v| v as f32))
                 .collect();
             let obstacle_distance_m = f
-                .frame
                 .fingers
                 .iter()
                 .flat_map(|g| g.distances_m.iter().map(|&v| v as f32))
                 .collect();
             let markers = f
-                .frame
                 .fingers
                 .iter()
                 .zip(hand.fingers())
@@ -486,7 +481,7 @@ pub fn simulated_frames(
                         .map(|&m| to32(&g.vertices_in_hand[m as usize]))
                 })
                 .collect();
-            let iso = f.frame.world_from_hand;
+            let iso = f.world_from_hand;
             let (t, q) = (iso.translation.vector, iso.rotation.quaternion());
             Ok(DatasetFrame {
                 trajectory_id,

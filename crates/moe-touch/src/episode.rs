@@ -4,7 +4,7 @@
 use moe_geom::{HandModel, Iso3, Point3};
 use moe_io::{CameraInfo, EpisodeFrame, EpisodeInfo, ObstacleMesh};
 use moe_tendon_sim::camera::{CameraIntrinsics, RenderItem, RgbdCamera};
-use moe_tendon_sim::{ActuationMode, Scene, SimError, TrajectoryFrame, obstacle_surface};
+use moe_tendon_sim::{ActuationMode, Scene, SimError, SimFrame, obstacle_surface};
 
 /// Radius of the painted red markers, metres (5 mm stickers).
 pub const MARKER_RADIUS_M: f64 = 0.0025;
@@ -77,11 +77,11 @@ pub fn camera_info(k: &CameraIntrinsics) -> CameraInfo {
 
 /// The saved frame nearest in time to `t` seconds, with its index (`None` when nothing was
 /// saved).
-pub fn saved_frame_at(frames: &[TrajectoryFrame], t: f64) -> Option<(usize, &TrajectoryFrame)> {
+pub fn saved_frame_at(frames: &[SimFrame], t: f64) -> Option<(usize, &SimFrame)> {
     frames.iter().enumerate().min_by(|a, b| {
-        (a.1.frame.time_secs - t)
+        (a.1.time_secs - t)
             .abs()
-            .total_cmp(&(b.1.frame.time_secs - t).abs())
+            .total_cmp(&(b.1.time_secs - t).abs())
     })
 }
 
@@ -164,10 +164,10 @@ impl EpisodeRecorder {
     pub fn frame(
         &self,
         scene: &Scene,
-        saved: &TrajectoryFrame,
+        saved: &SimFrame,
         index: u64,
     ) -> Result<EpisodeFrame, SimError> {
-        let frame = &saved.frame;
+        let frame = saved;
         let t = frame.time_secs;
         let finger_vertices: Vec<&[Point3]> = frame
             .fingers

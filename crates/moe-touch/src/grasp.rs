@@ -14,7 +14,7 @@
 use moe_geom::math::UnitQuat;
 use moe_geom::{HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, fit_plane_ransac};
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
-use moe_tendon_sim::{Scene, TrajectoryFrame, run_saving};
+use moe_tendon_sim::{Scene, SimFrame, run_saving};
 use serde::Serialize;
 
 use crate::TouchError;
@@ -133,7 +133,7 @@ fn simulate_press(
     rotation: UnitQuat,
     aim: Point3,
     press_m: Real,
-) -> Result<(Scene, Vec<TrajectoryFrame>), TouchError> {
+) -> Result<(Scene, Vec<SimFrame>), TouchError> {
     let config = inclined_plate_press(incline_deg, rotation, aim, press_m)?;
     let mut scene = Scene::new(config)?;
     let steps = scene.num_steps();
@@ -142,7 +142,7 @@ fn simulate_press(
 }
 
 fn outcome(
-    frames: &[TrajectoryFrame],
+    frames: &[SimFrame],
     rotation: &UnitQuat,
     normal: &Vector3,
     options: &GraspOptions,
@@ -153,7 +153,6 @@ fn outcome(
         }
     })?;
     let contact_vertices: Vec<usize> = deepest
-        .frame
         .fingers
         .iter()
         .map(|f| f.labels.iter().filter(|&&l| l).count())
@@ -214,16 +213,16 @@ pub fn run_grasp_trial<C: ContactEstimator>(
 
     // Contacts over the hold.
     let [_, hold_start, hold_end, _] = PLATE_PRESS_TIMES_SECS;
-    let hold: Vec<(usize, &TrajectoryFrame)> = frames
+    let hold: Vec<(usize, &SimFrame)> = frames
         .iter()
         .enumerate()
         .filter(|(_, f)| {
-            let t = f.frame.time_secs;
+            let t = f.time_secs;
             t >= hold_start - 1e-9 && t <= hold_end + 1e-9
         })
         .collect();
     let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
-        Point3::from(f.frame.world_from_hand.translation.vector)
+        Point3::from(f.world_from_hand.translation.vector)
     });
     let mut points: Vec<Point3> = Vec::new();
     match contacts {
@@ -242,7 +241,7 @@ pub fn run_grasp_trial<C: ContactEstimator>(
         }
         GraspContacts::Simulator => {
             for (_, f) in hold {
-                for finger in &f.frame.fingers {
+                for finger in &f.fingers {
                     points.extend(
                         finger
                             .labels
@@ -322,7 +321,6 @@ mod tests {
         assert!(press.success, "within 10° of the normal: {press:?}");
         let (_, deepest) = saved_frame_at(&frames, PLATE_PRESS_TIMES_SECS[2]).unwrap();
         let points: Vec<Point3> = deepest
-            .frame
             .fingers
             .iter()
             .flat_map(|f| {
@@ -333,7 +331,7 @@ mod tests {
                     .map(|(_, p)| *p)
             })
             .collect();
-        let wrist = Point3::from(deepest.frame.world_from_hand.translation.vector);
+        let wrist = Point3::from(deepest.world_from_hand.translation.vector);
         let fit = fit_plane_ransac(&points, &options.ransac)
             .unwrap()
             .oriented_toward(&wrist);

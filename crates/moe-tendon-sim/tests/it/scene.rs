@@ -393,11 +393,11 @@ fn saved_frames_keep_the_unit_of_each_tendon() {
     let frames = moe_tendon_sim::run_saving(&mut scene, steps).unwrap();
     let last = frames.last().unwrap();
     assert_eq!(
-        last.tendons[0][0],
+        last.fingers[0].tendons[0],
         moe_tendon_sim::TendonCommand::Displacement { pull_m: 0.002 }
     );
     assert_eq!(
-        last.tendons[1][1],
+        last.fingers[1].tendons[1],
         moe_tendon_sim::TendonCommand::Force { tension_n: 0.001 }
     );
     assert!(matches!(
