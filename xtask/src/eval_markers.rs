@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_tendon_sim::camera::NoiseModel;
 use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use moe_touch::episode::EpisodeRecorder;
@@ -106,7 +106,7 @@ pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
             recorder.info(),
             &frames,
             &mut detector,
-            &ShapeOptions::default(),
+            &ShapeConfig::default(),
         )?;
         let report = report.context("simulated frames carry ground truth")?;
         eprintln!(

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_contact::{ContactEstimator, KnnIndex};
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
 use moe_gpis::ReconstructOptions;
@@ -247,7 +247,7 @@ fn contacts_with<C: ContactEstimator>(
     threshold: Real,
 ) -> Result<PatContacts, TouchError> {
     let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
-    let shape = study_shape_estimator(hand, &ShapeOptions::default())?;
+    let shape = study_shape_estimator(hand, &ShapeConfig::default())?;
     let mut pipeline = Pipeline::new(hand.clone(), detector, shape, contact, threshold)?;
     estimate_pat_contacts(&mut pipeline, episode)
 }

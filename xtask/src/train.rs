@@ -364,7 +364,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         (train_frames, validation_frames)
     } else {
         let t = Instant::now();
-        let options = moe_arap::ShapeOptions::default();
+        let options = moe_arap::ShapeConfig::default();
         let mut train = with_estimated_shapes(&hand, &train_frames, &options)?;
         let validation = with_estimated_shapes(&hand, &validation_frames, &options)?;
         eprintln!(

@@ -4,7 +4,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_arap::{ArapConfig, ArapSolver, ComponentSolver, MultiShapeEstimator, ShapeOptions, Start};
+use moe_arap::{ArapConfig, ArapSolver, ComponentSolver, MultiShapeEstimator, ShapeConfig, Start};
 use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, TriMesh, Vector3};
 
 /// Keypoints of a gentle bend toward each finger's +x side: marker `m` moves by a displacement
@@ -36,16 +36,16 @@ fn arap(c: &mut Criterion) {
     let frame = bent_keypoints(&hand, 0.015);
 
     let mut from_rest =
-        MultiShapeEstimator::new(hand.clone(), ShapeOptions::default()).expect("estimator");
+        MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).expect("estimator");
     from_rest.estimate(&frame).expect("first frame");
     c.bench_function("arap/two-finger/50-iterations-from-rest", |b| {
         b.iter(|| black_box(from_rest.estimate(black_box(&frame)).expect("solve")))
     });
 
-    let tracking = ShapeOptions {
+    let tracking = ShapeConfig {
         iterations: 10,
         warm_start: true,
-        ..ShapeOptions::default()
+        ..ShapeConfig::default()
     };
     let mut warm = MultiShapeEstimator::new(hand.clone(), tracking).expect("estimator");
     let frames: Vec<HandKeypoints> = (0..32)

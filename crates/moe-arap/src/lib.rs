@@ -94,6 +94,6 @@ pub use components::ComponentSolver;
 pub use config::{ArapConfig, ArapEnergy};
 pub use error::ArapError;
 pub use moe_geom::HandShape;
-pub use multi::{FingerReport, MultiShapeEstimator, ShapeEstimate, ShapeOptions};
+pub use multi::{FingerReport, MultiShapeEstimator, ShapeConfig, ShapeEstimate};
 pub use solver::{ArapInfo, ArapSolution, ArapSolver, ArapWorkspace, Start};
 pub use targets::HandleTargets;

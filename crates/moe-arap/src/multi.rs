@@ -22,7 +22,7 @@ const HANDLE_CANDIDATES: usize = 32;
 /// Options of the multi-finger estimator.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
-pub struct ShapeOptions {
+pub struct ShapeConfig {
     /// Local/global iterations per frame. Default 50 (paper).
     pub iterations: usize,
     /// Smoothing weight α. Default 0.01 (paper).
@@ -34,7 +34,7 @@ pub struct ShapeOptions {
     pub warm_start: bool,
 }
 
-impl Default for ShapeOptions {
+impl Default for ShapeConfig {
     fn default() -> Self {
         Self {
             iterations: 50,
@@ -96,7 +96,7 @@ struct FingerState {
 #[derive(Debug)]
 pub struct MultiShapeEstimator {
     hand: HandModel,
-    options: ShapeOptions,
+    options: ShapeConfig,
     fingers: Vec<FingerState>,
 }
 
@@ -105,7 +105,7 @@ impl MultiShapeEstimator {
     ///
     /// # Errors
     /// Invalid options, or a finger mesh the solver rejects.
-    pub fn new(hand: HandModel, options: ShapeOptions) -> Result<Self, ArapError> {
+    pub fn new(hand: HandModel, options: ShapeConfig) -> Result<Self, ArapError> {
         let config = ArapConfig {
             energy: options.energy,
             alpha: options.alpha,
@@ -153,7 +153,7 @@ impl MultiShapeEstimator {
     }
 
     /// The options.
-    pub fn options(&self) -> &ShapeOptions {
+    pub fn options(&self) -> &ShapeConfig {
         &self.options
     }
 

@@ -7,7 +7,7 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_arap::{MultiShapeEstimator, ShapeOptions};
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
@@ -16,7 +16,7 @@ use moe_touch::{Pipeline, RgbdFrame};
 fn pipeline(
     hand: &HandModel,
     episode: &moe_io::Episode,
-    options: ShapeOptions,
+    options: ShapeConfig,
 ) -> Pipeline<MultiShapeEstimator, moe_contact::DgcnnEstimator> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
@@ -40,15 +40,15 @@ fn bench_pipeline(c: &mut Criterion) {
         depth_m: &frame.depth_m,
     };
     let pose = WorldFromHand::new(frame.world_from_hand);
-    let mut from_rest = pipeline(&hand, &episode, ShapeOptions::default());
+    let mut from_rest = pipeline(&hand, &episode, ShapeConfig::default());
     c.bench_function(
         "pipeline/two-finger frame, SR-ARAP 50 iterations from rest",
         |b| b.iter(|| black_box(from_rest.process(black_box(input), pose).expect("runs"))),
     );
-    let tracked_options = ShapeOptions {
+    let tracked_options = ShapeConfig {
         iterations: 10,
         warm_start: true,
-        ..ShapeOptions::default()
+        ..ShapeConfig::default()
     };
     let mut tracked = pipeline(&hand, &episode, tracked_options);
     tracked.process(input, pose).expect("runs");

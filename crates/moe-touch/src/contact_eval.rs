@@ -18,7 +18,7 @@
 
 use std::time::Instant;
 
-use moe_arap::{MultiShapeEstimator, ShapeOptions};
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_contact::{ContactEstimator, ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex};
 use moe_geom::math::UnitQuat;
 use moe_geom::{
@@ -38,7 +38,7 @@ pub struct ContactEvalOptions {
     /// Seed of the marker subsets.
     pub seed: u64,
     /// SR-ARAP options (the paper's: 50 iterations, α = 0.01, cold start).
-    pub shape: ShapeOptions,
+    pub shape: ShapeConfig,
 }
 
 impl Default for ContactEvalOptions {
@@ -46,7 +46,7 @@ impl Default for ContactEvalOptions {
         Self {
             subset_markers: 4,
             seed: 0,
-            shape: ShapeOptions::default(),
+            shape: ShapeConfig::default(),
         }
     }
 }
@@ -227,7 +227,7 @@ fn labels_above(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
 /// The solver's refusal of the hand's meshes or of the options.
 pub fn study_shape_estimator(
     hand: &HandModel,
-    options: &ShapeOptions,
+    options: &ShapeConfig,
 ) -> Result<MultiShapeEstimator, moe_arap::ArapError> {
     let mut arap = MultiShapeEstimator::new(hand.clone(), options.clone())?;
     arap.assign_handles(&hand.rest_keypoints())?;
@@ -243,7 +243,7 @@ pub fn study_shape_estimator(
 pub fn with_estimated_shapes(
     hand: &HandModel,
     frames: &[LabelledFrame],
-    options: &ShapeOptions,
+    options: &ShapeConfig,
 ) -> Result<Vec<LabelledFrame>, TouchError> {
     use rayon::prelude::*;
     frames
@@ -566,7 +566,7 @@ pub fn evaluate_plates(
     seed: u64,
     dgcnn: &DgcnnEstimator,
     knn_all: &KnnIndex,
-    shape: &ShapeOptions,
+    shape: &ShapeConfig,
 ) -> Result<Vec<PlateTrial>, TouchError> {
     let mut arap = study_shape_estimator(hand, shape)?;
     let threshold = dgcnn.threshold();

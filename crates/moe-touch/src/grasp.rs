@@ -21,7 +21,7 @@ use crate::TouchError;
 use crate::episode::{EpisodeRecorder, saved_frame_at};
 use crate::perception::{DetectorConfig, MarkerDetector};
 use crate::pipeline::Pipeline;
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_contact::ContactEstimator;
 
 /// Settings of a grasp trial.
@@ -230,7 +230,7 @@ pub fn run_grasp_trial<C: ContactEstimator>(
             let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
             let detector =
                 MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
-            let shape = crate::contact_eval::study_shape_estimator(hand, &ShapeOptions::default())?;
+            let shape = crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
             let mut pipeline = Pipeline::new(hand.clone(), detector, shape, contact, threshold)?;
             for (k, f) in hold {
                 let episode_frame = recorder.frame(&scene, f, k as u64)?;

@@ -5,7 +5,7 @@
 //! 7 markers and 1.15 mm with markers 0, 2, 4, 6 (max vertex error ≈ 11 mm at the tip's far side:
 //! 50 iterations of SR-ARAP are not converged — 1000 give BCD 0.54 mm / 0.57 mm).
 
-use moe_arap::{MultiShapeEstimator, ShapeOptions};
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::{FingerParams, bcd};
 
 use crate::{bend, bent_keypoints, two_finger_hand};
@@ -15,7 +15,7 @@ fn arc_error_mm(missing: &[usize]) -> f64 {
     let hand = two_finger_hand();
     let tip = 60f64.to_radians();
     let kappa = tip / FingerParams::default().length_m;
-    let mut estimator = MultiShapeEstimator::new(hand.clone(), ShapeOptions::default()).unwrap();
+    let mut estimator = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap();
     // Attach every marker to its nearest rest vertex before the bent frame.
     estimator.assign_handles(&hand.rest_keypoints()).unwrap();
     let est = estimator

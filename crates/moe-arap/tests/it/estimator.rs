@@ -1,6 +1,6 @@
 //! The multi-finger estimator: occlusion, warm start, reports and bad input.
 
-use moe_arap::{ArapError, MultiShapeEstimator, ShapeOptions};
+use moe_arap::{ArapError, MultiShapeEstimator, ShapeConfig};
 use moe_geom::{GeomError, Point3, Real};
 
 use crate::{bent_keypoints, two_finger_hand};
@@ -8,7 +8,7 @@ use crate::{bent_keypoints, two_finger_hand};
 #[test]
 fn rest_keypoints_give_the_rest_hand_and_handles_are_the_marker_vertices() {
     let hand = two_finger_hand();
-    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeOptions::default()).unwrap();
+    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap();
     let out = est.estimate(&hand.rest_keypoints()).unwrap();
     for (i, f) in hand.fingers().iter().enumerate() {
         let rest = hand.rest_vertices_in_hand(i);
@@ -29,9 +29,9 @@ fn rest_keypoints_give_the_rest_hand_and_handles_are_the_marker_vertices() {
 fn occluded_markers_are_dropped_per_frame_without_error() {
     let hand = two_finger_hand();
     let tip = 40f64.to_radians();
-    let options = ShapeOptions {
+    let options = ShapeConfig {
         iterations: 20,
-        ..ShapeOptions::default()
+        ..ShapeConfig::default()
     };
     let mut est = MultiShapeEstimator::new(hand.clone(), options).unwrap();
     let first = est.estimate(&bent_keypoints(&hand, tip, &[])).unwrap();
@@ -65,7 +65,7 @@ fn a_finger_with_every_marker_missing_stays_at_its_start_shape() {
     let tip = 30f64.to_radians();
     let mut kp = bent_keypoints(&hand, tip, &[]);
     // From rest: finger 1 fully occluded stays at rest, finger 0 is solved.
-    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeOptions::default()).unwrap();
+    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap();
     kp.fingers[1] = vec![None; 7];
     let out = est.estimate(&kp).unwrap();
     assert!(out.reports[1].all_markers_missing && !out.reports[0].all_markers_missing);
@@ -74,10 +74,10 @@ fn a_finger_with_every_marker_missing_stays_at_its_start_shape() {
     assert_eq!(est.handle_vertices(1), &[None; 7]);
 
     // Warm start: a fully occluded frame keeps the previous frame's shape.
-    let warm = ShapeOptions {
+    let warm = ShapeConfig {
         warm_start: true,
         iterations: 30,
-        ..ShapeOptions::default()
+        ..ShapeConfig::default()
     };
     let mut est = MultiShapeEstimator::new(hand.clone(), warm).unwrap();
     let seen = est.estimate(&bent_keypoints(&hand, tip, &[])).unwrap();
@@ -99,7 +99,7 @@ fn a_finger_with_every_marker_missing_stays_at_its_start_shape() {
 #[test]
 fn bad_keypoints_give_typed_errors() {
     let hand = two_finger_hand();
-    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeOptions::default()).unwrap();
+    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap();
     let mut kp = hand.rest_keypoints();
     kp.fingers[1][4] = Some(Point3::new(0.0, Real::NAN, 0.0));
     assert_eq!(
@@ -123,9 +123,9 @@ fn bad_keypoints_give_typed_errors() {
         est.estimate(&short),
         Err(ArapError::Geom(GeomError::LengthMismatch { .. }))
     ));
-    let bad = ShapeOptions {
+    let bad = ShapeConfig {
         alpha: Real::NAN,
-        ..ShapeOptions::default()
+        ..ShapeConfig::default()
     };
     assert!(matches!(
         MultiShapeEstimator::new(hand.clone(), bad),

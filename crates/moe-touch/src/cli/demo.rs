@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_geom::{HandModel, Point3};
 use moe_touch::Pipeline;
 use moe_touch::contact_eval::contact_ply;
@@ -59,7 +59,7 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
     let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())?;
     let intrinsics = *detector.intrinsics();
     let hand_from_camera = detector.hand_from_camera();
-    let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &ShapeOptions::default())?;
+    let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &ShapeConfig::default())?;
     let mut pipeline = Pipeline::new(hand.clone(), detector, shape, model, threshold)?;
     let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, None)?;
 

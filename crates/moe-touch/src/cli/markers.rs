@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_geom::Point3;
 use moe_touch::perception::overlay::draw_detection;
 use moe_touch::perception::score::{EpisodeMarkerReport, check_hand, evaluate_episode};
@@ -77,7 +77,7 @@ pub(crate) fn run(args: MarkersArgs) -> Result<()> {
         &episode.info,
         &episode.frames,
         &mut detector,
-        &ShapeOptions::default(),
+        &ShapeConfig::default(),
     )
     .with_context(|| format!("episode {}", args.episode.display()))?;
 

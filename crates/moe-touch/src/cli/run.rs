@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
 use moe_touch::perception::score::check_hand;
@@ -42,7 +42,7 @@ pub(crate) struct RunArgs {
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// SR-ARAP iterations per frame.
-    #[arg(long, default_value_t = ShapeOptions::default().iterations)]
+    #[arg(long, default_value_t = ShapeConfig::default().iterations)]
     iterations: usize,
     /// Start each frame's shape from the previous one (tracking; the paper starts from rest).
     #[arg(long)]
@@ -88,10 +88,10 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let threshold = model.threshold();
     let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
         .with_context(|| format!("the camera of {}", args.episode.display()))?;
-    let options = ShapeOptions {
+    let options = ShapeConfig {
         iterations: args.iterations,
         warm_start: args.warm_start,
-        ..ShapeOptions::default()
+        ..ShapeConfig::default()
     };
     let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &options)?;
     let mut pipeline = Pipeline::new(hand, detector, shape, model, threshold)?;

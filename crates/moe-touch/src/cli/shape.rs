@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::{ArapEnergy, MultiShapeEstimator, ShapeOptions};
+use moe_arap::{ArapEnergy, MultiShapeEstimator, ShapeConfig};
 use moe_geom::HandKeypoints;
 use serde::{Deserialize, Serialize};
 
@@ -21,10 +21,10 @@ pub(crate) struct ShapeArgs {
     #[arg(long, value_name = "KP.json")]
     keypoints: PathBuf,
     /// Local/global iterations from the rest shape.
-    #[arg(long, default_value_t = ShapeOptions::default().iterations)]
+    #[arg(long, default_value_t = ShapeConfig::default().iterations)]
     iterations: usize,
     /// Smoothing weight α; 0 gives plain ARAP.
-    #[arg(long, default_value_t = ShapeOptions::default().alpha)]
+    #[arg(long, default_value_t = ShapeConfig::default().alpha)]
     alpha: f64,
     /// Energy: smoothed, spokes or spokes-and-rims.
     #[arg(long, default_value = "smoothed")]
@@ -78,7 +78,7 @@ pub(crate) fn run(args: ShapeArgs) -> Result<()> {
     let keypoints = HandKeypoints {
         fingers: input.fingers,
     };
-    let options = ShapeOptions {
+    let options = ShapeConfig {
         iterations: args.iterations,
         alpha: args.alpha,
         energy: args.energy,

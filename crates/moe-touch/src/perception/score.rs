@@ -1,6 +1,6 @@
 //! Scoring marker detections against the ground truth of a recorded or simulated episode.
 
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_geom::{HandKeypoints, HandModel, Point3, Real, Transform, bcd};
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::camera::{CameraIntrinsics, RenderItem, RgbdCamera};
@@ -268,7 +268,7 @@ pub fn evaluate_episode(
     info: &EpisodeInfo,
     frames: &[EpisodeFrame],
     detector: &mut MarkerDetector,
-    shape: &ShapeOptions,
+    shape: &ShapeConfig,
 ) -> Result<(Vec<MarkerDetection>, Option<EpisodeMarkerReport>), TouchError> {
     check_hand(hand, info)?;
     let truth = frames

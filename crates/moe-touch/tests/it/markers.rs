@@ -197,7 +197,7 @@ fn under_the_noise_model_detection_meets_the_targets() {
         &info,
         &frames,
         &mut d,
-        &moe_arap::ShapeOptions::default(),
+        &moe_arap::ShapeConfig::default(),
     )
     .unwrap();
     let r = report.expect("ground truth");

@@ -1,6 +1,6 @@
 //! The per-frame pipeline on the committed episode with the shipped model.
 
-use moe_arap::ShapeOptions;
+use moe_arap::ShapeConfig;
 use moe_contact::ContactEstimator;
 use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
 use moe_touch::contact_eval::study_shape_estimator;
@@ -32,7 +32,7 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
     let episode = episode();
     let model = load_contact_model(&model_path(), &hand).unwrap();
     let threshold = model.threshold();
-    let options = ShapeOptions::default();
+    let options = ShapeConfig::default();
     let mut pipeline = Pipeline::new(
         hand.clone(),
         detector(&hand, &episode),
@@ -88,7 +88,7 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
     let mut pipeline = Pipeline::new(
         hand.clone(),
         detector(&hand, &episode),
-        study_shape_estimator(&hand, &ShapeOptions::default()).unwrap(),
+        study_shape_estimator(&hand, &ShapeConfig::default()).unwrap(),
         model,
         threshold,
     )
@@ -296,7 +296,7 @@ fn a_contact_threshold_outside_the_unit_interval_is_refused() {
         let err = Pipeline::new(
             hand.clone(),
             detector(&hand, &episode),
-            study_shape_estimator(&hand, &ShapeOptions::default()).unwrap(),
+            study_shape_estimator(&hand, &ShapeConfig::default()).unwrap(),
             load_contact_model(&model_path(), &hand).unwrap(),
             threshold,
         )
