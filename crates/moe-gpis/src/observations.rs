@@ -195,10 +195,17 @@ impl Observations {
                         got: c.len(),
                     });
                 }
-                if let Some(index) = c.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+                if let Some(index) = c.iter().position(|v| !v.is_finite()) {
                     return Err(GpisError::NonFiniteObservation {
-                        what: "free-space clearance (must be > 0)",
+                        what: "free-space clearance",
                         index,
+                    });
+                }
+                if let Some(&value) = c.iter().find(|&&v| v <= 0.0) {
+                    return Err(GpisError::InvalidParameter {
+                        name: "free-space clearance",
+                        value,
+                        reason: "must be > 0 (a free-space point lies outside the surface)",
                     });
                 }
                 c.to_vec()
@@ -334,6 +341,21 @@ mod tests {
             })
         );
         let mut o = Observations::new();
+        moe_geom::assert_err!(
+            o.add_free_space(&[Point3::origin()], Some(&[f64::NAN])),
+            GpisError::NonFiniteObservation {
+                what: "free-space clearance",
+                index: 0
+            }
+        );
+        moe_geom::assert_err!(
+            o.add_free_space(&[Point3::origin()], Some(&[-0.01])),
+            GpisError::InvalidParameter {
+                name: "free-space clearance",
+                value,
+                ..
+            } if *value == -0.01
+        );
         moe_geom::assert_err!(
             o.add_free_space(&[Point3::origin()], None),
             GpisError::TooFewObservations {

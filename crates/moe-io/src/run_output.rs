@@ -25,8 +25,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::episode::{
     EpisodeInfo, ObstacleMesh, add_channel, camera_calibration, color_image, contact_mesh_entity,
-    encode, fg_color, fg_transform, format_err, mcap_err, mcap_writer, mesh_entity,
-    obstacle_entities, schema_of, spheres_entity, write_info, write_message,
+    encode, fg_color, fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities,
+    schema_of, spheres_entity, write_info, write_message,
 };
 use crate::error::IoError;
 
@@ -188,34 +188,50 @@ impl<W: Write + Seek> RunWriter<W> {
         let cam = &info.camera;
         let fingers = info.finger_faces.len();
         let pixels = cam.width as usize * cam.height as usize;
-        let layout_ok = frame.color_rgb8.len() == 3 * pixels
-            && frame.markers_in_hand.len() == fingers
-            && frame.vertices_in_hand.len() == fingers
-            && frame.contact_probability.len() == fingers
-            && frame
-                .vertices_in_hand
-                .iter()
-                .zip(&frame.contact_probability)
-                .zip(&info.finger_num_vertices)
-                .all(|((v, p), &n)| v.len() == n && p.len() == n)
-            && frame.truth.as_ref().is_none_or(|tr| {
-                tr.vertices_in_hand.len() == fingers
-                    && tr.contact_vertices.len() == fingers
-                    && tr
-                        .vertices_in_hand
-                        .iter()
-                        .zip(&tr.contact_vertices)
-                        .zip(&info.finger_num_vertices)
-                        .all(|((v, c), &n)| v.len() == n && c.iter().all(|&i| (i as usize) < n))
-            });
-        if !layout_ok {
-            return Err(format_err(
-                path,
-                format!(
-                    "run frame at {t} ns does not fit the run's camera and fingers ({fingers} fingers of {:?} vertices)",
-                    info.finger_num_vertices
-                ),
+        let item = format!("run frame at {t} ns");
+        let refuse = |message: String| Err(IoError::invalid(path, item.clone(), message));
+        if frame.color_rgb8.len() != 3 * pixels {
+            return refuse(format!(
+                "{} colour bytes for a camera of {pixels} pixels",
+                frame.color_rgb8.len()
             ));
+        }
+        let truth_lists = frame.truth.as_ref().map_or([fingers; 2], |tr| {
+            [tr.vertices_in_hand.len(), tr.contact_vertices.len()]
+        });
+        for (what, len) in [
+            ("marker lists", frame.markers_in_hand.len()),
+            ("vertex lists", frame.vertices_in_hand.len()),
+            ("contact probability lists", frame.contact_probability.len()),
+            ("true vertex lists", truth_lists[0]),
+            ("true contact lists", truth_lists[1]),
+        ] {
+            if len != fingers {
+                return refuse(format!("{len} {what} for {fingers} fingers"));
+            }
+        }
+        for (f, &n) in info.finger_num_vertices.iter().enumerate() {
+            let (v, p) = (&frame.vertices_in_hand[f], &frame.contact_probability[f]);
+            if v.len() != n || p.len() != n {
+                return refuse(format!(
+                    "finger {f} has {} vertices and {} contact probabilities, expected {n}",
+                    v.len(),
+                    p.len()
+                ));
+            }
+            if let Some(tr) = &frame.truth {
+                if tr.vertices_in_hand[f].len() != n {
+                    return refuse(format!(
+                        "finger {f} has {} true vertices, expected {n}",
+                        tr.vertices_in_hand[f].len()
+                    ));
+                }
+                if let Some(i) = tr.contact_vertices[f].iter().find(|&&i| i as usize >= n) {
+                    return refuse(format!(
+                        "finger {f}: true contact vertex {i} is out of range ({n} vertices)"
+                    ));
+                }
+            }
         }
         let mut transforms = vec![
             fg_transform(t, "world", "hand", &frame.world_from_hand),
@@ -436,20 +452,28 @@ mod tests {
     fn a_frame_that_does_not_fit_is_refused() {
         let mut f = frame(true);
         f.contact_probability[0].pop();
-        let does_not_fit = |f: RunFrame| {
+        let does_not_fit = |f: RunFrame, what: &str| {
             moe_geom::assert_err!(
                 write(&[f]),
-                IoError::Parse { path, line: None, column: None, message }
+                IoError::InvalidData { path, item, message }
                     if path == Path::new("r.mcap")
-                        && message.starts_with("run frame at 5 ns does not fit")
+                        && item == "run frame at 5 ns"
+                        && message.starts_with(what),
+                "{what}"
             );
         };
-        does_not_fit(f);
+        does_not_fit(
+            f,
+            "finger 0 has 3 vertices and 2 contact probabilities, expected 3",
+        );
         let mut f = frame(true);
         f.truth.as_mut().unwrap().contact_vertices[0] = vec![3];
-        does_not_fit(f);
+        does_not_fit(f, "finger 0: true contact vertex 3 is out of range");
         let mut f = frame(false);
         f.color_rgb8.pop();
-        does_not_fit(f);
+        does_not_fit(f, "11 colour bytes");
+        let mut f = frame(true);
+        f.markers_in_hand.pop();
+        does_not_fit(f, "0 marker lists for 1 fingers");
     }
 }

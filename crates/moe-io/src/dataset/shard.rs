@@ -72,19 +72,23 @@ fn check_frame(
             "contact labels must be 0 or 1",
         ));
     }
-    let finite = f
-        .vertices
-        .iter()
-        .chain(&f.markers)
-        .flatten()
-        .all(|v| v.is_finite())
-        && f.tendon_pull_m
-            .iter()
-            .chain(&f.object_params)
-            .all(|v| v.is_finite())
-        && f.world_from_hand.iter().all(|v| v.is_finite());
-    if !finite {
-        return Err(IoError::invalid(path, item(), "non-finite value"));
+    let finite3 = |v: &[[f32; 3]]| v.iter().position(|p| !p.iter().all(|c| c.is_finite()));
+    let finite = |v: &[f32]| v.iter().position(|c| !c.is_finite());
+    let non_finite = finite3(&f.vertices)
+        .map(|i| format!("vertex {i}"))
+        .or_else(|| finite3(&f.markers).map(|i| format!("marker {i}")))
+        .or_else(|| finite(&f.tendon_pull_m).map(|i| format!("tendon pull {i}")))
+        .or_else(|| finite(&f.object_params).map(|i| format!("object parameter {i}")))
+        .or_else(|| {
+            (f.world_from_hand.iter().position(|c| !c.is_finite()))
+                .map(|i| format!("wrist pose component {i}"))
+        });
+    if let Some(what) = non_finite {
+        return Err(IoError::invalid(
+            path,
+            item(),
+            format!("non-finite value in {what}"),
+        ));
     }
     if let Some(i) = f
         .contact_force_n

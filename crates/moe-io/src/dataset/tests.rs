@@ -141,7 +141,7 @@ fn frames_that_do_not_fit_the_layout_are_named() {
     moe_geom::assert_err!(
         shard_bytes(path, &layout(), &[f]),
         IoError::InvalidData { item, message, .. }
-            if item == "frame 0 (trajectory 1, frame 2)" && message.contains("non-finite")
+            if item == "frame 0 (trajectory 1, frame 2)" && message == "non-finite value in vertex 0"
     );
     let mut f = frame(1, 2);
     f.contact_force_n[3] = -0.5;

@@ -41,8 +41,8 @@ use serde::{Deserialize, Serialize};
 use crate::error::IoError;
 pub(crate) use foxglove::{
     add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color,
-    fg_transform, format_err, mcap_err, mcap_writer, mesh_entity, obstacle_entities, schema_of,
-    spheres_entity, write_info, write_message,
+    fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities, schema_of, spheres_entity,
+    write_info, write_message,
 };
 pub use read::{parse_episode, parse_episode_prefix, read_episode};
 pub use write::{EpisodeWriter, create_episode, write_episode};
@@ -129,15 +129,13 @@ pub struct Episode {
 }
 
 pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError> {
+    let refuse = |message: String| Err(IoError::invalid(path, "episode info", message));
     let n = info.hand_from_finger.len();
     if info.finger_faces.len() != n || info.finger_num_vertices.len() != n {
-        return Err(format_err(
-            path,
-            format!(
-                "episode info lists {n} finger poses, {} face lists and {} vertex counts",
-                info.finger_faces.len(),
-                info.finger_num_vertices.len()
-            ),
+        return refuse(format!(
+            "{n} finger poses, {} face lists and {} vertex counts",
+            info.finger_faces.len(),
+            info.finger_num_vertices.len()
         ));
     }
     for (f, (faces, &nv)) in info
@@ -147,20 +145,16 @@ pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError>
         .enumerate()
     {
         if let Some(bad) = faces.iter().flatten().find(|&&v| v as usize >= nv) {
-            return Err(format_err(
-                path,
-                format!("finger {f}: face refers to vertex {bad}, but it has {nv}"),
+            return refuse(format!(
+                "finger {f}: face refers to vertex {bad}, but it has {nv}"
             ));
         }
     }
     let c = &info.camera;
     if !(1..=MAX_IMAGE_SIDE).contains(&c.width) || !(1..=MAX_IMAGE_SIDE).contains(&c.height) {
-        return Err(format_err(
-            path,
-            format!(
-                "camera image size {} × {} is outside 1..={MAX_IMAGE_SIDE} pixels a side",
-                c.width, c.height
-            ),
+        return refuse(format!(
+            "camera image size {} × {} is outside 1..={MAX_IMAGE_SIDE} pixels a side",
+            c.width, c.height
         ));
     }
     if let Some((f, &nv)) = info
@@ -169,18 +163,14 @@ pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError>
         .enumerate()
         .find(|(_, n)| **n > MAX_FINGER_VERTICES)
     {
-        return Err(format_err(
-            path,
-            format!("finger {f} declares {nv} vertices, more than {MAX_FINGER_VERTICES}"),
+        return refuse(format!(
+            "finger {f} declares {nv} vertices, more than {MAX_FINGER_VERTICES}"
         ));
     }
     if info.tendons_per_finger > MAX_TENDONS_PER_FINGER {
-        return Err(format_err(
-            path,
-            format!(
-                "{} tendons per finger declared, more than {MAX_TENDONS_PER_FINGER}",
-                info.tendons_per_finger
-            ),
+        return refuse(format!(
+            "{} tendons per finger declared, more than {MAX_TENDONS_PER_FINGER}",
+            info.tendons_per_finger
         ));
     }
     Ok(())
@@ -200,16 +190,14 @@ pub(super) fn check_frame(
     info: &EpisodeInfo,
     frame: &EpisodeFrame,
 ) -> Result<(), IoError> {
+    let item = format!("frame at {} ns", frame.time_ns);
+    let refuse = |message: String| Err(IoError::invalid(path, item.clone(), message));
     let pixels = info.camera.width as usize * info.camera.height as usize;
     if frame.color_rgb8.len() != 3 * pixels || frame.depth_m.len() != pixels {
-        return Err(format_err(
-            path,
-            format!(
-                "frame at {} ns: images hold {} colour bytes and {} depths, the camera has {pixels} pixels",
-                frame.time_ns,
-                frame.color_rgb8.len(),
-                frame.depth_m.len()
-            ),
+        return refuse(format!(
+            "images hold {} colour bytes and {} depths, the camera has {pixels} pixels",
+            frame.color_rgb8.len(),
+            frame.depth_m.len()
         ));
     }
     let n = info.hand_from_finger.len();
@@ -220,57 +208,31 @@ pub(super) fn check_frame(
         ("marker lists", frame.markers_in_hand.len()),
     ] {
         if len != n {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns has {len} {what} for {n} fingers",
-                    frame.time_ns
-                ),
-            ));
+            return refuse(format!("has {len} {what} for {n} fingers"));
         }
     }
     for f in 0..n {
         let nv = info.finger_num_vertices[f];
         if frame.finger_vertices_in_hand[f].len() != nv {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns: finger {f} has {} vertices, expected {nv}",
-                    frame.time_ns,
-                    frame.finger_vertices_in_hand[f].len()
-                ),
+            return refuse(format!(
+                "finger {f} has {} vertices, expected {nv}",
+                frame.finger_vertices_in_hand[f].len()
             ));
         }
         if frame.tendon_pull_m[f].len() != info.tendons_per_finger {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns: finger {f} has {} tendons",
-                    frame.time_ns,
-                    frame.tendon_pull_m[f].len()
-                ),
+            return refuse(format!(
+                "finger {f} has {} tendons",
+                frame.tendon_pull_m[f].len()
             ));
         }
         if let Some(bad) = frame.contact_vertices[f]
             .iter()
             .find(|&&v| v as usize >= nv)
         {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns: finger {f} contact vertex {bad} out of range",
-                    frame.time_ns
-                ),
-            ));
+            return refuse(format!("finger {f} contact vertex {bad} out of range"));
         }
         if !frame.contact_vertices[f].windows(2).all(|w| w[0] < w[1]) {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns: finger {f} contact ids not sorted and distinct",
-                    frame.time_ns
-                ),
-            ));
+            return refuse(format!("finger {f} contact ids not sorted and distinct"));
         }
         let finite = frame.finger_vertices_in_hand[f]
             .iter()
@@ -278,20 +240,11 @@ pub(super) fn check_frame(
             .all(moe_geom::math::is_finite_point)
             && frame.tendon_pull_m[f].iter().all(|v| v.is_finite());
         if !finite {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns: finger {f} has a non-finite value",
-                    frame.time_ns
-                ),
-            ));
+            return refuse(format!("finger {f} has a non-finite value"));
         }
     }
     if frame.depth_m.iter().any(|d| !d.is_finite()) {
-        return Err(format_err(
-            path,
-            format!("frame at {} ns: non-finite depth", frame.time_ns),
-        ));
+        return refuse("non-finite depth".into());
     }
     for o in &frame.obstacles {
         let nv = o.vertices_in_world.len();
@@ -301,13 +254,7 @@ pub(super) fn check_frame(
                 .iter()
                 .all(moe_geom::math::is_finite_point)
         {
-            return Err(format_err(
-                path,
-                format!(
-                    "frame at {} ns: obstacle '{}' has a bad vertex or face",
-                    frame.time_ns, o.name
-                ),
-            ));
+            return refuse(format!("obstacle '{}' has a bad vertex or face", o.name));
         }
     }
     Ok(())
@@ -594,8 +541,8 @@ mod tests {
         f.finger_vertices_in_hand[1][0].x = f64::NAN;
         moe_geom::assert_err!(
             w.write_frame(&f),
-            IoError::Parse { path, message, .. } if path == Path::new("x.mcap")
-                && message == "frame at 33333333 ns: finger 1 has a non-finite value"
+            IoError::InvalidData { path, item, message } if path == Path::new("x.mcap")
+                && item == "frame at 33333333 ns" && message == "finger 1 has a non-finite value"
         );
         w.write_frame(&frame(2)).unwrap();
         assert!(
@@ -608,7 +555,8 @@ mod tests {
         bad.finger_faces[1] = vec![[0, 1, 7]];
         moe_geom::assert_err!(
             EpisodeWriter::new(std::io::Cursor::new(Vec::new()), &bad, Path::new("x.mcap")),
-            IoError::Parse { path, message, .. } if path == Path::new("x.mcap")
+            IoError::InvalidData { path, item, message } if path == Path::new("x.mcap")
+                && item == "episode info"
                 && message.starts_with("finger 1: face refers to vertex 7,")
         );
     }
@@ -653,7 +601,10 @@ mod tests {
         let limit = |mut bad: EpisodeInfo, edit: &dyn Fn(&mut EpisodeInfo), limit: &str| {
             edit(&mut bad);
             let err = check_info(path, &bad).unwrap_err();
-            assert!(matches!(err, IoError::Parse { .. }), "{err:?}");
+            assert!(
+                matches!(&err, IoError::InvalidData { item, .. } if item == "episode info"),
+                "{err:?}"
+            );
             assert!(err.to_string().contains(limit), "{err}");
         };
         limit(
@@ -697,8 +648,9 @@ mod tests {
         let other = dir.join("bad.mcap");
         moe_geom::assert_err!(
             write_episode(&other, &info(), &[frame(0), bad]),
-            IoError::Parse { path, message, .. } if *path == other
-                && message.starts_with("frame at 66666666 ns: images hold 0 colour bytes")
+            IoError::InvalidData { path, item, message } if *path == other
+                && item == "frame at 66666666 ns"
+                && message.starts_with("images hold 0 colour bytes")
         );
         assert!(!other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
