@@ -101,7 +101,8 @@ impl EpisodeRecorder {
     ///
     /// # Errors
     /// An obstacle whose surface cannot be meshed; [`SimError::ForceDriven`] for a scene with a
-    /// force-driven finger (an episode records tendon pulls in metres, not tensions).
+    /// force-driven finger (an episode records tendon pulls in metres, not tensions);
+    /// [`SimError::LengthMismatch`] for fingers with different numbers of tendons.
     pub fn new(scene: &Scene, name: &str, seed: u64) -> Result<Self, SimError> {
         if let Some(finger) = scene
             .config()
@@ -113,6 +114,19 @@ impl EpisodeRecorder {
         }
         let camera = scene.config().camera;
         let hand = scene.hand();
+        // An episode holds one tendon count for the hand.
+        let tendons: Vec<usize> = hand
+            .fingers()
+            .iter()
+            .map(|f| f.model.tendon_routes().len())
+            .collect();
+        if let Some(&got) = tendons.iter().find(|&&n| n != tendons[0]) {
+            return Err(SimError::LengthMismatch {
+                what: "tendons of a finger (an episode records one count for every finger)",
+                expected: tendons[0],
+                got,
+            });
+        }
         let info = EpisodeInfo {
             scene: name.to_owned(),
             camera: camera_info(&camera.intrinsics),
@@ -132,10 +146,7 @@ impl EpisodeRecorder {
                 .iter()
                 .map(|f| f.model.mesh().num_vertices())
                 .collect(),
-            tendons_per_finger: hand
-                .fingers()
-                .first()
-                .map_or(0, |f| f.model.tendon_routes().len()),
+            tendons_per_finger: tendons.first().copied().unwrap_or(0),
         };
         let obstacle_surfaces = scene
             .config()
@@ -256,5 +267,33 @@ mod tests {
         ));
         let scene = Scene::new(config(ActuationMode::Displacement)).unwrap();
         assert!(EpisodeRecorder::new(&scene, "pull", 0).is_ok());
+    }
+
+    #[test]
+    fn hands_with_uneven_tendon_counts_are_not_recorded() {
+        use moe_geom::{FingerModel, FingerParams, HandPreset};
+        let preset = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let mut fingers = preset.fingers().to_vec();
+        let f = &fingers[1].model;
+        fingers[1].model = FingerModel::from_parts(
+            f.mesh().clone(),
+            f.marker_vertices().to_vec(),
+            f.base_vertices().to_vec(),
+            f.tendon_routes()[..2].to_vec(),
+        )
+        .unwrap();
+        let config = SceneConfig {
+            duration_secs: 0.01,
+            ..SceneConfig::default()
+        };
+        let scene = Scene::with_hand(config, HandModel::new(fingers).unwrap()).unwrap();
+        assert!(matches!(
+            EpisodeRecorder::new(&scene, "uneven", 0),
+            Err(SimError::LengthMismatch {
+                expected: 4,
+                got: 2,
+                ..
+            })
+        ));
     }
 }
