@@ -52,7 +52,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("xtask: error: {err:#}");
+            eprintln!("xtask: error: {}", moe_touch::error::one_line(err.as_ref()));
             ExitCode::FAILURE
         }
     }

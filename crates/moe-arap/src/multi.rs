@@ -19,7 +19,7 @@ use crate::solver::{ArapInfo, ArapSolver, ArapWorkspace, Start};
 /// Number of nearest rest vertices examined when the nearest one is unusable for a handle.
 const HANDLE_CANDIDATES: usize = 32;
 
-/// Options of the multi-finger estimator.
+/// Settings of the multi-finger estimator (serde; every field defaulted).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ShapeConfig {

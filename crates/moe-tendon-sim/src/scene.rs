@@ -80,6 +80,12 @@ impl Default for SolverConfig {
     }
 }
 
+/// The number of steps of `dt` that cover `duration` (a ratio within 1e-9 of an integer counts as
+/// that integer), as a float.
+fn steps_covering(duration: Real, dt: Real) -> Real {
+    (duration / dt - 1e-9).ceil().max(0.0)
+}
+
 /// Most steps a scene may run (`duration_secs / dt_secs`).
 pub const MAX_STEPS: u64 = 10_000_000;
 /// Most frames a scene may save (`steps / save_every_steps`): every saved frame of a run is
@@ -331,7 +337,8 @@ impl Scene {
                 reason: "must be between 1 and 10,000",
             });
         }
-        let steps = config.duration_secs / s.dt_secs;
+        // The same count as `num_steps`, in floating point so that a huge ratio cannot wrap.
+        let steps = steps_covering(config.duration_secs, s.dt_secs);
         if steps > MAX_STEPS as Real {
             return Err(SimError::InvalidParameter {
                 name: "duration_secs / dt_secs (steps)",
@@ -339,10 +346,12 @@ impl Scene {
                 reason: "a scene may run at most 10,000,000 steps",
             });
         }
-        if steps / config.save_every_steps as Real > MAX_SAVED_FRAMES as Real {
+        // A run saves its first frame, every `save_every_steps`-th and its last.
+        let saved = 1.0 + (steps / config.save_every_steps as Real).ceil();
+        if saved > MAX_SAVED_FRAMES as Real {
             return Err(SimError::InvalidParameter {
                 name: "duration_secs / dt_secs / save_every_steps (saved frames)",
-                value: steps / config.save_every_steps as Real,
+                value: saved,
                 reason: "a scene may save at most 100,000 frames",
             });
         }
@@ -425,9 +434,7 @@ impl Scene {
 
     /// Number of steps that cover `duration_secs`.
     pub fn num_steps(&self) -> u64 {
-        (self.config.duration_secs / self.config.solver.dt_secs - 1e-9)
-            .ceil()
-            .max(0.0) as u64
+        steps_covering(self.config.duration_secs, self.config.solver.dt_secs) as u64
     }
 
     /// `world_from_finger` of finger `i` at time `t`.

@@ -263,7 +263,10 @@ mod tests {
         let scene = Scene::new(config(ActuationMode::Force)).unwrap();
         assert!(matches!(
             EpisodeRecorder::new(&scene, "force", 0),
-            Err(SimError::ForceDriven { finger: 1, .. })
+            Err(SimError::ForceDriven {
+                finger: 1,
+                tendon: 0
+            })
         ));
         let scene = Scene::new(config(ActuationMode::Displacement)).unwrap();
         assert!(EpisodeRecorder::new(&scene, "pull", 0).is_ok());

@@ -137,3 +137,48 @@ pub enum TouchError {
         reason: String,
     },
 }
+
+/// Formats an error and its causes on one line (`outer: inner: root`), without backtraces: a
+/// cause whose text the previous message already includes is left out, so an error that names
+/// its source in its own message is not printed twice. Both command-line tools print errors
+/// this way.
+pub fn one_line(err: &(dyn std::error::Error + 'static)) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut cause = Some(err);
+    while let Some(e) = cause {
+        let s = e.to_string();
+        if parts.last().is_none_or(|prev| !prev.contains(&s)) {
+            parts.push(s.lines().next().unwrap_or_default().to_owned());
+        }
+        cause = e.source();
+    }
+    parts.join(": ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_line_names_each_cause_once() {
+        let err = TouchError::Trajectory {
+            trajectory: 13,
+            draws: 4,
+            source: moe_tendon_sim::SimError::NonFinite {
+                step: 7,
+                finger: 0,
+                node: 3,
+            },
+        };
+        let line = one_line(&err);
+        assert_eq!(line.matches("step 7").count(), 1, "{line}");
+        assert!(line.starts_with("trajectory 13: 4 draws failed"), "{line}");
+        let wrapped = anyhow::Error::new(err).context("generating shard 2");
+        let line = one_line(wrapped.as_ref());
+        assert!(
+            line.starts_with("generating shard 2: trajectory 13"),
+            "{line}"
+        );
+        assert_eq!(line.matches("step 7").count(), 1, "{line}");
+    }
+}

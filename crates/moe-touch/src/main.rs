@@ -69,7 +69,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {}", cli::one_line(&err));
+            eprintln!("error: {}", moe_touch::error::one_line(err.as_ref()));
             ExitCode::FAILURE
         }
     }

@@ -223,4 +223,23 @@ fn iteration_counts_and_sizes_are_bounded() {
         name_of(fit_hyper(&pts, &residuals, &fit).map(|_| ())),
         "max_fit_points"
     );
+    // At each limit the call goes through.
+    assert!(nonprobabilistic(&prior, &pts, &nonprob(MAX_ITERATIONS)).is_ok());
+    let at_limit = FitConfig {
+        max_iterations: MAX_ITERATIONS,
+        max_fit_points: moe_gpis::MAX_EXACT_OBSERVATIONS,
+        ..FitConfig::default()
+    };
+    assert!(fit_hyper(&pts, &residuals, &at_limit).is_ok());
+    let gpis = GpisConfig {
+        exact_limit: moe_gpis::MAX_EXACT_OBSERVATIONS,
+        inducing_points: moe_gpis::MAX_EXACT_OBSERVATIONS,
+        ..GpisConfig::default()
+    };
+    let sphere = SphereMean {
+        center: Point3::origin(),
+        radius: 0.05,
+    };
+    let obs = Observations::from_contacts(&pts).unwrap();
+    assert!(condition(sphere, &obs, &gpis).is_ok());
 }

@@ -150,20 +150,30 @@ fn bad_scene_input_gives_typed_errors() {
     let mut c = SceneConfig::default();
     c.solver.static_max_iterations = moe_tendon_sim::MAX_STATIC_ITERATIONS + 1;
     check(c, "static_max_iterations");
-    let mut c = SceneConfig::default();
-    c.duration_secs = c.solver.dt_secs * (moe_tendon_sim::MAX_STEPS as f64 + 2.0);
-    c.save_every_steps = 1_000;
-    check(c, "duration_secs / dt_secs (steps)");
-    let mut c = SceneConfig::default();
-    c.duration_secs = c.solver.dt_secs * (moe_tendon_sim::MAX_SAVED_FRAMES as f64 + 2.0);
-    c.save_every_steps = 1;
+    // Exactly at each limit a scene is accepted, one over it is refused: MAX_STEPS steps, and
+    // MAX_SAVED_FRAMES saved frames (the first, then one every step).
+    let steps_of = |steps: u64, every: u64| {
+        let mut c = SceneConfig::default();
+        c.duration_secs = c.solver.dt_secs * steps as f64;
+        c.save_every_steps = every;
+        c
+    };
+    let max_steps = moe_tendon_sim::MAX_STEPS;
+    let max_frames = moe_tendon_sim::MAX_SAVED_FRAMES;
+    assert_eq!(
+        Scene::new(steps_of(max_steps, 1_000)).unwrap().num_steps(),
+        max_steps
+    );
     check(
-        c,
+        steps_of(max_steps + 1, 1_000),
+        "duration_secs / dt_secs (steps)",
+    );
+    assert!(Scene::new(steps_of(max_frames - 1, 1)).is_ok());
+    check(
+        steps_of(max_frames, 1),
         "duration_secs / dt_secs / save_every_steps (saved frames)",
     );
     let mut c = SceneConfig::default();
-    c.duration_secs = c.solver.dt_secs * moe_tendon_sim::MAX_SAVED_FRAMES as f64;
-    c.save_every_steps = 1;
     c.solver.static_max_iterations = moe_tendon_sim::MAX_STATIC_ITERATIONS;
     assert!(Scene::new(c).is_ok());
     let mut c = SceneConfig::default();
@@ -412,4 +422,26 @@ fn saved_frames_keep_the_unit_of_each_tendon() {
     let pulls = frames.last().unwrap().tendon_pulls_m().unwrap();
     assert_eq!(pulls[0], vec![0.002, -0.002, 0.0, 0.0]);
     assert_eq!(pulls[1], vec![0.0, 0.001, 0.0, 0.0]);
+}
+
+/// A run stops where the scene's duration does: asking for more steps is refused before any
+/// step is taken.
+#[test]
+fn runs_do_not_go_beyond_the_scene() {
+    let config = SceneConfig {
+        duration_secs: 0.03,
+        ..SceneConfig::default()
+    };
+    let mut scene = Scene::new(config).unwrap();
+    let steps = scene.num_steps();
+    assert_eq!(steps, 3);
+    moe_geom::assert_err!(
+        moe_tendon_sim::run_saving(&mut scene, steps + 1),
+        SimError::InvalidParameter { name: "steps", value, .. } if *value == 4.0
+    );
+    // Saved: the first frame and the last (one every 10 steps by default).
+    assert_eq!(
+        moe_tendon_sim::run_saving(&mut scene, steps).unwrap().len(),
+        2
+    );
 }

@@ -31,19 +31,6 @@ pub(crate) fn load_hand(spec: &str) -> anyhow::Result<moe_geom::HandModel> {
     Ok(moe_io::load_hand_config(&path)?)
 }
 
-/// Formats an error and its causes on one line (`outer: inner: root`), without backtraces.
-pub(crate) fn one_line(err: &anyhow::Error) -> String {
-    let mut parts: Vec<String> = Vec::new();
-    for cause in err.chain() {
-        let s = cause.to_string();
-        // Skip a cause whose text the previous message already includes.
-        if parts.last().is_none_or(|prev| !prev.contains(&s)) {
-            parts.push(s.lines().next().unwrap_or_default().to_owned());
-        }
-    }
-    parts.join(": ")
-}
-
 /// Prints `value` as one JSON object on stdout.
 pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
     emit(format_args!("{}", serde_json::to_string(value)?));

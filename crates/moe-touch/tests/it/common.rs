@@ -60,47 +60,72 @@ pub(crate) fn run_json(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("one JSON object on stdout")
 }
 
-/// A JSON report made comparable across runs and machines for a snapshot: every timing or rate
-/// (a key ending in `_ms`, `_secs`, `_per_second` or `_per_sec`, or `secs`, `fps`) becomes
-/// `"[timing]"`, paths
-/// under `scratch` become `[scratch]/…`, and numbers are rounded to 6 significant digits, with
-/// magnitudes below 1e-9 written as 0 (round-off of a quantity that is zero in exact arithmetic,
-/// such as the centre of a sphere fitted to points around the origin): last-bit differences
-/// between SIMD paths stay invisible, real changes do not.
+/// Keys of the JSON reports whose values are wall-clock timings or rates.
+const TIMING_KEYS: [&str; 14] = [
+    "contact_ms",
+    "detect_ms",
+    "fit_secs",
+    "frames_per_second",
+    "markers_ms",
+    "mesh_secs",
+    "poisson_secs",
+    "query_secs",
+    "shape_ms",
+    "steps_per_sec",
+    "total_ms",
+    "total_secs",
+    "variance_secs",
+    "wall_secs",
+];
+
+/// Keys whose values are exact on one machine only (a hash of the state's bits).
+const MACHINE_KEYS: [&str; 1] = ["state_digest"];
+
+/// A JSON report made comparable across runs and machines for a snapshot: the wall-clock
+/// timings and rates of [`TIMING_KEYS`] become `"[timing]"` and the machine-exact values of
+/// [`MACHINE_KEYS`] `"[machine]"`; paths under `scratch` become `[scratch]/…` and paths into
+/// the committed fixtures `[fixtures]/…`; numbers are rounded to 6 significant digits, and the
+/// round-off of quantities that are zero in exact arithmetic is written 0: any magnitude below
+/// 1e-15 (an ARAP energy at rest, a sine of π in a pose), and a length in metres (a key ending
+/// in `_m`) below 1 nm (the centre of a sphere fitted around the origin).
+/// Last-bit differences between SIMD paths stay invisible; real changes do not.
 pub(crate) fn stable(value: serde_json::Value, scratch: &Path) -> serde_json::Value {
     use serde_json::Value;
-    let dir = scratch.to_string_lossy().into_owned();
-    fn is_timing(key: &str) -> bool {
-        key.ends_with("_ms")
-            || key.ends_with("_secs")
-            || key.ends_with("_per_second")
-            || key.ends_with("_per_sec")
-            || key == "secs"
-            || key == "fps"
-    }
-    fn walk(v: Value, dir: &str) -> Value {
+    let dirs = [
+        (scratch.to_string_lossy().into_owned(), "[scratch]"),
+        (fixtures().to_string_lossy().into_owned(), "[fixtures]"),
+    ];
+    fn walk(v: Value, dirs: &[(String, &str)], metres: bool) -> Value {
         match v {
             Value::Object(map) => Value::Object(
                 map.into_iter()
                     .map(|(k, v)| {
-                        let v = if is_timing(&k) && !v.is_null() {
+                        let v = if TIMING_KEYS.contains(&k.as_str()) && !v.is_null() {
                             Value::String("[timing]".into())
+                        } else if MACHINE_KEYS.contains(&k.as_str()) {
+                            Value::String("[machine]".into())
                         } else {
-                            walk(v, dir)
+                            walk(v, dirs, k.ends_with("_m"))
                         };
                         (k, v)
                     })
                     .collect(),
             ),
-            Value::Array(items) => Value::Array(items.into_iter().map(|v| walk(v, dir)).collect()),
-            Value::String(s) => Value::String(s.replace(dir, "[scratch]")),
+            Value::Array(items) => {
+                Value::Array(items.into_iter().map(|v| walk(v, dirs, metres)).collect())
+            }
+            Value::String(s) => Value::String(
+                dirs.iter()
+                    .fold(s, |s, (dir, name)| s.replace(dir.as_str(), name)),
+            ),
             Value::Number(n) if !(n.is_u64() || n.is_i64()) => {
                 let x = n.as_f64().unwrap_or(f64::NAN);
                 let rounded: f64 = format!("{x:.5e}").parse().unwrap_or(x);
-                serde_json::json!(if rounded.abs() < 1e-9 { 0.0 } else { rounded })
+                let zero = rounded.abs() < 1e-15 || (metres && rounded.abs() < 1e-9);
+                serde_json::json!(if zero { 0.0 } else { rounded })
             }
             other => other,
         }
     }
-    walk(value, &dir)
+    walk(value, &dirs, false)
 }

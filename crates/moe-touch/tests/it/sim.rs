@@ -127,7 +127,7 @@ fn steps_beyond_the_scene_and_scenes_beyond_the_step_limit_are_refused() {
     let long = dir.join("long.toml");
     std::fs::write(
         &long,
-        "duration_secs = 10000.002\n[solver]\ndt_secs = 0.001\n",
+        "duration_secs = 10000.001\n[solver]\ndt_secs = 0.001\n",
     )
     .unwrap();
     let o = run(&[
