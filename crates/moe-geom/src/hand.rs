@@ -141,6 +141,30 @@ impl HandModel {
         self.fingers.len()
     }
 
+    /// The number of tendons of each finger, for formats that record one count for the hand
+    /// (data sets, episodes).
+    ///
+    /// # Errors
+    /// [`GeomError::FingerLengthMismatch`] naming the first finger whose count differs from
+    /// finger 0's.
+    pub fn tendons_per_finger(&self) -> Result<usize, GeomError> {
+        let expected = self.fingers[0].model.tendon_routes().len();
+        match self
+            .fingers
+            .iter()
+            .enumerate()
+            .find(|(_, f)| f.model.tendon_routes().len() != expected)
+        {
+            Some((finger, f)) => Err(GeomError::FingerLengthMismatch {
+                what: "tendons (one count for every finger)",
+                finger,
+                expected,
+                got: f.model.tendon_routes().len(),
+            }),
+            None => Ok(expected),
+        }
+    }
+
     /// Total vertex count over all fingers.
     pub fn num_vertices(&self) -> usize {
         self.fingers
@@ -223,6 +247,30 @@ impl HandKeypoints {
 mod tests {
     use super::*;
     use crate::chamfer::PointIndex;
+
+    #[test]
+    fn one_tendon_count_for_the_hand_or_the_finger_that_differs() {
+        let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
+        assert_eq!(hand.tendons_per_finger().unwrap(), 4);
+        let mut fingers = hand.fingers().to_vec();
+        let f = &fingers[2].model;
+        fingers[2].model = FingerModel::from_parts(
+            f.mesh().clone(),
+            f.marker_vertices().to_vec(),
+            f.base_vertices().to_vec(),
+            f.tendon_routes()[..2].to_vec(),
+        )
+        .unwrap();
+        crate::assert_err!(
+            HandModel::new(fingers).unwrap().tendons_per_finger(),
+            GeomError::FingerLengthMismatch {
+                finger: 2,
+                expected: 4,
+                got: 2,
+                ..
+            }
+        );
+    }
 
     #[test]
     fn presets_place_fingers_apart_and_facing_inward() {

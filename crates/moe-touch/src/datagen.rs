@@ -375,23 +375,12 @@ pub const MAX_DRAWS: u64 = 4;
 /// The frame layout of a data set simulated with `params`.
 ///
 /// # Errors
-/// [`TouchError::Geometry`] for invalid finger parameters; [`TouchError::UnevenTendons`] when
-/// the fingers do not all have the same number of tendons.
+/// [`TouchError::Geometry`] for invalid finger parameters or fingers with different numbers
+/// of tendons ([`moe_geom::HandModel::tendons_per_finger`]).
 pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, TouchError> {
     let hand = moe_geom::HandModel::preset(params.preset, &params.finger)?;
     let fingers = hand.fingers();
-    let tendons_per_finger = fingers[0].model.tendon_routes().len();
-    if let Some((finger, f)) = fingers
-        .iter()
-        .enumerate()
-        .find(|(_, f)| f.model.tendon_routes().len() != tendons_per_finger)
-    {
-        return Err(TouchError::UnevenTendons {
-            finger,
-            expected: tendons_per_finger,
-            got: f.model.tendon_routes().len(),
-        });
-    }
+    let tendons_per_finger = hand.tendons_per_finger()?;
     Ok(DatasetLayout {
         finger_num_vertices: fingers
             .iter()

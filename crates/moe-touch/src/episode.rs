@@ -102,7 +102,7 @@ impl EpisodeRecorder {
     /// # Errors
     /// An obstacle whose surface cannot be meshed; [`SimError::ForceDriven`] for a scene with a
     /// force-driven finger (an episode records tendon pulls in metres, not tensions);
-    /// [`SimError::LengthMismatch`] for fingers with different numbers of tendons.
+    /// [`SimError::Geometry`] for fingers with different numbers of tendons.
     pub fn new(scene: &Scene, name: &str, seed: u64) -> Result<Self, SimError> {
         if let Some(finger) = scene
             .config()
@@ -114,19 +114,8 @@ impl EpisodeRecorder {
         }
         let camera = scene.config().camera;
         let hand = scene.hand();
-        // An episode holds one tendon count for the hand.
-        let tendons: Vec<usize> = hand
-            .fingers()
-            .iter()
-            .map(|f| f.model.tendon_routes().len())
-            .collect();
-        if let Some(&got) = tendons.iter().find(|&&n| n != tendons[0]) {
-            return Err(SimError::LengthMismatch {
-                what: "tendons of a finger (an episode records one count for every finger)",
-                expected: tendons[0],
-                got,
-            });
-        }
+        // An episode records one tendon count for the hand.
+        let tendons_per_finger = hand.tendons_per_finger()?;
         let info = EpisodeInfo {
             scene: name.to_owned(),
             camera: camera_info(&camera.intrinsics),
@@ -146,7 +135,7 @@ impl EpisodeRecorder {
                 .iter()
                 .map(|f| f.model.mesh().num_vertices())
                 .collect(),
-            tendons_per_finger: tendons.first().copied().unwrap_or(0),
+            tendons_per_finger,
         };
         let obstacle_surfaces = scene
             .config()
@@ -292,11 +281,14 @@ mod tests {
         let scene = Scene::with_hand(config, HandModel::new(fingers).unwrap()).unwrap();
         assert!(matches!(
             EpisodeRecorder::new(&scene, "uneven", 0),
-            Err(SimError::LengthMismatch {
-                expected: 4,
-                got: 2,
-                ..
-            })
+            Err(SimError::Geometry(
+                moe_geom::GeomError::FingerLengthMismatch {
+                    finger: 1,
+                    expected: 4,
+                    got: 2,
+                    ..
+                }
+            ))
         ));
     }
 }

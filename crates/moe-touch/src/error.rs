@@ -51,20 +51,6 @@ pub enum TouchError {
         /// Index of the shard.
         shard: u64,
     },
-    /// The fingers of a hand have different numbers of tendons, which a data set's layout (one
-    /// count per hand) cannot hold.
-    #[error(
-        "finger {finger} has {got} tendons but finger 0 has {expected}: a data set needs the \
-         same number on every finger"
-    )]
-    UnevenTendons {
-        /// The first finger that differs.
-        finger: usize,
-        /// Tendons of finger 0.
-        expected: usize,
-        /// Tendons of this finger.
-        got: usize,
-    },
     /// Every draw of one trajectory failed to simulate.
     #[error("trajectory {trajectory}: {draws} draws failed; the last: {source}")]
     Trajectory {
