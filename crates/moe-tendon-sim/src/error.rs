@@ -201,6 +201,18 @@ pub enum SimError {
         /// What differs.
         what: &'static str,
     },
+    /// A run was asked for more steps than the scene's duration covers (the scene's limits
+    /// bound its duration, so a run may only be shorter).
+    #[error(
+        "{steps} steps asked, but the scene's duration covers {covered}: a run may only be \
+         shorter (lengthen duration_secs instead)"
+    )]
+    StepsBeyondScene {
+        /// Steps asked for.
+        steps: u64,
+        /// Steps the scene's duration covers (`Scene::num_steps`).
+        covered: u64,
+    },
     /// A tendon pull (metres) was asked of a tendon driven by force, whose commanded value is a
     /// tension (newtons): data sets and episodes record pulls only.
     #[error(

@@ -1,8 +1,6 @@
 //! Running a scene: stepping it from its initial state and keeping the saved frames
 //! ([`run_with`] calls back at each, [`run_saving`] collects them as [`SimFrame`]s).
 
-use moe_geom::Real;
-
 use crate::error::SimError;
 use crate::scene::{Scene, SimFrame, SimState, StepInfo};
 
@@ -19,7 +17,7 @@ pub struct RunOutcome {
 /// every saved frame: the initial one, every `save_every_steps` steps, and the last one.
 ///
 /// # Errors
-/// [`SimError::InvalidParameter`] for more `steps` than the scene's duration covers
+/// [`SimError::StepsBeyondScene`] for more `steps` than the scene's duration covers
 /// ([`Scene::num_steps`], which the scene's own limits bound); divergence, naming the step and
 /// the element (see [`Scene::step`]), or the first error of `on_frame`; the run stops there.
 pub fn run_with<E: From<SimError>>(
@@ -27,13 +25,9 @@ pub fn run_with<E: From<SimError>>(
     steps: u64,
     mut on_frame: impl FnMut(&Scene, &SimState) -> Result<(), E>,
 ) -> Result<RunOutcome, E> {
-    if steps > scene.num_steps() {
-        return Err(SimError::InvalidParameter {
-            name: "steps",
-            value: steps as Real,
-            reason: "a run may not go beyond the scene's duration (Scene::num_steps)",
-        }
-        .into());
+    let covered = scene.num_steps();
+    if steps > covered {
+        return Err(SimError::StepsBeyondScene { steps, covered }.into());
     }
     let every = scene.config().save_every_steps.max(1);
     let mut state = scene.initial_state();

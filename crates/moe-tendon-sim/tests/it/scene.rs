@@ -437,7 +437,10 @@ fn runs_do_not_go_beyond_the_scene() {
     assert_eq!(steps, 3);
     moe_geom::assert_err!(
         moe_tendon_sim::run_saving(&mut scene, steps + 1),
-        SimError::InvalidParameter { name: "steps", value, .. } if *value == 4.0
+        SimError::StepsBeyondScene {
+            steps: 4,
+            covered: 3
+        }
     );
     // Saved: the first frame and the last (one every 10 steps by default).
     assert_eq!(

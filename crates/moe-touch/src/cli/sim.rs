@@ -145,22 +145,8 @@ pub(crate) fn run(args: SimArgs) -> Result<()> {
     }
 }
 
-/// The steps to run: the scene's duration, or fewer with `--steps` (the scene bounds its own
-/// duration, so `--steps` may only shorten it).
-fn steps_of(scene: &Scene, args: &SimArgs) -> Result<u64> {
-    let whole = scene.num_steps();
-    match args.steps {
-        Some(n) if n > whole => bail!(
-            "--steps {n}: the scene's duration covers {whole} steps, and --steps may only \
-             shorten the run (lengthen duration_secs instead)"
-        ),
-        Some(n) => Ok(n),
-        None => Ok(whole),
-    }
-}
-
 fn simulate(mut scene: Scene, args: &SimArgs, staging: &Path) -> Result<SimSummary> {
-    let steps = steps_of(&scene, args)?;
+    let steps = args.steps.unwrap_or_else(|| scene.num_steps());
     let mut frames = Vec::new();
     let start = Instant::now();
     let outcome = run_with(&mut scene, steps, |scene, state| -> Result<()> {
@@ -321,7 +307,7 @@ struct EpisodeSummary {
 /// when complete).
 fn record_episode(mut scene: Scene, args: &SimArgs) -> Result<()> {
     let started = Instant::now();
-    let steps = steps_of(&scene, args)?;
+    let steps = args.steps.unwrap_or_else(|| scene.num_steps());
     let name = args
         .scene
         .file_stem()

@@ -60,17 +60,8 @@ fn bad_scene_is_one_line_error_and_writes_nothing() {
     let dir = scratch("sim-bad");
     let scene = dir.join("bad.toml");
     std::fs::write(&scene, "[solver]\ndt_secs = 0.0\n").unwrap();
-    let out = dir.join("out");
-    let o = run(&[
-        "sim",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let err = assert_one_line_error(&o);
+    let err = refused(&scene, &dir.join("out"), &[]);
     assert!(err.contains("dt_secs"), "{err}");
-    assert!(!out.exists());
 }
 
 #[test]
@@ -108,21 +99,11 @@ fn steps_beyond_the_scene_and_scenes_beyond_the_step_limit_are_refused() {
     let dir = scratch("sim-limits");
     let scene = fixtures().join("scenes/plate_tip_side.toml");
     let out = dir.join("out");
-    let o = run(&[
-        "sim",
-        "--scene",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--steps",
-        "100000000000",
-    ]);
-    let err = assert_one_line_error(&o);
+    let err = refused(&scene, &out, &["--steps", "100000000000"]);
     assert!(
-        err.contains("--steps 100000000000") && err.contains("covers"),
+        err.contains("100000000000 steps asked") && err.contains("covers"),
         "{err}"
     );
-    assert!(!out.exists());
     // A duration of 10^7 steps and one more.
     let long = dir.join("long.toml");
     std::fs::write(
@@ -130,14 +111,22 @@ fn steps_beyond_the_scene_and_scenes_beyond_the_step_limit_are_refused() {
         "duration_secs = 10000.001\n[solver]\ndt_secs = 0.001\n",
     )
     .unwrap();
-    let o = run(&[
+    let err = refused(&long, &out, &[]);
+    assert!(err.contains("at most 10,000,000 steps"), "{err}");
+}
+
+/// Runs `moe-touch sim` on `scene` into `out` with `extra` arguments, asserts a one-line error
+/// and that nothing was written, and returns the error.
+fn refused(scene: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> String {
+    let mut args = vec![
         "sim",
         "--scene",
-        long.to_str().unwrap(),
+        scene.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ]);
-    let err = assert_one_line_error(&o);
-    assert!(err.contains("at most 10,000,000 steps"), "{err}");
-    assert!(!out.exists());
+    ];
+    args.extend_from_slice(extra);
+    let err = assert_one_line_error(&run(&args));
+    assert!(!out.exists(), "output left behind after: {err}");
+    err
 }
