@@ -121,7 +121,7 @@ pub const MAX_SUBDIVISION_LEVEL: u32 = 9;
 ///
 /// # Errors
 /// [`GeomError::InvalidParameter`] above it.
-pub fn check_subdivision_level(level: u32) -> Result<(), GeomError> {
+pub(crate) fn check_subdivision_level(level: u32) -> Result<(), GeomError> {
     if level > MAX_SUBDIVISION_LEVEL {
         return Err(GeomError::InvalidParameter {
             name: "subdivision level",
