@@ -74,12 +74,18 @@ mod tests {
             v
         };
         assert!(parse(&with(&["--epochs", "10000", "--batch-size", "4096"])).is_ok());
+        assert!(parse(&with(&["--k", "256", "--edge-widths", "1,8192,3"])).is_ok());
         for bad in [
             &["--epochs", "0"][..],
             &["--epochs", "10001"],
             &["--batch-size", "0"],
             &["--batch-size", "4097"],
             &["--max-frames", "0"],
+            &["--k", "0"],
+            &["--k", "257"],
+            &["--edge-widths", "64,0,256"],
+            &["--head-widths", "512,8193"],
+            &["--lr-step-epochs", "0"],
         ] {
             let err = parse(&with(bad)).unwrap_err();
             assert_eq!(

@@ -61,6 +61,18 @@ pub(crate) struct TrainArgs {
     /// Edge aggregation: max or sum.
     #[arg(long, default_value = "max")]
     aggregation: Aggregation,
+    /// Neighbourhood size of the EdgeConv layers, the point itself included (the paper's 30).
+    #[arg(long, default_value_t = 30, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=moe_contact::config::MAX_K as u64))]
+    k: usize,
+    /// Output widths of the three EdgeConv layers (the paper's 64,128,256).
+    #[arg(long, value_delimiter = ',', default_value = "64,128,256", value_parser = width_parser())]
+    edge_widths: Vec<usize>,
+    /// Widths of the head's two hidden layers (the paper's 512,256).
+    #[arg(long, value_delimiter = ',', default_value = "512,256", value_parser = width_parser())]
+    head_widths: Vec<usize>,
+    /// The learning rate halves every this many epochs (the paper's 20).
+    #[arg(long, default_value_t = 20, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    lr_step_epochs: usize,
     /// Use at most this many training frames (the first ones, in data set order).
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     max_frames: Option<usize>,
@@ -76,6 +88,20 @@ pub(crate) struct TrainArgs {
     /// every epoch; sets with contact are always used).
     #[arg(long, default_value_t = 1.0)]
     negative_fraction: f64,
+}
+
+fn width_parser() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=moe_contact::config::MAX_WIDTH as u64)
+}
+
+/// `N` widths from a comma-separated option, or an error naming the option.
+fn widths<const N: usize>(option: &str, values: &[usize]) -> Result<[usize; N]> {
+    values.try_into().map_err(|_| {
+        anyhow::anyhow!(
+            "--{option} takes {N} comma-separated widths, got {}",
+            values.len()
+        )
+    })
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -418,6 +444,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     let train = TrainingSets::from_frames(&builder, &train_frames)?;
     let validation = TrainingSets::from_frames(&builder, &validation_frames)?;
     let arch = DgcnnConfig {
+        k: args.k,
+        edge_widths: widths("edge-widths", &args.edge_widths)?,
+        head_widths: widths("head-widths", &args.head_widths)?,
         aggregation: args.aggregation,
         input: spec,
         ..DgcnnConfig::default()
@@ -451,6 +480,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         contact_weight: args.contact_weight,
         seed: args.seed,
         negative_fraction: args.negative_fraction,
+        lr_step_epochs: args.lr_step_epochs,
         ..TrainConfig::default()
     };
     let ckpt_path = checkpoint_path(&args.out);
@@ -610,4 +640,20 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         last.validation_threshold
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::widths;
+
+    #[test]
+    fn widths_take_exactly_their_count() {
+        assert_eq!(widths::<3>("edge-widths", &[8, 16, 32]).unwrap(), [8, 16, 32]);
+        let err = widths::<2>("head-widths", &[8, 16, 32]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "--head-widths takes 2 comma-separated widths, got 3"
+        );
+        assert!(widths::<3>("edge-widths", &[8]).is_err());
+    }
 }

@@ -70,6 +70,12 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
             "4",
             "--negative-fraction",
             "0.5",
+            "--k",
+            "12",
+            "--edge-widths",
+            "16,16,32",
+            "--head-widths",
+            "32,16",
         ],
         &[("--data", &data), ("--out", &model)],
     );
@@ -77,6 +83,11 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     let card: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.with_extension("json")).unwrap())
             .unwrap();
+    // The architecture options reach the card, which evaluation below builds the network from.
+    let arch = &card["architecture"];
+    assert_eq!(arch["k"], 12);
+    assert_eq!(arch["edge_widths"], serde_json::json!([16, 16, 32]));
+    assert_eq!(arch["head_widths"], serde_json::json!([32, 16]));
     let epochs = card["metrics"]["epochs"].as_array().unwrap();
     assert_eq!(epochs.len(), 1);
     // Validation records the contact metrics: rates in [0, 1], a BCD (null when every contact
