@@ -55,9 +55,11 @@ pub(crate) struct TrainArgs {
     /// Point sets: per-finger (finger frame) or whole-hand (hand frame).
     #[arg(long, value_enum, default_value = "per-finger")]
     point_set: PointSetArg,
-    /// Feed xyz only (no rest-pose xyz).
-    #[arg(long)]
-    xyz_only: bool,
+    /// Input features, comma-separated, in channel order: xyz (the deformed position),
+    /// rest-xyz (the vertex's rest position), deformation (local curvature change, its one-ring
+    /// mean and the areal strain).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "xyz,rest-xyz")]
+    features: Vec<FeatureArg>,
     /// Edge aggregation: max or sum.
     #[arg(long, default_value = "max")]
     aggregation: Aggregation,
@@ -102,6 +104,13 @@ fn widths<const N: usize>(option: &str, values: &[usize]) -> Result<[usize; N]> 
             values.len()
         )
     })
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum FeatureArg {
+    Xyz,
+    RestXyz,
+    Deformation,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -404,11 +413,15 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         (train, validation)
     };
     let mut spec = InputSpec {
-        features: if args.xyz_only {
-            vec![InputFeature::Xyz]
-        } else {
-            vec![InputFeature::Xyz, InputFeature::RestXyz]
-        },
+        features: args
+            .features
+            .iter()
+            .map(|f| match f {
+                FeatureArg::Xyz => InputFeature::Xyz,
+                FeatureArg::RestXyz => InputFeature::RestXyz,
+                FeatureArg::Deformation => InputFeature::Deformation,
+            })
+            .collect(),
         frame: match args.point_set {
             PointSetArg::PerFinger => FeatureFrame::Finger,
             PointSetArg::WholeHand => FeatureFrame::Hand,

@@ -76,6 +76,8 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
             "16,16,32",
             "--head-widths",
             "32,16",
+            "--features",
+            "xyz,rest-xyz,deformation",
         ],
         &[("--data", &data), ("--out", &model)],
     );
@@ -88,6 +90,10 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     assert_eq!(arch["k"], 12);
     assert_eq!(arch["edge_widths"], serde_json::json!([16, 16, 32]));
     assert_eq!(arch["head_widths"], serde_json::json!([32, 16]));
+    assert_eq!(
+        arch["input"]["features"],
+        serde_json::json!(["xyz", "rest-xyz", "deformation"])
+    );
     let epochs = card["metrics"]["epochs"].as_array().unwrap();
     assert_eq!(epochs.len(), 1);
     // Validation records the contact metrics: rates in [0, 1], a BCD (null when every contact

@@ -1,5 +1,6 @@
 //! Benchmarks of the contact network on the paper's workload: the default two-finger hand
-//! (2 × 1024 vertices), k = 30, batch 1, f32; and the five-finger hand.
+//! (2 × 1024 vertices), k = 30, batch 1, f32; and the five-finger hand; per finger also with a
+//! compact network (k = 16, widths 32/64/64 and 128/64).
 //!
 //! Besides criterion's figures, each case prints the median split of one frame into the kNN
 //! searches, the EdgeConv layers and the head (from the network's own stage timings).
@@ -28,8 +29,25 @@ fn bent(hand: &HandModel) -> HandShape {
     shape
 }
 
+/// A network a quarter of the paper's cost: k = 16, EdgeConv widths 32/64/64, head 128/64.
+fn compact() -> DgcnnConfig {
+    DgcnnConfig {
+        k: 16,
+        edge_widths: [32, 64, 64],
+        head_widths: [128, 64],
+        ..DgcnnConfig::default()
+    }
+}
+
 fn estimator(hand: &HandModel, point_set: PointSet) -> DgcnnEstimator {
-    let mut config = DgcnnConfig::default();
+    estimator_with(DgcnnConfig::default(), hand, point_set)
+}
+
+fn estimator_with(
+    mut config: DgcnnConfig,
+    hand: &HandModel,
+    point_set: PointSet,
+) -> DgcnnEstimator {
     config.input.point_set = point_set;
     if point_set == PointSet::PerFinger {
         config.input.frame = FeatureFrame::Finger;
@@ -77,6 +95,12 @@ fn contact(c: &mut Criterion) {
                 b.iter(|| black_box(est.estimate(black_box(&shape), None).expect("estimate")))
             });
         }
+        let est = estimator_with(compact(), &hand, PointSet::PerFinger);
+        let name = format!("contact/{preset}/per-finger/compact");
+        print_split(&name, &est, &shape);
+        c.bench_function(&name, |b| {
+            b.iter(|| black_box(est.estimate(black_box(&shape), None).expect("estimate")))
+        });
     }
 }
 

@@ -45,6 +45,10 @@ pub enum InputFeature {
     /// The same vertex's rest-pose position (vertex `i` of a shape estimate is vertex `i` of the
     /// rest mesh), so that the network sees how each vertex moved.
     RestXyz,
+    /// Local measures of deformation, zero at rest and unchanged by rigid motion: the change in
+    /// normal curvature at the vertex, the same averaged over its one-ring, and the one-ring's
+    /// areal strain (see the `deformation` module).
+    Deformation,
 }
 
 impl InputFeature {
@@ -53,6 +57,7 @@ impl InputFeature {
         match self {
             Self::Xyz => "xyz",
             Self::RestXyz => "rest-xyz",
+            Self::Deformation => "deformation",
         }
     }
 }

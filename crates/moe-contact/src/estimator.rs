@@ -3,6 +3,7 @@
 use candle_core::{DType, Device, Tensor};
 use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3};
 
+use crate::deformation::DeformationFeatures;
 use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
 use crate::error::ContactError;
 use crate::network::{Dgcnn, Mode, StageTimings, contact_probability};
@@ -75,6 +76,8 @@ pub struct FeatureBuilder {
     finger_from_hand: Vec<Iso3>,
     rest_in_hand: Vec<Vec<Point3>>,
     plans: Vec<SetPlan>,
+    /// Per finger, when the spec asks for [`InputFeature::Deformation`].
+    deformation: Vec<DeformationFeatures>,
 }
 
 impl FeatureBuilder {
@@ -114,6 +117,14 @@ impl FeatureBuilder {
                 .map(|f| hand.rest_vertices_in_hand(f))
                 .collect(),
             plans,
+            deformation: if spec.features.contains(&InputFeature::Deformation) {
+                hand.fingers()
+                    .iter()
+                    .map(|f| DeformationFeatures::new(f.model.mesh()))
+                    .collect()
+            } else {
+                Vec::new()
+            },
         })
     }
 
@@ -142,13 +153,19 @@ impl FeatureBuilder {
             FeatureFrame::Finger => self.finger_from_hand[f] * p,
         };
         let start = out.len();
+        // The measures are frame-free: the hand frame's positions give the finger frame's values.
+        let deformation = self
+            .deformation
+            .get(f)
+            .map(|d| d.compute(&shape.fingers[f]));
         for (v, p) in shape.fingers[f].iter().enumerate() {
             for feature in &self.spec.features {
-                let q = match feature {
-                    InputFeature::Xyz => to_frame(p),
-                    InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]),
+                let row = match feature {
+                    InputFeature::Xyz => to_frame(p).coords.into(),
+                    InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]).coords.into(),
+                    InputFeature::Deformation => deformation.as_ref().map_or([0.0; 3], |d| d[v]),
                 };
-                out.extend([q.x, q.y, q.z]);
+                out.extend(row);
             }
         }
         self.spec.normalise(&mut out[start..]);

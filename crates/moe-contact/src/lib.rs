@@ -16,6 +16,8 @@
 
 /// The architecture, input features and the model card.
 pub mod config;
+/// Local deformation measures (an input feature).
+mod deformation;
 /// Choosing the device.
 pub mod device;
 /// The crate's error type.

@@ -249,3 +249,53 @@ fn a_card_s_hand_decides_which_hands_the_model_runs_on() {
         assert!(err.to_string().contains("two-finger"), "{err}");
     }
 }
+
+/// The deformation channels are zero on the rest hand, the same for every finger of a pressed
+/// hand whatever its place on the palm (frame-free), and negative where the bump dents a finger.
+#[test]
+fn deformation_features_are_frame_free_and_mark_the_dent() {
+    let hand = hand(HandPreset::ThreeFinger);
+    let spec = InputSpec {
+        features: vec![InputFeature::Xyz, InputFeature::Deformation],
+        frame: FeatureFrame::Finger,
+        point_set: PointSet::PerFinger,
+        normalisation: None,
+    };
+    let builder = FeatureBuilder::new(&spec, &hand).unwrap();
+    assert_eq!(builder.channels(), 6);
+    let deformation = |sets: &[Vec<f64>], f: usize| -> Vec<[f64; 3]> {
+        sets[f]
+            .chunks_exact(6)
+            .map(|row| [row[3], row[4], row[5]])
+            .collect()
+    };
+    let rest = builder.input_sets(&HandShape::rest(&hand)).unwrap();
+    for f in 0..3 {
+        let worst = deformation(&rest, f)
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m, c| m.max(c.abs()));
+        assert!(worst < 1e-9, "finger {f} at rest: {worst:e}");
+    }
+    let sets = builder.input_sets(&pressed(&hand)).unwrap();
+    let first = deformation(&sets, 0);
+    for f in 1..3 {
+        let diff = deformation(&sets, f)
+            .iter()
+            .zip(&first)
+            .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-9, "finger {f}: {diff:e}");
+    }
+    // The bump pushes the +x side in around z = 60 mm: the most negative curvature change is
+    // there, and clearly below the jitter's.
+    let mesh = hand.fingers()[0].model.mesh();
+    let (v, m) = first
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1[0].total_cmp(&b.1[0]))
+        .unwrap();
+    let p = mesh.vertices()[v];
+    assert!(m[0] < -0.05, "{m:?}");
+    assert!(p.x > 0.0 && (p.z - 0.06).abs() < 0.01, "vertex {v} at {p:?}");
+}
