@@ -58,7 +58,12 @@ pub(crate) struct TrainArgs {
     /// Input features, comma-separated, in channel order: xyz (the deformed position),
     /// rest-xyz (the vertex's rest position), deformation (local curvature change, its one-ring
     /// mean and the areal strain).
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "xyz,rest-xyz")]
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "xyz,rest-xyz"
+    )]
     features: Vec<FeatureArg>,
     /// Edge aggregation: max or sum.
     #[arg(long, default_value = "max")]
@@ -93,7 +98,8 @@ pub(crate) struct TrainArgs {
 }
 
 fn width_parser() -> clap::builder::RangedU64ValueParser<usize> {
-    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=moe_contact::config::MAX_WIDTH as u64)
+    clap::builder::RangedU64ValueParser::<usize>::new()
+        .range(1..=moe_contact::config::MAX_WIDTH as u64)
 }
 
 /// `N` widths from a comma-separated option, or an error naming the option.
@@ -661,7 +667,10 @@ mod tests {
 
     #[test]
     fn widths_take_exactly_their_count() {
-        assert_eq!(widths::<3>("edge-widths", &[8, 16, 32]).unwrap(), [8, 16, 32]);
+        assert_eq!(
+            widths::<3>("edge-widths", &[8, 16, 32]).unwrap(),
+            [8, 16, 32]
+        );
         let err = widths::<2>("head-widths", &[8, 16, 32]).unwrap_err();
         assert_eq!(
             err.to_string(),

@@ -186,7 +186,10 @@ mod tests {
         let shrunk: Vec<Point3> = mesh.vertices().iter().map(|p| p * 0.9).collect();
         let m = features.compute(&shrunk);
         for (v, [_, _, strain]) in m.iter().enumerate() {
-            assert!((strain - (0.81 - 1.0)).abs() < 1e-12, "vertex {v}: {strain}");
+            assert!(
+                (strain - (0.81 - 1.0)).abs() < 1e-12,
+                "vertex {v}: {strain}"
+            );
         }
     }
 }

@@ -3,8 +3,8 @@
 use candle_core::{DType, Device, Tensor};
 use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3};
 
-use crate::deformation::DeformationFeatures;
 use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
+use crate::deformation::DeformationFeatures;
 use crate::error::ContactError;
 use crate::network::{Dgcnn, Mode, StageTimings, contact_probability};
 

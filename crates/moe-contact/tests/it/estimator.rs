@@ -297,5 +297,8 @@ fn deformation_features_are_frame_free_and_mark_the_dent() {
         .unwrap();
     let p = mesh.vertices()[v];
     assert!(m[0] < -0.05, "{m:?}");
-    assert!(p.x > 0.0 && (p.z - 0.06).abs() < 0.01, "vertex {v} at {p:?}");
+    assert!(
+        p.x > 0.0 && (p.z - 0.06).abs() < 0.01,
+        "vertex {v} at {p:?}"
+    );
 }
