@@ -313,3 +313,34 @@ fn a_contact_threshold_outside_the_unit_interval_is_refused() {
         );
     }
 }
+
+/// Every model committed in `models/` loads with its card for the hand it was trained on, and
+/// on the hand at rest (which touches nothing) it reports probabilities in [0, 1] and no vertex
+/// over its card's threshold.
+#[test]
+fn every_committed_model_loads_and_finds_no_contact_at_rest() {
+    let hand = hand();
+    let dir = fixtures().join("../models");
+    let mut models: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "safetensors"))
+        .collect();
+    models.sort();
+    assert!(models.len() >= 2, "{models:?}");
+    let rest = moe_geom::HandShape::rest(&hand);
+    for path in &models {
+        let model = load_contact_model(path, &hand).unwrap();
+        let map = model.estimate(&rest, None).unwrap();
+        let threshold = model.threshold();
+        for (f, finger) in map.fingers.iter().enumerate() {
+            for (v, &p) in finger.iter().enumerate() {
+                assert!((0.0..=1.0).contains(&p), "{path:?} finger {f} vertex {v}: {p}");
+                assert!(
+                    p < threshold,
+                    "{path:?} finger {f} vertex {v}: {p} at rest (threshold {threshold})"
+                );
+            }
+        }
+    }
+}
