@@ -335,7 +335,10 @@ fn every_committed_model_loads_and_finds_no_contact_at_rest() {
         let threshold = model.threshold();
         for (f, finger) in map.fingers.iter().enumerate() {
             for (v, &p) in finger.iter().enumerate() {
-                assert!((0.0..=1.0).contains(&p), "{path:?} finger {f} vertex {v}: {p}");
+                assert!(
+                    (0.0..=1.0).contains(&p),
+                    "{path:?} finger {f} vertex {v}: {p}"
+                );
                 assert!(
                     p < threshold,
                     "{path:?} finger {f} vertex {v}: {p} at rest (threshold {threshold})"
