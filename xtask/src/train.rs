@@ -361,6 +361,9 @@ fn checkpoint_path(out: &Path) -> PathBuf {
 
 pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     let started = Instant::now();
+    // Options that clap cannot check alone, checked before any data loads.
+    let edge_widths = widths("edge-widths", &args.edge_widths)?;
+    let head_widths = widths("head-widths", &args.head_widths)?;
     let readers = args
         .data
         .iter()
@@ -464,8 +467,8 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     let validation = TrainingSets::from_frames(&builder, &validation_frames)?;
     let arch = DgcnnConfig {
         k: args.k,
-        edge_widths: widths("edge-widths", &args.edge_widths)?,
-        head_widths: widths("head-widths", &args.head_widths)?,
+        edge_widths,
+        head_widths,
         aggregation: args.aggregation,
         input: spec,
         ..DgcnnConfig::default()
@@ -677,5 +680,31 @@ mod tests {
             "--head-widths takes 2 comma-separated widths, got 3"
         );
         assert!(widths::<3>("edge-widths", &[8]).is_err());
+    }
+
+    /// A width list of the wrong length is refused before the data sets are opened: the
+    /// missing data directory is not what the error names.
+    #[test]
+    fn wrong_width_counts_are_refused_before_any_data_loads() {
+        use clap::Parser;
+        let cli = crate::Cli::try_parse_from([
+            "xtask",
+            "train",
+            "--data",
+            "/nonexistent/data set",
+            "--out",
+            "/nonexistent/model",
+            "--edge-widths",
+            "8,8",
+        ])
+        .unwrap();
+        let crate::Command::Train(args) = cli.command else {
+            panic!("not the train command");
+        };
+        let err = super::run(&args).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "--edge-widths takes 3 comma-separated widths, got 2"
+        );
     }
 }

@@ -24,8 +24,8 @@ use moe_geom::{Point3, Topology, TriMesh, Vector3};
 #[derive(Debug, Clone)]
 pub(crate) struct DeformationFeatures {
     faces: Vec<[u32; 3]>,
-    ring_offsets: Vec<usize>,
-    ring: Vec<u32>,
+    /// One-rings of the mesh.
+    topology: Topology,
     /// `1 / sᵢ`.
     inv_scale: Vec<f64>,
     /// `(Xᵢ − X̄ᵢ)·Nᵢ` at rest.
@@ -38,18 +38,10 @@ impl DeformationFeatures {
     /// The rest quantities of `mesh` (a validated finger mesh).
     pub(crate) fn new(mesh: &TriMesh) -> Self {
         let topology = Topology::new(mesh);
-        let n = mesh.num_vertices();
-        let mut ring_offsets = Vec::with_capacity(n + 1);
-        let mut ring = Vec::new();
-        ring_offsets.push(0);
-        for v in 0..n {
-            ring.extend_from_slice(topology.neighbors(v));
-            ring_offsets.push(ring.len());
-        }
         let rest = mesh.vertices();
-        let inv_scale = (0..n)
+        let inv_scale = (0..mesh.num_vertices())
             .map(|v| {
-                let nb = &ring[ring_offsets[v]..ring_offsets[v + 1]];
+                let nb = topology.neighbors(v);
                 let mean = nb
                     .iter()
                     .map(|&j| (rest[j as usize] - rest[v]).norm())
@@ -60,8 +52,7 @@ impl DeformationFeatures {
             .collect();
         let mut this = Self {
             faces: mesh.faces().to_vec(),
-            ring_offsets,
-            ring,
+            topology,
             inv_scale,
             rest_offset: Vec::new(),
             inv_rest_area: Vec::new(),
@@ -96,7 +87,7 @@ impl DeformationFeatures {
         }
         let offset = (0..n)
             .map(|v| {
-                let nb = &self.ring[self.ring_offsets[v]..self.ring_offsets[v + 1]];
+                let nb = self.topology.neighbors(v);
                 let norm = normal[v].norm();
                 if nb.is_empty() || norm == 0.0 {
                     return 0.0;
@@ -123,7 +114,7 @@ impl DeformationFeatures {
             .collect();
         (0..self.num_vertices())
             .map(|v| {
-                let nb = &self.ring[self.ring_offsets[v]..self.ring_offsets[v + 1]];
+                let nb = self.topology.neighbors(v);
                 let smoothed = (curvature[v]
                     + nb.iter().map(|&j| curvature[j as usize]).sum::<f64>())
                     / (nb.len() + 1) as f64;

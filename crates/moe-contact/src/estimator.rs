@@ -154,16 +154,18 @@ impl FeatureBuilder {
         };
         let start = out.len();
         // The measures are frame-free: the hand frame's positions give the finger frame's values.
+        // Empty unless the spec asks for the feature (and then `new` built one per finger).
         let deformation = self
             .deformation
             .get(f)
-            .map(|d| d.compute(&shape.fingers[f]));
+            .map(|d| d.compute(&shape.fingers[f]))
+            .unwrap_or_default();
         for (v, p) in shape.fingers[f].iter().enumerate() {
             for feature in &self.spec.features {
                 let row = match feature {
                     InputFeature::Xyz => to_frame(p).coords.into(),
                     InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]).coords.into(),
-                    InputFeature::Deformation => deformation.as_ref().map_or([0.0; 3], |d| d[v]),
+                    InputFeature::Deformation => deformation[v],
                 };
                 out.extend(row);
             }

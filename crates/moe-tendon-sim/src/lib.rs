@@ -2,13 +2,13 @@
 //! obstacles: the source of training data and ground truth (paper §4.3.1, the SOFA setup:
 //! E = 100 kPa, ν = 0.1, Rayleigh mass 0.1 and stiffness 0.1, displacement-driven tendons).
 //!
-//! Architecture invariant: depends only on `moe-geom`, nalgebra, faer, parry3d-f64, serde and thiserror. No file IO; scene
-//! files are parsed by `moe-io` (`moe_io::read_config::<SceneConfig>`), and results are returned
-//! as in-memory values. Every loop that feeds the state is sequential (faer runs with
-//! `Par::Seq`), so a scene is bit-for-bit deterministic on a given machine. The per-step path
-//! does not allocate: [`Scene::step_into`] reuses per-scene, per-finger
-//! ([`mechanics::FemWorkspace`]) and
-//! per-term scratch sized when the scene is built (tendon node maps are precomputed, contact
+//! Architecture invariant: depends only on `moe-geom`, nalgebra, faer, parry3d-f64, serde and
+//! thiserror. No file IO; scene files are parsed by `moe-io`
+//! (`moe_io::read_config::<SceneConfig>`), and results are returned as in-memory values. Every
+//! loop that feeds the state is sequential (faer runs with `Par::Seq`), so a scene is
+//! bit-for-bit deterministic on a given machine. The per-step path does not allocate:
+//! [`Scene::step_into`] reuses per-scene, per-finger ([`mechanics::FemWorkspace`]) and per-term
+//! scratch sized when the scene is built (tendon node maps are precomputed, contact
 //! buffers hold a term per surface vertex and obstacle); `tests/alloc.rs` counts the heap
 //! allocations of steps with a counting global allocator.
 //!
