@@ -16,7 +16,7 @@ use moe_contact::{
 use moe_geom::{HandModel, LabelledFrame};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::randomize::RandomSceneParams;
-use moe_touch::contact_eval::with_estimated_shapes;
+use moe_touch::contact_eval::{MarkerAugmentation, with_estimated_shapes};
 use serde::Serialize;
 
 /// Arguments of `cargo xtask train`.
@@ -95,6 +95,15 @@ pub(crate) struct TrainArgs {
     /// every epoch; sets with contact are always used).
     #[arg(long, default_value_t = 1.0)]
     negative_fraction: f64,
+    /// Standard deviation (m, per coordinate) of the Gaussian noise added to the training
+    /// frames' markers before their SR-ARAP shapes are computed, as detection adds it at run
+    /// time (one seeded draw per frame; validation frames keep their true markers).
+    #[arg(long, value_name = "M", default_value_t = 0.0)]
+    marker_noise: f64,
+    /// Probability that a training frame's marker is dropped before its SR-ARAP shape is
+    /// computed, as an occluded or missed marker is at run time.
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    marker_dropout: f64,
 }
 
 fn width_parser() -> clap::builder::RangedU64ValueParser<usize> {
@@ -303,6 +312,8 @@ fn write_model(
     });
     card.training = Some(serde_json::json!({
         "input_shape": args.input_shape,
+        "marker_noise_m": args.marker_noise,
+        "marker_dropout": args.marker_dropout,
         "init": args.init.as_ref().map(|p| p.display().to_string()),
         "config": config,
         "contact_weight": trainer.contact_weight(),
@@ -352,6 +363,25 @@ fn write_model(
     Ok(())
 }
 
+/// The marker perturbation of the training frames' SR-ARAP shapes, if any, checked.
+fn marker_augmentation(args: &TrainArgs) -> Result<Option<MarkerAugmentation>> {
+    if args.marker_noise == 0.0 && args.marker_dropout == 0.0 {
+        return Ok(None);
+    }
+    if args.input_shape == InputShapeArg::Simulated {
+        bail!(
+            "--marker-noise and --marker-dropout perturb SR-ARAP shapes: use --input-shape sr-arap or both"
+        );
+    }
+    let augmentation = MarkerAugmentation {
+        noise_sd_m: args.marker_noise,
+        drop_probability: args.marker_dropout,
+        seed: args.seed,
+    };
+    augmentation.validate()?;
+    Ok(Some(augmentation))
+}
+
 /// Steps between progress lines when stderr is not a terminal.
 const LOG_EVERY: usize = 50;
 
@@ -364,6 +394,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     // Options that clap cannot check alone, checked before any data loads.
     let edge_widths = widths("edge-widths", &args.edge_widths)?;
     let head_widths = widths("head-widths", &args.head_widths)?;
+    let augmentation = marker_augmentation(args)?;
     let readers = args
         .data
         .iter()
@@ -409,8 +440,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     } else {
         let t = Instant::now();
         let options = moe_arap::ShapeConfig::default();
-        let mut train = with_estimated_shapes(&hand, &train_frames, &options)?;
-        let validation = with_estimated_shapes(&hand, &validation_frames, &options)?;
+        let mut train =
+            with_estimated_shapes(&hand, &train_frames, &options, augmentation.as_ref())?;
+        let validation = with_estimated_shapes(&hand, &validation_frames, &options, None)?;
         eprintln!(
             "train: SR-ARAP shapes of {} frames from their markers in {:.0} s",
             train.len() + validation.len(),
@@ -682,29 +714,45 @@ mod tests {
         assert!(widths::<3>("edge-widths", &[8]).is_err());
     }
 
-    /// A width list of the wrong length is refused before the data sets are opened: the
+    /// Options that clap cannot check alone are refused before the data sets are opened: the
     /// missing data directory is not what the error names.
     #[test]
-    fn wrong_width_counts_are_refused_before_any_data_loads() {
+    fn bad_options_are_refused_before_any_data_loads() {
         use clap::Parser;
-        let cli = crate::Cli::try_parse_from([
-            "xtask",
-            "train",
-            "--data",
-            "/nonexistent/data set",
-            "--out",
-            "/nonexistent/model",
-            "--edge-widths",
-            "8,8",
-        ])
-        .unwrap();
-        let crate::Command::Train(args) = cli.command else {
-            panic!("not the train command");
-        };
-        let err = super::run(&args).unwrap_err();
-        assert_eq!(
-            err.to_string(),
-            "--edge-widths takes 3 comma-separated widths, got 2"
-        );
+        let cases: [(&[&str], &str); 4] = [
+            (
+                &["--edge-widths", "8,8"],
+                "--edge-widths takes 3 comma-separated widths, got 2",
+            ),
+            (
+                &["--marker-noise", "0.02"],
+                "marker noise sd (m) = 0.02: not between 0 and 0.005 m",
+            ),
+            (
+                &["--marker-dropout", "1.5"],
+                "marker drop probability = 1.5: not between 0 and 1",
+            ),
+            (
+                &["--marker-noise", "0.0002", "--input-shape", "simulated"],
+                "--marker-noise and --marker-dropout perturb SR-ARAP shapes: use --input-shape sr-arap or both",
+            ),
+        ];
+        for (extra, expected) in cases {
+            let mut argv = vec![
+                "xtask",
+                "train",
+                "--data",
+                "/nonexistent/data set",
+                "--out",
+                "/nonexistent/model",
+            ];
+            argv.extend_from_slice(extra);
+            let cli = crate::Cli::try_parse_from(argv).unwrap();
+            let crate::Command::Train(args) = cli.command else {
+                panic!("not the train command");
+            };
+            let err = super::run(&args).unwrap_err();
+            assert_eq!(format!("{err:#}"), expected, "{extra:?}");
+        }
     }
 }

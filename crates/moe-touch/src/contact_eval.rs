@@ -234,25 +234,99 @@ pub fn study_shape_estimator(
     Ok(arap)
 }
 
+/// Perturbations of a frame's markers before SR-ARAP, of the kinds the perception stage makes:
+/// detection noise and markers that are hidden or missed. A training-time augmentation, so that
+/// a contact model learns from shapes like the ones it is given at run time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkerAugmentation {
+    /// Standard deviation of the Gaussian noise added to each coordinate of each kept marker, m.
+    pub noise_sd_m: Real,
+    /// Probability that an observed marker is dropped (treated as occluded).
+    pub drop_probability: Real,
+    /// Seed; the `k`-th frame of a call draws from its own stream `k`.
+    pub seed: u64,
+}
+
+/// Largest accepted [`MarkerAugmentation::noise_sd_m`]: 5 mm, several times any detector's error.
+pub const MAX_MARKER_NOISE_M: Real = 5e-3;
+
+impl MarkerAugmentation {
+    /// Checks the noise (finite, 0 to [`MAX_MARKER_NOISE_M`]) and the probability (0 to 1).
+    ///
+    /// # Errors
+    /// [`TouchError::InvalidParameter`] naming the bad field.
+    pub fn validate(&self) -> Result<(), TouchError> {
+        if !(0.0..=MAX_MARKER_NOISE_M).contains(&self.noise_sd_m) {
+            return Err(TouchError::InvalidParameter {
+                name: "marker noise sd (m)",
+                value: self.noise_sd_m,
+                reason: "not between 0 and 0.005 m",
+            });
+        }
+        if !(0.0..=1.0).contains(&self.drop_probability) {
+            return Err(TouchError::InvalidParameter {
+                name: "marker drop probability",
+                value: self.drop_probability,
+                reason: "not between 0 and 1",
+            });
+        }
+        Ok(())
+    }
+
+    /// `keypoints` perturbed with `rng`: each observed marker dropped with the drop probability,
+    /// the others moved by the noise. Occluded markers stay occluded.
+    pub fn apply(&self, keypoints: &HandKeypoints, rng: &mut SeededRng) -> HandKeypoints {
+        let fingers = keypoints
+            .fingers
+            .iter()
+            .map(|f| {
+                f.iter()
+                    .map(|p| {
+                        let p = (*p)?;
+                        if rng.uniform() < self.drop_probability {
+                            return None;
+                        }
+                        let n = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+                        Some(p + n * self.noise_sd_m)
+                    })
+                    .collect()
+            })
+            .collect();
+        HandKeypoints { fingers }
+    }
+}
+
 /// `frames` with every shape replaced by its SR-ARAP estimate from the frame's markers (what a
-/// contact model sees at run time), labels and everything else kept. Frames are solved in
-/// parallel, one estimator per worker; the result does not depend on the thread count.
+/// contact model sees at run time), perturbed first by `augmentation` if given; labels and
+/// everything else kept. Frames are solved in parallel, one estimator per worker; the result
+/// does not depend on the thread count.
 ///
 /// # Errors
-/// As [`study_shape_estimator`] and [`MultiShapeEstimator::estimate`].
+/// An invalid `augmentation`; as [`study_shape_estimator`] and [`MultiShapeEstimator::estimate`].
 pub fn with_estimated_shapes(
     hand: &HandModel,
     frames: &[LabelledFrame],
     options: &ShapeConfig,
+    augmentation: Option<&MarkerAugmentation>,
 ) -> Result<Vec<LabelledFrame>, TouchError> {
     use rayon::prelude::*;
+    if let Some(a) = augmentation {
+        a.validate()?;
+    }
     frames
         .par_iter()
+        .enumerate()
         .map_init(
             || study_shape_estimator(hand, options),
-            |arap, frame| {
+            |arap, (k, frame)| {
                 let arap = arap.as_mut().map_err(|e| TouchError::Shape(e.clone()))?;
-                let shape = arap.estimate(&frame.markers)?.shape;
+                let shape = match augmentation {
+                    Some(a) => {
+                        let mut rng = SeededRng::new(a.seed).split(k as u64);
+                        arap.estimate(&a.apply(&frame.markers, &mut rng))?.shape
+                    }
+                    None => arap.estimate(&frame.markers)?.shape,
+                };
                 Ok(LabelledFrame {
                     shape,
                     ..frame.clone()
@@ -675,6 +749,125 @@ mod tests {
         assert_eq!(a, marker_subset(&all, 4, &mut rng.split(1)));
         assert_ne!(a, marker_subset(&all, 4, &mut rng.split(2)));
         assert_eq!(marker_subset(&all, 9, &mut rng.split(1)), all);
+    }
+
+    #[test]
+    fn marker_augmentation_moves_and_drops_markers_at_the_asked_rates() {
+        let hand = HandModel::preset(HandPreset::FiveFinger, &FingerParams::default()).unwrap();
+        let mut all = hand.rest_keypoints();
+        // An occluded marker stays occluded.
+        all.fingers[0][0] = None;
+        let none = MarkerAugmentation {
+            noise_sd_m: 0.0,
+            drop_probability: 0.0,
+            seed: 1,
+        };
+        assert_eq!(none.apply(&all, &mut SeededRng::new(3)), all);
+        let aug = MarkerAugmentation {
+            noise_sd_m: 2e-4,
+            drop_probability: 0.25,
+            seed: 1,
+        };
+        let (mut kept, mut dropped, mut sq) = (0usize, 0usize, 0.0);
+        for k in 0..400 {
+            let out = aug.apply(&all, &mut SeededRng::new(7).split(k));
+            assert_eq!(out, aug.apply(&all, &mut SeededRng::new(7).split(k)));
+            assert_eq!(out.fingers[0][0], None);
+            for (f, g) in out.fingers.iter().zip(&all.fingers) {
+                for (p, q) in f.iter().zip(g).skip(1) {
+                    match p {
+                        Some(p) => {
+                            kept += 1;
+                            sq += (p - q.unwrap()).norm_squared();
+                        }
+                        None => dropped += 1,
+                    }
+                }
+            }
+        }
+        let rate = dropped as Real / (kept + dropped) as Real;
+        assert!((rate - 0.25).abs() < 0.02, "drop rate {rate}");
+        // E‖n‖² = 3σ² for isotropic noise.
+        let sd = (sq / (3 * kept) as Real).sqrt();
+        assert!((sd - 2e-4).abs() < 5e-6, "noise sd {sd}");
+        for bad in [
+            MarkerAugmentation {
+                noise_sd_m: Real::NAN,
+                ..aug
+            },
+            MarkerAugmentation {
+                noise_sd_m: 0.01,
+                ..aug
+            },
+            MarkerAugmentation {
+                drop_probability: 1.5,
+                ..aug
+            },
+            MarkerAugmentation {
+                drop_probability: -0.1,
+                ..aug
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn estimated_shapes_with_every_marker_dropped_are_the_rest_shapes() {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let rest = HandShape::rest(&hand);
+        let mut bent = hand.rest_keypoints();
+        for p in bent.fingers.iter_mut().flatten().flatten() {
+            p.x += 0.2 * (p.z - 0.01).max(0.0);
+        }
+        let frame = LabelledFrame {
+            trajectory_id: 0,
+            frame_index: 0,
+            shape: rest.clone(),
+            contact: rest.fingers.iter().map(|f| vec![false; f.len()]).collect(),
+            markers: bent,
+            world_from_hand: WorldFromHand::identity(),
+        };
+        let frames = vec![frame.clone(), frame];
+        let options = ShapeConfig::default();
+        let largest_move = |shape: &HandShape| {
+            shape
+                .fingers
+                .iter()
+                .zip(&rest.fingers)
+                .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).norm()))
+                .fold(0.0, Real::max)
+        };
+        let plain = with_estimated_shapes(&hand, &frames, &options, None).unwrap();
+        assert!(
+            largest_move(&plain[0].shape) > 1e-3,
+            "the bend moves the shape"
+        );
+        let drop_all = MarkerAugmentation {
+            noise_sd_m: 1e-4,
+            drop_probability: 1.0,
+            seed: 0,
+        };
+        let dropped = with_estimated_shapes(&hand, &frames, &options, Some(&drop_all)).unwrap();
+        for f in &dropped {
+            assert!(largest_move(&f.shape) < 1e-12);
+        }
+        // Noise alone: the two identical frames get different draws, and a repeat is identical.
+        let noisy = MarkerAugmentation {
+            drop_probability: 0.0,
+            ..drop_all
+        };
+        let a = with_estimated_shapes(&hand, &frames, &options, Some(&noisy)).unwrap();
+        assert_ne!(a[0].shape, a[1].shape);
+        assert_eq!(
+            a,
+            with_estimated_shapes(&hand, &frames, &options, Some(&noisy)).unwrap()
+        );
+        let bad = MarkerAugmentation {
+            drop_probability: 2.0,
+            ..noisy
+        };
+        assert!(with_estimated_shapes(&hand, &frames, &options, Some(&bad)).is_err());
     }
 
     #[test]
