@@ -168,6 +168,7 @@ fn write_surfaces(size: Size, noise_m: Option<f64>, dir: &Path) -> Result<Vec<Pa
             &scene,
             &surface,
             Some(NORMAL_OFFSET_M),
+            None,
             &mut |name, mesh, variance| {
                 let ply = PlyData::with_variance(mesh, variance);
                 if let Err(e) = put(name, &ply) {

@@ -80,6 +80,10 @@ impl Body {
 }
 
 /// Arguments of `cargo xtask eval patting`.
+/// Default of `--prior-gate`: 10 mm, about three times the task priors' distance from their
+/// truths (2–5 mm UCD) and well inside the false contacts' (centimetres).
+const DEFAULT_PRIOR_GATE_M: Real = 0.01;
+
 #[derive(Debug, Args)]
 pub(crate) struct PattingEvalArgs {
     /// Size: small = one pair, 3 pats per body, 24³ grid, level-4 priors (the golden-checked
@@ -111,6 +115,11 @@ pub(crate) struct PattingEvalArgs {
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
+    /// The GP with the prior and the non-probabilistic baseline leave out contacts farther than
+    /// this from the prior (metres; 0 keeps every contact): false contacts would otherwise
+    /// raise bubbles of surface where nothing is.
+    #[arg(long, value_name = "M", default_value_t = DEFAULT_PRIOR_GATE_M)]
+    prior_gate: Real,
 }
 
 /// The contact points of one estimator on one pair.
@@ -319,6 +328,7 @@ fn evaluate_pair(
             &scene,
             &surface,
             Some(NORMAL_OFFSET_M),
+            (args.prior_gate > 0.0).then_some(args.prior_gate),
             &mut |name, mesh, variance| {
                 let ply = PlyData::with_variance(mesh, variance);
                 if let Err(e) = put(&format!("{name}_{tag}"), &ply) {
@@ -363,6 +373,12 @@ fn evaluate(args: &PattingEvalArgs) -> Result<Value> {
     } else {
         args.bodies.clone()
     };
+    if !(args.prior_gate.is_finite() && args.prior_gate >= 0.0) {
+        anyhow::bail!(
+            "--prior-gate {} must be a distance in metres (0 for none)",
+            args.prior_gate
+        );
+    }
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default())?;
     let knn = knn_index(args.knn_index.as_deref(), &hand)?;
     let mut out = Vec::new();
@@ -387,6 +403,7 @@ fn evaluate(args: &PattingEvalArgs) -> Result<Value> {
         "size": format!("{size:?}").to_lowercase(),
         "pairs": pairs,
         "knn_index_frames": knn.len(),
+        "prior_gate_m": args.prior_gate,
         "bodies": out,
     }))
 }
@@ -498,6 +515,7 @@ pub(crate) fn patting_fixture() -> Result<Value> {
         seed: 0,
         out: None,
         json: true,
+        prior_gate: DEFAULT_PRIOR_GATE_M,
     };
     let mut v = evaluate(&args)?;
     strip_timings(&mut v);

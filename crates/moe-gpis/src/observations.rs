@@ -302,6 +302,25 @@ impl Observations {
             .collect()
     }
 
+    /// Drops the contacts for which `keep` is false (other observations stay); returns how many
+    /// were dropped.
+    pub fn retain_contacts(&mut self, keep: impl Fn(&Point3) -> bool) -> usize {
+        let before = self.points.len();
+        let mut k = 0;
+        for i in 0..before {
+            if self.kinds[i] != ObservationKind::Contact || keep(&self.points[i]) {
+                self.points.swap(k, i);
+                self.values.swap(k, i);
+                self.kinds.swap(k, i);
+                k += 1;
+            }
+        }
+        self.points.truncate(k);
+        self.values.truncate(k);
+        self.kinds.truncate(k);
+        before - k
+    }
+
     /// Number of observations with a negative SDF value (inside).
     pub fn num_interior(&self) -> usize {
         self.values.iter().filter(|v| **v < 0.0).count()
@@ -311,6 +330,25 @@ impl Observations {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn retain_contacts_keeps_other_observations_and_the_order() {
+        let c = [
+            Point3::new(0.0, 0.0, 1.0),
+            Point3::new(5.0, 0.0, 0.0),
+            Point3::new(0.0, 1.0, 0.0),
+        ];
+        let mut o = Observations::from_contacts(&c).unwrap();
+        o.add_interior(Point3::new(9.0, 0.0, 0.0), -1.0).unwrap();
+        let dropped = o.retain_contacts(|p| p.x < 1.0);
+        assert_eq!(dropped, 1);
+        assert_eq!(o.contacts(), vec![c[0], c[2]]);
+        assert_eq!(o.len(), 3);
+        assert_eq!(o.kinds()[2], ObservationKind::Interior);
+        assert_eq!(o.values(), &[0.0, 0.0, -1.0]);
+        assert_eq!(o.retain_contacts(|_| false), 2);
+        assert_eq!(o.len(), 1);
+    }
 
     #[test]
     fn builders_set_values_and_kinds() {

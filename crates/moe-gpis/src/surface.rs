@@ -74,6 +74,12 @@ pub struct SurfaceOptions {
     pub bounds: Option<Aabb>,
     /// Settings of the non-probabilistic baseline.
     pub nonprob: NonProbConfig,
+    /// For the methods with a prior: contacts farther than this from the (registered) prior's
+    /// surface are left out before the surface is built, as false contacts (metres; `None`
+    /// keeps every contact). A task prior is another body of the same family, a few millimetres
+    /// from the truth, so a contact centimetres away from it is more likely a false alarm of
+    /// the contact estimator than a feature of the body.
+    pub prior_gate_m: Option<Real>,
 }
 
 impl Default for SurfaceOptions {
@@ -84,6 +90,7 @@ impl Default for SurfaceOptions {
             normal_offset_m: 0.005,
             bounds: None,
             nonprob: NonProbConfig::default(),
+            prior_gate_m: None,
         }
     }
 }
@@ -105,6 +112,8 @@ pub struct PreparedMean {
     pub registration: Option<IcpReport>,
     /// The fitted sphere ([`SurfaceMethod::Sphere`]).
     pub sphere: Option<SphereMean>,
+    /// Contacts left out by [`SurfaceOptions::prior_gate_m`].
+    pub gated_contacts: usize,
 }
 
 impl std::fmt::Debug for PreparedMean {
@@ -114,6 +123,7 @@ impl std::fmt::Debug for PreparedMean {
             .field("bounds", &self.bounds)
             .field("registration", &self.registration)
             .field("sphere", &self.sphere)
+            .field("gated_contacts", &self.gated_contacts)
             .finish_non_exhaustive()
     }
 }
@@ -137,6 +147,8 @@ pub struct SurfaceResult {
     pub registration: Option<IcpReport>,
     /// The fitted sphere ([`SurfaceMethod::Sphere`]).
     pub sphere: Option<SphereMean>,
+    /// Contacts left out by [`SurfaceOptions::prior_gate_m`].
+    pub gated_contacts: usize,
     /// Grid nodes along each axis (GP methods).
     pub grid_dims: Option<[usize; 3]>,
     /// Per-stage wall times (GP methods).
@@ -223,6 +235,7 @@ pub fn prepare_mean(
     let mut obs = observations.clone();
     let mut registration = None;
     let mut sphere = None;
+    let mut gated_contacts = 0;
     let (mean, bounds): (Box<dyn MeanFunction>, Option<Aabb>) = match &options.method {
         SurfaceMethod::Prior { registration: icp } => {
             let given = require_prior(&options.method, prior)?;
@@ -236,6 +249,7 @@ pub fn prepare_mean(
             };
             let prior = registered.as_ref().unwrap_or(given);
             let sdf = MeshSdfMean::new(prior)?;
+            gated_contacts = gate_contacts(&mut obs, &sdf, options.prior_gate_m)?;
             let bounds = query_bounds(&obs, Some(prior), None);
             (Box::new(sdf), bounds)
         }
@@ -279,7 +293,33 @@ pub fn prepare_mean(
         bounds,
         registration,
         sphere,
+        gated_contacts,
     })
+}
+
+/// Applies [`SurfaceOptions::prior_gate_m`] to the contacts of `obs` against the prior's signed
+/// distance; returns how many were left out.
+fn gate_contacts(
+    obs: &mut Observations,
+    prior: &MeshSdfMean,
+    gate: Option<Real>,
+) -> Result<usize, GpisError> {
+    let Some(gate) = gate else {
+        return Ok(0);
+    };
+    if !(gate.is_finite() && gate > 0.0) {
+        return Err(GpisError::InvalidParameter {
+            name: "prior_gate_m",
+            value: gate,
+            reason: "must be finite and positive",
+        });
+    }
+    let dropped =
+        obs.retain_contacts(|p| prior.value_within(p, gate).is_some_and(|v| v.abs() <= gate));
+    if obs.contacts().is_empty() {
+        return Err(too_few("contacts within the prior gate", 1, 0));
+    }
+    Ok(dropped)
 }
 
 /// Conditions a GP method without meshing: the posterior, for queries at points.
@@ -326,10 +366,15 @@ pub fn reconstruct_surface(
     let t = Instant::now();
     if let SurfaceMethod::NonProbabilistic = options.method {
         let prior = require_prior(&options.method, prior)?;
-        let contacts = observations.contacts();
-        if contacts.is_empty() {
+        if observations.contacts().is_empty() {
             return Err(too_few("contacts", 1, 0));
         }
+        let mut obs = observations.clone();
+        let gated_contacts = match options.prior_gate_m {
+            Some(_) => gate_contacts(&mut obs, &MeshSdfMean::new(prior)?, options.prior_gate_m)?,
+            None => 0,
+        };
+        let contacts = obs.contacts();
         let mesh = nonprobabilistic(prior, &contacts, &options.nonprob)?;
         return Ok((
             SurfaceResult {
@@ -340,6 +385,7 @@ pub fn reconstruct_surface(
                 condition: None,
                 registration: None,
                 sphere: None,
+                gated_contacts,
                 grid_dims: None,
                 timings: None,
                 secs: t.elapsed().as_secs_f64(),
@@ -364,6 +410,7 @@ pub fn reconstruct_surface(
             condition: Some(rec.report),
             registration: prepared.registration,
             sphere: prepared.sphere,
+            gated_contacts: prepared.gated_contacts,
             grid_dims: Some(rec.grid.dims),
             timings: Some(rec.timings),
             secs,
@@ -450,6 +497,74 @@ mod tests {
         // A constant has no normals to offset along: the contacts and one interior point.
         assert_eq!(rec.observations, 150 + 1);
         rec.mesh.require_closed().unwrap();
+    }
+
+    /// False contacts far from the prior: the gate leaves exactly those out, for the GP and the
+    /// baseline, and the surface then stays near the body; a bad gate and a gate that leaves
+    /// nothing are errors.
+    #[test]
+    fn the_prior_gate_leaves_out_far_contacts() {
+        let r = 0.08;
+        let mut contacts = cap_contacts(r, 120);
+        let outliers = [
+            Point3::new(0.0, 0.0, 1.5 * r),
+            Point3::new(1.4 * r, 0.2 * r, 0.3 * r),
+            Point3::new(-0.2 * r, 1.45 * r, 0.1 * r),
+        ];
+        contacts.add_contacts(&outliers).unwrap();
+        let prior = icosphere(3, 1.05 * r);
+        let gated = |method| SurfaceOptions {
+            prior_gate_m: Some(0.01),
+            ..small(method)
+        };
+        for method in [
+            SurfaceMethod::Prior { registration: None },
+            SurfaceMethod::NonProbabilistic,
+        ] {
+            let name = method.name();
+            let (all, _) =
+                reconstruct_surface(&contacts, Some(&prior), &small(method.clone())).unwrap();
+            let (kept, _) = reconstruct_surface(&contacts, Some(&prior), &gated(method)).unwrap();
+            assert_eq!(all.gated_contacts, 0, "{name}");
+            assert_eq!(kept.gated_contacts, outliers.len(), "{name}");
+            // An outlier pulls the GP's surface to itself (0.4–0.5 r off); without them every
+            // vertex is within 0.2 r.
+            let worst = |mesh: &TriMesh| {
+                mesh.vertices()
+                    .iter()
+                    .map(|p| (p.coords.norm() - r).abs())
+                    .fold(0.0, Real::max)
+            };
+            let (e_all, e_kept) = (worst(&all.mesh), worst(&kept.mesh));
+            assert!(e_kept < 0.2 * r, "{name}: gated {e_kept}");
+            // The baseline's smoothing pulls a lone moved vertex back, so only the GP shows
+            // the outliers.
+            if name == "gp_prior" {
+                assert!(e_all > 0.3 * r, "{name}: all {e_all}");
+            }
+        }
+        // The sphere has no prior: the gate does not apply.
+        let (sphere, _) =
+            reconstruct_surface(&contacts, Some(&prior), &gated(SurfaceMethod::Sphere)).unwrap();
+        assert_eq!(sphere.gated_contacts, 0);
+        for bad in [0.0, -0.01, Real::NAN] {
+            let options = SurfaceOptions {
+                prior_gate_m: Some(bad),
+                ..small(SurfaceMethod::Prior { registration: None })
+            };
+            assert!(matches!(
+                prepare_mean(&contacts, Some(&prior), &options),
+                Err(GpisError::InvalidParameter {
+                    name: "prior_gate_m",
+                    ..
+                })
+            ));
+        }
+        let far = Observations::from_contacts(&outliers).unwrap();
+        assert!(matches!(
+            reconstruct_surface(&far, Some(&prior), &gated(SurfaceMethod::NonProbabilistic)),
+            Err(GpisError::TooFewObservations { .. })
+        ));
     }
 
     #[test]

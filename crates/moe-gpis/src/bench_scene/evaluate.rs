@@ -55,6 +55,9 @@ pub struct MethodResult {
     pub signal_sd_mm: Option<Real>,
     /// Fitted noise standard deviation, mm (GP methods).
     pub noise_sd_mm: Option<Real>,
+    /// Contacts left out as false by the prior gate (see [`SurfaceOptions::prior_gate_m`]).
+    #[serde(default)]
+    pub gated_contacts: usize,
     /// Why the method failed on this scene (its figures are then NaN, `null` in JSON).
     pub error: Option<String>,
 }
@@ -72,6 +75,7 @@ impl MethodResult {
             lengthscale_mm: None,
             signal_sd_mm: None,
             noise_sd_mm: None,
+            gated_contacts: 0,
             error: Some(err.to_string()),
         }
     }
@@ -122,6 +126,7 @@ fn method_result(
             lengthscale_mm: hyper.map(|h| 1e3 * h.lengthscale),
             signal_sd_mm: hyper.map(|h| 1e3 * h.signal_variance.sqrt()),
             noise_sd_mm: hyper.map(|h| 1e3 * h.noise_variance.sqrt()),
+            gated_contacts: rec.gated_contacts,
             error: None,
         },
         rec.grid_dims.map_or(0, |d| d.iter().product()),
@@ -147,10 +152,19 @@ pub fn evaluate_scene(
     surface: &ReconstructOptions,
     normal_offset_m: Option<Real>,
 ) -> Result<SceneReport, GpisError> {
-    evaluate_scene_with(kind, scene, surface, normal_offset_m, &mut |_, _, _| {})
+    evaluate_scene_with(
+        kind,
+        scene,
+        surface,
+        normal_offset_m,
+        None,
+        &mut |_, _, _| {},
+    )
 }
 
-/// [`evaluate_scene`], handing every method's surface to `sink` (to write or display it).
+/// [`evaluate_scene`], handing every method's surface to `sink` (to write or display it), with
+/// the contacts of the methods with a prior gated by `prior_gate_m` if given (see
+/// [`SurfaceOptions::prior_gate_m`]).
 ///
 /// # Errors
 /// As [`evaluate_scene`].
@@ -159,6 +173,7 @@ pub fn evaluate_scene_with(
     scene: &BenchScene,
     surface: &ReconstructOptions,
     normal_offset_m: Option<Real>,
+    prior_gate_m: Option<Real>,
     sink: &mut MeshSink<'_>,
 ) -> Result<SceneReport, GpisError> {
     let truth = MeshSdfMean::new(&scene.truth)?;
@@ -178,6 +193,7 @@ pub fn evaluate_scene_with(
         lengthscale_mm: None,
         signal_sd_mm: None,
         noise_sd_mm: None,
+        gated_contacts: 0,
         error: None,
     });
     let bounds = crate::reconstruct::bounds_of(&scene.contacts, Some(&scene.prior)).ok_or(
@@ -198,6 +214,7 @@ pub fn evaluate_scene_with(
         surface: *surface,
         normal_offset_m: normal_offset_m.unwrap_or(0.0),
         bounds: Some(bounds),
+        prior_gate_m,
         ..SurfaceOptions::default()
     };
     let mut grid_nodes = 0;
