@@ -336,6 +336,7 @@ pub fn condition_surface(
         registration: prepared.registration,
         sphere: prepared.sphere,
         observations: prepared.observations.len(),
+        gated_contacts: prepared.gated_contacts,
     };
     let (gpis, cond) = condition(prepared.mean, &prepared.observations, &options.surface.gpis)?;
     Ok((gpis, cond, report))
@@ -350,6 +351,9 @@ pub struct PreparedMeanReport {
     pub sphere: Option<SphereMean>,
     /// Observations conditioned on (contacts, offsets, interior points).
     pub observations: usize,
+    /// Contacts left out by [`SurfaceOptions::prior_gate_m`].
+    #[serde(default)]
+    pub gated_contacts: usize,
 }
 
 /// Reconstructs the surface touched at `observations` (contacts, optionally with other

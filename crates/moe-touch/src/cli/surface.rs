@@ -117,6 +117,10 @@ pub(crate) struct SurfaceArgs {
     /// SDF's slope (keep it well below the body's half-thickness); 0 disables them.
     #[arg(long, default_value_t = 0.005)]
     normal_offset: f64,
+    /// With a prior (methods prior and nonprob): leave out contacts farther than this (m) from
+    /// the (registered) prior's surface, as false contacts of a contact estimator.
+    #[arg(long, value_name = "M")]
+    prior_gate: Option<f64>,
     /// Grid nodes along each axis of an equivalent cube (the grid has at most N³ nodes).
     #[arg(long, default_value_t = 64)]
     grid: usize,
@@ -268,6 +272,7 @@ fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
             ..ReconstructOptions::default()
         },
         normal_offset_m: args.normal_offset,
+        prior_gate_m: args.prior_gate,
         ..SurfaceOptions::default()
     })
 }
@@ -325,6 +330,7 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
         insert_fitted(&mut report, rec.registration.as_ref(), rec.sphere.as_ref())?;
         if let Some(cond) = &rec.condition {
             report.insert("observations".into(), json!(rec.observations));
+            report.insert("gated_contacts".into(), json!(rec.gated_contacts));
             insert_condition(&mut report, cond)?;
             report.insert("mesher".into(), json!(mesher_name(&args)));
         }
@@ -346,6 +352,7 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
             fitted.sphere.as_ref(),
         )?;
         report.insert("observations".into(), json!(fitted.observations));
+        report.insert("gated_contacts".into(), json!(fitted.gated_contacts));
         report.insert("mesher".into(), json!(mesher_name(&args)));
         insert_condition(&mut report, &cond)?;
         report.insert("timings".into(), json!({ "fit_secs": cond.secs }));

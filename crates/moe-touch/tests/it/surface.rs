@@ -315,6 +315,58 @@ fn registration_moves_a_displaced_prior_onto_the_contacts() {
     );
 }
 
+/// `--prior-gate`: contacts 10 mm outside a prior are left out by a 5 mm gate and kept by a
+/// 20 mm one; a gate that is not a positive distance is refused.
+#[test]
+fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
+    let dir = scratch("surface-gate");
+    let prior = dir.join("prior.obj");
+    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    let contacts = dir.join("contacts.csv");
+    let mut pts: Vec<Vec<f64>> = sphere_points(0.09, 200, 2)
+        .into_iter()
+        .filter(|p| p[2] > 0.03)
+        .collect();
+    let near = pts.len();
+    pts.extend([vec![0.0, 0.1, 0.0], vec![0.1, 0.0, 0.0]]);
+    moe_io::write_csv(&contacts, &["x", "y", "z"], &pts).unwrap();
+    let out_path = dir.join("s.obj");
+    let gated = |gate: &str| {
+        run_json(&[
+            "surface",
+            "--contacts",
+            contacts.to_str().unwrap(),
+            "--prior",
+            prior.to_str().unwrap(),
+            "--grid",
+            "24",
+            "--prior-gate",
+            gate,
+            "--out",
+            out_path.to_str().unwrap(),
+            "--json",
+        ])
+    };
+    let report = gated("0.005");
+    assert_eq!(report["contacts"], near + 2);
+    assert_eq!(report["gated_contacts"], 2);
+    assert_eq!(gated("0.02")["gated_contacts"], 0);
+    for bad in ["0", "-0.01"] {
+        let gate = format!("--prior-gate={bad}");
+        let err = assert_one_line_error(&run(&[
+            "surface",
+            "--contacts",
+            contacts.to_str().unwrap(),
+            "--prior",
+            prior.to_str().unwrap(),
+            &gate,
+            "--out",
+            out_path.to_str().unwrap(),
+        ]));
+        assert!(err.contains("prior_gate_m"), "{bad}: {err}");
+    }
+}
+
 #[test]
 fn bad_inputs_give_one_line_errors() {
     let dir = scratch("surface-bad");
