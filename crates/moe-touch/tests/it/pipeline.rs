@@ -22,6 +22,9 @@ fn detector(hand: &HandModel, episode: &moe_io::Episode) -> MarkerDetector {
     MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default()).unwrap()
 }
 
+/// The threshold at which the pipeline-equality test turns probabilities into contact points.
+const CHAIN_THRESHOLD: f64 = 0.4;
+
 fn model_path() -> std::path::PathBuf {
     fixtures().join("../models/contact-two-finger.safetensors")
 }
@@ -31,7 +34,9 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
     let hand = hand();
     let episode = episode();
     let model = load_contact_model(&model_path(), &hand).unwrap();
-    let threshold = model.threshold();
+    // Below the card's threshold, so that the frame chain is checked on contact points whatever
+    // the shipped model finds at its own (the equality of the maps does not depend on it).
+    let threshold = CHAIN_THRESHOLD.min(model.threshold());
     let options = ShapeConfig::default();
     let mut pipeline = Pipeline::new(
         hand.clone(),
@@ -75,7 +80,7 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
     }
     assert!(
         contact_frames > 0,
-        "the plate presses the tip: some contact is found"
+        "the plate presses the tip: some vertex is above {threshold}"
     );
 }
 
