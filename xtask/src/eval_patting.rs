@@ -79,11 +79,11 @@ impl Body {
     }
 }
 
-/// Arguments of `cargo xtask eval patting`.
 /// Default of `--prior-gate`: 10 mm, about three times the task priors' distance from their
 /// truths (2–5 mm UCD) and well inside the false contacts' (centimetres).
 const DEFAULT_PRIOR_GATE_M: Real = 0.01;
 
+/// Arguments of `cargo xtask eval patting`.
 #[derive(Debug, Args)]
 pub(crate) struct PattingEvalArgs {
     /// Size: small = one pair, 3 pats per body, 24³ grid, level-4 priors (the golden-checked

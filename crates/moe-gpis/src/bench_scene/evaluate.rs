@@ -232,6 +232,11 @@ pub fn evaluate_scene_with(
                 }
                 methods.push(result);
             }
+            // The baseline fails only on its input, or when the gate leaves no contact: the
+            // latter is the method's failure on this scene, like a degenerate sphere fit.
+            Err(e @ GpisError::TooFewObservations { .. }) => {
+                methods.push(MethodResult::failed(name, &e));
+            }
             Err(e) if name != "nonprob" => methods.push(MethodResult::failed(name, &e)),
             Err(e) => return Err(e),
         }
@@ -242,4 +247,44 @@ pub fn evaluate_scene_with(
         grid_nodes,
         methods,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use moe_geom::shapes::icosphere;
+
+    /// A gate that leaves no contact is a failure of the methods with a prior on this scene,
+    /// reported as such; the sphere and the report itself go on.
+    #[test]
+    fn a_gate_that_leaves_no_contact_fails_the_prior_methods_not_the_scene() {
+        let scene = BenchScene {
+            truth: icosphere(2, 0.08),
+            prior: icosphere(2, 0.08),
+            // Every contact 20 mm outside the prior.
+            contacts: icosphere(1, 0.1).vertices().to_vec(),
+        };
+        let surface = ReconstructOptions {
+            max_grid_nodes: 16 * 16 * 16,
+            vertex_variance: false,
+            ..ReconstructOptions::default()
+        };
+        let report = evaluate_scene_with(
+            SceneKind::Head,
+            &scene,
+            &surface,
+            None,
+            Some(0.01),
+            &mut |_, _, _| {},
+        )
+        .unwrap();
+        for name in ["gp_prior", "nonprob"] {
+            let m = report.method(name).unwrap();
+            assert!(
+                m.error.as_deref().is_some_and(|e| e.contains("gate")),
+                "{name}: {m:?}"
+            );
+        }
+        assert!(report.method("gp_sphere").unwrap().error.is_none());
+    }
 }

@@ -228,6 +228,9 @@ fn method_of(args: &SurfaceArgs) -> Result<SurfaceMethod> {
 }
 
 fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
+    if args.prior_gate.is_some() && matches!(args.method, Method::Sphere | Method::Constant) {
+        bail!("--prior-gate needs a method with a prior (prior or nonprob)");
+    }
     let fixed = match (args.lengthscale, args.signal_variance, args.noise_variance) {
         (Some(lengthscale), Some(signal_variance), Some(noise_variance)) => Some(Hyper {
             signal_variance,
@@ -328,9 +331,9 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
             moe_io::write_ply(vpath, &ply)?;
         }
         insert_fitted(&mut report, rec.registration.as_ref(), rec.sphere.as_ref())?;
+        report.insert("gated_contacts".into(), json!(rec.gated_contacts));
         if let Some(cond) = &rec.condition {
             report.insert("observations".into(), json!(rec.observations));
-            report.insert("gated_contacts".into(), json!(rec.gated_contacts));
             insert_condition(&mut report, cond)?;
             report.insert("mesher".into(), json!(mesher_name(&args)));
         }

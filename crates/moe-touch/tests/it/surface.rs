@@ -316,7 +316,8 @@ fn registration_moves_a_displaced_prior_onto_the_contacts() {
 }
 
 /// `--prior-gate`: contacts 10 mm outside a prior are left out by a 5 mm gate and kept by a
-/// 20 mm one; a gate that is not a positive distance is refused.
+/// 20 mm one, for the GP and the baseline; a gate that is not a positive distance, or one for
+/// a method without a prior, is refused.
 #[test]
 fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
     let dir = scratch("surface-gate");
@@ -331,13 +332,15 @@ fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
     pts.extend([vec![0.0, 0.1, 0.0], vec![0.1, 0.0, 0.0]]);
     moe_io::write_csv(&contacts, &["x", "y", "z"], &pts).unwrap();
     let out_path = dir.join("s.obj");
-    let gated = |gate: &str| {
+    let gated = |method: &str, gate: &str| {
         run_json(&[
             "surface",
             "--contacts",
             contacts.to_str().unwrap(),
             "--prior",
             prior.to_str().unwrap(),
+            "--method",
+            method,
             "--grid",
             "24",
             "--prior-gate",
@@ -347,10 +350,25 @@ fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
             "--json",
         ])
     };
-    let report = gated("0.005");
-    assert_eq!(report["contacts"], near + 2);
-    assert_eq!(report["gated_contacts"], 2);
-    assert_eq!(gated("0.02")["gated_contacts"], 0);
+    for method in ["prior", "nonprob"] {
+        let report = gated(method, "0.005");
+        assert_eq!(report["contacts"], near + 2, "{method}");
+        assert_eq!(report["gated_contacts"], 2, "{method}");
+        assert_eq!(gated(method, "0.02")["gated_contacts"], 0, "{method}");
+    }
+    // A method without a prior has nothing to gate against.
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--prior-gate",
+        "0.005",
+        "--out",
+        out_path.to_str().unwrap(),
+    ]));
+    assert!(err.contains("needs a method with a prior"), "{err}");
     for bad in ["0", "-0.01"] {
         let gate = format!("--prior-gate={bad}");
         let err = assert_one_line_error(&run(&[
