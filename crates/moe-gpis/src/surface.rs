@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::GpisError;
 use crate::mean::{ConstantMean, MeanFunction, MeshSdfMean, SphereMean};
 use crate::nonprob::{NonProbConfig, nonprobabilistic};
-use crate::observations::Observations;
+use crate::observations::{ObservationKind, Observations};
 use crate::posterior::Gpis;
 use crate::reconstruct::{
     ConditionReport, ReconstructOptions, Timings, bounds_of, condition, reconstruct,
@@ -249,7 +249,9 @@ pub fn prepare_mean(
             };
             let prior = registered.as_ref().unwrap_or(given);
             let sdf = MeshSdfMean::new(prior)?;
-            gated_contacts = gate_contacts(&mut obs, &sdf, options.prior_gate_m)?;
+            if let Some(gate) = options.prior_gate_m {
+                gated_contacts = gate_contacts(&mut obs, &sdf, gate)?;
+            }
             let bounds = query_bounds(&obs, Some(prior), None);
             (Box::new(sdf), bounds)
         }
@@ -297,16 +299,13 @@ pub fn prepare_mean(
     })
 }
 
-/// Applies [`SurfaceOptions::prior_gate_m`] to the contacts of `obs` against the prior's signed
-/// distance; returns how many were left out.
+/// Leaves out the contacts of `obs` farther than `gate` ([`SurfaceOptions::prior_gate_m`])
+/// from the prior's surface; returns how many.
 fn gate_contacts(
     obs: &mut Observations,
     prior: &MeshSdfMean,
-    gate: Option<Real>,
+    gate: Real,
 ) -> Result<usize, GpisError> {
-    let Some(gate) = gate else {
-        return Ok(0);
-    };
     if !(gate.is_finite() && gate > 0.0) {
         return Err(GpisError::InvalidParameter {
             name: "prior_gate_m",
@@ -316,7 +315,7 @@ fn gate_contacts(
     }
     let dropped =
         obs.retain_contacts(|p| prior.value_within(p, gate).is_some_and(|v| v.abs() <= gate));
-    if obs.contacts().is_empty() {
+    if !obs.kinds().contains(&ObservationKind::Contact) {
         return Err(too_few("contacts within the prior gate", 1, 0));
     }
     Ok(dropped)
@@ -373,12 +372,14 @@ pub fn reconstruct_surface(
         if observations.contacts().is_empty() {
             return Err(too_few("contacts", 1, 0));
         }
-        let mut obs = observations.clone();
-        let gated_contacts = match options.prior_gate_m {
-            Some(_) => gate_contacts(&mut obs, &MeshSdfMean::new(prior)?, options.prior_gate_m)?,
-            None => 0,
+        let (contacts, gated_contacts) = match options.prior_gate_m {
+            Some(gate) => {
+                let mut obs = observations.clone();
+                let gated = gate_contacts(&mut obs, &MeshSdfMean::new(prior)?, gate)?;
+                (obs.contacts(), gated)
+            }
+            None => (observations.contacts(), 0),
         };
-        let contacts = obs.contacts();
         let mesh = nonprobabilistic(prior, &contacts, &options.nonprob)?;
         return Ok((
             SurfaceResult {

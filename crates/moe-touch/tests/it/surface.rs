@@ -16,6 +16,13 @@ fn sphere_points(r: f64, n: usize, seed: u64) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Writes the prior most tests use, a 9 cm level-3 icosphere, as `dir/prior.obj`.
+fn sphere_prior(dir: &std::path::Path) -> std::path::PathBuf {
+    let prior = dir.join("prior.obj");
+    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    prior
+}
+
 #[test]
 fn sphere_method_reconstructs_a_sphere_and_reports_fitted_hyper_parameters() {
     let dir = scratch("surface-sphere");
@@ -56,8 +63,7 @@ fn sphere_method_reconstructs_a_sphere_and_reports_fitted_hyper_parameters() {
 #[test]
 fn prior_method_writes_variance_and_answers_queries_in_order() {
     let dir = scratch("surface-prior");
-    let prior = dir.join("prior.obj");
-    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    let prior = sphere_prior(&dir);
     let contacts = dir.join("contacts.csv");
     // The body is 10 mm larger than the prior on the patted cap.
     let pts: Vec<Vec<f64>> = sphere_points(0.1, 300, 2)
@@ -155,8 +161,7 @@ fn prior_method_writes_variance_and_answers_queries_in_order() {
 #[test]
 fn nonprob_baseline_writes_a_closed_mesh() {
     let dir = scratch("surface-nonprob");
-    let prior = dir.join("prior.obj");
-    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    let prior = sphere_prior(&dir);
     let contacts = dir.join("contacts.csv");
     moe_io::write_csv(&contacts, &[], &sphere_points(0.095, 50, 3)).unwrap();
     let out_path = dir.join("np.obj");
@@ -321,8 +326,7 @@ fn registration_moves_a_displaced_prior_onto_the_contacts() {
 #[test]
 fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
     let dir = scratch("surface-gate");
-    let prior = dir.join("prior.obj");
-    moe_io::write_mesh(&prior, &icosphere(3, 0.09)).unwrap();
+    let prior = sphere_prior(&dir);
     let contacts = dir.join("contacts.csv");
     let mut pts: Vec<Vec<f64>> = sphere_points(0.09, 200, 2)
         .into_iter()
