@@ -34,14 +34,40 @@ pub(crate) struct GraspEvalArgs {
     seed: u64,
     /// Fit the plane to the simulator's own contacts instead of the pipeline's (the upper bound
     /// a perfect contact estimator reaches).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "true_labels")]
     true_contacts: bool,
+    /// Fit the plane to the simulator's contact vertices placed on the pipeline's estimated
+    /// shape (a perfect contact classifier on the shape the markers give: separates the shape
+    /// estimate's error from the contact model's).
+    #[arg(long)]
+    true_labels: bool,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
 }
 
-fn evaluate(trials: u64, model: &std::path::Path, seed: u64, truth: bool) -> Result<Value> {
+/// Where the plane's points come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Source {
+    /// The pipeline's contacts.
+    Pipeline,
+    /// The simulator's labels on the pipeline's shape.
+    TrueLabels,
+    /// The simulator's contact vertices.
+    TrueContacts,
+}
+
+impl Source {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Pipeline => "pipeline",
+            Self::TrueLabels => "true-labels",
+            Self::TrueContacts => "true-contacts",
+        }
+    }
+}
+
+fn evaluate(trials: u64, model: &std::path::Path, seed: u64, source: Source) -> Result<Value> {
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
     let estimator = load_contact_model(&workspace_root().join(model), &hand)?;
     let threshold = estimator.threshold();
@@ -51,13 +77,15 @@ fn evaluate(trials: u64, model: &std::path::Path, seed: u64, truth: bool) -> Res
         let t = std::time::Instant::now();
         let results: Vec<GraspTrial> = (0..trials)
             .map(|k| {
-                let contacts = if truth {
-                    GraspContacts::Simulator
-                } else {
-                    GraspContacts::Pipeline {
+                let contacts = match source {
+                    Source::Pipeline => GraspContacts::Pipeline {
                         contact: &estimator,
                         threshold,
-                    }
+                    },
+                    Source::TrueLabels => GraspContacts::SimulatorLabelsOnEstimatedShape {
+                        contact: &estimator,
+                    },
+                    Source::TrueContacts => GraspContacts::Simulator,
                 };
                 run_grasp_trial(&hand, contacts, incline, k, seed, &options)
             })
@@ -84,10 +112,13 @@ fn evaluate(trials: u64, model: &std::path::Path, seed: u64, truth: bool) -> Res
             "trials_detail": results,
         }));
     }
-    Ok(json!({ "options": options, "threshold": threshold, "true_contacts": truth, "rows": rows }))
+    Ok(
+        json!({ "options": options, "threshold": threshold, "contacts": source.name(), "rows": rows }),
+    )
 }
 
 fn print_table(v: &Value) {
+    println!("plane from: {}", v["contacts"].as_str().unwrap_or("?"));
     println!(
         "incline   with MOE-Touch  (paper)   without  (paper)   incline error max   fits failed"
     );
@@ -133,7 +164,14 @@ fn print_table(v: &Value) {
 }
 
 pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
-    let v = evaluate(args.trials, &args.model, args.seed, args.true_contacts)?;
+    let source = if args.true_contacts {
+        Source::TrueContacts
+    } else if args.true_labels {
+        Source::TrueLabels
+    } else {
+        Source::Pipeline
+    };
+    let v = evaluate(args.trials, &args.model, args.seed, source)?;
     if args.json {
         println!("{}", serde_json::to_string(&v)?);
     } else {
@@ -144,7 +182,7 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
 
 /// The golden content of one trial per incline, rounded to 1e-3.
 pub(crate) fn grasp_fixture() -> Result<Value> {
-    let mut v = evaluate(1, std::path::Path::new(SHIPPED_MODEL), 0, false)?;
+    let mut v = evaluate(1, std::path::Path::new(SHIPPED_MODEL), 0, Source::Pipeline)?;
     crate::eval_patting::round3(&mut v);
     Ok(v)
 }

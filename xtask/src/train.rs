@@ -104,6 +104,15 @@ pub(crate) struct TrainArgs {
     /// computed, as an occluded or missed marker is at run time.
     #[arg(long, value_name = "P", default_value_t = 0.0)]
     marker_dropout: f64,
+    /// Probability that a training frame's finger has its most distal markers hidden together
+    /// (a run of 1 to `--marker-tip-run` markers) before its SR-ARAP shape is computed, as a
+    /// pressing fingertip's are from the wrist camera.
+    #[arg(long, value_name = "P", default_value_t = 0.0)]
+    marker_tip_occlusion: f64,
+    /// Longest run of distal markers `--marker-tip-occlusion` hides.
+    #[arg(long, value_name = "N", default_value_t = 3,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=64))]
+    marker_tip_run: usize,
 }
 
 fn width_parser() -> clap::builder::RangedU64ValueParser<usize> {
@@ -314,6 +323,8 @@ fn write_model(
         "input_shape": args.input_shape,
         "marker_noise_m": args.marker_noise,
         "marker_dropout": args.marker_dropout,
+        "marker_tip_occlusion": args.marker_tip_occlusion,
+        "marker_tip_run": args.marker_tip_run,
         "init": args.init.as_ref().map(|p| p.display().to_string()),
         "config": config,
         "contact_weight": trainer.contact_weight(),
@@ -365,17 +376,19 @@ fn write_model(
 
 /// The marker perturbation of the training frames' SR-ARAP shapes, if any, checked.
 fn marker_augmentation(args: &TrainArgs) -> Result<Option<MarkerAugmentation>> {
-    if args.marker_noise == 0.0 && args.marker_dropout == 0.0 {
+    if args.marker_noise == 0.0 && args.marker_dropout == 0.0 && args.marker_tip_occlusion == 0.0 {
         return Ok(None);
     }
     if args.input_shape == InputShapeArg::Simulated {
         bail!(
-            "--marker-noise and --marker-dropout perturb SR-ARAP shapes: use --input-shape sr-arap or both"
+            "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb SR-ARAP shapes: use --input-shape sr-arap or both"
         );
     }
     let augmentation = MarkerAugmentation {
         noise_sd_m: args.marker_noise,
         drop_probability: args.marker_dropout,
+        distal_occlusion_probability: args.marker_tip_occlusion,
+        max_distal_occluded: args.marker_tip_run,
         seed: args.seed,
     };
     augmentation.validate()?;
@@ -719,7 +732,7 @@ mod tests {
     #[test]
     fn bad_options_are_refused_before_any_data_loads() {
         use clap::Parser;
-        let cases: [(&[&str], &str); 4] = [
+        let cases: [(&[&str], &str); 5] = [
             (
                 &["--edge-widths", "8,8"],
                 "--edge-widths takes 3 comma-separated widths, got 2",
@@ -733,8 +746,17 @@ mod tests {
                 "marker drop probability = 1.5: not between 0 and 1",
             ),
             (
-                &["--marker-noise", "0.0002", "--input-shape", "simulated"],
-                "--marker-noise and --marker-dropout perturb SR-ARAP shapes: use --input-shape sr-arap or both",
+                &["--marker-tip-occlusion", "1.5"],
+                "distal marker occlusion probability = 1.5: not between 0 and 1",
+            ),
+            (
+                &[
+                    "--marker-tip-occlusion",
+                    "0.2",
+                    "--input-shape",
+                    "simulated",
+                ],
+                "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb SR-ARAP shapes: use --input-shape sr-arap or both",
             ),
         ];
         for (extra, expected) in cases {

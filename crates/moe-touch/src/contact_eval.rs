@@ -243,8 +243,43 @@ pub struct MarkerAugmentation {
     pub noise_sd_m: Real,
     /// Probability that an observed marker is dropped (treated as occluded).
     pub drop_probability: Real,
+    /// Probability that a finger's most distal markers are hidden together, as a pressing
+    /// fingertip's are from the wrist camera (behind the obstacle or the finger's own bulge):
+    /// structured occlusion that independent drops almost never produce.
+    pub distal_occlusion_probability: Real,
+    /// Length of such a run: uniform from 1 to this many markers (at most all but one of the
+    /// finger's markers are hidden).
+    pub max_distal_occluded: usize,
     /// Seed; the `k`-th frame of a call draws from its own stream `k`.
     pub seed: u64,
+}
+
+impl Default for MarkerAugmentation {
+    /// No perturbation; runs of up to 3 distal markers when the occlusion is switched on.
+    fn default() -> Self {
+        Self {
+            noise_sd_m: 0.0,
+            drop_probability: 0.0,
+            distal_occlusion_probability: 0.0,
+            max_distal_occluded: 3,
+            seed: 0,
+        }
+    }
+}
+
+/// Each finger's marker indices from the most distal (farthest along the finger's axis, the
+/// finger frame's z, from its base) to the most proximal: the order in which
+/// [`MarkerAugmentation::distal_occlusion_probability`] hides them.
+pub fn distal_marker_order(hand: &HandModel) -> Vec<Vec<usize>> {
+    hand.fingers()
+        .iter()
+        .map(|f| {
+            let z: Vec<Real> = f.model.marker_positions().iter().map(|p| p.z).collect();
+            let mut order: Vec<usize> = (0..z.len()).collect();
+            order.sort_by(|&a, &b| z[b].total_cmp(&z[a]));
+            order
+        })
+        .collect()
 }
 
 /// Largest accepted [`MarkerAugmentation::noise_sd_m`]: 5 mm, several times any detector's error.
@@ -270,17 +305,43 @@ impl MarkerAugmentation {
                 reason: "not between 0 and 1",
             });
         }
+        if !(0.0..=1.0).contains(&self.distal_occlusion_probability) {
+            return Err(TouchError::InvalidParameter {
+                name: "distal marker occlusion probability",
+                value: self.distal_occlusion_probability,
+                reason: "not between 0 and 1",
+            });
+        }
+        if self.distal_occlusion_probability > 0.0 && self.max_distal_occluded == 0 {
+            return Err(TouchError::InvalidParameter {
+                name: "distal markers occluded at most",
+                value: 0.0,
+                reason: "must be at least 1 when distal occlusion is on",
+            });
+        }
         Ok(())
     }
 
     /// `keypoints` perturbed with `rng`: each observed marker dropped with the drop probability,
-    /// the others moved by the noise. Occluded markers stay occluded.
-    pub fn apply(&self, keypoints: &HandKeypoints, rng: &mut SeededRng) -> HandKeypoints {
+    /// the others moved by the noise; then, finger by finger with the distal occlusion
+    /// probability, a run of the most distal markers hidden (`distal_order` as
+    /// [`distal_marker_order`] gives it; draws for it are made only when the probability is
+    /// positive, so that switching it off reproduces the plain perturbation). Occluded markers
+    /// stay occluded.
+    /// Indices in `distal_order` beyond a finger's markers are skipped.
+    pub fn apply(
+        &self,
+        keypoints: &HandKeypoints,
+        distal_order: &[Vec<usize>],
+        rng: &mut SeededRng,
+    ) -> HandKeypoints {
         let fingers = keypoints
             .fingers
             .iter()
-            .map(|f| {
-                f.iter()
+            .enumerate()
+            .map(|(fi, f)| {
+                let mut out: Vec<Option<Point3>> = f
+                    .iter()
                     .map(|p| {
                         let p = (*p)?;
                         if rng.uniform() < self.drop_probability {
@@ -289,7 +350,22 @@ impl MarkerAugmentation {
                         let n = Vector3::new(rng.normal(), rng.normal(), rng.normal());
                         Some(p + n * self.noise_sd_m)
                     })
-                    .collect()
+                    .collect();
+                if self.distal_occlusion_probability > 0.0
+                    && rng.uniform() < self.distal_occlusion_probability
+                {
+                    let most = self.max_distal_occluded.min(out.len().saturating_sub(1));
+                    if most > 0 {
+                        let run = 1 + ((rng.uniform() * most as Real) as usize).min(most - 1);
+                        let order = distal_order.get(fi).map_or(&[][..], Vec::as_slice);
+                        for &m in order.iter().take(run) {
+                            if let Some(slot) = out.get_mut(m) {
+                                *slot = None;
+                            }
+                        }
+                    }
+                }
+                out
             })
             .collect();
         HandKeypoints { fingers }
@@ -313,6 +389,7 @@ pub fn with_estimated_shapes(
     if let Some(a) = augmentation {
         a.validate()?;
     }
+    let distal_order = distal_marker_order(hand);
     frames
         .par_iter()
         .enumerate()
@@ -323,7 +400,8 @@ pub fn with_estimated_shapes(
                 let shape = match augmentation {
                     Some(a) => {
                         let mut rng = SeededRng::new(a.seed).split(k as u64);
-                        arap.estimate(&a.apply(&frame.markers, &mut rng))?.shape
+                        arap.estimate(&a.apply(&frame.markers, &distal_order, &mut rng))?
+                            .shape
                     }
                     None => arap.estimate(&frame.markers)?.shape,
                 };
@@ -757,21 +835,25 @@ mod tests {
         let mut all = hand.rest_keypoints();
         // An occluded marker stays occluded.
         all.fingers[0][0] = None;
+        let order = distal_marker_order(&hand);
         let none = MarkerAugmentation {
-            noise_sd_m: 0.0,
-            drop_probability: 0.0,
             seed: 1,
+            ..MarkerAugmentation::default()
         };
-        assert_eq!(none.apply(&all, &mut SeededRng::new(3)), all);
+        assert_eq!(none.apply(&all, &order, &mut SeededRng::new(3)), all);
         let aug = MarkerAugmentation {
             noise_sd_m: 2e-4,
             drop_probability: 0.25,
             seed: 1,
+            ..MarkerAugmentation::default()
         };
         let (mut kept, mut dropped, mut sq) = (0usize, 0usize, 0.0);
         for k in 0..400 {
-            let out = aug.apply(&all, &mut SeededRng::new(7).split(k));
-            assert_eq!(out, aug.apply(&all, &mut SeededRng::new(7).split(k)));
+            let out = aug.apply(&all, &order, &mut SeededRng::new(7).split(k));
+            assert_eq!(
+                out,
+                aug.apply(&all, &order, &mut SeededRng::new(7).split(k))
+            );
             assert_eq!(out.fingers[0][0], None);
             for (f, g) in out.fingers.iter().zip(&all.fingers) {
                 for (p, q) in f.iter().zip(g).skip(1) {
@@ -807,9 +889,93 @@ mod tests {
                 drop_probability: -0.1,
                 ..aug
             },
+            MarkerAugmentation {
+                distal_occlusion_probability: 1.1,
+                ..aug
+            },
+            MarkerAugmentation {
+                distal_occlusion_probability: 0.5,
+                max_distal_occluded: 0,
+                ..aug
+            },
         ] {
             assert!(bad.validate().is_err(), "{bad:?}");
         }
+    }
+
+    /// Distal occlusion hides a run of the most distal markers (never all of them) of the asked
+    /// share of fingers, with run lengths spread from 1 to the maximum; switched off, it draws
+    /// nothing, so the plain perturbation is reproduced draw for draw.
+    #[test]
+    fn distal_occlusion_hides_runs_of_tip_markers_at_the_asked_rate() {
+        let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
+        let all = hand.rest_keypoints();
+        let order = distal_marker_order(&hand);
+        // The built-in finger's markers run base to tip, so the tip's is the last.
+        for o in &order {
+            assert_eq!(o.len(), 7);
+            assert_eq!(o[0], 6);
+            assert_eq!(o[6], 0);
+        }
+        let aug = MarkerAugmentation {
+            distal_occlusion_probability: 0.3,
+            max_distal_occluded: 3,
+            ..MarkerAugmentation::default()
+        };
+        let mut runs = [0usize; 4];
+        let mut fingers = 0;
+        for k in 0..600 {
+            let out = aug.apply(&all, &order, &mut SeededRng::new(11).split(k));
+            for (f, o) in out.fingers.iter().zip(&order) {
+                fingers += 1;
+                let hidden = f.iter().filter(|p| p.is_none()).count();
+                assert!(hidden <= 3, "{f:?}");
+                // The hidden ones are exactly the `hidden` most distal.
+                for (rank, &m) in o.iter().enumerate() {
+                    assert_eq!(f[m].is_none(), rank < hidden, "{f:?}");
+                }
+                runs[hidden] += 1;
+            }
+        }
+        let rate = (fingers - runs[0]) as Real / fingers as Real;
+        assert!((rate - 0.3).abs() < 0.03, "occluded fingers {rate}");
+        for (len, &n) in runs.iter().enumerate().skip(1) {
+            let share = n as Real / (fingers - runs[0]) as Real;
+            assert!((share - 1.0 / 3.0).abs() < 0.06, "runs of {len}: {share}");
+        }
+        // A run never hides a finger's last marker.
+        let one = HandKeypoints {
+            fingers: vec![vec![all.fingers[0][0]]; 3],
+        };
+        let every = MarkerAugmentation {
+            distal_occlusion_probability: 1.0,
+            ..aug
+        };
+        assert_eq!(every.apply(&one, &order, &mut SeededRng::new(1)), one);
+        // Off: exactly the draws of the plain perturbation (drop, then three normals, per
+        // observed marker), and none more.
+        let plain = MarkerAugmentation {
+            noise_sd_m: 1e-4,
+            drop_probability: 0.2,
+            ..MarkerAugmentation::default()
+        };
+        let mut rng = SeededRng::new(5);
+        let out = plain.apply(&all, &order, &mut rng);
+        let mut reference = SeededRng::new(5);
+        for (f, g) in out.fingers.iter().zip(&all.fingers) {
+            for (p, q) in f.iter().zip(g) {
+                let q = q.unwrap();
+                let expected = if reference.uniform() < 0.2 {
+                    None
+                } else {
+                    let n =
+                        Vector3::new(reference.normal(), reference.normal(), reference.normal());
+                    Some(q + n * 1e-4)
+                };
+                assert_eq!(*p, expected);
+            }
+        }
+        assert_eq!(rng.uniform(), reference.uniform());
     }
 
     #[test]
@@ -846,7 +1012,7 @@ mod tests {
         let drop_all = MarkerAugmentation {
             noise_sd_m: 1e-4,
             drop_probability: 1.0,
-            seed: 0,
+            ..MarkerAugmentation::default()
         };
         let dropped = with_estimated_shapes(&hand, &frames, &options, Some(&drop_all)).unwrap();
         for f in &dropped {

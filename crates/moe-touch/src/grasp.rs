@@ -179,6 +179,14 @@ pub enum GraspContacts<C> {
         /// Its contact threshold.
         threshold: Real,
     },
+    /// The simulator's contact vertices placed where the pipeline's estimated shape puts them
+    /// (the pipeline runs with this contact estimator, whose own output is not used): a perfect
+    /// contact classifier on the shape the markers give, which separates the error of the shape
+    /// estimate from that of the contact classification.
+    SimulatorLabelsOnEstimatedShape {
+        /// The pipeline's contact stage (needed to run it; its probabilities are not used).
+        contact: C,
+    },
     /// The simulator's own contact vertices (the upper bound a perfect estimator reaches).
     Simulator,
 }
@@ -225,8 +233,13 @@ pub fn run_grasp_trial<C: ContactEstimator>(
         Point3::from(f.world_from_hand.translation.vector)
     });
     let mut points: Vec<Point3> = Vec::new();
-    match contacts {
-        GraspContacts::Pipeline { contact, threshold } => {
+    let (contact, threshold, labels_only) = match contacts {
+        GraspContacts::Pipeline { contact, threshold } => (Some(contact), threshold, false),
+        GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => (Some(contact), 1.0, true),
+        GraspContacts::Simulator => (None, 1.0, false),
+    };
+    match contact {
+        Some(contact) => {
             let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
             let detector =
                 MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
@@ -236,10 +249,24 @@ pub fn run_grasp_trial<C: ContactEstimator>(
                 let episode_frame = recorder.frame(&scene, f, k as u64)?;
                 pipeline.reset();
                 let estimate = pipeline.process_episode_frame(&episode_frame)?;
-                points.extend(estimate.contacts_in_world.iter().map(|c| c.point));
+                if labels_only {
+                    let world_from_hand = &estimate.world_from_hand;
+                    for (truth, shape) in f.fingers.iter().zip(&estimate.shape.fingers) {
+                        points.extend(
+                            truth
+                                .labels
+                                .iter()
+                                .zip(shape)
+                                .filter(|(l, _)| **l)
+                                .map(|(_, p)| world_from_hand.transform_point(p)),
+                        );
+                    }
+                } else {
+                    points.extend(estimate.contacts_in_world.iter().map(|c| c.point));
+                }
             }
         }
-        GraspContacts::Simulator => {
+        None => {
             for (_, f) in hold {
                 for finger in &f.fingers {
                     points.extend(
