@@ -352,3 +352,43 @@ fn every_committed_model_loads_and_finds_no_contact_at_rest() {
         }
     }
 }
+
+/// The grasp evaluation's `--true-labels` source places exactly the simulator's contact
+/// vertices, only where the pipeline's estimated shape has them: the same presses and the same
+/// number of points as the simulator's own contacts, a plane that differs from theirs, and both
+/// near the plate's normal.
+#[test]
+fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
+    use moe_touch::grasp::{GraspContacts, GraspOptions, run_grasp_trial};
+    let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
+    let model = load_contact_model(&model_path(), &hand).unwrap();
+    let options = GraspOptions::default();
+    let truth = run_grasp_trial(
+        &hand,
+        GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+        30.0,
+        1,
+        0,
+        &options,
+    )
+    .unwrap();
+    let labels = run_grasp_trial(
+        &hand,
+        GraspContacts::SimulatorLabelsOnEstimatedShape { contact: &model },
+        30.0,
+        1,
+        0,
+        &options,
+    )
+    .unwrap();
+    assert_eq!(labels.first_press, truth.first_press);
+    assert!(truth.estimated_contacts > 0);
+    assert_eq!(labels.estimated_contacts, truth.estimated_contacts);
+    let (on_shape, exact) = (
+        labels.normal_error_deg.unwrap(),
+        truth.normal_error_deg.unwrap(),
+    );
+    assert!(exact < 5.0, "the simulator's contacts: {exact}°");
+    assert!(on_shape != exact, "the positions are the estimated shape's");
+    assert!(on_shape < 15.0, "labels on the estimated shape: {on_shape}°");
+}
