@@ -48,16 +48,18 @@ pub(crate) enum EvalTarget {
 /// Benchmark size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Size {
-    /// Golden-checked: level-4 meshes, 20 contacts per patch, 32³ grid.
+    /// The golden-checked configuration (each evaluation's `--size` says what it holds).
     Small,
-    /// The reported benchmark: level-5 meshes, 50 (head) / 35 (arm) contacts per patch, 64³ grid.
+    /// The reported benchmark.
     Full,
 }
 
 /// Arguments of `cargo xtask eval surface`.
 #[derive(Debug, Args)]
 pub(crate) struct SurfaceEvalArgs {
-    /// Benchmark size.
+    /// Benchmark size: small = level-4 meshes, 20 contacts per patch, 32³ grid (the
+    /// golden-checked configuration); full = level-5 meshes, 50 (head) / 35 (arm) contacts per
+    /// patch, 64³ grid.
     #[arg(long, value_enum, default_value = "full")]
     pub(crate) size: Size,
     /// Scenes per family (different truth, prior and contact seeds); default 8 at full size,
