@@ -5,11 +5,12 @@
 //! (`moe_touch::grasp`). Seeded trials per angle; the table beside the paper's, and the
 //! estimated incline against the true one per trial.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
+use moe_io::PlyData;
 use moe_touch::grasp::{GraspContacts, GraspOptions, GraspTrial, run_grasp_trial};
 use moe_touch::pipeline::load_contact_model;
 use serde_json::{Value, json};
@@ -44,6 +45,36 @@ pub(crate) struct GraspEvalArgs {
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
+    /// Write, per trial, the points the plane was fitted to and the simulator's contact vertices
+    /// of the same frames (world frame) as PLY: `DIR/incline_<deg>/trial_<k>/plane_points.ply`
+    /// (vertex scalars `finger`, `probability`, `inlier`) and `true_contacts.ply` (`finger`).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+/// Writes one trial's points under `dir` (see [`GraspEvalArgs::out`]).
+fn write_trial(dir: &Path, trial: &GraspTrial) -> Result<()> {
+    let dir = dir
+        .join(format!("incline_{}", trial.incline_deg))
+        .join(format!("trial_{}", trial.trial));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let cloud = |points: &[moe_geom::ContactPoint]| {
+        let xyz: Vec<moe_geom::Point3> = points.iter().map(|c| c.point).collect();
+        PlyData::from_points(&xyz).with_scalar("finger", points.iter().map(|c| c.finger as Real))
+    };
+    let mut inlier = vec![0.0; trial.plane_points.len()];
+    for &i in &trial.inlier_indices {
+        inlier[i] = 1.0;
+    }
+    let plane = cloud(&trial.plane_points)
+        .with_scalar(
+            "probability",
+            trial.plane_points.iter().map(|c| c.probability),
+        )
+        .with_scalar("inlier", inlier);
+    moe_io::write_ply(&dir.join("plane_points.ply"), &plane)?;
+    moe_io::write_ply(&dir.join("true_contacts.ply"), &cloud(&trial.true_points))?;
+    Ok(())
 }
 
 /// Where the plane's points come from.
@@ -67,7 +98,13 @@ impl Source {
     }
 }
 
-fn evaluate(trials: u64, model: &std::path::Path, seed: u64, source: Source) -> Result<Value> {
+fn evaluate(
+    trials: u64,
+    model: &Path,
+    seed: u64,
+    source: Source,
+    out: Option<&Path>,
+) -> Result<Value> {
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
     let estimator = load_contact_model(&workspace_root().join(model), &hand)?;
     let threshold = estimator.threshold();
@@ -90,6 +127,11 @@ fn evaluate(trials: u64, model: &std::path::Path, seed: u64, source: Source) -> 
                 run_grasp_trial(&hand, contacts, incline, k, seed, &options)
             })
             .collect::<Result<_, _>>()?;
+        if let Some(dir) = out {
+            for r in &results {
+                write_trial(dir, r)?;
+            }
+        }
         eprintln!(
             "eval grasp: {incline}°: {trials} trials in {:.1} s",
             t.elapsed().as_secs_f64()
@@ -171,7 +213,13 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     } else {
         Source::Pipeline
     };
-    let v = evaluate(args.trials, &args.model, args.seed, source)?;
+    let v = evaluate(
+        args.trials,
+        &args.model,
+        args.seed,
+        source,
+        args.out.as_deref(),
+    )?;
     if args.json {
         println!("{}", serde_json::to_string(&v)?);
     } else {
@@ -182,7 +230,65 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
 
 /// The golden content of one trial per incline, rounded to 1e-3.
 pub(crate) fn grasp_fixture() -> Result<Value> {
-    let mut v = evaluate(1, std::path::Path::new(SHIPPED_MODEL), 0, Source::Pipeline)?;
+    let mut v = evaluate(1, Path::new(SHIPPED_MODEL), 0, Source::Pipeline, None)?;
     crate::eval_patting::round3(&mut v);
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use moe_geom::{ContactPoint, Point3};
+    use moe_touch::grasp::PressOutcome;
+
+    /// `--out` writes a trial's plane points with their finger, probability and inlier flag,
+    /// and the simulator's contacts, and they read back as written.
+    #[test]
+    fn a_trials_points_are_written_and_read_back() {
+        let point = |finger, x: Real, probability| ContactPoint {
+            finger,
+            vertex: 3,
+            point: Point3::new(x, 0.01, -0.02),
+            probability,
+        };
+        let press = PressOutcome {
+            contact_vertices: vec![0, 4, 0],
+            axis_error_deg: 30.0,
+            success: false,
+        };
+        let trial = GraspTrial {
+            incline_deg: 30.0,
+            trial: 2,
+            first_press: press.clone(),
+            estimated_contacts: 3,
+            estimated_normal: None,
+            estimated_incline_deg: None,
+            normal_error_deg: None,
+            inliers: 2,
+            fit_error: None,
+            second_press: None,
+            success_with: false,
+            success_without: false,
+            plane_points: vec![
+                point(0, 0.0, 0.7),
+                point(1, 0.001, 0.9),
+                point(2, 0.002, 0.8),
+            ],
+            inlier_indices: vec![0, 2],
+            true_points: vec![point(1, 0.005, 1.0)],
+        };
+        let dir = std::env::temp_dir().join(format!("xtask-grasp-out-{}", std::process::id()));
+        write_trial(&dir, &trial).unwrap();
+        let base = dir.join("incline_30").join("trial_2");
+        let plane = moe_io::read_ply(&base.join("plane_points.ply")).unwrap();
+        assert_eq!(plane.points.len(), 3);
+        assert!((plane.points[1].x - 0.001).abs() < 1e-9);
+        assert_eq!(plane.scalar("finger").unwrap(), &[0.0, 1.0, 2.0]);
+        assert_eq!(plane.scalar("probability").unwrap(), &[0.7, 0.9, 0.8]);
+        assert_eq!(plane.scalar("inlier").unwrap(), &[1.0, 0.0, 1.0]);
+        let truth = moe_io::read_ply(&base.join("true_contacts.ply")).unwrap();
+        assert_eq!(truth.points.len(), 1);
+        assert_eq!(truth.scalar("finger").unwrap(), &[1.0]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

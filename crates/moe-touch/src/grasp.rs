@@ -12,7 +12,9 @@
 //! initial orientation: its second press is its first.
 
 use moe_geom::math::UnitQuat;
-use moe_geom::{HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, fit_plane_ransac};
+use moe_geom::{
+    ContactPoint, HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, fit_plane_ransac,
+};
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
 use moe_tendon_sim::{Scene, SimFrame, run_saving};
 use serde::Serialize;
@@ -96,6 +98,43 @@ pub struct GraspTrial {
     pub success_with: bool,
     /// Success without: the first press succeeded.
     pub success_without: bool,
+    /// The points the plane was fitted to, world frame (probability 1 for the simulator's
+    /// labels); for display, not serialised.
+    #[serde(skip)]
+    pub plane_points: Vec<ContactPoint>,
+    /// Indices into `plane_points` of the fit's inliers (empty when the fit failed).
+    #[serde(skip)]
+    pub inlier_indices: Vec<usize>,
+    /// The simulator's contact vertices over the same hold frames, world frame.
+    #[serde(skip)]
+    pub true_points: Vec<ContactPoint>,
+}
+
+/// The labelled vertices of a simulated frame, placed at `positions(finger)` (world frame).
+fn labelled_points<'a>(
+    frame: &SimFrame,
+    positions: impl Fn(usize) -> &'a [Point3],
+    transform: impl Fn(&Point3) -> Point3,
+) -> Vec<ContactPoint> {
+    frame
+        .fingers
+        .iter()
+        .enumerate()
+        .flat_map(|(finger, f)| {
+            let at = positions(finger);
+            f.labels
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| **l)
+                .map(|(v, _)| ContactPoint {
+                    finger,
+                    vertex: v as u32,
+                    point: transform(&at[v]),
+                    probability: 1.0,
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
 }
 
 fn angle_deg(a: &Vector3, b: &Vector3) -> Real {
@@ -232,7 +271,15 @@ pub fn run_grasp_trial<C: ContactEstimator>(
     let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
         Point3::from(f.world_from_hand.translation.vector)
     });
-    let mut points: Vec<Point3> = Vec::new();
+    let mut plane_points: Vec<ContactPoint> = Vec::new();
+    let mut true_points: Vec<ContactPoint> = Vec::new();
+    for (_, f) in &hold {
+        true_points.extend(labelled_points(
+            f,
+            |finger| &f.fingers[finger].vertices_in_world,
+            |p| *p,
+        ));
+    }
     let (contact, threshold, labels_only) = match contacts {
         GraspContacts::Pipeline { contact, threshold } => (Some(contact), threshold, false),
         GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => (Some(contact), 1.0, true),
@@ -250,37 +297,19 @@ pub fn run_grasp_trial<C: ContactEstimator>(
                 pipeline.reset();
                 let estimate = pipeline.process_episode_frame(&episode_frame)?;
                 if labels_only {
-                    let world_from_hand = &estimate.world_from_hand;
-                    for (truth, shape) in f.fingers.iter().zip(&estimate.shape.fingers) {
-                        points.extend(
-                            truth
-                                .labels
-                                .iter()
-                                .zip(shape)
-                                .filter(|(l, _)| **l)
-                                .map(|(_, p)| world_from_hand.transform_point(p)),
-                        );
-                    }
+                    plane_points.extend(labelled_points(
+                        f,
+                        |finger| &estimate.shape.fingers[finger],
+                        |p| estimate.world_from_hand.transform_point(p),
+                    ));
                 } else {
-                    points.extend(estimate.contacts_in_world.iter().map(|c| c.point));
+                    plane_points.extend_from_slice(&estimate.contacts_in_world);
                 }
             }
         }
-        None => {
-            for (_, f) in hold {
-                for finger in &f.fingers {
-                    points.extend(
-                        finger
-                            .labels
-                            .iter()
-                            .zip(&finger.vertices_in_world)
-                            .filter(|(l, _)| **l)
-                            .map(|(_, p)| *p),
-                    );
-                }
-            }
-        }
+        None => plane_points.clone_from(&true_points),
     }
+    let points: Vec<Point3> = plane_points.iter().map(|c| c.point).collect();
     let mut trial_report = GraspTrial {
         incline_deg,
         trial,
@@ -294,6 +323,9 @@ pub fn run_grasp_trial<C: ContactEstimator>(
         second_press: None,
         success_with: false,
         success_without: first_press.success,
+        plane_points,
+        inlier_indices: Vec::new(),
+        true_points,
     };
     let fit = match fit_plane_ransac(&points, &options.ransac) {
         Ok(fit) => fit.oriented_toward(&wrist),
@@ -307,6 +339,7 @@ pub fn run_grasp_trial<C: ContactEstimator>(
     trial_report.estimated_incline_deg = Some(angle_deg(&n_est, &Vector3::z()));
     trial_report.normal_error_deg = Some(angle_deg(&n_est, &normal));
     trial_report.inliers = fit.inliers.len();
+    trial_report.inlier_indices.clone_from(&fit.inliers);
 
     // Turn the hand's axis onto −n̂ by the smallest rotation, and press again.
     let axis = rotation * Vector3::z();

@@ -390,5 +390,8 @@ fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
     );
     assert!(exact < 5.0, "the simulator's contacts: {exact}°");
     assert!(on_shape != exact, "the positions are the estimated shape's");
-    assert!(on_shape < 15.0, "labels on the estimated shape: {on_shape}°");
+    assert!(
+        on_shape < 15.0,
+        "labels on the estimated shape: {on_shape}°"
+    );
 }
