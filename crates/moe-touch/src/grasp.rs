@@ -110,7 +110,8 @@ pub struct GraspTrial {
     pub true_points: Vec<ContactPoint>,
 }
 
-/// The labelled vertices of a simulated frame, placed at `positions(finger)` (world frame).
+/// The labelled vertices of a simulated frame, placed at `positions(finger)` transformed into
+/// the world frame (a vertex `positions` does not have is skipped).
 fn labelled_points<'a>(
     frame: &SimFrame,
     positions: impl Fn(usize) -> &'a [Point3],
@@ -124,12 +125,13 @@ fn labelled_points<'a>(
             let at = positions(finger);
             f.labels
                 .iter()
+                .zip(at)
                 .enumerate()
-                .filter(|(_, l)| **l)
-                .map(|(v, _)| ContactPoint {
+                .filter(|(_, (l, _))| **l)
+                .map(|(v, (_, p))| ContactPoint {
                     finger,
                     vertex: v as u32,
-                    point: transform(&at[v]),
+                    point: transform(p),
                     probability: 1.0,
                 })
                 .collect::<Vec<_>>()
@@ -299,7 +301,13 @@ pub fn run_grasp_trial<C: ContactEstimator>(
                 if labels_only {
                     plane_points.extend(labelled_points(
                         f,
-                        |finger| &estimate.shape.fingers[finger],
+                        |finger| {
+                            estimate
+                                .shape
+                                .fingers
+                                .get(finger)
+                                .map_or(&[], Vec::as_slice)
+                        },
                         |p| estimate.world_from_hand.transform_point(p),
                     ));
                 } else {
