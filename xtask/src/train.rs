@@ -109,7 +109,8 @@ pub(crate) struct TrainArgs {
     /// pressing fingertip's are from the wrist camera.
     #[arg(long, value_name = "P", default_value_t = 0.0)]
     marker_tip_occlusion: f64,
-    /// Longest run of distal markers `--marker-tip-occlusion` hides.
+    /// Longest run of distal markers `--marker-tip-occlusion` hides (never more than all but
+    /// one of a finger's markers; without `--marker-tip-occlusion` it has no effect).
     #[arg(long, value_name = "N", default_value_t = 3,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=64))]
     marker_tip_run: usize,

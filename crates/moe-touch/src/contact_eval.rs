@@ -943,15 +943,22 @@ mod tests {
             let share = n as Real / (fingers - runs[0]) as Real;
             assert!((share - 1.0 / 3.0).abs() < 0.06, "runs of {len}: {share}");
         }
-        // A run never hides a finger's last marker.
-        let one = HandKeypoints {
-            fingers: vec![vec![all.fingers[0][0]]; 3],
+        // A run never hides a finger's last marker: a finger of one marker keeps it, a finger
+        // of two loses exactly its distal one, whatever the draws.
+        let m = all.fingers[0][0];
+        let small = HandKeypoints {
+            fingers: vec![vec![m], vec![m, m]],
         };
+        let small_order = vec![vec![0], vec![1, 0]];
         let every = MarkerAugmentation {
             distal_occlusion_probability: 1.0,
             ..aug
         };
-        assert_eq!(every.apply(&one, &order, &mut SeededRng::new(1)), one);
+        for k in 0..50 {
+            let out = every.apply(&small, &small_order, &mut SeededRng::new(1).split(k));
+            assert_eq!(out.fingers[0], vec![m]);
+            assert_eq!(out.fingers[1], vec![m, None]);
+        }
         // Off: exactly the draws of the plain perturbation (drop, then three normals, per
         // observed marker), and none more.
         let plain = MarkerAugmentation {
