@@ -228,6 +228,7 @@ pub fn prepare_mean(
             reason: "must be finite and at least 0",
         });
     }
+    let gate = prior_gate(options)?;
     if observations.is_empty() {
         return Err(too_few("observations", 1, 0));
     }
@@ -249,7 +250,7 @@ pub fn prepare_mean(
             };
             let prior = registered.as_ref().unwrap_or(given);
             let sdf = MeshSdfMean::new(prior)?;
-            if let Some(gate) = options.prior_gate_m {
+            if let Some(gate) = gate {
                 gated_contacts = gate_contacts(&mut obs, &sdf, gate)?;
             }
             let bounds = query_bounds(&obs, Some(prior), None);
@@ -299,20 +300,25 @@ pub fn prepare_mean(
     })
 }
 
-/// Leaves out the contacts of `obs` farther than `gate` ([`SurfaceOptions::prior_gate_m`])
-/// from the prior's surface; returns how many.
+/// [`SurfaceOptions::prior_gate_m`], checked (finite and positive), before any work is done.
+fn prior_gate(options: &SurfaceOptions) -> Result<Option<Real>, GpisError> {
+    match options.prior_gate_m {
+        Some(gate) if !(gate.is_finite() && gate > 0.0) => Err(GpisError::InvalidParameter {
+            name: "prior_gate_m",
+            value: gate,
+            reason: "must be finite and positive",
+        }),
+        gate => Ok(gate),
+    }
+}
+
+/// Leaves out the contacts of `obs` farther than `gate` (checked by [`prior_gate`]) from the
+/// prior's surface; returns how many.
 fn gate_contacts(
     obs: &mut Observations,
     prior: &MeshSdfMean,
     gate: Real,
 ) -> Result<usize, GpisError> {
-    if !(gate.is_finite() && gate > 0.0) {
-        return Err(GpisError::InvalidParameter {
-            name: "prior_gate_m",
-            value: gate,
-            reason: "must be finite and positive",
-        });
-    }
     let dropped =
         obs.retain_contacts(|p| prior.value_within(p, gate).is_some_and(|v| v.abs() <= gate));
     if !obs.kinds().contains(&ObservationKind::Contact) {
@@ -369,10 +375,11 @@ pub fn reconstruct_surface(
     let t = Instant::now();
     if let SurfaceMethod::NonProbabilistic = options.method {
         let prior = require_prior(&options.method, prior)?;
-        if observations.contacts().is_empty() {
+        let gate = prior_gate(options)?;
+        if !observations.kinds().contains(&ObservationKind::Contact) {
             return Err(too_few("contacts", 1, 0));
         }
-        let (contacts, gated_contacts) = match options.prior_gate_m {
+        let (contacts, gated_contacts) = match gate {
             Some(gate) => {
                 let mut obs = observations.clone();
                 let gated = gate_contacts(&mut obs, &MeshSdfMean::new(prior)?, gate)?;

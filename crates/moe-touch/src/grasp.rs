@@ -78,7 +78,8 @@ pub struct GraspTrial {
     pub trial: u64,
     /// The first press (also the whole trial without MOE-Touch).
     pub first_press: PressOutcome,
-    /// Contact points the pipeline estimated during the first press's hold, world frame.
+    /// Points the plane was fitted to: the contact source's over the first press's hold (the
+    /// pipeline's estimates, or the simulator's labels).
     pub estimated_contacts: usize,
     /// The fitted plane's unit normal (toward the hand), world frame; `None` when the fit
     /// failed.

@@ -336,55 +336,39 @@ fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
     pts.extend([vec![0.0, 0.1, 0.0], vec![0.1, 0.0, 0.0]]);
     moe_io::write_csv(&contacts, &["x", "y", "z"], &pts).unwrap();
     let out_path = dir.join("s.obj");
-    let gated = |method: &str, gate: &str| {
-        run_json(&[
-            "surface",
-            "--contacts",
-            contacts.to_str().unwrap(),
-            "--prior",
-            prior.to_str().unwrap(),
-            "--method",
-            method,
-            "--grid",
-            "24",
-            "--prior-gate",
-            gate,
-            "--out",
-            out_path.to_str().unwrap(),
-            "--json",
-        ])
-    };
+    let (c, p, o) = (
+        contacts.to_str().unwrap(),
+        prior.to_str().unwrap(),
+        out_path.to_str().unwrap(),
+    );
+    // Every call is `surface --contacts C --out O` and its own options.
+    let base = ["surface", "--contacts", c, "--out", o];
     for method in ["prior", "nonprob"] {
-        let report = gated(method, "0.005");
+        let gated = |gate| {
+            let extra = [
+                "--prior",
+                p,
+                "--method",
+                method,
+                "--grid",
+                "24",
+                "--prior-gate",
+                gate,
+                "--json",
+            ];
+            run_json(&[&base[..], &extra].concat())
+        };
+        let report = gated("0.005");
         assert_eq!(report["contacts"], near + 2, "{method}");
         assert_eq!(report["gated_contacts"], 2, "{method}");
-        assert_eq!(gated(method, "0.02")["gated_contacts"], 0, "{method}");
+        assert_eq!(gated("0.02")["gated_contacts"], 0, "{method}");
     }
     // A method without a prior has nothing to gate against.
-    let err = assert_one_line_error(&run(&[
-        "surface",
-        "--contacts",
-        contacts.to_str().unwrap(),
-        "--method",
-        "sphere",
-        "--prior-gate",
-        "0.005",
-        "--out",
-        out_path.to_str().unwrap(),
-    ]));
+    let extra = ["--method", "sphere", "--prior-gate", "0.005"];
+    let err = assert_one_line_error(&run(&[&base[..], &extra].concat()));
     assert!(err.contains("needs a method with a prior"), "{err}");
-    for bad in ["0", "-0.01"] {
-        let gate = format!("--prior-gate={bad}");
-        let err = assert_one_line_error(&run(&[
-            "surface",
-            "--contacts",
-            contacts.to_str().unwrap(),
-            "--prior",
-            prior.to_str().unwrap(),
-            &gate,
-            "--out",
-            out_path.to_str().unwrap(),
-        ]));
+    for bad in ["--prior-gate=0", "--prior-gate=-0.01"] {
+        let err = assert_one_line_error(&run(&[&base[..], &["--prior", p, bad]].concat()));
         assert!(err.contains("prior_gate_m"), "{bad}: {err}");
     }
 }
