@@ -136,6 +136,8 @@ enum FeatureArg {
     Xyz,
     RestXyz,
     Deformation,
+    /// The finger's tendon pulls as bending and co-contraction (the same on all its vertices).
+    TendonPull,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -241,7 +243,7 @@ fn normalisation_of(builder: &FeatureBuilder, frames: &[LabelledFrame]) -> Resul
     let mut sq = vec![0.0; c];
     let mut count = 0.0;
     for f in frames {
-        for set in builder.input_sets(&f.shape)? {
+        for set in builder.input_sets_with(&f.shape, Some(&f.tendon_pull_m))? {
             for row in set.chunks_exact(c) {
                 for (ch, &x) in row.iter().enumerate() {
                     sum[ch] += x;
@@ -475,6 +477,7 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
                 FeatureArg::Xyz => InputFeature::Xyz,
                 FeatureArg::RestXyz => InputFeature::RestXyz,
                 FeatureArg::Deformation => InputFeature::Deformation,
+                FeatureArg::TendonPull => InputFeature::TendonPull,
             })
             .collect(),
         frame: match args.point_set {
@@ -488,26 +491,33 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         normalisation: None,
     };
     // Normalise every channel by the training frames' statistics — or, fine-tuning, keep the
-    // normalisation the initial weights were trained with.
-    let init_normalisation = match &args.init {
+    // normalisation the initial weights were trained with for the channels they were trained
+    // on (the features listed first), and the training frames' for any added after them.
+    let init_input = match &args.init {
         Some(path) => moe_io::read_model_files(path)?
             .card
             .map(|text| ModelCard::from_json(&text))
             .transpose()?
-            .and_then(|c| {
-                (c.architecture.input.features == spec.features)
-                    .then_some(c.architecture.input.normalisation)
-                    .flatten()
-            }),
+            .map(|c| c.architecture.input),
         None => None,
     };
-    spec.normalisation = match init_normalisation {
-        Some(n) => Some(n),
-        None => Some(normalisation_of(
-            &FeatureBuilder::new(&spec, &hand)?,
-            &train_frames,
-        )?),
-    };
+    let kept = init_input.as_ref().and_then(|input| {
+        spec.features
+            .starts_with(&input.features)
+            .then_some(input.normalisation.as_ref())
+            .flatten()
+    });
+    spec.normalisation = Some(match kept {
+        Some(n) if n.mean.len() == spec.channels() => n.clone(),
+        kept => {
+            let mut fresh = normalisation_of(&FeatureBuilder::new(&spec, &hand)?, &train_frames)?;
+            if let Some(n) = kept {
+                fresh.mean[..n.mean.len()].copy_from_slice(&n.mean);
+                fresh.std[..n.std.len()].copy_from_slice(&n.std);
+            }
+            fresh
+        }
+    });
     let builder = FeatureBuilder::new(&spec, &hand)?;
     let train = TrainingSets::from_frames(&builder, &train_frames)?;
     let validation = TrainingSets::from_frames(&builder, &validation_frames)?;
@@ -571,7 +581,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
             let trainer = match &args.init {
                 Some(path) => {
                     let files = moe_io::read_model_files(path)?;
+                    // Features added after the initial weights' own start with zero weights.
                     let weights = ModelWeights::parse(&files.weights)
+                        .and_then(|w| w.with_input_channels(train.channels()))
                         .with_context(|| format!("initial weights {}", path.display()))?;
                     eprintln!("train: starting from the weights of {}", path.display());
                     Trainer::from_weights(arch.clone(), config.clone(), &train, &weights)?

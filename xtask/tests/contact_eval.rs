@@ -171,6 +171,61 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     assert!(stderr(&o).contains("KNN index of"), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("Table 1"));
 
+    // Fine-tuning with the tendon pulls added: the initial weights are widened, the channels
+    // they were trained on keep their normalisation, the new ones get the data's; evaluation
+    // feeds every frame's pulls (Table 1 and the plates).
+    let pulled = root.join("pulled");
+    let o = xtask(
+        &[
+            "train",
+            "--epochs",
+            "1",
+            "--batch-size",
+            "4",
+            "--negative-fraction",
+            "0.5",
+            "--k",
+            "12",
+            "--edge-widths",
+            "16,16,32",
+            "--head-widths",
+            "32,16",
+            "--features",
+            "xyz,rest-xyz,deformation,tendon-pull",
+        ],
+        &[("--data", &data), ("--out", &pulled), ("--init", &weights)],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let pulled_card: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(pulled.with_extension("json")).unwrap())
+            .unwrap();
+    let input = &pulled_card["architecture"]["input"];
+    assert_eq!(
+        input["features"],
+        serde_json::json!(["xyz", "rest-xyz", "deformation", "tendon-pull"])
+    );
+    let old = &arch["input"]["normalisation"];
+    for key in ["mean", "std"] {
+        let new = input["normalisation"][key].as_array().unwrap();
+        assert_eq!(new.len(), 12);
+        assert_eq!(&new[..9], old[key].as_array().unwrap().as_slice(), "{key}");
+    }
+    // The pulls vary over the data set: their deviation is not the floor.
+    assert!(
+        input["normalisation"]["std"][9].as_f64().unwrap() > 1e-4,
+        "{}",
+        input["normalisation"]
+    );
+    let o = xtask(
+        &["eval", "contact", "--trials", "1"],
+        &[
+            ("--data", &data),
+            ("--model", &pulled.with_extension("safetensors")),
+            ("--knn-index", &index),
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+
     // Bad input. An empty directory:
     let empty = root.join("empty");
     std::fs::create_dir_all(&empty).unwrap();

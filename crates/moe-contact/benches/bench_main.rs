@@ -166,6 +166,7 @@ fn knn(c: &mut Criterion) {
             contact: shape.fingers.iter().map(|f| vec![false; f.len()]).collect(),
             markers: jitter(&mut rng),
             world_from_hand: moe_geom::WorldFromHand::new(moe_geom::Iso3::identity()),
+            tendon_pull_m: vec![vec![0.0; 4]; shape.fingers.len()],
         })
         .collect();
     let index = KnnIndex::new(&frames, false).expect("index");

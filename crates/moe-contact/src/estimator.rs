@@ -1,7 +1,7 @@
 //! The contact-estimator seam, and the DGCNN behind it.
 
 use candle_core::{DType, Device, Tensor};
-use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3};
+use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, LabelledFrame, Point3};
 
 use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
 use crate::deformation::DeformationFeatures;
@@ -9,13 +9,37 @@ use crate::error::ContactError;
 use crate::network::{Dgcnn, Mode, StageTimings, contact_probability};
 
 /// One observation of a hand: its deformed shape (hand frame) and, for estimators that use
-/// them, its keypoints.
+/// them, its keypoints and the tendon pulls the robot commanded.
 #[derive(Debug, Clone, Copy)]
 pub struct ContactInput<'a> {
     /// The deformed surface of every finger, hand frame.
     pub shape: &'a HandShape,
     /// The observed markers, hand frame (`None` where the caller has none).
     pub keypoints: Option<&'a HandKeypoints>,
+    /// `tendon_pull_m[f][t]`: pulled length of tendon `t` of finger `f`, metres, in the order of
+    /// the finger model's tendon routes (`None` where the caller has none).
+    pub tendon_pull_m: Option<&'a [Vec<f64>]>,
+}
+
+impl<'a> ContactInput<'a> {
+    /// A shape alone.
+    pub fn shape(shape: &'a HandShape) -> Self {
+        Self {
+            shape,
+            keypoints: None,
+            tendon_pull_m: None,
+        }
+    }
+
+    /// A labelled frame's observation with `shape` in place of its own (an estimate of it):
+    /// the frame's markers and tendon pulls.
+    pub fn of_frame(frame: &'a LabelledFrame, shape: &'a HandShape) -> Self {
+        Self {
+            shape,
+            keypoints: Some(&frame.markers),
+            tendon_pull_m: Some(&frame.tendon_pull_m),
+        }
+    }
 }
 
 /// Something that says, for every vertex of a deformed hand, how likely it is to touch the
@@ -32,16 +56,22 @@ pub trait ContactEstimator {
         keypoints: Option<&HandKeypoints>,
     ) -> Result<ContactMap, ContactError>;
 
+    /// The contact map of one observation with everything the caller has of it. Estimators
+    /// that use the tendon pulls override it; by default it is [`ContactEstimator::estimate`].
+    ///
+    /// # Errors
+    /// As [`ContactEstimator::estimate`], and pulls that do not fit the hand.
+    fn estimate_input(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
+        self.estimate(input.shape, input.keypoints)
+    }
+
     /// The contact maps of several observations, in order. Estimators that gain from batching
-    /// override it; the result equals calling [`ContactEstimator::estimate`] on each.
+    /// override it; the result equals calling [`ContactEstimator::estimate_input`] on each.
     ///
     /// # Errors
     /// The first observation's error.
     fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
-        inputs
-            .iter()
-            .map(|i| self.estimate(i.shape, i.keypoints))
-            .collect()
+        inputs.iter().map(|i| self.estimate_input(i)).collect()
     }
 }
 
@@ -54,6 +84,10 @@ impl<T: ContactEstimator + ?Sized> ContactEstimator for &T {
         keypoints: Option<&HandKeypoints>,
     ) -> Result<ContactMap, ContactError> {
         (**self).estimate(shape, keypoints)
+    }
+
+    fn estimate_input(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
+        (**self).estimate_input(input)
     }
 
     fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
@@ -78,6 +112,9 @@ pub struct FeatureBuilder {
     plans: Vec<SetPlan>,
     /// Per finger, when the spec asks for [`InputFeature::Deformation`].
     deformation: Vec<DeformationFeatures>,
+    /// Per finger and tendon, the unit direction of the tendon from the finger axis (finger
+    /// frame, x and y, at the route's base).
+    tendon_directions: Vec<Vec<[f64; 2]>>,
 }
 
 impl FeatureBuilder {
@@ -125,7 +162,45 @@ impl FeatureBuilder {
             } else {
                 Vec::new()
             },
+            tendon_directions: hand
+                .fingers()
+                .iter()
+                .map(|f| {
+                    f.model
+                        .tendon_routes()
+                        .iter()
+                        .map(|r| {
+                            let base = r.points_in_finger.first().map_or([0.0; 2], |p| [p.x, p.y]);
+                            let norm = base[0].hypot(base[1]);
+                            if norm > 1e-12 {
+                                [base[0] / norm, base[1] / norm]
+                            } else {
+                                [0.0; 2]
+                            }
+                        })
+                        .collect()
+                })
+                .collect(),
         })
+    }
+
+    /// Whether the features need the tendon pulls of each observation.
+    pub fn needs_tendon_pulls(&self) -> bool {
+        self.spec.features.contains(&InputFeature::TendonPull)
+    }
+
+    /// The [`InputFeature::TendonPull`] channels of finger `f` (pulls checked beforehand).
+    fn pull_channels(&self, pulls: Option<&[Vec<f64>]>, f: usize) -> [f64; 3] {
+        let Some(p) = pulls.and_then(|p| p.get(f)) else {
+            return [0.0; 3];
+        };
+        let mut out = [0.0; 3];
+        for (pull, dir) in p.iter().zip(&self.tendon_directions[f]) {
+            out[0] += pull * dir[0];
+            out[1] += pull * dir[1];
+            out[2] += pull;
+        }
+        out
     }
 
     /// The input spec.
@@ -146,8 +221,15 @@ impl FeatureBuilder {
             .collect()
     }
 
-    /// The input features of one finger's vertices, row after row.
-    fn finger_features(&self, shape: &HandShape, f: usize, out: &mut Vec<f64>) {
+    /// The input features of one finger's vertices, row after row (shape and pulls checked
+    /// beforehand).
+    fn finger_features(
+        &self,
+        shape: &HandShape,
+        pulls: Option<&[Vec<f64>]>,
+        f: usize,
+        out: &mut Vec<f64>,
+    ) {
         let to_frame = |p: &Point3| match self.spec.frame {
             FeatureFrame::Hand => *p,
             FeatureFrame::Finger => self.finger_from_hand[f] * p,
@@ -160,12 +242,14 @@ impl FeatureBuilder {
             .get(f)
             .map(|d| d.compute(&shape.fingers[f]))
             .unwrap_or_default();
+        let pull = self.pull_channels(pulls, f);
         for (v, p) in shape.fingers[f].iter().enumerate() {
             for feature in &self.spec.features {
                 let row = match feature {
                     InputFeature::Xyz => to_frame(p).coords.into(),
                     InputFeature::RestXyz => to_frame(&self.rest_in_hand[f][v]).coords.into(),
                     InputFeature::Deformation => deformation[v],
+                    InputFeature::TendonPull => pull,
                 };
                 out.extend(row);
             }
@@ -177,20 +261,82 @@ impl FeatureBuilder {
     /// [`FeatureBuilder::point_sets`]).
     ///
     /// # Errors
-    /// A shape that does not fit the hand, naming the finger and vertex.
+    /// A shape that does not fit the hand, naming the finger and vertex;
+    /// [`ContactError::UnavailableFeatures`] for features that need tendon pulls.
     pub fn input_sets(&self, shape: &HandShape) -> Result<Vec<Vec<f64>>, ContactError> {
+        self.input_sets_with(shape, None)
+    }
+
+    /// As [`FeatureBuilder::input_sets`], with the observation's tendon pulls (needed by
+    /// [`InputFeature::TendonPull`], ignored otherwise).
+    ///
+    /// # Errors
+    /// As [`FeatureBuilder::input_sets`], and pulls that do not fit the hand (naming the finger)
+    /// or are not finite.
+    pub fn input_sets_with(
+        &self,
+        shape: &HandShape,
+        pulls: Option<&[Vec<f64>]>,
+    ) -> Result<Vec<Vec<f64>>, ContactError> {
         self.check_shape(shape)?;
+        self.check_pulls(pulls)?;
         Ok(self
             .plans
             .iter()
             .map(|plan| {
                 let mut v = Vec::with_capacity(plan.len * self.channels());
                 for &f in &plan.fingers {
-                    self.finger_features(shape, f, &mut v);
+                    self.finger_features(shape, pulls, f, &mut v);
                 }
                 v
             })
             .collect())
+    }
+
+    /// Checks the pulls of one observation when the features need them: given, one list per
+    /// finger of the finger's tendon count, finite. Without [`InputFeature::TendonPull`] any
+    /// pulls (or none) are accepted and ignored.
+    ///
+    /// # Errors
+    /// [`ContactError::UnavailableFeatures`] when they are needed and missing,
+    /// [`moe_geom::GeomError`] naming the finger otherwise.
+    pub fn check_pulls(&self, pulls: Option<&[Vec<f64>]>) -> Result<(), ContactError> {
+        if !self.needs_tendon_pulls() {
+            return Ok(());
+        }
+        let Some(pulls) = pulls else {
+            return Err(ContactError::UnavailableFeatures {
+                features: self.spec.describe(),
+                given: "an observation without tendon pulls",
+            });
+        };
+        if pulls.len() != self.tendon_directions.len() {
+            return Err(moe_geom::GeomError::LengthMismatch {
+                what: "fingers of the tendon pulls",
+                expected: self.tendon_directions.len(),
+                got: pulls.len(),
+            }
+            .into());
+        }
+        for (finger, (p, dirs)) in pulls.iter().zip(&self.tendon_directions).enumerate() {
+            if p.len() != dirs.len() {
+                return Err(moe_geom::GeomError::FingerLengthMismatch {
+                    what: "tendon pulls",
+                    finger,
+                    expected: dirs.len(),
+                    got: p.len(),
+                }
+                .into());
+            }
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(moe_geom::GeomError::NonFinitePoint {
+                    what: "tendon pulls of the finger",
+                    index: finger,
+                }
+                .into());
+            }
+        }
+        Ok(())
     }
 
     /// Per-vertex values of every finger (labels, for instance) arranged like
@@ -362,22 +508,38 @@ impl DgcnnEstimator {
     /// Contact maps of several shapes, and the network's stage timings summed over its passes.
     ///
     /// # Errors
-    /// A shape that does not fit the hand (naming the finger and vertex), or a failing tensor
+    /// A shape that does not fit the hand (naming the finger and vertex), a model that needs
+    /// tendon pulls ([`DgcnnEstimator::estimate_inputs`] takes them), or a failing tensor
     /// operation.
     pub fn estimate_shapes(
         &self,
         shapes: &[&HandShape],
     ) -> Result<(Vec<ContactMap>, StageTimings), ContactError> {
-        if shapes.is_empty() {
+        let inputs: Vec<ContactInput<'_>> = shapes.iter().map(|s| ContactInput::shape(s)).collect();
+        self.estimate_inputs(&inputs)
+    }
+
+    /// Contact maps of several observations, and the network's stage timings summed over its
+    /// passes.
+    ///
+    /// # Errors
+    /// A shape that does not fit the hand (naming the finger and vertex), missing or misfitting
+    /// tendon pulls for a model that takes them, or a failing tensor operation.
+    pub fn estimate_inputs(
+        &self,
+        inputs: &[ContactInput<'_>],
+    ) -> Result<(Vec<ContactMap>, StageTimings), ContactError> {
+        if inputs.is_empty() {
             return Ok((Vec::new(), StageTimings::default()));
         }
-        for shape in shapes {
-            self.features.check_shape(shape)?;
+        for input in inputs {
+            self.features.check_shape(input.shape)?;
+            self.features.check_pulls(input.tendon_pull_m)?;
         }
-        let mut maps: Vec<ContactMap> = shapes
+        let mut maps: Vec<ContactMap> = inputs
             .iter()
-            .map(|s| ContactMap {
-                fingers: s.fingers.iter().map(|f| vec![0.0; f.len()]).collect(),
+            .map(|i| ContactMap {
+                fingers: i.shape.fingers.iter().map(|f| vec![0.0; f.len()]).collect(),
             })
             .collect();
         let mut timings = StageTimings::default();
@@ -389,15 +551,20 @@ impl DgcnnEstimator {
         lengths.dedup();
         for len in lengths {
             let plans: Vec<&SetPlan> = plans_all.iter().filter(|p| p.len == len).collect();
-            let mut values = Vec::with_capacity(shapes.len() * plans.len() * len * channels);
-            for shape in shapes {
+            let mut values = Vec::with_capacity(inputs.len() * plans.len() * len * channels);
+            for input in inputs {
                 for plan in &plans {
                     for &f in &plan.fingers {
-                        self.features.finger_features(shape, f, &mut values);
+                        self.features.finger_features(
+                            input.shape,
+                            input.tendon_pull_m,
+                            f,
+                            &mut values,
+                        );
                     }
                 }
             }
-            let sets = shapes.len() * plans.len();
+            let sets = inputs.len() * plans.len();
             let x = Tensor::from_vec(values, (sets, len, channels), &Device::Cpu)?;
             let out = self.net.forward_with(&x, Mode::Eval)?;
             let t = out.timings;
@@ -435,16 +602,23 @@ impl ContactEstimator for DgcnnEstimator {
     fn estimate(
         &self,
         shape: &HandShape,
-        _keypoints: Option<&HandKeypoints>,
+        keypoints: Option<&HandKeypoints>,
     ) -> Result<ContactMap, ContactError> {
-        let (mut maps, _) = self.estimate_shapes(&[shape])?;
+        self.estimate_input(&ContactInput {
+            shape,
+            keypoints,
+            tendon_pull_m: None,
+        })
+    }
+
+    fn estimate_input(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
+        let (mut maps, _) = self.estimate_inputs(std::slice::from_ref(input))?;
         maps.pop().ok_or_else(|| ContactError::InvalidBatch {
             message: "no contact map returned".into(),
         })
     }
 
     fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
-        let shapes: Vec<&HandShape> = inputs.iter().map(|i| i.shape).collect();
-        Ok(self.estimate_shapes(&shapes)?.0)
+        Ok(self.estimate_inputs(inputs)?.0)
     }
 }

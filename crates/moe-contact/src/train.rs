@@ -215,7 +215,7 @@ impl TrainingSets {
         }
         let mut out = Self::new(points, features.channels());
         for frame in frames {
-            let inputs = features.input_sets(&frame.shape)?;
+            let inputs = features.input_sets_with(&frame.shape, Some(&frame.tendon_pull_m))?;
             let labels = features.arrange(&frame.contact);
             for (x, y) in inputs.iter().zip(&labels) {
                 out.push(x, y)?;

@@ -109,6 +109,47 @@ impl ModelWeights {
         Ok(())
     }
 
+    /// These weights for a network with `channels` input channels, the first ones being the
+    /// channels they were trained on: the first layer's weights get zero columns for the new
+    /// channels, so the network computes what it computed before whatever the new channels hold
+    /// (and learns from them when trained further).
+    ///
+    /// # Errors
+    /// [`ContactError::MissingTensor`] / [`ContactError::TensorShape`] for weights without a
+    /// first layer of rank 2, [`ContactError::InvalidConfig`] when `channels` is fewer than the
+    /// weights take.
+    pub fn with_input_channels(&self, channels: usize) -> Result<Self, ContactError> {
+        let old = self.shape_of("edge1.theta", 2)?[1];
+        if old == 0 || channels < old {
+            return Err(ContactError::InvalidConfig {
+                field: "input channels",
+                message: format!(
+                    "the weights take {old} input channels; they cannot be widened to {channels}"
+                ),
+            });
+        }
+        let mut out = self.clone();
+        for name in ["edge1.theta", "edge1.phi.weight"] {
+            let rows = self.shape_of(name, 2)?[0];
+            let (shape, values) = &self.tensors[name];
+            if shape[1] != old {
+                return Err(ContactError::TensorShape {
+                    name: name.to_string(),
+                    expected: vec![rows, old],
+                    got: shape.clone(),
+                });
+            }
+            let mut wide = Vec::with_capacity(rows * channels);
+            for row in values.chunks_exact(old) {
+                wide.extend_from_slice(row);
+                wide.resize(wide.len() + channels - old, 0.0);
+            }
+            out.tensors
+                .insert(name.to_string(), (vec![rows, channels], wide));
+        }
+        Ok(out)
+    }
+
     /// Tensor names, sorted.
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.tensors.keys().map(String::as_str)

@@ -222,6 +222,9 @@ pub struct LabelledFrame {
     pub markers: HandKeypoints,
     /// Wrist pose.
     pub world_from_hand: WorldFromHand,
+    /// `tendon_pull_m[f][t]`: pulled length of tendon `t` of finger `f`, metres (what the robot
+    /// commanded; negative pays the tendon out).
+    pub tendon_pull_m: Vec<Vec<f64>>,
 }
 
 impl LabelledFrame {

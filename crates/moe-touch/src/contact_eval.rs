@@ -19,7 +19,9 @@
 use std::time::Instant;
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
-use moe_contact::{ContactEstimator, ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex};
+use moe_contact::{
+    ContactEstimator, ContactInput, ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex,
+};
 use moe_geom::math::UnitQuat;
 use moe_geom::{
     HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng, Vector3,
@@ -480,13 +482,13 @@ pub fn evaluate_table1(
         let t = Instant::now();
         let on_true = estimators
             .dgcnn
-            .estimate(&frame.shape, Some(&frame.markers))?;
+            .estimate_input(&ContactInput::of_frame(frame, &frame.shape))?;
         seconds[0] += t.elapsed().as_secs_f64();
         predictions[0] = labels_above(&on_true.fingers, threshold);
         let t = Instant::now();
         let on_arap = estimators
             .dgcnn
-            .estimate(&arap_shape, Some(&frame.markers))?;
+            .estimate_input(&ContactInput::of_frame(frame, &arap_shape))?;
         seconds[1] += t.elapsed().as_secs_f64();
         predictions[1] = labels_above(&on_arap.fingers, threshold);
         for (slot, (index, acc)) in [
@@ -670,7 +672,7 @@ pub fn simulate_labelled(
     let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
     let steps = scene.num_steps();
     let frames = run_saving(&mut scene, steps)?;
-    Ok(frames
+    frames
         .iter()
         .enumerate()
         .map(|(k, f)| {
@@ -693,16 +695,17 @@ pub fn simulate_labelled(
                     })
                     .collect(),
             };
-            LabelledFrame {
+            Ok(LabelledFrame {
                 trajectory_id: 0,
                 frame_index: k as u32,
                 shape: HandShape { fingers },
                 contact: f.fingers.iter().map(|g| g.labels.clone()).collect(),
                 markers,
                 world_from_hand: WorldFromHand::new(f.world_from_hand),
-            }
+                tendon_pull_m: f.tendon_pulls_m()?,
+            })
         })
-        .collect())
+        .collect()
 }
 
 /// Table 2: every plate scene, `trials` trials each (trial 0 unperturbed), UCD from predicted to
@@ -733,7 +736,7 @@ pub fn evaluate_plates(
             for frame in frames.iter().filter(|f| f.contact_count() > 0) {
                 contact_frames += 1;
                 let estimated = arap.estimate(&frame.markers)?.shape;
-                let p = dgcnn.estimate(&estimated, Some(&frame.markers))?;
+                let p = dgcnn.estimate_input(&ContactInput::of_frame(frame, &estimated))?;
                 d.add(
                     &frame.shape,
                     &frame.contact,
@@ -1000,6 +1003,7 @@ mod tests {
             contact: rest.fingers.iter().map(|f| vec![false; f.len()]).collect(),
             markers: bent,
             world_from_hand: WorldFromHand::identity(),
+            tendon_pull_m: vec![vec![0.0; 4]; rest.fingers.len()],
         };
         let frames = vec![frame.clone(), frame];
         let options = ShapeConfig::default();

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use moe_contact::{ContactEstimator, DgcnnEstimator, ModelCard};
+use moe_contact::{ContactEstimator, ContactInput, DgcnnEstimator, ModelCard};
 use moe_geom::{
     ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape, Real, ShapeEstimator,
     WorldFromHand,
@@ -151,31 +151,50 @@ where
         }
     }
 
-    /// Runs every stage on a recorded episode frame: its images and its wrist pose.
+    /// Runs every stage on a recorded episode frame: its images, its wrist pose and its tendon
+    /// pulls.
     ///
     /// # Errors
-    /// As [`Pipeline::process`].
+    /// As [`Pipeline::process_with_pulls`].
     pub fn process_episode_frame(
         &mut self,
         frame: &moe_io::EpisodeFrame,
     ) -> Result<FrameEstimate, TouchError> {
-        self.process(
+        self.process_with_pulls(
             RgbdFrame {
                 color_rgb8: &frame.color_rgb8,
                 depth_m: &frame.depth_m,
             },
             WorldFromHand::new(frame.world_from_hand),
+            Some(&frame.tendon_pull_m),
         )
     }
 
-    /// Runs every stage on one frame of a hand at `world_from_hand`.
+    /// Runs every stage on one frame of a hand at `world_from_hand`, without the tendon pulls
+    /// (for contact models that do not take them).
     ///
     /// # Errors
-    /// Images that do not fit the camera, or a failing stage.
+    /// As [`Pipeline::process_with_pulls`].
     pub fn process(
         &mut self,
         frame: RgbdFrame<'_>,
         world_from_hand: WorldFromHand,
+    ) -> Result<FrameEstimate, TouchError> {
+        self.process_with_pulls(frame, world_from_hand, None)
+    }
+
+    /// Runs every stage on one frame of a hand at `world_from_hand` whose tendons the robot
+    /// pulled by `tendon_pull_m[f][t]` metres (what a contact model with the `tendon-pull`
+    /// feature needs; others ignore it).
+    ///
+    /// # Errors
+    /// Images that do not fit the camera, pulls that do not fit the hand (or missing where the
+    /// contact model needs them), or a failing stage.
+    pub fn process_with_pulls(
+        &mut self,
+        frame: RgbdFrame<'_>,
+        world_from_hand: WorldFromHand,
+        tendon_pull_m: Option<&[Vec<f64>]>,
     ) -> Result<FrameEstimate, TouchError> {
         let start = Instant::now();
         let mut detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
@@ -188,7 +207,11 @@ where
             .estimate_shape(&detection.keypoints)
             .map_err(|e| TouchError::ShapeEstimation(Box::new(e)))?;
         let t_shape = Instant::now();
-        let mut contact = self.contact.estimate(&shape, Some(&detection.keypoints))?;
+        let mut contact = self.contact.estimate_input(&ContactInput {
+            shape: &shape,
+            keypoints: Some(&detection.keypoints),
+            tendon_pull_m,
+        })?;
         if let Some(s) = &mut self.contact_smoother {
             contact = s.smooth(&contact);
         }

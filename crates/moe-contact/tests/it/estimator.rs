@@ -98,16 +98,7 @@ fn a_batch_equals_one_estimate_at_a_time() {
         let a = HandShape::rest(&hand);
         let b = pressed(&hand);
         let batch = est
-            .estimate_batch(&[
-                ContactInput {
-                    shape: &a,
-                    keypoints: None,
-                },
-                ContactInput {
-                    shape: &b,
-                    keypoints: None,
-                },
-            ])
+            .estimate_batch(&[ContactInput::shape(&a), ContactInput::shape(&b)])
             .unwrap();
         for (got, shape) in batch.iter().zip([&a, &b]) {
             let one = est.estimate(shape, None).unwrap();
@@ -301,4 +292,160 @@ fn deformation_features_are_frame_free_and_mark_the_dent() {
         p.x > 0.0 && (p.z - 0.06).abs() < 0.01,
         "vertex {v} at {p:?}"
     );
+}
+
+/// The two-finger hand's pulls `[+x, −x, +y, −y]` per finger (the preset's route order).
+fn pulls(a: [f64; 4], b: [f64; 4]) -> Vec<Vec<f64>> {
+    vec![a.to_vec(), b.to_vec()]
+}
+
+fn pull_spec(frame: FeatureFrame, point_set: PointSet) -> InputSpec {
+    InputSpec {
+        features: vec![InputFeature::Xyz, InputFeature::TendonPull],
+        frame,
+        point_set,
+        normalisation: None,
+    }
+}
+
+/// A pair pulled one way and paid out the other is a bending along that pair's axis (twice the
+/// pull, no co-contraction); two tendons pulled together add to the third channel. The channels
+/// are the same on every vertex of the finger, in whatever frame and grouping.
+#[test]
+fn tendon_pull_channels_are_the_bending_the_pulls_ask_for() {
+    let hand = hand(HandPreset::TwoFinger);
+    let d = 0.003;
+    let p = pulls([d, -d, 0.0, 0.0], [0.0, 0.0, 0.002, 0.001]);
+    let want = [[2.0 * d, 0.0, 0.0], [0.0, 0.001, 0.003]];
+    for (frame, set) in [
+        (FeatureFrame::Finger, PointSet::PerFinger),
+        (FeatureFrame::Hand, PointSet::WholeHand),
+    ] {
+        let builder = FeatureBuilder::new(&pull_spec(frame, set), &hand).unwrap();
+        assert!(builder.needs_tendon_pulls());
+        let sets = builder.input_sets_with(&pressed(&hand), Some(&p)).unwrap();
+        let rows: Vec<&[f64]> = sets.iter().flat_map(|s| s.chunks_exact(6)).collect();
+        let n = hand.fingers()[0].model.mesh().num_vertices();
+        assert_eq!(rows.len(), 2 * n);
+        for (i, row) in rows.iter().enumerate() {
+            let w = want[i / n];
+            for c in 0..3 {
+                assert!(
+                    (row[3 + c] - w[c]).abs() < 1e-15,
+                    "{frame:?} row {i}: {row:?}"
+                );
+            }
+        }
+    }
+}
+
+/// A model that takes pulls refuses an observation without them, or with pulls that do not fit
+/// the hand, naming what is wrong; a model that does not take them ignores them.
+#[test]
+fn pulls_that_are_missing_or_do_not_fit_are_named() {
+    let hand = hand(HandPreset::TwoFinger);
+    let shape = pressed(&hand);
+    let builder =
+        FeatureBuilder::new(&pull_spec(FeatureFrame::Finger, PointSet::PerFinger), &hand).unwrap();
+    assert!(matches!(
+        builder.input_sets(&shape),
+        Err(ContactError::UnavailableFeatures { .. })
+    ));
+    let three = vec![vec![0.0; 4], vec![0.0; 3]];
+    assert!(matches!(
+        builder.input_sets_with(&shape, Some(&three)),
+        Err(ContactError::Geometry(GeomError::FingerLengthMismatch {
+            what: "tendon pulls",
+            finger: 1,
+            expected: 4,
+            got: 3,
+        }))
+    ));
+    let one = vec![vec![0.0; 4]];
+    assert!(matches!(
+        builder.input_sets_with(&shape, Some(&one)),
+        Err(ContactError::Geometry(GeomError::LengthMismatch { .. }))
+    ));
+    let nan = pulls([0.0; 4], [0.0, f64::NAN, 0.0, 0.0]);
+    assert!(matches!(
+        builder.input_sets_with(&shape, Some(&nan)),
+        Err(ContactError::Geometry(GeomError::NonFinitePoint {
+            index: 1,
+            ..
+        }))
+    ));
+    let plain = FeatureBuilder::new(&InputSpec::default(), &hand).unwrap();
+    assert!(!plain.needs_tendon_pulls());
+    assert_eq!(
+        plain.input_sets_with(&shape, Some(&nan)).unwrap(),
+        plain.input_sets(&shape).unwrap()
+    );
+}
+
+/// Weights widened for added channels compute exactly what they computed, whatever the new
+/// channels hold; the pulls reach the network once the new weights are not zero; and an
+/// estimator of a pull model refuses a bare shape.
+#[test]
+fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
+    let hand = hand(HandPreset::TwoFinger);
+    let shape = pressed(&hand);
+    let mut plain = small_config(Default::default());
+    plain.input.point_set = PointSet::PerFinger;
+    plain.input.frame = FeatureFrame::Finger;
+    let mut with_pulls = plain.clone();
+    with_pulls.input.features.push(InputFeature::TendonPull);
+    let build = |config: &moe_contact::DgcnnConfig, weights: &ModelWeights| {
+        let card = ModelCard::new(config.clone());
+        let net = weights
+            .build(Some(&card), DType::F64, &Device::Cpu)
+            .unwrap();
+        DgcnnEstimator::new(net, card, &hand).unwrap()
+    };
+    let base = ModelWeights::seeded(&plain, 3, 5).unwrap();
+    let before = build(&plain, &base).estimate(&shape, None).unwrap();
+    let widened = build(&with_pulls, &base.with_input_channels(6).unwrap());
+    let p = pulls([0.004, -0.004, 0.0, 0.0], [0.0, 0.0, -0.005, 0.005]);
+    let input = ContactInput {
+        shape: &shape,
+        keypoints: None,
+        tendon_pull_m: Some(&p),
+    };
+    let after = widened.estimate_input(&input).unwrap();
+    let moved = after
+        .fingers
+        .iter()
+        .flatten()
+        .zip(before.fingers.iter().flatten())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(moved < 1e-12, "{moved:e}");
+    assert!(matches!(
+        widened.estimate(&shape, None),
+        Err(ContactError::UnavailableFeatures { .. })
+    ));
+    assert!(matches!(
+        base.with_input_channels(2),
+        Err(ContactError::InvalidConfig { .. })
+    ));
+    // Seeded weights for all six channels: other pulls, other probabilities.
+    let full = build(
+        &with_pulls,
+        &ModelWeights::seeded(&with_pulls, 6, 5).unwrap(),
+    );
+    let a = full.estimate_input(&input).unwrap();
+    let none = pulls([0.0; 4], [0.0; 4]);
+    let b = full
+        .estimate_input(&ContactInput {
+            tendon_pull_m: Some(&none),
+            ..input
+        })
+        .unwrap();
+    let diff = a
+        .fingers
+        .iter()
+        .flatten()
+        .zip(b.fingers.iter().flatten())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
+    assert!(diff > 1e-6, "{diff:e}");
 }

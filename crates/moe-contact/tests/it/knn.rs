@@ -53,6 +53,7 @@ fn frames(count: usize, seed: u64) -> Vec<LabelledFrame> {
                 contact,
                 markers,
                 world_from_hand: WorldFromHand::identity(),
+                tendon_pull_m: vec![vec![0.0; 4]; hand.num_fingers()],
             }
         })
         .collect()

@@ -106,6 +106,11 @@ impl DatasetFrame {
                 layout.total_vertices(),
             ),
             ("frame markers", self.markers.len(), layout.total_markers()),
+            (
+                "frame tendon pulls",
+                self.tendon_pull_m.len(),
+                layout.total_tendons(),
+            ),
         ];
         for (what, got, expected) in sizes {
             if got != expected {
@@ -149,6 +154,15 @@ impl DatasetFrame {
             contact,
             markers: HandKeypoints { fingers: markers },
             world_from_hand,
+            tendon_pull_m: (0..layout.finger_num_vertices.len())
+                .map(|f| {
+                    let t = layout.tendons_per_finger;
+                    self.tendon_pull_m[f * t..(f + 1) * t]
+                        .iter()
+                        .map(|&p| f64::from(p))
+                        .collect()
+                })
+                .collect(),
         })
     }
 }

@@ -63,6 +63,11 @@ fn frames_split_per_finger_as_labelled_frames() {
             3.2f32 as f64
         ))]
     );
+    // The hand's tendons, fingers concatenated, become each finger's own list.
+    assert_eq!(
+        l.tendon_pull_m,
+        vec![vec![0.002f32 as f64, 0.0], vec![0.0, 0.002f32 as f64]]
+    );
     let t = l.world_from_hand.iso().translation.vector;
     assert_eq!([t.x, t.y, t.z], [0.1, 0.2, 0.3]);
     let q = l.world_from_hand.iso().rotation.quaternion();
@@ -73,6 +78,16 @@ fn frames_split_per_finger_as_labelled_frames() {
     assert!(matches!(
         bad.to_labelled(&layout()),
         Err(GeomError::NonFinitePoint { .. })
+    ));
+    let mut few = f.clone();
+    few.tendon_pull_m.pop();
+    assert!(matches!(
+        few.to_labelled(&layout()),
+        Err(GeomError::LengthMismatch {
+            what: "frame tendon pulls",
+            expected: 4,
+            got: 3,
+        })
     ));
     let mut short = f;
     short.markers.pop();

@@ -8,8 +8,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use moe_contact::candle_core::{DType, Tensor};
 use moe_contact::{
-    Aggregation, DeviceKind, Dgcnn, DgcnnEstimator, InputFeature, Mode, ModelCard, StageTimings,
-    contact_probability, open_device,
+    Aggregation, ContactInput, DeviceKind, Dgcnn, DgcnnEstimator, InputFeature, Mode, ModelCard,
+    StageTimings, contact_probability, open_device,
 };
 use moe_geom::{ContactMap, HandModel, HandShape};
 use serde::Serialize;
@@ -40,6 +40,11 @@ pub(crate) struct ContactArgs {
     /// points as `contacts.csv` and a summary `contact.json`.
     #[arg(long, value_name = "DIR", requires = "hand")]
     shape: Option<PathBuf>,
+    /// The tendon pulls of `--shape`, metres, for a model with the `tendon-pull` feature: the
+    /// pulls of each finger comma-separated in its tendon routes' order, fingers separated by
+    /// `;` (e.g. `0.002,-0.002,0,0;0,0,0.001,-0.001`).
+    #[arg(long, value_name = "LIST", requires = "shape")]
+    tendon_pulls: Option<String>,
     /// The model: `NAME.safetensors`, with its card `NAME.json` beside it if there is one.
     #[arg(long, value_name = "M.safetensors")]
     model: PathBuf,
@@ -261,6 +266,30 @@ fn run_points(
     Ok(())
 }
 
+/// `--tendon-pulls`: fingers separated by `;`, each finger's pulls by `,`.
+fn parse_tendon_pulls(text: &str) -> Result<Vec<Vec<f64>>> {
+    text.split(';')
+        .enumerate()
+        .map(|(f, finger)| {
+            finger
+                .split(',')
+                .map(str::trim)
+                .filter(|v| !v.is_empty())
+                .enumerate()
+                .map(|(t, v)| {
+                    let x: f64 = v.parse().with_context(|| {
+                        format!("--tendon-pulls: finger {f}, tendon {t}: '{v}' is not a number")
+                    })?;
+                    if !x.is_finite() {
+                        bail!("--tendon-pulls: finger {f}, tendon {t}: '{v}' is not finite");
+                    }
+                    Ok(x)
+                })
+                .collect()
+        })
+        .collect()
+}
+
 fn read_shape(hand: &HandModel, dir: &Path) -> Result<HandShape> {
     let mut fingers = Vec::with_capacity(hand.num_fingers());
     for i in 0..hand.num_fingers() {
@@ -285,8 +314,17 @@ fn run_shape(
     let aggregation = model.net.config().aggregation;
     let estimator = DgcnnEstimator::new(model.net, model.card, &hand)
         .with_context(|| format!("model {} on hand '{hand_spec}'", args.model.display()))?;
+    let pulls = args
+        .tendon_pulls
+        .as_deref()
+        .map(parse_tendon_pulls)
+        .transpose()?;
     let (mut maps, timings) = estimator
-        .estimate_shapes(&[&shape])
+        .estimate_inputs(&[ContactInput {
+            shape: &shape,
+            keypoints: None,
+            tendon_pull_m: pulls.as_deref(),
+        }])
         .with_context(|| format!("shape {}", dir.display()))?;
     let map: ContactMap = maps.pop().context("no contact map")?;
     // Everything in memory first, so that a failure leaves nothing half-written.

@@ -181,6 +181,59 @@ fn contact_on_a_hand_shape_writes_coloured_meshes_contacts_and_a_summary() {
     assert_eq!(report["contact_vertices"], total);
 }
 
+/// A model that takes the tendon pulls runs on a shape given `--tendon-pulls`, its
+/// probabilities depend on them, and it refuses a shape without them (or with pulls that do not
+/// fit the hand) in one line, writing nothing.
+#[test]
+fn contact_on_a_shape_takes_the_tendon_pulls_a_model_needs() {
+    let dir = scratch("contact-pulls");
+    let mut config = DgcnnConfig::default();
+    config.input.point_set = PointSet::PerFinger;
+    config.input.frame = FeatureFrame::Finger;
+    config.input.features.push(InputFeature::TendonPull);
+    let mut card = ModelCard::new(config.clone());
+    card.threshold = 0.5;
+    let model = dir.join("pulls.safetensors");
+    moe_io::write_model_files(
+        &model,
+        &ModelWeights::seeded(&config, 6, 3)
+            .unwrap()
+            .to_bytes()
+            .unwrap(),
+        Some(&card.to_json().unwrap()),
+    )
+    .unwrap();
+    let shape = shape_dir(&dir);
+    let probabilities = |pulls: &str, out: &Path| {
+        let o = contact_on_shape(&shape, &model, out, &["--tendon-pulls", pulls]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let ply = moe_io::read_ply(&out.join("finger_0.ply")).unwrap();
+        ply.scalar("contact_probability").unwrap().to_vec()
+    };
+    let bent = probabilities("0.004,-0.004,0,0;0,0,0.002,-0.002", &dir.join("bent"));
+    let free = probabilities("0,0,0,0;0,0,0,0", &dir.join("free"));
+    assert_ne!(bent, free);
+    for (extra, needle) in [
+        (&[][..], "tendon pulls"),
+        (&["--tendon-pulls", "0,0,0;0,0,0,0"][..], "tendon pulls"),
+        (
+            &["--tendon-pulls", "0,0,x,0;0,0,0,0"][..],
+            "'x' is not a number",
+        ),
+        (
+            &["--tendon-pulls", "0,0,0,0"][..],
+            "fingers of the tendon pulls",
+        ),
+    ] {
+        let out = dir.join("never");
+        let o = contact_on_shape(&shape, &model, &out, extra);
+        assert!(!o.status.success(), "{extra:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(needle), "{extra:?}: {err}");
+        assert!(!out.exists(), "{extra:?}");
+    }
+}
+
 fn write_reference_card(dir: &Path, edit: impl FnOnce(&mut ModelCard)) -> PathBuf {
     let p = dir.join("ref.safetensors");
     std::fs::copy(reference_model(), &p).unwrap();
