@@ -20,8 +20,8 @@ use clap::{Args, ValueEnum};
 use moe_arap::ShapeConfig;
 use moe_contact::{ContactEstimator, KnnIndex};
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
-use moe_gpis::ReconstructOptions;
 use moe_gpis::bench_scene::{BenchScene, SceneKind, SceneReport, Spread, evaluate_scene_with};
+use moe_gpis::{HyperBounds, ReconstructOptions};
 use moe_io::{DatasetReader, PlyData, SplitFractions};
 use moe_tendon_sim::paper_scenes::{ARM_SEED, HEAD_SEED};
 use moe_touch::contact_eval::study_shape_estimator;
@@ -120,6 +120,11 @@ pub(crate) struct PattingEvalArgs {
     /// raise bubbles of surface where nothing is.
     #[arg(long, value_name = "M", default_value_t = DEFAULT_PRIOR_GATE_M)]
     prior_gate: Real,
+    /// Lower bound of the GP's noise standard deviation on the estimated contacts (metres; 0
+    /// leaves the fit's own bound): how far an estimated contact may be from the surface
+    /// without the GP taking it for shape. The true contacts keep the fit's own bound.
+    #[arg(long, value_name = "M", default_value_t = 0.0)]
+    estimated_noise_floor: Real,
 }
 
 /// The contact points of one estimator on one pair.
@@ -318,10 +323,17 @@ fn evaluate_pair(
             prior: prior.clone(),
             contacts: contacts.points_in_world.clone(),
         };
-        let surface = ReconstructOptions {
+        let mut surface = ReconstructOptions {
             vertex_variance: write.is_some(),
-            ..surface
+            ..surface.clone()
         };
+        if tag == "estimated" {
+            surface.gpis.fit.bounds = surface
+                .gpis
+                .fit
+                .bounds
+                .with_noise_floor(args.estimated_noise_floor)?;
+        }
         let mut failure = None;
         let report = evaluate_scene_with(
             body.kind(),
@@ -373,6 +385,10 @@ fn evaluate(args: &PattingEvalArgs) -> Result<Value> {
     } else {
         args.bodies.clone()
     };
+    // Checked before any work.
+    HyperBounds::default()
+        .with_noise_floor(args.estimated_noise_floor)
+        .context("--estimated-noise-floor")?;
     if !(args.prior_gate.is_finite() && args.prior_gate >= 0.0) {
         anyhow::bail!(
             "--prior-gate {} must be a distance in metres (0 for none)",
@@ -404,6 +420,7 @@ fn evaluate(args: &PattingEvalArgs) -> Result<Value> {
         "pairs": pairs,
         "knn_index_frames": knn.len(),
         "prior_gate_m": args.prior_gate,
+        "estimated_noise_floor_m": args.estimated_noise_floor,
         "bodies": out,
     }))
 }
@@ -516,6 +533,7 @@ pub(crate) fn patting_fixture() -> Result<Value> {
         out: None,
         json: true,
         prior_gate: DEFAULT_PRIOR_GATE_M,
+        estimated_noise_floor: 0.0,
     };
     let mut v = evaluate(&args)?;
     strip_timings(&mut v);

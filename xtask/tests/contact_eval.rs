@@ -53,6 +53,23 @@ fn generate(dir: &Path, params: &Path, trajectories: &str) {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// `train` for one epoch of a tiny network.
+const TINY_TRAIN: &[&str] = &[
+    "train",
+    "--epochs",
+    "1",
+    "--batch-size",
+    "4",
+    "--negative-fraction",
+    "0.5",
+    "--k",
+    "12",
+    "--edge-widths",
+    "16,16,32",
+    "--head-widths",
+    "32,16",
+];
+
 #[test]
 fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     let root = scratch("run");
@@ -62,23 +79,7 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     generate(&data, &params, "24");
     let model = root.join("tiny");
     let o = xtask(
-        &[
-            "train",
-            "--epochs",
-            "1",
-            "--batch-size",
-            "4",
-            "--negative-fraction",
-            "0.5",
-            "--k",
-            "12",
-            "--edge-widths",
-            "16,16,32",
-            "--head-widths",
-            "32,16",
-            "--features",
-            "xyz,rest-xyz,deformation",
-        ],
+        &[TINY_TRAIN, &["--features", "xyz,rest-xyz,deformation"]].concat(),
         &[("--data", &data), ("--out", &model)],
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -177,22 +178,10 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
     let pulled = root.join("pulled");
     let o = xtask(
         &[
-            "train",
-            "--epochs",
-            "1",
-            "--batch-size",
-            "4",
-            "--negative-fraction",
-            "0.5",
-            "--k",
-            "12",
-            "--edge-widths",
-            "16,16,32",
-            "--head-widths",
-            "32,16",
-            "--features",
-            "xyz,rest-xyz,deformation,tendon-pull",
-        ],
+            TINY_TRAIN,
+            &["--features", "xyz,rest-xyz,deformation,tendon-pull"],
+        ]
+        .concat(),
         &[("--data", &data), ("--out", &pulled), ("--init", &weights)],
     );
     assert!(o.status.success(), "{}", stderr(&o));

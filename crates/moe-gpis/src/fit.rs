@@ -37,6 +37,29 @@ impl Default for HyperBounds {
     }
 }
 
+impl HyperBounds {
+    /// These bounds with the noise standard deviation at least `sd_m` metres (the upper bound
+    /// raised to it if below): for observations known to be that far off the surface — contacts
+    /// estimated to a few millimetres — so that the fit does not take their error for shape
+    /// (a short length scale bending the surface through every contact). 0 leaves the bounds.
+    ///
+    /// # Errors
+    /// [`GpisError::InvalidParameter`] for a negative or non-finite `sd_m`.
+    pub fn with_noise_floor(mut self, sd_m: Real) -> Result<Self, GpisError> {
+        if !(sd_m.is_finite() && sd_m >= 0.0) {
+            return Err(GpisError::InvalidParameter {
+                name: "noise_floor_m",
+                value: sd_m,
+                reason: "must be a finite distance, 0 or more",
+            });
+        }
+        let v = sd_m * sd_m;
+        self.noise_variance.0 = self.noise_variance.0.max(v);
+        self.noise_variance.1 = self.noise_variance.1.max(v);
+        Ok(self)
+    }
+}
+
 /// How to fit the hyper-parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FitConfig {
@@ -257,6 +280,54 @@ mod tests {
                 log_marginal_likelihood_and_grad(&pts, &y, kind, &truth, &Jitter::default())
                     .unwrap();
             assert!(fit.log_marginal_likelihood >= lml_truth - 1e-6);
+        }
+    }
+
+    /// A floor below the data's noise leaves the fit where it was; one above holds the fitted
+    /// noise at the floor; a floor above the upper bound raises it; bad floors are typed.
+    #[test]
+    fn a_noise_floor_bounds_the_fitted_noise_from_below() {
+        let truth = Hyper {
+            signal_variance: 0.5,
+            lengthscale: 0.3,
+            noise_variance: 1e-3,
+        };
+        let (pts, y) = sample_gp(KernelKind::Rbf, &truth, 300, 11);
+        let fit_with = |floor: Real| {
+            let cfg = FitConfig {
+                bounds: HyperBounds::default().with_noise_floor(floor).unwrap(),
+                max_iterations: 200,
+                max_fit_points: 1000,
+                ..FitConfig::default()
+            };
+            fit_hyper(&pts, &y, &cfg).unwrap().hyper
+        };
+        let free = fit_with(0.0);
+        assert!(free.noise_variance < 2e-3, "{free:?}");
+        let low = fit_with(0.01);
+        assert!(
+            (low.noise_variance / free.noise_variance - 1.0).abs() < 1e-3,
+            "{low:?} {free:?}"
+        );
+        let high = fit_with(0.08);
+        assert!(
+            (high.noise_variance / 0.0064 - 1.0).abs() < 1e-9,
+            "{high:?}"
+        );
+        let above = HyperBounds::default().with_noise_floor(0.2).unwrap();
+        assert_eq!(above.noise_variance, (0.2 * 0.2, 0.2 * 0.2));
+        assert_eq!(
+            HyperBounds::default().with_noise_floor(0.0).unwrap(),
+            HyperBounds::default()
+        );
+        for bad in [-1e-3, Real::NAN, Real::INFINITY] {
+            assert!(matches!(
+                HyperBounds::default().with_noise_floor(bad),
+                Err(GpisError::InvalidParameter {
+                    name: "noise_floor_m",
+                    ..
+                })
+            ));
         }
     }
 

@@ -8,9 +8,9 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use moe_geom::{Point3, TriMesh};
 use moe_gpis::{
-    FitConfig, GpisConfig, Hyper, IcpConfig, IcpReport, KernelKind, Mesher, Observations,
-    PoissonOptions, PosePrior, ReconstructOptions, RegistrationKind, SphereMean, SurfaceMethod,
-    SurfaceOptions, condition_surface, reconstruct_surface,
+    FitConfig, GpisConfig, Hyper, HyperBounds, IcpConfig, IcpReport, KernelKind, Mesher,
+    Observations, PoissonOptions, PosePrior, ReconstructOptions, RegistrationKind, SphereMean,
+    SurfaceMethod, SurfaceOptions, condition_surface, reconstruct_surface,
 };
 use serde_json::json;
 
@@ -107,6 +107,11 @@ pub(crate) struct SurfaceArgs {
     /// Fixed noise variance (m²).
     #[arg(long, requires_all = ["lengthscale", "signal_variance"])]
     noise_variance: Option<f64>,
+    /// Fitting the hyper-parameters, keep the noise standard deviation at least this (m): for
+    /// contacts known to be that far off the surface (a contact estimator's error), so that the
+    /// fit does not bend the surface through each of them.
+    #[arg(long, value_name = "M", conflicts_with = "lengthscale")]
+    noise_floor: Option<f64>,
     /// Value of the constant mean (m, positive = outside) for `--method constant`.
     #[arg(long, default_value_t = 0.02)]
     mean_value: f64,
@@ -245,6 +250,9 @@ fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
                 Kernel::Rbf => KernelKind::Rbf,
                 Kernel::Matern32 => KernelKind::Matern32,
             },
+            bounds: HyperBounds::default()
+                .with_noise_floor(args.noise_floor.unwrap_or(0.0))
+                .context("--noise-floor")?,
             ..FitConfig::default()
         },
         fixed,

@@ -373,6 +373,50 @@ fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
     }
 }
 
+/// `--noise-floor` holds the fitted noise at its floor where the contacts alone would fit
+/// less, and a bad floor is refused in one line.
+#[test]
+fn the_noise_floor_bounds_the_fitted_noise() {
+    let dir = scratch("surface-noise-floor");
+    let contacts = dir.join("contacts.csv");
+    moe_io::write_csv(&contacts, &["x", "y", "z"], &sphere_points(0.05, 200, 1)).unwrap();
+    let out = dir.join("s.obj");
+    let fit = |extra: &[&str]| {
+        let mut args = vec![
+            "surface",
+            "--contacts",
+            contacts.to_str().unwrap(),
+            "--method",
+            "sphere",
+            "--grid",
+            "16",
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        run_json(&args)["hyper"]["noise_variance_m2"]
+            .as_f64()
+            .unwrap()
+    };
+    let free = fit(&[]);
+    let floored = fit(&["--noise-floor", "0.003"]);
+    assert!(free < 1e-8, "{free}");
+    assert!((floored / 9e-6 - 1.0).abs() < 1e-6, "{floored}");
+    let err = assert_one_line_error(&run(&[
+        "surface",
+        "--contacts",
+        contacts.to_str().unwrap(),
+        "--method",
+        "sphere",
+        "--noise-floor=-0.001",
+        "--out",
+        dir.join("never.obj").to_str().unwrap(),
+    ]));
+    assert!(!dir.join("never.obj").exists());
+    assert!(err.contains("--noise-floor"), "{err}");
+}
+
 #[test]
 fn bad_inputs_give_one_line_errors() {
     let dir = scratch("surface-bad");
