@@ -325,7 +325,7 @@ fn evaluate_pair(
         };
         let mut surface = ReconstructOptions {
             vertex_variance: write.is_some(),
-            ..surface.clone()
+            ..surface
         };
         if tag == "estimated" {
             surface.gpis.fit.bounds = surface
