@@ -254,10 +254,16 @@ fn normalisation_of(builder: &FeatureBuilder, frames: &[LabelledFrame]) -> Resul
         }
     }
     let mean: Vec<f64> = sum.iter().map(|s| s / count).collect();
+    // A channel constant over the training frames (the co-contraction of pulls that are always
+    // antagonistic, say) is left unscaled: dividing by its zero spread would turn any value it
+    // takes at run time into an enormous input.
     let std = sq
         .iter()
         .zip(&mean)
-        .map(|(q, m)| (q / count - m * m).max(0.0).sqrt().max(1e-6))
+        .map(|(q, m)| {
+            let sd = (q / count - m * m).max(0.0).sqrt();
+            if sd <= 1e-9 { 1.0 } else { sd.max(1e-6) }
+        })
         .collect();
     Ok(Normalisation { mean, std })
 }

@@ -374,47 +374,43 @@ fn the_prior_gate_leaves_out_contacts_far_from_the_prior() {
 }
 
 /// `--noise-floor` holds the fitted noise at its floor where the contacts alone would fit
-/// less, and a bad floor is refused in one line.
+/// less, and a bad floor is refused in one line, writing nothing.
 #[test]
 fn the_noise_floor_bounds_the_fitted_noise() {
     let dir = scratch("surface-noise-floor");
     let contacts = dir.join("contacts.csv");
     moe_io::write_csv(&contacts, &["x", "y", "z"], &sphere_points(0.05, 200, 1)).unwrap();
-    let out = dir.join("s.obj");
-    let fit = |extra: &[&str]| {
+    let (good, bad) = (dir.join("s.obj"), dir.join("never.obj"));
+    let args = |out: &std::path::Path, extra: &[&str]| {
         let mut args = vec![
-            "surface",
-            "--contacts",
-            contacts.to_str().unwrap(),
-            "--method",
-            "sphere",
-            "--grid",
-            "16",
-            "--out",
-            out.to_str().unwrap(),
-            "--json",
+            "surface".to_string(),
+            "--contacts".into(),
+            contacts.display().to_string(),
+            "--method".into(),
+            "sphere".into(),
+            "--grid".into(),
+            "16".into(),
+            "--out".into(),
+            out.display().to_string(),
+            "--json".into(),
         ];
-        args.extend_from_slice(extra);
-        run_json(&args)["hyper"]["noise_variance_m2"]
-            .as_f64()
-            .unwrap()
+        args.extend(extra.iter().map(|e| e.to_string()));
+        args
     };
-    let free = fit(&[]);
-    let floored = fit(&["--noise-floor", "0.003"]);
+    let noise = |extra: &[&str]| {
+        let a = args(&good, extra);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        run_json(&a)["hyper"]["noise_variance_m2"].as_f64().unwrap()
+    };
+    let free = noise(&[]);
+    let floored = noise(&["--noise-floor", "0.003"]);
     assert!(free < 1e-8, "{free}");
     assert!((floored / 9e-6 - 1.0).abs() < 1e-6, "{floored}");
-    let err = assert_one_line_error(&run(&[
-        "surface",
-        "--contacts",
-        contacts.to_str().unwrap(),
-        "--method",
-        "sphere",
-        "--noise-floor=-0.001",
-        "--out",
-        dir.join("never.obj").to_str().unwrap(),
-    ]));
-    assert!(!dir.join("never.obj").exists());
+    let a = args(&bad, &["--noise-floor=-0.001"]);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    let err = assert_one_line_error(&run(&a));
     assert!(err.contains("--noise-floor"), "{err}");
+    assert!(!bad.exists());
 }
 
 #[test]
