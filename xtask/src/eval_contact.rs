@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use moe_contact::{DgcnnEstimator, KnnIndex};
+use moe_contact::{ContactInput, DgcnnEstimator, KnnIndex};
 use moe_geom::{HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::SceneConfig;
@@ -627,7 +627,7 @@ pub(crate) fn golden_table1() -> Result<serde_json::Value> {
     let sums = frames
         .iter()
         .map(|f| {
-            let map = dgcnn.estimate(&f.shape, Some(&f.markers))?;
+            let map = dgcnn.estimate_input(&ContactInput::of_frame(f, &f.shape))?;
             Ok(map.fingers.iter().flatten().sum::<Real>())
         })
         .collect::<Result<Vec<Real>>>()?;

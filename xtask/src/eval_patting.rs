@@ -320,48 +320,44 @@ fn evaluate_pair(
         "contacts_true",
         &PlyData::from_points(&true_contacts.points_in_world),
     )?;
-    let surfaces = |contacts: &PatContacts, tag: &str| -> Result<Option<SceneReport>> {
-        if contacts.points_in_world.is_empty() {
-            return Ok(None);
-        }
-        let scene = BenchScene {
-            truth: episode.truth.clone(),
-            prior: prior.clone(),
-            contacts: contacts.points_in_world.clone(),
+    // `noise_floor_m`: the GP's noise sd at least this (0 for the fit's own bound).
+    let surfaces =
+        |contacts: &PatContacts, tag: &str, noise_floor_m: Real| -> Result<Option<SceneReport>> {
+            if contacts.points_in_world.is_empty() {
+                return Ok(None);
+            }
+            let scene = BenchScene {
+                truth: episode.truth.clone(),
+                prior: prior.clone(),
+                contacts: contacts.points_in_world.clone(),
+            };
+            let mut surface = ReconstructOptions {
+                vertex_variance: write.is_some(),
+                ..surface
+            };
+            surface.gpis.fit.bounds = surface.gpis.fit.bounds.with_noise_floor(noise_floor_m)?;
+            let mut failure = None;
+            let report = evaluate_scene_with(
+                body.kind(),
+                &scene,
+                &surface,
+                Some(NORMAL_OFFSET_M),
+                (args.prior_gate > 0.0).then_some(args.prior_gate),
+                &mut |name, mesh, variance| {
+                    let ply = PlyData::with_variance(mesh, variance);
+                    if let Err(e) = put(&format!("{name}_{tag}"), &ply) {
+                        failure.get_or_insert(e);
+                    }
+                },
+            )?;
+            if let Some(e) = failure {
+                return Err(e);
+            }
+            Ok(Some(report))
         };
-        let mut surface = ReconstructOptions {
-            vertex_variance: write.is_some(),
-            ..surface
-        };
-        if tag == "estimated" {
-            surface.gpis.fit.bounds = surface
-                .gpis
-                .fit
-                .bounds
-                .with_noise_floor(args.estimated_noise_floor)?;
-        }
-        let mut failure = None;
-        let report = evaluate_scene_with(
-            body.kind(),
-            &scene,
-            &surface,
-            Some(NORMAL_OFFSET_M),
-            (args.prior_gate > 0.0).then_some(args.prior_gate),
-            &mut |name, mesh, variance| {
-                let ply = PlyData::with_variance(mesh, variance);
-                if let Err(e) = put(&format!("{name}_{tag}"), &ply) {
-                    failure.get_or_insert(e);
-                }
-            },
-        )?;
-        if let Some(e) = failure {
-            return Err(e);
-        }
-        Ok(Some(report))
-    };
-    let surfaces_estimated = surfaces(&dgcnn_contacts, "estimated")?;
-    let surfaces_true =
-        surfaces(&true_contacts, "true_contacts")?.context("the simulated pats touched nothing")?;
+    let surfaces_estimated = surfaces(&dgcnn_contacts, "estimated", args.estimated_noise_floor)?;
+    let surfaces_true = surfaces(&true_contacts, "true_contacts", 0.0)?
+        .context("the simulated pats touched nothing")?;
     eprintln!(
         "eval patting: {} pair {k}: {pats} pats in {:.1} s",
         body.name(),

@@ -262,7 +262,7 @@ fn normalisation_of(builder: &FeatureBuilder, frames: &[LabelledFrame]) -> Resul
         .zip(&mean)
         .map(|(q, m)| {
             let sd = (q / count - m * m).max(0.0).sqrt();
-            if sd <= 1e-9 { 1.0 } else { sd.max(1e-6) }
+            if sd < 1e-6 { 1.0 } else { sd }
         })
         .collect();
     Ok(Normalisation { mean, std })
@@ -411,12 +411,84 @@ fn checkpoint_path(out: &Path) -> PathBuf {
     out.with_extension("checkpoint.safetensors")
 }
 
+/// The input spec of `--init`'s card, checked against the run's: the run may add features
+/// after the initial model's own (their weights start at zero), in the same frame and point
+/// sets; it may not drop or reorder them, which would feed the initial weights other channels
+/// than they were trained on. Weights without a card must take the run's channels as they are.
+fn init_input_of(args: &TrainArgs, spec: &InputSpec) -> Result<Option<InputSpec>> {
+    let Some(path) = &args.init else {
+        return Ok(None);
+    };
+    let files = moe_io::read_model_files(path)?;
+    let Some(text) = files.card else {
+        let weights = ModelWeights::parse(&files.weights)
+            .with_context(|| format!("initial weights {}", path.display()))?;
+        let channels = weights.get("edge1.theta").map(|(shape, _)| shape[1]);
+        if channels != Some(spec.channels()) {
+            bail!(
+                "--init {}: weights without a card take {} input channels, the run's features \
+                 ({}) {}; give the card beside the weights",
+                path.display(),
+                channels.map_or("no".to_string(), |c| c.to_string()),
+                spec.describe(),
+                spec.channels()
+            );
+        }
+        return Ok(None);
+    };
+    let input = ModelCard::from_json(&text)
+        .with_context(|| format!("model card {}", files.card_path.display()))?
+        .architecture
+        .input;
+    if input.features != spec.features
+        && (!spec.features.starts_with(&input.features)
+            || input.frame != spec.frame
+            || input.point_set != spec.point_set)
+    {
+        bail!(
+            "--init {}: its features ({}, {:?} frame, {:?} sets) are not the first of the run's \
+             ({}, {:?} frame, {:?} sets); features can only be added after the initial model's, \
+             in the same frame and point sets",
+            path.display(),
+            input.describe(),
+            input.frame,
+            input.point_set,
+            spec.describe(),
+            spec.frame,
+            spec.point_set
+        );
+    }
+    Ok(Some(input))
+}
+
 pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     let started = Instant::now();
     // Options that clap cannot check alone, checked before any data loads.
     let edge_widths = widths("edge-widths", &args.edge_widths)?;
     let head_widths = widths("head-widths", &args.head_widths)?;
     let augmentation = marker_augmentation(args)?;
+    let mut spec = InputSpec {
+        features: args
+            .features
+            .iter()
+            .map(|f| match f {
+                FeatureArg::Xyz => InputFeature::Xyz,
+                FeatureArg::RestXyz => InputFeature::RestXyz,
+                FeatureArg::Deformation => InputFeature::Deformation,
+                FeatureArg::TendonPull => InputFeature::TendonPull,
+            })
+            .collect(),
+        frame: match args.point_set {
+            PointSetArg::PerFinger => FeatureFrame::Finger,
+            PointSetArg::WholeHand => FeatureFrame::Hand,
+        },
+        point_set: match args.point_set {
+            PointSetArg::PerFinger => PointSet::PerFinger,
+            PointSetArg::WholeHand => PointSet::WholeHand,
+        },
+        normalisation: None,
+    };
+    let init_input = init_input_of(args, &spec)?;
     let readers = args
         .data
         .iter()
@@ -475,38 +547,9 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
         }
         (train, validation)
     };
-    let mut spec = InputSpec {
-        features: args
-            .features
-            .iter()
-            .map(|f| match f {
-                FeatureArg::Xyz => InputFeature::Xyz,
-                FeatureArg::RestXyz => InputFeature::RestXyz,
-                FeatureArg::Deformation => InputFeature::Deformation,
-                FeatureArg::TendonPull => InputFeature::TendonPull,
-            })
-            .collect(),
-        frame: match args.point_set {
-            PointSetArg::PerFinger => FeatureFrame::Finger,
-            PointSetArg::WholeHand => FeatureFrame::Hand,
-        },
-        point_set: match args.point_set {
-            PointSetArg::PerFinger => PointSet::PerFinger,
-            PointSetArg::WholeHand => PointSet::WholeHand,
-        },
-        normalisation: None,
-    };
     // Normalise every channel by the training frames' statistics — or, fine-tuning, keep the
     // normalisation the initial weights were trained with for the channels they were trained
     // on (the features listed first), and the training frames' for any added after them.
-    let init_input = match &args.init {
-        Some(path) => moe_io::read_model_files(path)?
-            .card
-            .map(|text| ModelCard::from_json(&text))
-            .transpose()?
-            .map(|c| c.architecture.input),
-        None => None,
-    };
     let kept = init_input.as_ref().and_then(|input| {
         spec.features
             .starts_with(&input.features)

@@ -185,6 +185,22 @@ fn train_then_evaluate_a_tiny_model_and_refuse_bad_input() {
         &[("--data", &data), ("--out", &pulled), ("--init", &weights)],
     );
     assert!(o.status.success(), "{}", stderr(&o));
+    // Features can only be added after the initial model's, not reordered or dropped.
+    assert_one_error(
+        &xtask(
+            &[
+                TINY_TRAIN,
+                &["--features", "rest-xyz,xyz,deformation,tendon-pull"],
+            ]
+            .concat(),
+            &[
+                ("--data", &data),
+                ("--out", &root.join("never")),
+                ("--init", &weights),
+            ],
+        ),
+        "can only be added",
+    );
     let pulled_card: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(pulled.with_extension("json")).unwrap())
             .unwrap();

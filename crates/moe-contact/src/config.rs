@@ -50,8 +50,8 @@ pub enum InputFeature {
     /// areal strain (see the `deformation` module).
     Deformation,
     /// What the robot pulled, the same on every vertex of a finger: the finger's tendon pulls
-    /// `p_t` weighted by the direction `u_t` of each tendon from the finger axis (finger frame,
-    /// at the route's base), `Σ p_t u_t.x`, `Σ p_t u_t.y`, and their sum `Σ p_t`. For antagonistic
+    /// `p_t` weighted by the direction `u_t` of each tendon from the finger axis (in the finger's
+    /// frame whatever [`InputSpec::frame`] says, at the route's base), `Σ p_t u_t.x`, `Σ p_t u_t.y`, and their sum `Σ p_t`. For antagonistic
     /// pairs the first two are the bending the pulls ask for and the third the co-contraction;
     /// beside the shape, they say how the finger would bend if nothing touched it. Needs the pulls
     /// with every observation ([`crate::ContactInput::tendon_pull_m`]).

@@ -102,6 +102,48 @@ struct SetPlan {
     len: usize,
 }
 
+/// Per finger and tendon, the unit direction of the tendon's route base from the finger axis
+/// (finger frame, x and y).
+///
+/// # Errors
+/// [`ContactError::InvalidConfig`] naming the finger and tendon, when the spec takes
+/// [`InputFeature::TendonPull`] and a route starts on the axis (no bending direction).
+fn tendon_directions(
+    hand: &HandModel,
+    spec: &InputSpec,
+) -> Result<Vec<Vec<[f64; 2]>>, ContactError> {
+    let needed = spec.features.contains(&InputFeature::TendonPull);
+    hand.fingers()
+        .iter()
+        .enumerate()
+        .map(|(f, finger)| {
+            finger
+                .model
+                .tendon_routes()
+                .iter()
+                .enumerate()
+                .map(|(t, r)| {
+                    let base = r.points_in_finger.first().map_or([0.0; 2], |p| [p.x, p.y]);
+                    let norm = base[0].hypot(base[1]);
+                    if norm > 1e-9 {
+                        Ok([base[0] / norm, base[1] / norm])
+                    } else if needed {
+                        Err(ContactError::InvalidConfig {
+                            field: "input.features",
+                            message: format!(
+                                "tendon-pull: finger {f}'s tendon {t} starts on the finger axis, \
+                                 so its pull has no bending direction"
+                            ),
+                        })
+                    } else {
+                        Ok([0.0; 2])
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// Turns a hand shape into the network's input as an [`InputSpec`] says: which features, in
 /// which frame, grouped into which point sets. Shared by inference and training.
 #[derive(Debug, Clone)]
@@ -162,25 +204,7 @@ impl FeatureBuilder {
             } else {
                 Vec::new()
             },
-            tendon_directions: hand
-                .fingers()
-                .iter()
-                .map(|f| {
-                    f.model
-                        .tendon_routes()
-                        .iter()
-                        .map(|r| {
-                            let base = r.points_in_finger.first().map_or([0.0; 2], |p| [p.x, p.y]);
-                            let norm = base[0].hypot(base[1]);
-                            if norm > 1e-12 {
-                                [base[0] / norm, base[1] / norm]
-                            } else {
-                                [0.0; 2]
-                            }
-                        })
-                        .collect()
-                })
-                .collect(),
+            tendon_directions: tendon_directions(hand, spec)?,
         })
     }
 

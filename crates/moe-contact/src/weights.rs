@@ -111,8 +111,10 @@ impl ModelWeights {
 
     /// These weights for a network with `channels` input channels, the first ones being the
     /// channels they were trained on: the first layer's weights get zero columns for the new
-    /// channels, so the network computes what it computed before whatever the new channels hold
-    /// (and learns from them when trained further).
+    /// channels (and learn from them when trained further). The network then computes what it
+    /// computed before when the new channels are constant over each point set (as
+    /// `tendon-pull` is with per-finger sets); otherwise the first layer's neighbourhoods, found
+    /// over all channels, change, and the start is only near it.
     ///
     /// # Errors
     /// [`ContactError::MissingTensor`] / [`ContactError::TensorShape`] for weights without a

@@ -661,10 +661,12 @@ pub fn perturbed_plate(
     (out, offset, tilt)
 }
 
-/// The labelled frames of a simulated scene (markers are the marker vertices of the surface).
+/// The labelled frames of a simulated scene (markers are the marker vertices of the surface,
+/// tendon pulls the commanded ones).
 ///
 /// # Errors
-/// Divergence of the simulation, or a scene whose hand is not `hand`'s layout.
+/// Divergence of the simulation, a scene whose hand is not `hand`'s layout, or one with a
+/// force-driven tendon (whose command is a tension, not a pull).
 pub fn simulate_labelled(
     config: &SceneConfig,
     hand: &HandModel,

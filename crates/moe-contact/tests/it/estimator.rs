@@ -449,3 +449,33 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
         .fold(0.0, f64::max);
     assert!(diff > 1e-6, "{diff:e}");
 }
+
+/// A tendon whose route starts on the finger axis has no bending direction: a model taking the
+/// pulls refuses the hand, naming the finger and tendon; one that does not take them accepts it.
+#[test]
+fn a_tendon_on_the_axis_is_refused_by_a_pull_model() {
+    let two = hand(HandPreset::TwoFinger);
+    let mut fingers = two.fingers().to_vec();
+    let model = &fingers[1].model;
+    let mut routes = model.tendon_routes().to_vec();
+    for p in &mut routes[2].points_in_finger {
+        p.x = 0.0;
+        p.y = 0.0;
+    }
+    fingers[1].model = moe_geom::FingerModel::from_parts(
+        model.mesh().clone(),
+        model.marker_vertices().to_vec(),
+        model.base_vertices().to_vec(),
+        routes,
+    )
+    .unwrap();
+    let odd = HandModel::new(fingers).unwrap();
+    let err = FeatureBuilder::new(&pull_spec(FeatureFrame::Finger, PointSet::PerFinger), &odd)
+        .unwrap_err();
+    assert!(
+        matches!(&err, ContactError::InvalidConfig { message, .. }
+            if message.contains("finger 1's tendon 2")),
+        "{err}"
+    );
+    assert!(FeatureBuilder::new(&InputSpec::default(), &odd).is_ok());
+}

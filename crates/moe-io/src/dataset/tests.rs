@@ -36,7 +36,7 @@ fn frame(traj: u64, k: u32) -> DatasetFrame {
             (0.1 * traj as f64).sin(),
             (0.1 * traj as f64).cos(),
         ],
-        tendon_pull_m: vec![0.001 * k as f32, 0.0, 0.0, 0.002],
+        tendon_pull_m: vec![0.001 * k as f32, -0.0005, 0.0007, 0.002],
         object_family: (traj % 2) as u8,
         object_params: vec![0.02, s, 1.0 / 3.0],
     }
@@ -66,7 +66,10 @@ fn frames_split_per_finger_as_labelled_frames() {
     // The hand's tendons, fingers concatenated, become each finger's own list.
     assert_eq!(
         l.tendon_pull_m,
-        vec![vec![0.002f32 as f64, 0.0], vec![0.0, 0.002f32 as f64]]
+        vec![
+            vec![f64::from(0.002f32), f64::from(-0.0005f32)],
+            vec![f64::from(0.0007f32), f64::from(0.002f32)]
+        ]
     );
     let t = l.world_from_hand.iso().translation.vector;
     assert_eq!([t.x, t.y, t.z], [0.1, 0.2, 0.3]);

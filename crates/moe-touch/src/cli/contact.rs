@@ -274,7 +274,6 @@ fn parse_tendon_pulls(text: &str) -> Result<Vec<Vec<f64>>> {
             finger
                 .split(',')
                 .map(str::trim)
-                .filter(|v| !v.is_empty())
                 .enumerate()
                 .map(|(t, v)| {
                     let x: f64 = v.parse().with_context(|| {
@@ -319,6 +318,13 @@ fn run_shape(
         .as_deref()
         .map(parse_tendon_pulls)
         .transpose()?;
+    if pulls.is_some() && !estimator.features().needs_tendon_pulls() {
+        bail!(
+            "--tendon-pulls: model {} does not take them (its features: {})",
+            args.model.display(),
+            estimator.features().spec().describe()
+        );
+    }
     let (mut maps, timings) = estimator
         .estimate_inputs(&[ContactInput {
             shape: &shape,

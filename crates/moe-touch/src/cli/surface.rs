@@ -236,6 +236,9 @@ fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
     if args.prior_gate.is_some() && matches!(args.method, Method::Sphere | Method::Constant) {
         bail!("--prior-gate needs a method with a prior (prior or nonprob)");
     }
+    if args.noise_floor.is_some() && args.method == Method::Nonprob {
+        bail!("--noise-floor bounds the GP's fit: the GP methods only (prior, sphere, constant)");
+    }
     let fixed = match (args.lengthscale, args.signal_variance, args.noise_variance) {
         (Some(lengthscale), Some(signal_variance), Some(noise_variance)) => Some(Hyper {
             signal_variance,

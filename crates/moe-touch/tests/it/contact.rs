@@ -221,6 +221,10 @@ fn contact_on_a_shape_takes_the_tendon_pulls_a_model_needs() {
             "'x' is not a number",
         ),
         (
+            &["--tendon-pulls", "0,,0,0;0,0,0,0"][..],
+            "finger 0, tendon 1",
+        ),
+        (
             &["--tendon-pulls", "0,0,0,0"][..],
             "fingers of the tendon pulls",
         ),
@@ -232,6 +236,17 @@ fn contact_on_a_shape_takes_the_tendon_pulls_a_model_needs() {
         assert!(err.contains(needle), "{extra:?}: {err}");
         assert!(!out.exists(), "{extra:?}");
     }
+    // Pulls given to a model that does not take them are refused, not ignored.
+    let plain = per_finger_model(&dir);
+    let out = dir.join("never");
+    let o = contact_on_shape(&shape, &plain, &out, &["--tendon-pulls", "0,0,0,0;0,0,0,0"]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("does not take them"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!out.exists());
 }
 
 fn write_reference_card(dir: &Path, edit: impl FnOnce(&mut ModelCard)) -> PathBuf {

@@ -410,6 +410,16 @@ fn the_noise_floor_bounds_the_fitted_noise() {
     let a: Vec<&str> = a.iter().map(String::as_str).collect();
     let err = assert_one_line_error(&run(&a));
     assert!(err.contains("--noise-floor"), "{err}");
+    // The baseline fits no GP.
+    let prior = sphere_prior(&dir);
+    let mut a = args(
+        &bad,
+        &["--noise-floor", "0.003", "--prior", prior.to_str().unwrap()],
+    );
+    a[4] = "nonprob".into();
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    let err = assert_one_line_error(&run(&a));
+    assert!(err.contains("GP methods only"), "{err}");
     assert!(!bad.exists());
 }
 
