@@ -294,6 +294,16 @@ fn deformation_features_are_frame_free_and_mark_the_dent() {
     );
 }
 
+/// The largest difference between two maps' probabilities, vertex by vertex.
+fn largest_difference(a: &moe_geom::ContactMap, b: &moe_geom::ContactMap) -> f64 {
+    a.fingers
+        .iter()
+        .flatten()
+        .zip(b.fingers.iter().flatten())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 /// The two-finger hand's pulls `[+x, −x, +y, −y]` per finger (the preset's route order).
 fn pulls(a: [f64; 4], b: [f64; 4]) -> Vec<Vec<f64>> {
     vec![a.to_vec(), b.to_vec()]
@@ -411,13 +421,7 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
         tendon_pull_m: Some(&p),
     };
     let after = widened.estimate_input(&input).unwrap();
-    let moved = after
-        .fingers
-        .iter()
-        .flatten()
-        .zip(before.fingers.iter().flatten())
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max);
+    let moved = largest_difference(&after, &before);
     assert!(moved < 1e-12, "{moved:e}");
     assert!(matches!(
         widened.estimate(&shape, None),
@@ -440,13 +444,7 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
             ..input
         })
         .unwrap();
-    let diff = a
-        .fingers
-        .iter()
-        .flatten()
-        .zip(b.fingers.iter().flatten())
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f64::max);
+    let diff = largest_difference(&a, &b);
     assert!(diff > 1e-6, "{diff:e}");
 }
 

@@ -74,16 +74,17 @@ fn contact_on_points_reproduces_the_pytorch_logits() {
     }
 }
 
-/// A seeded model of the shipped form (per-finger sets in the finger frame, xyz + rest xyz).
-fn per_finger_model(dir: &Path) -> PathBuf {
+/// A seeded model of the shipped form (per-finger sets in the finger frame) taking xyz and
+/// `second`, written under `dir` by the feature's name.
+fn per_finger_model(dir: &Path, second: InputFeature) -> PathBuf {
     let mut config = DgcnnConfig::default();
     config.input.point_set = PointSet::PerFinger;
     config.input.frame = FeatureFrame::Finger;
-    config.input.features.push(InputFeature::RestXyz);
+    config.input.features.push(second);
     let mut card = ModelCard::new(config.clone());
     card.threshold = 0.5;
     let weights = ModelWeights::seeded(&config, 6, 3).unwrap();
-    let p = dir.join("m.safetensors");
+    let p = dir.join(format!("{}.safetensors", second.name()));
     moe_io::write_model_files(
         &p,
         &weights.to_bytes().unwrap(),
@@ -134,7 +135,7 @@ fn contact_on_shape(
 #[test]
 fn contact_on_a_hand_shape_writes_coloured_meshes_contacts_and_a_summary() {
     let dir = scratch("contact-shape");
-    let model = per_finger_model(&dir);
+    let model = per_finger_model(&dir, InputFeature::RestXyz);
     let shape = shape_dir(&dir);
     let out_dir = dir.join("out");
     let out = contact_on_shape(&shape, &model, &out_dir, &["--json"]);
@@ -187,22 +188,7 @@ fn contact_on_a_hand_shape_writes_coloured_meshes_contacts_and_a_summary() {
 #[test]
 fn contact_on_a_shape_takes_the_tendon_pulls_a_model_needs() {
     let dir = scratch("contact-pulls");
-    let mut config = DgcnnConfig::default();
-    config.input.point_set = PointSet::PerFinger;
-    config.input.frame = FeatureFrame::Finger;
-    config.input.features.push(InputFeature::TendonPull);
-    let mut card = ModelCard::new(config.clone());
-    card.threshold = 0.5;
-    let model = dir.join("pulls.safetensors");
-    moe_io::write_model_files(
-        &model,
-        &ModelWeights::seeded(&config, 6, 3)
-            .unwrap()
-            .to_bytes()
-            .unwrap(),
-        Some(&card.to_json().unwrap()),
-    )
-    .unwrap();
+    let model = per_finger_model(&dir, InputFeature::TendonPull);
     let shape = shape_dir(&dir);
     let probabilities = |pulls: &str, out: &Path| {
         let o = contact_on_shape(&shape, &model, out, &["--tendon-pulls", pulls]);
@@ -237,7 +223,7 @@ fn contact_on_a_shape_takes_the_tendon_pulls_a_model_needs() {
         assert!(!out.exists(), "{extra:?}");
     }
     // Pulls given to a model that does not take them are refused, not ignored.
-    let plain = per_finger_model(&dir);
+    let plain = per_finger_model(&dir, InputFeature::RestXyz);
     let out = dir.join("never");
     let o = contact_on_shape(&shape, &plain, &out, &["--tendon-pulls", "0,0,0,0;0,0,0,0"]);
     assert!(!o.status.success());
@@ -328,7 +314,7 @@ fn contact_refuses_bad_models_and_inputs_with_one_line_and_writes_nothing() {
     assert!(on_points(&reference_model(), &points, &["--device", "cuda"]).contains("cuda"));
 
     // A shape whose vertex count does not match the hand.
-    let model = per_finger_model(&dir);
+    let model = per_finger_model(&dir, InputFeature::RestXyz);
     let shape = shape_dir(&dir);
     let small = FingerModel::from_params(&FingerParams {
         vertex_budget: 300,
