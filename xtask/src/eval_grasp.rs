@@ -42,6 +42,13 @@ pub(crate) struct GraspEvalArgs {
     /// estimate's error from the contact model's).
     #[arg(long)]
     true_labels: bool,
+    /// Contact probability threshold of the pipeline's contacts, in (0, 1] (default: the
+    /// model card's).
+    #[arg(long)]
+    threshold: Option<Real>,
+    /// RANSAC inlier distance of the plane fit, metres (default 2 mm).
+    #[arg(long)]
+    plane_threshold: Option<Real>,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
@@ -103,12 +110,19 @@ fn evaluate(
     model: &Path,
     seed: u64,
     source: Source,
+    options: &GraspOptions,
+    threshold: Option<Real>,
     out: Option<&Path>,
 ) -> Result<Value> {
+    if let Some(t) = threshold
+        && !(t > 0.0 && t <= 1.0)
+    {
+        anyhow::bail!("--threshold {t}: must lie in (0, 1]");
+    }
+    options.ransac.validate().context("--plane-threshold")?;
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
     let estimator = load_contact_model(&workspace_root().join(model), &hand)?;
-    let threshold = estimator.threshold();
-    let options = GraspOptions::default();
+    let threshold = threshold.unwrap_or_else(|| estimator.threshold());
     let mut rows = Vec::new();
     for (incline, paper_with, paper_without) in INCLINES {
         let t = std::time::Instant::now();
@@ -124,7 +138,7 @@ fn evaluate(
                     },
                     Source::TrueContacts => GraspContacts::Simulator,
                 };
-                run_grasp_trial(&hand, contacts, incline, k, seed, &options)
+                run_grasp_trial(&hand, contacts, incline, k, seed, options)
             })
             .collect::<Result<_, _>>()?;
         if let Some(dir) = out {
@@ -213,11 +227,17 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     } else {
         Source::Pipeline
     };
+    let mut options = GraspOptions::default();
+    if let Some(m) = args.plane_threshold {
+        options.ransac.distance_threshold_m = m;
+    }
     let v = evaluate(
         args.trials,
         &args.model,
         args.seed,
         source,
+        &options,
+        args.threshold,
         args.out.as_deref(),
     )?;
     if args.json {
@@ -230,7 +250,15 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
 
 /// The golden content of one trial per incline, rounded to 1e-3.
 pub(crate) fn grasp_fixture() -> Result<Value> {
-    let mut v = evaluate(1, Path::new(SHIPPED_MODEL), 0, Source::Pipeline, None)?;
+    let mut v = evaluate(
+        1,
+        Path::new(SHIPPED_MODEL),
+        0,
+        Source::Pipeline,
+        &GraspOptions::default(),
+        None,
+        None,
+    )?;
     crate::eval_patting::round3(&mut v);
     Ok(v)
 }
@@ -290,5 +318,28 @@ mod tests {
         assert_eq!(truth.points.len(), 1);
         assert_eq!(truth.scalar("finger").unwrap(), &[1.0]);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A contact threshold outside (0, 1] or a plane threshold that is not a positive distance
+    /// is refused before any trial runs.
+    #[test]
+    fn bad_thresholds_are_refused_before_any_trial() {
+        let model = Path::new(SHIPPED_MODEL);
+        let defaults = GraspOptions::default();
+        for t in [0.0, -0.5, 1.5, Real::NAN] {
+            let e = evaluate(1, model, 0, Source::Pipeline, &defaults, Some(t), None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("--threshold"), "{e}");
+        }
+        for m in [0.0, -0.001, Real::NAN] {
+            let mut options = GraspOptions::default();
+            options.ransac.distance_threshold_m = m;
+            let e = format!(
+                "{:#}",
+                evaluate(1, model, 0, Source::Pipeline, &options, None, None).unwrap_err()
+            );
+            assert!(e.contains("--plane-threshold"), "{e}");
+        }
     }
 }

@@ -44,6 +44,10 @@ pub(crate) trait Elem:
     fn min(self, other: Self) -> Self;
     /// `max(d, 0)`, with NaN as 0.
     fn positive_part(d: Self) -> Self;
+    /// A small index (a neighbour's slot, below 2²⁴) as a value, exactly.
+    fn from_slot(slot: usize) -> Self;
+    /// The slot stored by [`Elem::from_slot`].
+    fn to_slot(self) -> usize;
     fn slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [Self]>;
     fn storage(v: Vec<Self>) -> CpuStorage;
 }
@@ -61,6 +65,14 @@ macro_rules! elem {
             #[inline(always)]
             fn positive_part(d: Self) -> Self {
                 if d > 0.0 { d } else { 0.0 }
+            }
+            #[inline(always)]
+            fn from_slot(slot: usize) -> Self {
+                slot as $t
+            }
+            #[inline(always)]
+            fn to_slot(self) -> usize {
+                self as usize
             }
             fn slice<'a>(
                 s: &'a CpuStorage,
@@ -268,36 +280,48 @@ struct EdgeBackward {
     sum: bool,
 }
 
-/// Minimum of `B` over row `i`'s neighbours, per channel, into `acc`; `arg` gets the first
-/// neighbour (in table order) that attains it.
+/// Channels a register block of [`neighbour_min`] holds.
+const MIN_BLOCK: usize = 8;
+
+/// Minimum of `B` over row `i`'s neighbours, per channel, into `acc`; `arg` gets the slot in
+/// `nbrs` (as a value, [`Elem::from_slot`]) of the first neighbour in table order that attains
+/// it.
+///
+/// The channels go in blocks of [`MIN_BLOCK`] held in local arrays across all neighbours, so
+/// the comparisons and selects stay in registers and vectorise (with the running minimum in
+/// memory, the compiler turned the selects into one conditional store per channel).
 #[inline]
-fn neighbour_min<T: Elem>(
-    ab: &[T],
-    nbrs: &[u32],
-    c: usize,
-    acc: &mut [T],
-    mut arg: Option<&mut [u32]>,
-) {
-    let first = nbrs[0] as usize;
-    acc.copy_from_slice(&ab[first * 2 * c + c..first * 2 * c + 2 * c]);
-    if let Some(arg) = arg.as_deref_mut() {
-        arg.fill(nbrs[0]);
-    }
-    for &j in &nbrs[1..] {
-        let b = &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
-        match arg.as_deref_mut() {
-            None => {
-                for (a, &v) in acc.iter_mut().zip(b) {
+fn neighbour_min<T: Elem>(ab: &[T], nbrs: &[u32], c: usize, acc: &mut [T], arg: Option<&mut [T]>) {
+    let row = |j: u32| &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
+    let first = row(nbrs[0]);
+    match arg {
+        None => {
+            acc.copy_from_slice(first);
+            for &j in &nbrs[1..] {
+                for (a, &v) in acc.iter_mut().zip(row(j)) {
                     *a = a.min(v);
                 }
             }
-            Some(arg) => {
-                for ((a, &v), g) in acc.iter_mut().zip(b).zip(arg.iter_mut()) {
-                    if v < *a {
-                        *a = v;
-                        *g = j;
+        }
+        Some(arg) => {
+            let mut lo = 0;
+            while lo < c {
+                let len = MIN_BLOCK.min(c - lo);
+                let mut m = [T::ZERO; MIN_BLOCK];
+                let mut g = [T::ZERO; MIN_BLOCK];
+                m[..len].copy_from_slice(&first[lo..lo + len]);
+                for (slot, &j) in nbrs.iter().enumerate().skip(1) {
+                    let s = T::from_slot(slot);
+                    let b = &row(j)[lo..lo + len];
+                    for l in 0..len {
+                        let lower = b[l] < m[l];
+                        m[l] = if lower { b[l] } else { m[l] };
+                        g[l] = if lower { s } else { g[l] };
                     }
                 }
+                acc[lo..lo + len].copy_from_slice(&m[..len]);
+                arg[lo..lo + len].copy_from_slice(&g[..len]);
+                lo += len;
             }
         }
     }
@@ -358,7 +382,7 @@ fn edge_backward<T: Elem>(
         .for_each(|(s, d_set)| {
             let base = s * set;
             let mut acc = vec![T::ZERO; c];
-            let mut arg = vec![0u32; c];
+            let mut arg = vec![T::ZERO; c];
             for li in 0..set {
                 let i = base + li;
                 let nbrs = &g.idx[i * k..(i + 1) * k];
@@ -380,7 +404,7 @@ fn edge_backward<T: Elem>(
                     for ch in 0..c {
                         if (a[ch] + bias[ch]) - acc[ch] > T::ZERO {
                             d_set[li * 2 * c + ch] += gi[ch];
-                            let lj = arg[ch] as usize - base;
+                            let lj = nbrs[arg[ch].to_slot()] as usize - base;
                             d_set[lj * 2 * c + c + ch] -= gi[ch];
                         }
                     }
@@ -620,6 +644,56 @@ mod tests {
             let want = knn_by_sort(&points, k);
             for (i, w) in want.iter().enumerate() {
                 assert_eq!(&got[i * k..(i + 1) * k], &w[..], "k = {k}, point {i}");
+            }
+        }
+    }
+
+    /// The minimum over the neighbours per channel and the first neighbour (in table order)
+    /// that attains it, one channel at a time: the definition.
+    fn min_by_definition(ab: &[f64], nbrs: &[u32], c: usize) -> (Vec<f64>, Vec<u32>) {
+        (0..c)
+            .map(|ch| {
+                let b = |j: u32| ab[j as usize * 2 * c + c + ch];
+                let mut best = (b(nbrs[0]), nbrs[0]);
+                for &j in &nbrs[1..] {
+                    if b(j) < best.0 {
+                        best = (b(j), j);
+                    }
+                }
+                best
+            })
+            .unzip()
+    }
+
+    #[test]
+    fn the_blocked_neighbour_minimum_is_the_first_neighbour_attaining_it() {
+        let mut rng = moe_geom::SeededRng::new(5);
+        // Channel counts below, at and across the register block; values on a coarse grid so
+        // that exact ties between neighbours are common.
+        for c in [3, MIN_BLOCK, 2 * MIN_BLOCK + 5] {
+            let rows = 40;
+            let ab: Vec<f64> = (0..rows * 2 * c)
+                .map(|_| (rng.uniform() * 4.0).floor())
+                .collect();
+            let ab32: Vec<f32> = ab.iter().map(|&v| v as f32).collect();
+            for trial in 0..50 {
+                let k = 1 + trial % 12;
+                let nbrs: Vec<u32> = (0..k).map(|_| rng.below(rows as u64) as u32).collect();
+                let (want_min, want_arg) = min_by_definition(&ab, &nbrs, c);
+                let mut acc = vec![0.0; c];
+                let mut slot = vec![0.0; c];
+                neighbour_min(&ab, &nbrs, c, &mut acc, Some(&mut slot));
+                let arg: Vec<u32> = slot.iter().map(|s| nbrs[s.to_slot()]).collect();
+                assert_eq!(acc, want_min, "c = {c}, k = {k}");
+                assert_eq!(arg, want_arg, "c = {c}, k = {k}");
+                let mut plain = vec![0.0; c];
+                neighbour_min(&ab, &nbrs, c, &mut plain, None);
+                assert_eq!(plain, want_min);
+                let mut acc32 = vec![0.0f32; c];
+                let mut slot32 = vec![0.0f32; c];
+                neighbour_min(&ab32, &nbrs, c, &mut acc32, Some(&mut slot32));
+                let arg32: Vec<u32> = slot32.iter().map(|s| nbrs[s.to_slot()]).collect();
+                assert_eq!(arg32, want_arg, "f32, c = {c}, k = {k}");
             }
         }
     }
