@@ -12,7 +12,7 @@ use clap::Args;
 use moe_geom::{FingerParams, HandModel, HandPreset, Real};
 use moe_io::PlyData;
 use moe_touch::grasp::{GraspContacts, GraspOptions, GraspTrial, run_grasp_trial};
-use moe_touch::pipeline::load_contact_model;
+use moe_touch::pipeline::{check_contact_threshold, load_contact_model};
 use serde_json::{Value, json};
 
 use crate::ci::workspace_root;
@@ -42,9 +42,9 @@ pub(crate) struct GraspEvalArgs {
     /// estimate's error from the contact model's).
     #[arg(long)]
     true_labels: bool,
-    /// Contact probability threshold of the pipeline's contacts, in (0, 1] (default: the
-    /// model card's).
-    #[arg(long)]
+    /// Contact probability threshold of the pipeline's contacts, in [0, 1] (default: the
+    /// model card's); not with `--true-contacts` or `--true-labels`, which use none.
+    #[arg(long, conflicts_with_all = ["true_contacts", "true_labels"])]
     threshold: Option<Real>,
     /// RANSAC inlier distance of the plane fit, metres (default 2 mm).
     #[arg(long)]
@@ -114,10 +114,8 @@ fn evaluate(
     threshold: Option<Real>,
     out: Option<&Path>,
 ) -> Result<Value> {
-    if let Some(t) = threshold
-        && !(t > 0.0 && t <= 1.0)
-    {
-        anyhow::bail!("--threshold {t}: must lie in (0, 1]");
+    if let Some(t) = threshold {
+        check_contact_threshold(t).context("--threshold")?;
     }
     options.ransac.validate().context("--plane-threshold")?;
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
@@ -266,6 +264,7 @@ pub(crate) fn grasp_fixture() -> Result<Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Parser;
     use moe_geom::{ContactPoint, Point3};
     use moe_touch::grasp::PressOutcome;
 
@@ -320,17 +319,31 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    /// A contact threshold outside (0, 1] or a plane threshold that is not a positive distance
-    /// is refused before any trial runs.
+    /// A contact threshold outside [0, 1] or a plane threshold that is not a positive distance
+    /// is refused before any trial runs, and a threshold where no model's contacts are used is
+    /// refused when parsed.
     #[test]
     fn bad_thresholds_are_refused_before_any_trial() {
         let model = Path::new(SHIPPED_MODEL);
         let defaults = GraspOptions::default();
-        for t in [0.0, -0.5, 1.5, Real::NAN] {
-            let e = evaluate(1, model, 0, Source::Pipeline, &defaults, Some(t), None)
-                .unwrap_err()
-                .to_string();
-            assert!(e.contains("--threshold"), "{e}");
+        for t in [-0.5, 1.5, Real::NAN] {
+            let e = format!(
+                "{:#}",
+                evaluate(1, model, 0, Source::Pipeline, &defaults, Some(t), None).unwrap_err()
+            );
+            assert!(e.contains("--threshold") && e.contains("[0, 1]"), "{e}");
+        }
+        let parse = |args: &[&str]| {
+            crate::Cli::try_parse_from(["xtask", "eval", "grasp"].iter().chain(args))
+        };
+        assert!(parse(&["--threshold", "0.5"]).is_ok());
+        for source in ["--true-labels", "--true-contacts"] {
+            let err = parse(&[source, "--threshold", "0.5"]).unwrap_err();
+            assert_eq!(
+                err.kind(),
+                clap::error::ErrorKind::ArgumentConflict,
+                "{source}"
+            );
         }
         for m in [0.0, -0.001, Real::NAN] {
             let mut options = GraspOptions::default();

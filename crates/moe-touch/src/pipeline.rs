@@ -62,6 +62,23 @@ pub struct FrameEstimate {
     pub timings: StageTimings,
 }
 
+/// Checks a contact threshold as [`Pipeline::new`] does, for callers that take one long before
+/// they build a pipeline.
+///
+/// # Errors
+/// [`TouchError::InvalidParameter`] for a threshold outside `[0, 1]` (or NaN).
+pub fn check_contact_threshold(threshold: Real) -> Result<(), TouchError> {
+    if (0.0..=1.0).contains(&threshold) {
+        Ok(())
+    } else {
+        Err(TouchError::InvalidParameter {
+            name: "contact threshold",
+            value: threshold,
+            reason: "must be in [0, 1]",
+        })
+    }
+}
+
 /// The stages, and the state a stream of frames needs (marker tracks, the shape estimator's
 /// warm start); see the module documentation.
 #[derive(Debug)]
@@ -85,7 +102,8 @@ where
     /// (the model card's, for a trained model) are contact points.
     ///
     /// # Errors
-    /// [`TouchError::InvalidParameter`] for a threshold outside `[0, 1]`.
+    /// [`TouchError::InvalidParameter`] for a threshold outside `[0, 1]`
+    /// ([`check_contact_threshold`]).
     pub fn new(
         hand: HandModel,
         detector: MarkerDetector,
@@ -93,13 +111,7 @@ where
         contact: C,
         threshold: Real,
     ) -> Result<Self, TouchError> {
-        if !(0.0..=1.0).contains(&threshold) {
-            return Err(TouchError::InvalidParameter {
-                name: "contact threshold",
-                value: threshold,
-                reason: "must be in [0, 1]",
-            });
-        }
+        check_contact_threshold(threshold)?;
         Ok(Self {
             hand,
             detector,
