@@ -49,11 +49,21 @@ pub(crate) struct GraspEvalArgs {
     /// RANSAC inlier distance of the plane fit, metres (default 2 mm).
     #[arg(long)]
     plane_threshold: Option<Real>,
+    /// Presses that refine the plane before the judged one (each turns onto the latest plane,
+    /// presses and fits again); 0 is the paper's protocol, one fit and one reorientation.
+    #[arg(long, default_value_t = GraspOptions::default().refinements as u64,
+        value_parser = clap::value_parser!(u64).range(0..=5))]
+    refinements: u64,
+    /// Always fit the plane through the contact points, also when three or more fingers are
+    /// loaded (by default their tips give the plane then).
+    #[arg(long)]
+    contact_plane_only: bool,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
-    /// Write, per trial, the points the plane was fitted to and the simulator's contact vertices
-    /// of the same frames (world frame) as PLY: `DIR/incline_<deg>/trial_<k>/plane_points.ply`
+    /// Write, per trial, the contact points of the last fitted press's hold and the simulator's
+    /// contact vertices of the same frames (world frame) as PLY:
+    /// `DIR/incline_<deg>/trial_<k>/plane_points.ply`
     /// (vertex scalars `finger`, `probability`, `inlier`) and `true_contacts.ply` (`finger`).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -162,7 +172,7 @@ fn evaluate(
             "paper_with_of_5": paper_with,
             "paper_without_of_5": paper_without,
             "max_incline_error_deg": errors.iter().copied().fold(None, |m: Option<Real>, e| Some(m.map_or(e, |m| m.max(e)))),
-            "fits_failed": results.iter().filter(|r| r.estimated_normal.is_none()).count(),
+            "fits_failed": results.iter().filter(|r| r.final_press.is_none()).count(),
             "trials_detail": results,
         }));
     }
@@ -193,20 +203,50 @@ fn print_table(v: &Value) {
         );
     }
     println!(
-        "\nper trial: true incline → estimated (contacts, inliers; first press fingers touching)"
+        "\nper trial: true incline → estimated incline (per fit: plane through, error of the normal; \
+         fingers touching at each press)"
     );
     for r in v["rows"].as_array().into_iter().flatten() {
         for t in r["trials_detail"].as_array().into_iter().flatten() {
+            let fits: Vec<String> = t["fits"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|f| {
+                    format!(
+                        "{} {}",
+                        f["source"].as_str().unwrap_or("no fit"),
+                        f["normal_error_deg"]
+                            .as_f64()
+                            .map_or("—".to_owned(), |e| format!("{e:.1}°")),
+                    )
+                })
+                .collect();
+            let touching = |p: &Value| {
+                p["contact_vertices"].as_array().map_or(0, |c| {
+                    c.iter().filter(|n| n.as_u64().unwrap_or(0) >= 3).count()
+                })
+            };
+            let presses: Vec<String> = std::iter::once(&t["first_press"])
+                .chain(
+                    t["fits"]
+                        .as_array()
+                        .into_iter()
+                        .flatten()
+                        .map(|f| &f["press"]),
+                )
+                .filter(|p| !p.is_null())
+                .map(|p| touching(p).to_string())
+                .collect();
             println!(
-                "  {:>4}° trial {}: {:>7}  ({} contacts, {} inliers; first press {}) {}",
+                "  {:>4}° trial {}: {:>7}  ({}; presses {}) {}",
                 t["incline_deg"],
                 t["trial"],
                 t["estimated_incline_deg"]
                     .as_f64()
                     .map_or("no fit".to_owned(), |e| format!("{e:.2}°")),
-                t["estimated_contacts"],
-                t["inliers"],
-                t["first_press"]["contact_vertices"],
+                fits.join(", "),
+                presses.join(" → "),
                 if t["success_with"].as_bool() == Some(true) {
                     "success"
                 } else {
@@ -225,7 +265,11 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     } else {
         Source::Pipeline
     };
-    let mut options = GraspOptions::default();
+    let mut options = GraspOptions {
+        refinements: usize::try_from(args.refinements)?,
+        fingertip_plane: !args.contact_plane_only,
+        ..GraspOptions::default()
+    };
     if let Some(m) = args.plane_threshold {
         options.ransac.distance_threshold_m = m;
     }
@@ -287,13 +331,10 @@ mod tests {
             incline_deg: 30.0,
             trial: 2,
             first_press: press.clone(),
-            estimated_contacts: 3,
-            estimated_normal: None,
+            fits: Vec::new(),
             estimated_incline_deg: None,
             normal_error_deg: None,
-            inliers: 2,
-            fit_error: None,
-            second_press: None,
+            final_press: None,
             success_with: false,
             success_without: false,
             plane_points: vec![
@@ -320,8 +361,8 @@ mod tests {
     }
 
     /// A contact threshold outside [0, 1] or a plane threshold that is not a positive distance
-    /// is refused before any trial runs, and a threshold where no model's contacts are used is
-    /// refused when parsed.
+    /// is refused before any trial runs, and a threshold where no model's contacts are used, or
+    /// more than five refinements, are refused when parsed.
     #[test]
     fn bad_thresholds_are_refused_before_any_trial() {
         let model = Path::new(SHIPPED_MODEL);
@@ -337,6 +378,11 @@ mod tests {
             crate::Cli::try_parse_from(["xtask", "eval", "grasp"].iter().chain(args))
         };
         assert!(parse(&["--threshold", "0.5"]).is_ok());
+        assert!(parse(&["--refinements", "0", "--contact-plane-only"]).is_ok());
+        assert_eq!(
+            parse(&["--refinements", "6"]).unwrap_err().kind(),
+            clap::error::ErrorKind::ValueValidation
+        );
         for source in ["--true-labels", "--true-contacts"] {
             let err = parse(&[source, "--threshold", "0.5"]).unwrap_err();
             assert_eq!(

@@ -1,19 +1,31 @@
 //! Grasping paper on an unknown incline (paper §6.2, Table 4): the three-finger hand presses an
-//! inclined plate from a misaligned start, the pipeline estimates the contacts, RANSAC fits the
-//! plane through them, the hand turns its axis onto the plane's normal and presses again. The
-//! simulator judges the second press.
+//! inclined plate from a misaligned start, the pipeline estimates the contacts, a plane is fitted,
+//! the hand turns its axis onto the plane's normal and presses again. The simulator judges the
+//! last press.
+//!
+//! **The plane.** From a press's hold, RANSAC through the estimated contact points (the paper's
+//! fit) — unless three or more fingers are *loaded*, in which case the plane goes through their
+//! seen tips ([`PlaneSource`](crate::grasp::PlaneSource)). The hand is not actuated during the
+//! grasp, so a finger whose estimated shape has moved from rest is one the plate pushes: which
+//! fingers touch comes from their deformation, not from the contact classifier, and the plane
+//! is spanned by points tens of millimetres apart instead of by one fingertip's patch. A level
+//! hand touches a slope with one finger, so the first plane there is a patch's; with
+//! [`GraspOptions::refinements`](crate::grasp::GraspOptions::refinements) the hand turns onto
+//! the latest plane, presses again (now with more fingers down) and fits again before the
+//! judged press. `refinements = 0` without the fingertip plane is the paper's protocol.
 //!
 //! **Success** is the state from which the paper's hand folds the sheet: at the deepest point of
-//! the second press every finger touches the plate (at least
+//! the judged press every finger touches the plate (at least
 //! [`GraspOptions::min_contact_vertices`](crate::grasp::GraspOptions::min_contact_vertices)
 //! labelled vertices each) and the hand's axis is within
 //! [`GraspOptions::max_axis_error_deg`](crate::grasp::GraspOptions::max_axis_error_deg) of the
 //! plate's normal, so the palm faces the sheet squarely. Without MOE-Touch the hand keeps its
-//! initial orientation: its second press is its first.
+//! initial orientation: the judged press is its first.
 
 use moe_geom::math::UnitQuat;
 use moe_geom::{
-    ContactPoint, HandModel, Point3, RansacConfig, Real, SeededRng, Vector3, fit_plane_ransac,
+    ContactPoint, HandModel, HandShape, Point3, RansacConfig, Real, SeededRng, Vector3,
+    fit_plane_ransac,
 };
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
 use moe_tendon_sim::{Scene, SimFrame, run_saving};
@@ -41,8 +53,20 @@ pub struct GraspOptions {
     pub min_contact_vertices: usize,
     /// Success: the hand's axis is within this of the plate's normal, degrees. Default 10°.
     pub max_axis_error_deg: Real,
-    /// The plane fit.
+    /// The plane fit through the contact points.
     pub ransac: RansacConfig,
+    /// Presses that refine the plane before the judged one: each turns the hand onto the
+    /// latest fitted normal, presses and fits again. 0 is the paper's protocol (one fit, one
+    /// reorientation, the judged press). Default 2.
+    pub refinements: usize,
+    /// A finger is *loaded* when some vertex of its estimated shape lies farther than this from
+    /// its rest position, metres. The hand is not actuated during the grasp, so a loaded finger
+    /// is one the plate pushes (free fingers move 0.1–1.3 mm under the camera's noise, pressed
+    /// ones 4.6–22 mm). Default 3 mm.
+    pub loaded_finger_m: Real,
+    /// When at least three fingers are loaded, fit the plane through their tips (see
+    /// [`PlaneSource::LoadedFingertips`]) instead of through the contact points. Default true.
+    pub fingertip_plane: bool,
 }
 
 impl Default for GraspOptions {
@@ -54,6 +78,9 @@ impl Default for GraspOptions {
             min_contact_vertices: 3,
             max_axis_error_deg: 10.0,
             ransac: RansacConfig::default(),
+            refinements: 2,
+            loaded_finger_m: 0.003,
+            fingertip_plane: true,
         }
     }
 }
@@ -69,6 +96,53 @@ pub struct PressOutcome {
     pub success: bool,
 }
 
+/// What a plane was fitted through.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PlaneSource {
+    /// RANSAC through the contact points of the press's hold (the paper's fit).
+    ContactPoints,
+    /// The plane through the tips of the loaded fingers, when three or more are loaded and the
+    /// tips of at least three of them were seen: per such finger the vertex of its estimated
+    /// shape farthest along the press, averaged over the hold frames in which it is loaded and
+    /// its most distal marker seen. Which fingers touch comes from their deformation, not from
+    /// the contact classifier, so a finger whose contacts the classifier misses still counts,
+    /// and contacts placed up a finger do not tilt the plane.
+    LoadedFingertips,
+    /// Three or more fingers loaded but only two tips seen (a finger pressed along its axis
+    /// hides its distal markers from the wrist camera, and its estimated tip is then
+    /// extrapolated): the plane through the two seen tips whose normal is nearest the hand's
+    /// axis. All fingers touching says the axis is near the normal; the seen tips fix the rest.
+    TwoFingertipsAndAxis,
+    /// Three or more fingers loaded and fewer than two tips seen: the hand's own axis (all
+    /// fingers touching says the palm already faces the plate; no tips say better).
+    LoadedFingersAxis,
+}
+
+/// One plane fitted from one press, and the press that turned onto it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneStep {
+    /// What the plane was fitted through (`None` when the fit failed).
+    pub source: Option<PlaneSource>,
+    /// Fingers whose estimated shape shows a load ([`GraspOptions::loaded_finger_m`]).
+    pub loaded_fingers: Vec<usize>,
+    /// Contact points of the press's hold (the pipeline's estimates, or the simulator's
+    /// labels).
+    pub estimated_contacts: usize,
+    /// RANSAC inliers among them (0 when the plane went through the fingertips).
+    pub inliers: usize,
+    /// The fitted plane's unit normal (toward the hand), world frame.
+    pub estimated_normal: Option<[Real; 3]>,
+    /// The incline of the fitted plane, degrees (angle of its normal from vertical).
+    pub estimated_incline_deg: Option<Real>,
+    /// Angle between the fitted and the true normal, degrees.
+    pub normal_error_deg: Option<Real>,
+    /// Why the fit (or the press onto it) failed, if it did.
+    pub fit_error: Option<String>,
+    /// The press with the hand's axis turned onto this plane's normal.
+    pub press: Option<PressOutcome>,
+}
+
 /// One trial on one incline.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GraspTrial {
@@ -78,32 +152,25 @@ pub struct GraspTrial {
     pub trial: u64,
     /// The first press (also the whole trial without MOE-Touch).
     pub first_press: PressOutcome,
-    /// Points the plane was fitted to: the contact source's over the first press's hold (the
-    /// pipeline's estimates, or the simulator's labels).
-    pub estimated_contacts: usize,
-    /// The fitted plane's unit normal (toward the hand), world frame; `None` when the fit
-    /// failed.
-    pub estimated_normal: Option<[Real; 3]>,
-    /// The incline of the fitted plane, degrees (angle of its normal from vertical).
+    /// Every plane fitted, in order: from the first press's hold, then from each refining
+    /// press's. A failed fit ends the list.
+    pub fits: Vec<PlaneStep>,
+    /// The estimated incline: the last plane's, degrees.
     pub estimated_incline_deg: Option<Real>,
-    /// Angle between the fitted and the true normal, degrees.
+    /// Angle between the last plane's normal and the true one, degrees.
     pub normal_error_deg: Option<Real>,
-    /// RANSAC inliers of the fit.
-    pub inliers: usize,
-    /// Why the plane fit failed, if it did.
-    pub fit_error: Option<String>,
-    /// The second press, reoriented to the fitted normal (`None` when the fit failed: the
-    /// trial fails).
-    pub second_press: Option<PressOutcome>,
-    /// Success with MOE-Touch: the second press succeeded.
+    /// The judged press (the last one, onto the last plane); `None` when a fit failed.
+    pub final_press: Option<PressOutcome>,
+    /// Success with MOE-Touch: the judged press succeeded.
     pub success_with: bool,
     /// Success without: the first press succeeded.
     pub success_without: bool,
-    /// The points the plane was fitted to, world frame (probability 1 for the simulator's
-    /// labels); for display, not serialised.
+    /// The points of the last press's hold that its plane was fitted to or checked against,
+    /// world frame (probability 1 for the simulator's labels); for display, not serialised.
     #[serde(skip)]
     pub plane_points: Vec<ContactPoint>,
-    /// Indices into `plane_points` of the fit's inliers (empty when the fit failed).
+    /// Indices into `plane_points` of the RANSAC inliers (empty when the plane went through
+    /// the fingertips, or the fit failed).
     #[serde(skip)]
     pub inlier_indices: Vec<usize>,
     /// The simulator's contact vertices over the same hold frames, world frame.
@@ -212,7 +279,7 @@ fn outcome(
 }
 
 /// Where a trial's contacts come from.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub enum GraspContacts<C> {
     /// The pipeline on the wrist camera's frames, with this contact estimator and threshold.
     Pipeline {
@@ -229,53 +296,192 @@ pub enum GraspContacts<C> {
         /// The pipeline's contact stage (needed to run it; its probabilities are not used).
         contact: C,
     },
-    /// The simulator's own contact vertices (the upper bound a perfect estimator reaches).
+    /// The simulator's own contact vertices and shapes (the upper bound a perfect estimator
+    /// reaches).
     Simulator,
 }
 
-/// Runs trial `trial` on the plate inclined by `incline_deg`: the first press from a perturbed
-/// level start, the contacts of the press's hold (from the pipeline on the wrist camera's
-/// frames, `camera_seed` seeding the noise, or from the simulator), the plane fit, and the
-/// second press reoriented to the fitted normal.
-///
-/// # Errors
-/// An incline outside `[0°, 60°]`, a diverging simulation, a failing pipeline stage (a plane
-/// that cannot be fitted is reported in the trial, not as an error).
-pub fn run_grasp_trial<C: ContactEstimator>(
+/// One press seen through the contact source: how it ended, and the plane fitted from its hold.
+struct ObservedPress {
+    outcome: PressOutcome,
+    step: PlaneStep,
+    normal: Option<Vector3>,
+    plane_points: Vec<ContactPoint>,
+    inlier_indices: Vec<usize>,
+    true_points: Vec<ContactPoint>,
+}
+
+/// One finger in one hold frame, world frame.
+struct FingerState {
+    /// Its vertices.
+    at: Vec<Point3>,
+    /// Their rest positions (the rest hand at the same wrist pose).
+    rest: Vec<Point3>,
+    /// Whether its most distal marker was seen: without it the shape estimate extrapolates the
+    /// tip (a hidden tip of a finger pressed along its axis is placed 6–8 mm past the plate, at
+    /// the uncompressed length, where a seen one is within 2.3 mm).
+    tip_seen: bool,
+}
+
+impl FingerState {
+    fn largest_displacement(&self) -> Real {
+        self.at
+            .iter()
+            .zip(&self.rest)
+            .map(|(a, r)| (a - r).norm())
+            .fold(0.0, Real::max)
+    }
+
+    /// The vertex farthest along `axis`.
+    fn tip(&self, axis: &Vector3) -> Option<Point3> {
+        self.at
+            .iter()
+            .max_by(|a, b| axis.dot(&a.coords).total_cmp(&axis.dot(&b.coords)))
+            .copied()
+    }
+}
+
+/// The loaded fingers of a hold (a finger is loaded when it is in any hold frame) and the tips
+/// of those whose tip was seen while loaded: per such finger, its vertex farthest along `axis`
+/// averaged over the hold frames in which it is loaded and its tip seen.
+fn loaded_fingertips(
+    shapes: &[Vec<FingerState>],
+    axis: &Vector3,
+    options: &GraspOptions,
+) -> (Vec<usize>, Vec<Point3>) {
+    let fingers = shapes.first().map_or(0, Vec::len);
+    let mut loaded = Vec::new();
+    let mut tips = Vec::new();
+    for finger in 0..fingers {
+        let states = shapes
+            .iter()
+            .filter_map(|s| s.get(finger))
+            .filter(|f| f.largest_displacement() > options.loaded_finger_m);
+        let mut any = false;
+        let seen: Vec<Point3> = states
+            .inspect(|_| any = true)
+            .filter(|f| f.tip_seen)
+            .filter_map(|f| f.tip(axis))
+            .collect();
+        if any {
+            loaded.push(finger);
+        }
+        if !seen.is_empty() {
+            let mean = seen.iter().map(|p| p.coords).sum::<Vector3>() / seen.len() as Real;
+            tips.push(Point3::from(mean));
+        }
+    }
+    (loaded, tips)
+}
+
+/// Per finger, the index of its most distal marker (the farthest along the hand's axis at
+/// rest).
+fn distal_markers(hand: &HandModel) -> Vec<usize> {
+    hand.fingers()
+        .iter()
+        .enumerate()
+        .map(|(finger, f)| {
+            let rest = hand.rest_vertices_in_hand(finger);
+            f.model
+                .marker_vertices()
+                .iter()
+                .enumerate()
+                .max_by(|(_, a), (_, b)| rest[**a as usize].z.total_cmp(&rest[**b as usize].z))
+                .map_or(0, |(m, _)| m)
+        })
+        .collect()
+}
+
+/// Whether a press's frame is in its hold (the stretch at full depth).
+fn in_hold(frame: &SimFrame) -> bool {
+    let [_, hold_start, hold_end, _] = PLATE_PRESS_TIMES_SECS;
+    let t = frame.time_secs;
+    t >= hold_start - 1e-9 && t <= hold_end + 1e-9
+}
+
+/// The simulator's shape of a frame (every tip seen).
+fn simulated_hold_shape(frame: &SimFrame, rest: &HandShape) -> Vec<FingerState> {
+    frame
+        .fingers
+        .iter()
+        .zip(&rest.fingers)
+        .map(|(f, r)| FingerState {
+            at: f.vertices_in_world.clone(),
+            rest: r.iter().map(|p| frame.world_from_hand * p).collect(),
+            tip_seen: true,
+        })
+        .collect()
+}
+
+/// The plane's normal from the loaded fingers (see [`PlaneSource`]), on `prior`'s side:
+/// through three or more seen tips by least squares; through two, the plane containing them
+/// whose normal is nearest `prior` (the hand's axis); with fewer, `prior`. `None` with fewer
+/// than three loaded fingers, or when the tips do not span a plane.
+fn fingertip_plane(
+    loaded: usize,
+    tips: &[Point3],
+    prior: &Vector3,
+    ransac: &RansacConfig,
+) -> Option<(PlaneSource, Vector3)> {
+    if loaded < 3 {
+        return None;
+    }
+    match tips {
+        [a, b] => {
+            let line = (b - a).try_normalize(1e-9)?;
+            let n = (prior - line * line.dot(prior)).try_normalize(1e-6)?;
+            Some((PlaneSource::TwoFingertipsAndAxis, n))
+        }
+        [] | [_] => Some((PlaneSource::LoadedFingersAxis, *prior)),
+        _ => {
+            let everything = RansacConfig {
+                distance_threshold_m: Real::MAX.sqrt(),
+                ..*ransac
+            };
+            let fit = fit_plane_ransac(tips, &everything).ok()?;
+            let n = if fit.normal.dot(prior) < 0.0 {
+                -fit.normal
+            } else {
+                fit.normal
+            };
+            Some((PlaneSource::LoadedFingertips, n))
+        }
+    }
+}
+
+/// Presses with the hand at `rotation` toward `aim`, judges the press, and fits the plane from
+/// the contact source's view of its hold.
+#[allow(clippy::too_many_arguments)]
+fn observe_press<C: ContactEstimator + Clone>(
     hand: &HandModel,
-    contacts: GraspContacts<C>,
+    contacts: &GraspContacts<C>,
     incline_deg: Real,
-    trial: u64,
+    rotation: &UnitQuat,
+    aim: Point3,
     camera_seed: u64,
     options: &GraspOptions,
-) -> Result<GraspTrial, TouchError> {
+) -> Result<ObservedPress, TouchError> {
     let normal = plate_normal(incline_deg);
-    let mut rng = SeededRng::new(trial).split((incline_deg * 1000.0).round() as u64);
-    let rotation = start_rotation(&mut rng, options.start_tilt_deg);
-    let u = Vector3::x();
-    let v = normal.cross(&u);
-    let aim = Point3::from(
-        u * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m)
-            + v * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m),
-    );
-    let (scene, frames) = simulate_press(incline_deg, rotation, aim, options.press_m)?;
-    let first_press = outcome(&frames, &rotation, &normal, options)?;
+    let (scene, frames) = simulate_press(incline_deg, *rotation, aim, options.press_m)?;
+    let outcome = outcome(&frames, rotation, &normal, options)?;
 
-    // Contacts over the hold.
-    let [_, hold_start, hold_end, _] = PLATE_PRESS_TIMES_SECS;
+    // Contacts and shapes over the hold.
     let hold: Vec<(usize, &SimFrame)> = frames
         .iter()
         .enumerate()
-        .filter(|(_, f)| {
-            let t = f.time_secs;
-            t >= hold_start - 1e-9 && t <= hold_end + 1e-9
-        })
+        .filter(|(_, f)| in_hold(f))
         .collect();
     let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
         Point3::from(f.world_from_hand.translation.vector)
     });
+    let rest = HandShape::rest(hand);
+    let distal = distal_markers(hand);
+    let rest_at = |transform: &dyn Fn(&Point3) -> Point3, finger: usize| -> Vec<Point3> {
+        rest.fingers[finger].iter().map(transform).collect()
+    };
     let mut plane_points: Vec<ContactPoint> = Vec::new();
     let mut true_points: Vec<ContactPoint> = Vec::new();
+    let mut shapes: Vec<Vec<FingerState>> = Vec::new();
     for (_, f) in &hold {
         true_points.extend(labelled_points(
             f,
@@ -284,7 +490,7 @@ pub fn run_grasp_trial<C: ContactEstimator>(
         ));
     }
     let (contact, threshold, labels_only) = match contacts {
-        GraspContacts::Pipeline { contact, threshold } => (Some(contact), threshold, false),
+        GraspContacts::Pipeline { contact, threshold } => (Some(contact), *threshold, false),
         GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => (Some(contact), 1.0, true),
         GraspContacts::Simulator => (None, 1.0, false),
     };
@@ -294,11 +500,31 @@ pub fn run_grasp_trial<C: ContactEstimator>(
             let detector =
                 MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
             let shape = crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
-            let mut pipeline = Pipeline::new(hand.clone(), detector, shape, contact, threshold)?;
-            for (k, f) in hold {
-                let episode_frame = recorder.frame(&scene, f, k as u64)?;
+            let mut pipeline =
+                Pipeline::new(hand.clone(), detector, shape, contact.clone(), threshold)?;
+            for (k, f) in &hold {
+                let episode_frame = recorder.frame(&scene, f, *k as u64)?;
                 pipeline.reset();
                 let estimate = pipeline.process_episode_frame(&episode_frame)?;
+                let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
+                shapes.push(
+                    (0..hand.num_fingers())
+                        .map(|finger| FingerState {
+                            at: estimate
+                                .shape
+                                .fingers
+                                .get(finger)
+                                .map_or_else(Vec::new, |v| v.iter().map(to_world).collect()),
+                            rest: rest_at(&to_world, finger),
+                            tip_seen: estimate
+                                .keypoints
+                                .fingers
+                                .get(finger)
+                                .and_then(|m| m.get(distal[finger]))
+                                .is_some_and(Option::is_some),
+                        })
+                        .collect(),
+                );
                 if labels_only {
                     plane_points.extend(labelled_points(
                         f,
@@ -309,62 +535,180 @@ pub fn run_grasp_trial<C: ContactEstimator>(
                                 .get(finger)
                                 .map_or(&[], Vec::as_slice)
                         },
-                        |p| estimate.world_from_hand.transform_point(p),
+                        to_world,
                     ));
                 } else {
                     plane_points.extend_from_slice(&estimate.contacts_in_world);
                 }
             }
         }
-        None => plane_points.clone_from(&true_points),
+        None => {
+            plane_points.clone_from(&true_points);
+            shapes.extend(hold.iter().map(|(_, f)| simulated_hold_shape(f, &rest)));
+        }
     }
-    let points: Vec<Point3> = plane_points.iter().map(|c| c.point).collect();
-    let mut trial_report = GraspTrial {
-        incline_deg,
-        trial,
-        first_press: first_press.clone(),
-        estimated_contacts: points.len(),
+
+    let axis = rotation * Vector3::z();
+    let (loaded_fingers, tips) = loaded_fingertips(&shapes, &axis, options);
+    let mut step = PlaneStep {
+        source: None,
+        loaded_fingers,
+        estimated_contacts: plane_points.len(),
+        inliers: 0,
         estimated_normal: None,
         estimated_incline_deg: None,
         normal_error_deg: None,
-        inliers: 0,
         fit_error: None,
-        second_press: None,
-        success_with: false,
-        success_without: first_press.success,
-        plane_points,
-        inlier_indices: Vec::new(),
-        true_points,
+        press: None,
     };
-    let fit = match fit_plane_ransac(&points, &options.ransac) {
-        Ok(fit) => fit.oriented_toward(&wrist),
+    let mut inlier_indices = Vec::new();
+    // Through the loaded fingertips when three or more are loaded, else (or when their tips do
+    // not give a plane) RANSAC through the contact points.
+    let through_tips = if options.fingertip_plane {
+        fingertip_plane(step.loaded_fingers.len(), &tips, &-axis, &options.ransac)
+    } else {
+        None
+    };
+    let fit = match through_tips {
+        Some(plane) => Ok(plane),
+        None => {
+            let points: Vec<Point3> = plane_points.iter().map(|c| c.point).collect();
+            fit_plane_ransac(&points, &options.ransac).map(|fit| {
+                step.inliers = fit.inliers.len();
+                inlier_indices.clone_from(&fit.inliers);
+                (
+                    PlaneSource::ContactPoints,
+                    fit.oriented_toward(&wrist).normal,
+                )
+            })
+        }
+    };
+    let normal_est = match fit {
+        Ok((source, n)) => {
+            step.source = Some(source);
+            step.estimated_normal = Some([n.x, n.y, n.z]);
+            step.estimated_incline_deg = Some(angle_deg(&n, &Vector3::z()));
+            step.normal_error_deg = Some(angle_deg(&n, &normal));
+            Some(n)
+        }
         Err(e) => {
-            trial_report.fit_error = Some(e.to_string());
-            return Ok(trial_report);
+            step.fit_error = Some(e.to_string());
+            None
         }
     };
-    let n_est = fit.normal;
-    trial_report.estimated_normal = Some([n_est.x, n_est.y, n_est.z]);
-    trial_report.estimated_incline_deg = Some(angle_deg(&n_est, &Vector3::z()));
-    trial_report.normal_error_deg = Some(angle_deg(&n_est, &normal));
-    trial_report.inliers = fit.inliers.len();
-    trial_report.inlier_indices.clone_from(&fit.inliers);
+    Ok(ObservedPress {
+        outcome,
+        step,
+        normal: normal_est,
+        plane_points,
+        inlier_indices,
+        true_points,
+    })
+}
 
-    // Turn the hand's axis onto −n̂ by the smallest rotation, and press again.
-    let axis = rotation * Vector3::z();
-    let turn = UnitQuat::rotation_between(&axis, &(-n_est)).unwrap_or_else(UnitQuat::identity);
-    let reoriented = turn * rotation;
-    match simulate_press(incline_deg, reoriented, aim, options.press_m) {
-        Ok((_, frames)) => {
-            let second = outcome(&frames, &reoriented, &normal, options)?;
-            trial_report.success_with = second.success;
-            trial_report.second_press = Some(second);
+/// Runs trial `trial` on the plate inclined by `incline_deg`: the first press from a perturbed
+/// level start, the plane fitted from its hold (from the pipeline on the wrist camera's frames,
+/// `camera_seed` seeding the noise, or from the simulator), then
+/// [`GraspOptions::refinements`] presses that each turn the hand onto the latest plane and fit
+/// again, and the judged press onto the last plane.
+///
+/// # Errors
+/// An incline outside `[0°, 60°]`, a diverging simulation of the first press, a failing
+/// pipeline stage (a plane that cannot be fitted, or pressed along, is reported in the trial,
+/// not as an error).
+pub fn run_grasp_trial<C: ContactEstimator + Clone>(
+    hand: &HandModel,
+    contacts: GraspContacts<C>,
+    incline_deg: Real,
+    trial: u64,
+    camera_seed: u64,
+    options: &GraspOptions,
+) -> Result<GraspTrial, TouchError> {
+    let normal = plate_normal(incline_deg);
+    let mut rng = SeededRng::new(trial).split((incline_deg * 1000.0).round() as u64);
+    let mut rotation = start_rotation(&mut rng, options.start_tilt_deg);
+    let u = Vector3::x();
+    let v = normal.cross(&u);
+    let aim = Point3::from(
+        u * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m)
+            + v * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m),
+    );
+    let mut observed = observe_press(
+        hand,
+        &contacts,
+        incline_deg,
+        &rotation,
+        aim,
+        camera_seed,
+        options,
+    )?;
+    let first_press = observed.outcome.clone();
+    let mut fits: Vec<PlaneStep> = Vec::new();
+    let mut final_press = None;
+    for press in 0..=options.refinements {
+        let Some(n_est) = observed.normal else {
+            fits.push(observed.step);
+            break;
+        };
+        // Turn the hand's axis onto −n̂ by the smallest rotation, and press again.
+        let axis = rotation * Vector3::z();
+        let turn = UnitQuat::rotation_between(&axis, &(-n_est)).unwrap_or_else(UnitQuat::identity);
+        rotation = turn * rotation;
+        let next = if press < options.refinements {
+            observe_press(
+                hand,
+                &contacts,
+                incline_deg,
+                &rotation,
+                aim,
+                camera_seed,
+                options,
+            )
+            .map(Some)
+        } else {
+            // The judged press needs no plane.
+            simulate_press(incline_deg, rotation, aim, options.press_m)
+                .and_then(|(_, frames)| outcome(&frames, &rotation, &normal, options))
+                .map(|o| {
+                    final_press = Some(o);
+                    None
+                })
+        };
+        match next {
+            Ok(Some(next)) => {
+                let mut step = std::mem::replace(&mut observed, next).step;
+                step.press = Some(observed.outcome.clone());
+                fits.push(step);
+            }
+            Ok(None) => {
+                observed.step.press.clone_from(&final_press);
+                fits.push(observed.step);
+                break;
+            }
+            // A fitted normal too far from the plate's to press along: the trial fails.
+            Err(TouchError::Simulation(e)) => {
+                observed.step.fit_error = Some(e.to_string());
+                fits.push(observed.step);
+                break;
+            }
+            Err(e) => return Err(e),
         }
-        // A fitted normal too far from the plate's to press along: the trial fails.
-        Err(TouchError::Simulation(e)) => trial_report.fit_error = Some(e.to_string()),
-        Err(e) => return Err(e),
     }
-    Ok(trial_report)
+    let last = fits.last();
+    Ok(GraspTrial {
+        incline_deg,
+        trial,
+        success_without: first_press.success,
+        first_press,
+        estimated_incline_deg: last.and_then(|s| s.estimated_incline_deg),
+        normal_error_deg: last.and_then(|s| s.normal_error_deg),
+        success_with: final_press.as_ref().is_some_and(|p| p.success),
+        final_press,
+        fits,
+        plane_points: observed.plane_points,
+        inlier_indices: observed.inlier_indices,
+        true_points: observed.true_points,
+    })
 }
 
 #[cfg(test)]
@@ -372,7 +716,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_simulators_contacts_of_a_tilted_press_give_the_plate_within_a_degree() {
+    fn a_tilted_press_gives_the_plate_through_its_contacts_and_through_its_loaded_fingertips() {
         let options = GraspOptions::default();
         let mut rng = SeededRng::new(4);
         let rotation = start_rotation(&mut rng, 3.0);
@@ -409,12 +753,135 @@ mod tests {
             "{}",
             angle_deg(&fit.normal, &normal)
         );
+        // All three fingers are loaded, and the plane through their tips is the plate's.
+        let rest = HandShape::rest(&hand_model());
+        let shapes: Vec<Vec<FingerState>> = hold_frames(&frames)
+            .map(|f| simulated_hold_shape(f, &rest))
+            .collect();
+        let (loaded, tips) = loaded_fingertips(&shapes, &(turned * Vector3::z()), &options);
+        assert_eq!(loaded, [0, 1, 2]);
+        let (source, n) = fingertip_plane(
+            loaded.len(),
+            &tips,
+            &-(turned * Vector3::z()),
+            &options.ransac,
+        )
+        .unwrap();
+        assert_eq!(source, PlaneSource::LoadedFingertips);
+        let error = angle_deg(&n, &normal);
+        assert!(error < 2.0, "{error}°");
         // The level hand's own first press on the same plate is not a grasp: its axis is 30° off.
         let level = simulate_press(30.0, rotation, Point3::origin(), options.press_m).unwrap();
+        let press = outcome(&level.1, &rotation, &normal, &options).unwrap();
+        assert!(!press.success);
+        // It touches with fewer fingers than three, and exactly those are loaded.
+        let shapes: Vec<Vec<FingerState>> = hold_frames(&level.1)
+            .map(|f| simulated_hold_shape(f, &rest))
+            .collect();
+        let (loaded, _) = loaded_fingertips(&shapes, &(rotation * Vector3::z()), &options);
+        let touching: Vec<usize> = (0..3).filter(|&f| press.contact_vertices[f] > 0).collect();
+        assert!(!touching.is_empty() && touching.len() < 3, "{press:?}");
+        assert_eq!(loaded, touching);
+    }
+
+    fn hold_frames(frames: &[SimFrame]) -> impl Iterator<Item = &SimFrame> {
+        frames.iter().filter(|f| in_hold(f))
+    }
+
+    fn hand_model() -> HandModel {
+        HandModel::preset(
+            moe_geom::HandPreset::ThreeFinger,
+            &moe_geom::FingerParams::default(),
+        )
+        .unwrap()
+    }
+
+    /// A finger is loaded when it has moved more than the threshold from rest in some hold
+    /// frame, and its tip (the vertex farthest along the press) is averaged over exactly the
+    /// frames in which it is loaded and its tip seen.
+    #[test]
+    fn loaded_fingers_are_the_deformed_ones_and_their_tips_average_the_seen_loaded_frames() {
+        let options = GraspOptions::default();
+        let axis = Vector3::new(0.0, 0.0, -1.0);
+        let rest = [Point3::new(0.0, 0.0, 0.0), Point3::new(0.0, 0.0, -0.05)];
+        let finger = |moved: [Real; 2], tip_seen: bool| FingerState {
+            at: rest
+                .iter()
+                .zip(moved)
+                .map(|(p, dx)| Point3::new(p.x + dx, p.y, p.z))
+                .collect(),
+            rest: rest.to_vec(),
+            tip_seen,
+        };
+        let m = options.loaded_finger_m;
+        let frames = [
+            // Finger 0 loaded (its tip moved 2 thresholds), 1 just below the threshold, 2 at
+            // rest, 3 loaded with its tip hidden.
+            vec![
+                finger([0.0, 2.0 * m], true),
+                finger([0.0, 0.9 * m], true),
+                finger([0.0; 2], true),
+                finger([0.0, 2.0 * m], false),
+            ],
+            // Finger 0 loaded again (tip 4 thresholds), 2 loaded at its base only.
+            vec![
+                finger([0.0, 4.0 * m], true),
+                finger([0.0, 0.5 * m], true),
+                finger([1.5 * m, 0.0], true),
+                finger([0.0, 2.0 * m], false),
+            ],
+            // Finger 0 loaded with its tip hidden: not in its average.
+            vec![
+                finger([0.0, 9.0 * m], false),
+                finger([0.0; 2], true),
+                finger([0.0; 2], true),
+                finger([0.0; 2], true),
+            ],
+        ];
+        let (loaded, tips) = loaded_fingertips(&frames, &axis, &options);
+        assert_eq!(loaded, [0, 2, 3]);
+        assert_eq!(tips.len(), 2, "finger 3's tip was never seen");
+        // Finger 0: the tip (z = −0.05) of frames 0 and 1, x averaged; finger 2: frame 1's.
+        let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
         assert!(
-            !outcome(&level.1, &rotation, &normal, &options)
-                .unwrap()
-                .success
+            close(tips[0], Point3::new(3.0 * m, 0.0, -0.05)),
+            "{}",
+            tips[0]
         );
+        assert!(close(tips[1], Point3::new(0.0, 0.0, -0.05)), "{}", tips[1]);
+    }
+
+    /// Through three seen tips the plane is theirs; through two, it contains them with the
+    /// normal nearest the prior; with fewer the prior itself; fewer than three loaded fingers
+    /// give none.
+    #[test]
+    fn the_fingertip_plane_is_through_three_tips_or_two_and_the_axis() {
+        let ransac = RansacConfig::default();
+        let prior = Vector3::z();
+        let tips = [
+            Point3::new(0.03, 0.0, 0.0),
+            Point3::new(-0.015, 0.026, 0.0),
+            Point3::new(-0.015, -0.026, 0.01),
+        ];
+        let plane_normal = (tips[1] - tips[0]).cross(&(tips[2] - tips[0])).normalize();
+        let (source, n) = fingertip_plane(3, &tips, &prior, &ransac).unwrap();
+        assert_eq!(source, PlaneSource::LoadedFingertips);
+        assert!(n.dot(&prior) > 0.0);
+        assert!(n.dot(&plane_normal).abs() > 1.0 - 1e-12, "{n}");
+        // Two tips: the normal is perpendicular to their line, in the plane of the line's normal
+        // and the prior, and tilted away from the prior only as far as the line demands.
+        let two = [Point3::new(0.0, 0.0, 0.0), Point3::new(0.03, 0.0, 0.01)];
+        let (source, n) = fingertip_plane(3, &two, &prior, &ransac).unwrap();
+        assert_eq!(source, PlaneSource::TwoFingertipsAndAxis);
+        let line = (two[1] - two[0]).normalize();
+        assert!(n.dot(&line).abs() < 1e-12);
+        assert!(n.y.abs() < 1e-12);
+        assert!((angle_deg(&n, &prior) - (0.01_f64 / 0.03).atan().to_degrees()).abs() < 1e-9);
+        assert!(fingertip_plane(2, &tips, &prior, &ransac).is_none());
+        for seen in [&tips[..1], &[]] {
+            let (source, n) = fingertip_plane(3, seen, &prior, &ransac).unwrap();
+            assert_eq!(source, PlaneSource::LoadedFingersAxis);
+            assert_eq!(n, prior);
+        }
     }
 }

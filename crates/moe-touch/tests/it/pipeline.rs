@@ -362,7 +362,13 @@ fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
     use moe_touch::grasp::{GraspContacts, GraspOptions, run_grasp_trial};
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
     let model = load_contact_model(&model_path(), &hand).unwrap();
-    let options = GraspOptions::default();
+    // One plane, through the contact points: the presses and points of both sources are then
+    // the same.
+    let options = GraspOptions {
+        refinements: 0,
+        fingertip_plane: false,
+        ..GraspOptions::default()
+    };
     let truth = run_grasp_trial(
         &hand,
         GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
@@ -382,8 +388,11 @@ fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
     )
     .unwrap();
     assert_eq!(labels.first_press, truth.first_press);
-    assert!(truth.estimated_contacts > 0);
-    assert_eq!(labels.estimated_contacts, truth.estimated_contacts);
+    assert!(truth.fits[0].estimated_contacts > 0);
+    assert_eq!(
+        labels.fits[0].estimated_contacts,
+        truth.fits[0].estimated_contacts
+    );
     // The same vertices in the same order; the simulator's own source fits its true points.
     let ids = |points: &[moe_geom::ContactPoint]| -> Vec<(usize, u32)> {
         points.iter().map(|c| (c.finger, c.vertex)).collect()
