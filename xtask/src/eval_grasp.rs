@@ -206,6 +206,7 @@ fn print_table(v: &Value) {
         "\nper trial: true incline → estimated incline (per fit: plane through, error of the normal; \
          fingers touching at each press)"
     );
+    let press_m = v["options"]["press_m"].as_f64().unwrap_or(0.0);
     for r in v["rows"].as_array().into_iter().flatten() {
         for t in r["trials_detail"].as_array().into_iter().flatten() {
             let fits: Vec<String> = t["fits"]
@@ -213,12 +214,18 @@ fn print_table(v: &Value) {
                 .into_iter()
                 .flatten()
                 .map(|f| {
+                    let depth = f["press_depth_m"].as_f64().unwrap_or(0.0);
                     format!(
-                        "{} {}",
+                        "{} {}{}",
                         f["source"].as_str().unwrap_or("no fit"),
                         f["normal_error_deg"]
                             .as_f64()
                             .map_or("—".to_owned(), |e| format!("{e:.1}°")),
+                        if depth > press_m + 1e-9 {
+                            format!(" (pressed {:.0} mm)", depth * 1e3)
+                        } else {
+                            String::new()
+                        }
                     )
                 })
                 .collect();

@@ -11,8 +11,9 @@
 //! is spanned by points tens of millimetres apart instead of by one fingertip's patch. A level
 //! hand touches a slope with one finger, so the first plane there is a patch's; with
 //! [`GraspOptions::refinements`](crate::grasp::GraspOptions::refinements) the hand turns onto
-//! the latest plane, presses again (now with more fingers down) and fits again before the
-//! judged press. `refinements = 0` without the fingertip plane is the paper's protocol.
+//! the latest plane, presses again (now with more fingers down; deeper when fewer than three
+//! are loaded) and fits again before the judged press. `refinements = 0` without the
+//! fingertip plane is the paper's protocol.
 //!
 //! **Success** is the state from which the paper's hand folds the sheet: at the deepest point of
 //! the judged press every finger touches the plate (at least
@@ -64,6 +65,11 @@ pub struct GraspOptions {
     /// is one the plate pushes (free fingers move 0.1–1.3 mm under the camera's noise, pressed
     /// ones 4.6–22 mm). Default 3 mm.
     pub loaded_finger_m: Real,
+    /// A refining press that loads fewer than three fingers is repeated this far past first
+    /// touch, so that more fingers reach the plate and their tips give the plane (a robot's
+    /// guarded move pressing on until more of the hand touches); at most
+    /// [`GraspOptions::press_m`] disables it. The judged press keeps `press_m`. Default 16 mm.
+    pub deeper_press_m: Real,
     /// When at least three fingers are loaded, fit the plane through their tips (see
     /// [`PlaneSource::LoadedFingertips`]) instead of through the contact points. Default true.
     pub fingertip_plane: bool,
@@ -79,6 +85,7 @@ impl Default for GraspOptions {
             max_axis_error_deg: 10.0,
             ransac: RansacConfig::default(),
             refinements: 2,
+            deeper_press_m: 0.016,
             loaded_finger_m: 0.003,
             fingertip_plane: true,
         }
@@ -122,6 +129,8 @@ pub enum PlaneSource {
 /// One plane fitted from one press, and the press that turned onto it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PlaneStep {
+    /// How far past first touch the press this plane was fitted from went, metres.
+    pub press_depth_m: Real,
     /// What the plane was fitted through (`None` when the fit failed).
     pub source: Option<PlaneSource>,
     /// Fingers whose estimated shape shows a load ([`GraspOptions::loaded_finger_m`]).
@@ -459,10 +468,11 @@ fn observe_press<C: ContactEstimator + Clone>(
     rotation: &UnitQuat,
     aim: Point3,
     camera_seed: u64,
+    press_m: Real,
     options: &GraspOptions,
 ) -> Result<ObservedPress, TouchError> {
     let normal = plate_normal(incline_deg);
-    let (scene, frames) = simulate_press(incline_deg, *rotation, aim, options.press_m)?;
+    let (scene, frames) = simulate_press(incline_deg, *rotation, aim, press_m)?;
     let outcome = outcome(&frames, rotation, &normal, options)?;
 
     // Contacts and shapes over the hold.
@@ -551,6 +561,7 @@ fn observe_press<C: ContactEstimator + Clone>(
     let axis = rotation * Vector3::z();
     let (loaded_fingers, tips) = loaded_fingertips(&shapes, &axis, options);
     let mut step = PlaneStep {
+        press_depth_m: press_m,
         source: None,
         loaded_fingers,
         estimated_contacts: plane_points.len(),
@@ -633,15 +644,19 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
         u * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m)
             + v * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m),
     );
-    let mut observed = observe_press(
-        hand,
-        &contacts,
-        incline_deg,
-        &rotation,
-        aim,
-        camera_seed,
-        options,
-    )?;
+    let observe = |rotation: &UnitQuat, press_m: Real| {
+        observe_press(
+            hand,
+            &contacts,
+            incline_deg,
+            rotation,
+            aim,
+            camera_seed,
+            press_m,
+            options,
+        )
+    };
+    let mut observed = observe(&rotation, options.press_m)?;
     let first_press = observed.outcome.clone();
     let mut fits: Vec<PlaneStep> = Vec::new();
     let mut final_press = None;
@@ -655,16 +670,20 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
         let turn = UnitQuat::rotation_between(&axis, &(-n_est)).unwrap_or_else(UnitQuat::identity);
         rotation = turn * rotation;
         let next = if press < options.refinements {
-            observe_press(
-                hand,
-                &contacts,
-                incline_deg,
-                &rotation,
-                aim,
-                camera_seed,
-                options,
-            )
-            .map(Some)
+            observe(&rotation, options.press_m).and_then(|shallow| {
+                if shallow.step.loaded_fingers.len() >= 3
+                    || options.deeper_press_m <= options.press_m
+                {
+                    return Ok(Some((shallow.outcome.clone(), shallow)));
+                }
+                // Press on: the plane comes from the deeper press, the turn's outcome from the
+                // shallow one (the depth every press is judged at).
+                match observe(&rotation, options.deeper_press_m) {
+                    Ok(deep) => Ok(Some((shallow.outcome.clone(), deep))),
+                    Err(TouchError::Simulation(_)) => Ok(Some((shallow.outcome.clone(), shallow))),
+                    Err(e) => Err(e),
+                }
+            })
         } else {
             // The judged press needs no plane.
             simulate_press(incline_deg, rotation, aim, options.press_m)
@@ -675,9 +694,9 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
                 })
         };
         match next {
-            Ok(Some(next)) => {
+            Ok(Some((turned, next))) => {
                 let mut step = std::mem::replace(&mut observed, next).step;
-                step.press = Some(observed.outcome.clone());
+                step.press = Some(turned);
                 fits.push(step);
             }
             Ok(None) => {
@@ -782,6 +801,75 @@ mod tests {
         let touching: Vec<usize> = (0..3).filter(|&f| press.contact_vertices[f] > 0).collect();
         assert!(!touching.is_empty() && touching.len() < 3, "{press:?}");
         assert_eq!(loaded, touching);
+    }
+
+    /// Pressing on loads more fingers: a hand 20° off the 45° plate's normal loads fewer than
+    /// three at the judged depth, more at the deeper press's, and each plane reports the depth
+    /// it came from.
+    #[test]
+    fn a_deeper_press_loads_more_fingers() {
+        // Turned 25° of the 45° toward the normal: 20° off.
+        const TURN_DEG: Real = 25.0;
+        let options = GraspOptions::default();
+        let hand = hand_model();
+        let normal = plate_normal(45.0);
+        let level = start_rotation(&mut SeededRng::new(4), 0.0);
+        let axis = level * Vector3::z();
+        let turn = UnitQuat::rotation_between(&axis, &(-normal))
+            .unwrap()
+            .powf(TURN_DEG / 45.0);
+        let rotation = turn * level;
+        let press = |press_m| {
+            observe_press(
+                &hand,
+                &GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+                45.0,
+                &rotation,
+                Point3::origin(),
+                0,
+                press_m,
+                &options,
+            )
+            .unwrap()
+        };
+        let shallow = press(options.press_m);
+        let deep = press(options.deeper_press_m);
+        assert_eq!(shallow.step.press_depth_m, options.press_m);
+        assert_eq!(deep.step.press_depth_m, options.deeper_press_m);
+        let (a, b) = (shallow.step.loaded_fingers, deep.step.loaded_fingers);
+        assert!(a.len() < 3 && b.len() > a.len(), "{a:?} -> {b:?}");
+    }
+
+    /// A refining press that loads fewer than three fingers is followed at the same orientation
+    /// by the deeper press, whose plane the trial uses; the first press keeps the judged depth.
+    #[test]
+    fn a_refining_press_that_loads_too_few_fingers_is_pressed_deeper() {
+        // 1 mm past first touch moves no finger by 3 mm: nothing is loaded at that depth.
+        let options = GraspOptions {
+            press_m: 0.001,
+            refinements: 1,
+            ..GraspOptions::default()
+        };
+        let trial = run_grasp_trial(
+            &hand_model(),
+            GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+            0.0,
+            0,
+            0,
+            &options,
+        )
+        .unwrap();
+        let [first, refined] = trial.fits.as_slice() else {
+            panic!("{:?}", trial.fits);
+        };
+        assert_eq!(first.press_depth_m, options.press_m);
+        assert!(first.loaded_fingers.is_empty(), "{first:?}");
+        assert_eq!(first.source, Some(PlaneSource::ContactPoints));
+        assert_eq!(refined.press_depth_m, options.deeper_press_m);
+        assert_eq!(refined.loaded_fingers, [0, 1, 2]);
+        assert_eq!(refined.source, Some(PlaneSource::LoadedFingertips));
+        assert!(first.press.is_some() && trial.final_press.is_some());
+        assert!(refined.normal_error_deg.unwrap() < 2.0, "{refined:?}");
     }
 
     fn hold_frames(frames: &[SimFrame]) -> impl Iterator<Item = &SimFrame> {
