@@ -148,7 +148,8 @@ pub struct PlaneStep {
     pub normal_error_deg: Option<Real>,
     /// Why the fit (or the press onto it) failed, if it did.
     pub fit_error: Option<String>,
-    /// The press with the hand's axis turned onto this plane's normal.
+    /// The press with the hand's axis turned onto this plane's normal, at
+    /// [`GraspOptions::press_m`] (the judged depth).
     pub press: Option<PressOutcome>,
 }
 
@@ -174,8 +175,8 @@ pub struct GraspTrial {
     pub success_with: bool,
     /// Success without: the first press succeeded.
     pub success_without: bool,
-    /// The points of the last press's hold that its plane was fitted to or checked against,
-    /// world frame (probability 1 for the simulator's labels); for display, not serialised.
+    /// The contact points of the hold of the last press a plane was fitted from, world frame
+    /// (probability 1 for the simulator's labels); for display, not serialised.
     #[serde(skip)]
     pub plane_points: Vec<ContactPoint>,
     /// Indices into `plane_points` of the RANSAC inliers (empty when the plane went through
@@ -327,8 +328,8 @@ struct FingerState {
     /// Their rest positions (the rest hand at the same wrist pose).
     rest: Vec<Point3>,
     /// Whether its most distal marker was seen: without it the shape estimate extrapolates the
-    /// tip (a hidden tip of a finger pressed along its axis is placed 6–8 mm past the plate, at
-    /// the uncompressed length, where a seen one is within 2.3 mm).
+    /// tip (a hidden tip of a finger pressed along its axis was placed 5.8–7.8 mm past the plate,
+    /// at the uncompressed length, where the seen ones were within 2.3 mm).
     tip_seen: bool,
 }
 
