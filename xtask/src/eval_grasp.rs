@@ -61,7 +61,7 @@ pub(crate) struct GraspEvalArgs {
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
-    /// Write, per trial, the contact points of the last fitted press's hold and the simulator's
+    /// Write, per trial, the contact points of the last observed press's hold and the simulator's
     /// contact vertices of the same frames (world frame) as PLY:
     /// `DIR/incline_<deg>/trial_<k>/plane_points.ply`
     /// (vertex scalars `finger`, `probability`, `inlier`) and `true_contacts.ply` (`finger`).
@@ -172,7 +172,8 @@ fn evaluate(
             "paper_with_of_5": paper_with,
             "paper_without_of_5": paper_without,
             "max_incline_error_deg": errors.iter().copied().fold(None, |m: Option<Real>, e| Some(m.map_or(e, |m| m.max(e)))),
-            "fits_failed": results.iter().filter(|r| r.final_press.is_none()).count(),
+            "fits_failed": results.iter().filter(|r| r.fits.iter().any(|f| f.source.is_none())).count(),
+            "without_judged_press": results.iter().filter(|r| r.final_press.is_none()).count(),
             "trials_detail": results,
         }));
     }
@@ -207,6 +208,7 @@ fn print_table(v: &Value) {
          fingers touching at each press)"
     );
     let press_m = v["options"]["press_m"].as_f64().unwrap_or(0.0);
+    let min_vertices = v["options"]["min_contact_vertices"].as_u64().unwrap_or(0);
     for r in v["rows"].as_array().into_iter().flatten() {
         for t in r["trials_detail"].as_array().into_iter().flatten() {
             let fits: Vec<String> = t["fits"]
@@ -231,7 +233,9 @@ fn print_table(v: &Value) {
                 .collect();
             let touching = |p: &Value| {
                 p["contact_vertices"].as_array().map_or(0, |c| {
-                    c.iter().filter(|n| n.as_u64().unwrap_or(0) >= 3).count()
+                    c.iter()
+                        .filter(|n| n.as_u64().unwrap_or(0) >= min_vertices)
+                        .count()
                 })
             };
             let presses: Vec<String> = std::iter::once(&t["first_press"])

@@ -140,6 +140,9 @@ pub struct PlaneStep {
     pub estimated_contacts: usize,
     /// RANSAC inliers among them (0 when the plane went through the fingertips).
     pub inliers: usize,
+    /// The seen tips of the loaded fingers, world frame, in finger order (what a fingertip
+    /// plane goes through).
+    pub tips: Vec<[Real; 3]>,
     /// The fitted plane's unit normal (toward the hand), world frame.
     pub estimated_normal: Option<[Real; 3]>,
     /// The incline of the fitted plane, degrees (angle of its normal from vertical).
@@ -163,20 +166,22 @@ pub struct GraspTrial {
     /// The first press (also the whole trial without MOE-Touch).
     pub first_press: PressOutcome,
     /// Every plane fitted, in order: from the first press's hold, then from each refining
-    /// press's. A failed fit ends the list.
+    /// press's. A failed fit ends the list (the hand stays on the plane before it).
     pub fits: Vec<PlaneStep>,
-    /// The estimated incline: the last plane's, degrees.
+    /// The estimated incline: the last fitted plane's, degrees.
     pub estimated_incline_deg: Option<Real>,
-    /// Angle between the last plane's normal and the true one, degrees.
+    /// Angle between the last fitted plane's normal and the true one, degrees.
     pub normal_error_deg: Option<Real>,
-    /// The judged press (the last one, onto the last plane); `None` when a fit failed.
+    /// The judged press, onto the last fitted plane; `None` when the first fit failed or the
+    /// press could not be simulated (the trial fails).
     pub final_press: Option<PressOutcome>,
     /// Success with MOE-Touch: the judged press succeeded.
     pub success_with: bool,
     /// Success without: the first press succeeded.
     pub success_without: bool,
-    /// The contact points of the hold of the last press a plane was fitted from, world frame
-    /// (probability 1 for the simulator's labels); for display, not serialised.
+    /// The contact points of the last observed press's hold (the one the last entry of `fits`
+    /// came from), world frame (probability 1 for the simulator's labels); for display, not
+    /// serialised.
     #[serde(skip)]
     pub plane_points: Vec<ContactPoint>,
     /// Indices into `plane_points` of the RANSAC inliers (empty when the plane went through
@@ -312,6 +317,7 @@ pub enum GraspContacts<C> {
 }
 
 /// One press seen through the contact source: how it ended, and the plane fitted from its hold.
+#[derive(Clone)]
 struct ObservedPress {
     outcome: PressOutcome,
     step: PlaneStep,
@@ -334,24 +340,27 @@ struct FingerState {
 }
 
 impl FingerState {
+    /// The largest distance of a vertex from its rest position (non-finite vertices skipped).
     fn largest_displacement(&self) -> Real {
         self.at
             .iter()
             .zip(&self.rest)
             .map(|(a, r)| (a - r).norm())
+            .filter(|d| d.is_finite())
             .fold(0.0, Real::max)
     }
 
-    /// The vertex farthest along `axis`.
+    /// The finite vertex farthest along `axis`.
     fn tip(&self, axis: &Vector3) -> Option<Point3> {
         self.at
             .iter()
+            .filter(|p| moe_geom::math::is_finite_point(p))
             .max_by(|a, b| axis.dot(&a.coords).total_cmp(&axis.dot(&b.coords)))
             .copied()
     }
 }
 
-/// The loaded fingers of a hold (a finger is loaded when it is in any hold frame) and the tips
+/// The loaded fingers of a hold (a finger is loaded when it is loaded in any hold frame) and the tips
 /// of those whose tip was seen while loaded: per such finger, its vertex farthest along `axis`
 /// averaged over the hold frames in which it is loaded and its tip seen.
 fn loaded_fingertips(
@@ -440,7 +449,9 @@ fn fingertip_plane(
         [a, b] => {
             let line = (b - a).try_normalize(1e-9)?;
             let n = (prior - line * line.dot(prior)).try_normalize(1e-6)?;
-            Some((PlaneSource::TwoFingertipsAndAxis, n))
+            n.iter()
+                .all(|c| c.is_finite())
+                .then_some((PlaneSource::TwoFingertipsAndAxis, n))
         }
         [] | [_] => Some((PlaneSource::LoadedFingersAxis, *prior)),
         _ => {
@@ -565,6 +576,7 @@ fn observe_press<C: ContactEstimator + Clone>(
         press_depth_m: press_m,
         source: None,
         loaded_fingers,
+        tips: tips.iter().map(|p| [p.x, p.y, p.z]).collect(),
         estimated_contacts: plane_points.len(),
         inliers: 0,
         estimated_normal: None,
@@ -618,6 +630,21 @@ fn observe_press<C: ContactEstimator + Clone>(
     })
 }
 
+/// Trial `trial`'s start on the plate inclined by `incline_deg`: the hand's orientation and the
+/// aim point on the plate (seeded by both).
+fn trial_start(incline_deg: Real, trial: u64, options: &GraspOptions) -> (UnitQuat, Point3) {
+    let normal = plate_normal(incline_deg);
+    let mut rng = SeededRng::new(trial).split((incline_deg * 1000.0).round() as u64);
+    let rotation = start_rotation(&mut rng, options.start_tilt_deg);
+    let u = Vector3::x();
+    let v = normal.cross(&u);
+    let aim = Point3::from(
+        u * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m)
+            + v * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m),
+    );
+    (rotation, aim)
+}
+
 /// Runs trial `trial` on the plate inclined by `incline_deg`: the first press from a perturbed
 /// level start, the plane fitted from its hold (from the pipeline on the wrist camera's frames,
 /// `camera_seed` seeding the noise, or from the simulator), then
@@ -626,8 +653,9 @@ fn observe_press<C: ContactEstimator + Clone>(
 ///
 /// # Errors
 /// An incline outside `[0°, 60°]`, a diverging simulation of the first press, a failing
-/// pipeline stage (a plane that cannot be fitted, or pressed along, is reported in the trial,
-/// not as an error).
+/// pipeline stage on the first or a refining press. A plane that cannot be fitted or pressed
+/// along is reported in the trial, and a deeper press that fails is passed over (the shallow
+/// press's plane stands), not returned as errors.
 pub fn run_grasp_trial<C: ContactEstimator + Clone>(
     hand: &HandModel,
     contacts: GraspContacts<C>,
@@ -637,14 +665,7 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
     options: &GraspOptions,
 ) -> Result<GraspTrial, TouchError> {
     let normal = plate_normal(incline_deg);
-    let mut rng = SeededRng::new(trial).split((incline_deg * 1000.0).round() as u64);
-    let mut rotation = start_rotation(&mut rng, options.start_tilt_deg);
-    let u = Vector3::x();
-    let v = normal.cross(&u);
-    let aim = Point3::from(
-        u * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m)
-            + v * rng.uniform_range(-options.aim_offset_m, options.aim_offset_m),
-    );
+    let (mut rotation, aim) = trial_start(incline_deg, trial, options);
     let observe = |rotation: &UnitQuat, press_m: Real| {
         observe_press(
             hand,
@@ -663,6 +684,9 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
     let mut final_press = None;
     for press in 0..=options.refinements {
         let Some(n_est) = observed.normal else {
+            // The hand stays on the last plane that was fitted; the press onto it, already made
+            // at the judged depth, is the judged one (none when the first fit failed).
+            final_press = fits.last().and_then(|s| s.press.clone());
             fits.push(observed.step);
             break;
         };
@@ -678,12 +702,11 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
                     return Ok(Some((shallow.outcome.clone(), shallow)));
                 }
                 // Press on: the plane comes from the deeper press, the turn's outcome from the
-                // shallow one (the depth every press is judged at).
-                match observe(&rotation, options.deeper_press_m) {
-                    Ok(deep) => Ok(Some((shallow.outcome.clone(), deep))),
-                    Err(TouchError::Simulation(_)) => Ok(Some((shallow.outcome.clone(), shallow))),
-                    Err(e) => Err(e),
-                }
+                // shallow one (the depth every press is judged at). The deeper press is optional:
+                // if it cannot be made or seen, the shallow one's plane stands.
+                let deep =
+                    observe(&rotation, options.deeper_press_m).unwrap_or_else(|_| shallow.clone());
+                Ok(Some((shallow.outcome.clone(), deep)))
             })
         } else {
             // The judged press needs no plane.
@@ -714,7 +737,7 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
             Err(e) => return Err(e),
         }
     }
-    let last = fits.last();
+    let last = fits.iter().rev().find(|s| s.estimated_normal.is_some());
     Ok(GraspTrial {
         incline_deg,
         trial,
@@ -869,7 +892,16 @@ mod tests {
         assert_eq!(refined.press_depth_m, options.deeper_press_m);
         assert_eq!(refined.loaded_fingers, [0, 1, 2]);
         assert_eq!(refined.source, Some(PlaneSource::LoadedFingertips));
-        assert!(first.press.is_some() && trial.final_press.is_some());
+        // The press after the first turn is the one at the judged depth, not the deeper one.
+        let (start, aim) = trial_start(0.0, 0, &options);
+        let [x, y, z] = first.estimated_normal.unwrap();
+        let turned = UnitQuat::rotation_between(&(start * Vector3::z()), &-Vector3::new(x, y, z))
+            .unwrap()
+            * start;
+        let (_, frames) = simulate_press(0.0, turned, aim, options.press_m).unwrap();
+        let expected = outcome(&frames, &turned, &plate_normal(0.0), &options).unwrap();
+        assert_eq!(first.press.as_ref(), Some(&expected));
+        assert!(trial.final_press.is_some());
         assert!(refined.normal_error_deg.unwrap() < 2.0, "{refined:?}");
     }
 
@@ -929,6 +961,12 @@ mod tests {
         ];
         let (loaded, tips) = loaded_fingertips(&frames, &axis, &options);
         assert_eq!(loaded, [0, 2, 3]);
+        // A non-finite vertex is neither a displacement nor a tip.
+        let mut broken = finger([0.0, 2.0 * m], true);
+        broken.at.push(Point3::new(Real::NAN, 0.0, 1.0));
+        broken.rest.push(Point3::origin());
+        assert_eq!(broken.largest_displacement(), 2.0 * m);
+        assert_eq!(broken.tip(&axis), Some(Point3::new(2.0 * m, 0.0, -0.05)));
         assert_eq!(tips.len(), 2, "finger 3's tip was never seen");
         // Finger 0: the tip (z = −0.05) of frames 0 and 1, x averaged; finger 2: frame 1's.
         let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
@@ -972,5 +1010,9 @@ mod tests {
             assert_eq!(source, PlaneSource::LoadedFingersAxis);
             assert_eq!(n, prior);
         }
+        // A non-finite tip gives no plane, never a non-finite normal.
+        let nan = Point3::new(Real::NAN, 0.0, 0.0);
+        assert!(fingertip_plane(3, &[two[0], nan], &prior, &ransac).is_none());
+        assert!(fingertip_plane(3, &[tips[0], tips[1], nan], &prior, &ransac).is_none());
     }
 }
