@@ -317,7 +317,6 @@ pub enum GraspContacts<C> {
 }
 
 /// One press seen through the contact source: how it ended, and the plane fitted from its hold.
-#[derive(Clone)]
 struct ObservedPress {
     outcome: PressOutcome,
     step: PlaneStep,
@@ -695,18 +694,18 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
         let turn = UnitQuat::rotation_between(&axis, &(-n_est)).unwrap_or_else(UnitQuat::identity);
         rotation = turn * rotation;
         let next = if press < options.refinements {
-            observe(&rotation, options.press_m).and_then(|shallow| {
+            observe(&rotation, options.press_m).map(|shallow| {
+                let turned = shallow.outcome.clone();
                 if shallow.step.loaded_fingers.len() >= 3
                     || options.deeper_press_m <= options.press_m
                 {
-                    return Ok(Some((shallow.outcome.clone(), shallow)));
+                    return Some((turned, shallow));
                 }
                 // Press on: the plane comes from the deeper press, the turn's outcome from the
                 // shallow one (the depth every press is judged at). The deeper press is optional:
                 // if it cannot be made or seen, the shallow one's plane stands.
-                let deep =
-                    observe(&rotation, options.deeper_press_m).unwrap_or_else(|_| shallow.clone());
-                Ok(Some((shallow.outcome.clone(), deep)))
+                let deep = observe(&rotation, options.deeper_press_m).unwrap_or(shallow);
+                Some((turned, deep))
             })
         } else {
             // The judged press needs no plane.
