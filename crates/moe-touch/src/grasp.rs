@@ -330,8 +330,8 @@ struct ObservedPress {
 struct FingerState {
     /// Its vertices.
     at: Vec<Point3>,
-    /// Their rest positions (the rest hand at the same wrist pose).
-    rest: Vec<Point3>,
+    /// The largest distance of a vertex from its rest position, metres.
+    displacement: Real,
     /// Whether its most distal marker was seen: without it the shape estimate extrapolates the
     /// tip (a hidden tip of a finger pressed along its axis was placed 5.8–7.8 mm past the plate,
     /// at the uncompressed length, where the seen ones were within 2.3 mm).
@@ -339,16 +339,6 @@ struct FingerState {
 }
 
 impl FingerState {
-    /// The largest distance of a vertex from its rest position (non-finite vertices skipped).
-    fn largest_displacement(&self) -> Real {
-        self.at
-            .iter()
-            .zip(&self.rest)
-            .map(|(a, r)| (a - r).norm())
-            .filter(|d| d.is_finite())
-            .fold(0.0, Real::max)
-    }
-
     /// The finite vertex farthest along `axis`.
     fn tip(&self, axis: &Vector3) -> Option<Point3> {
         self.at
@@ -357,6 +347,16 @@ impl FingerState {
             .max_by(|a, b| axis.dot(&a.coords).total_cmp(&axis.dot(&b.coords)))
             .copied()
     }
+}
+
+/// The largest distance of a vertex from its rest position (vertices in the same frame as the
+/// rest positions; non-finite distances skipped).
+fn largest_displacement(at: &[Point3], rest: &[Point3]) -> Real {
+    at.iter()
+        .zip(rest)
+        .map(|(a, r)| (a - r).norm())
+        .filter(|d| d.is_finite())
+        .fold(0.0, Real::max)
 }
 
 /// The loaded fingers of a hold (a finger is loaded when it is loaded in any hold frame) and the tips
@@ -374,7 +374,7 @@ fn loaded_fingertips(
         let states = shapes
             .iter()
             .filter_map(|s| s.get(finger))
-            .filter(|f| f.largest_displacement() > options.loaded_finger_m);
+            .filter(|f| f.displacement > options.loaded_finger_m);
         let mut any = false;
         let seen: Vec<Point3> = states
             .inspect(|_| any = true)
@@ -423,10 +423,13 @@ fn simulated_hold_shape(frame: &SimFrame, rest: &HandShape) -> Vec<FingerState> 
         .fingers
         .iter()
         .zip(&rest.fingers)
-        .map(|(f, r)| FingerState {
-            at: f.vertices_in_world.clone(),
-            rest: r.iter().map(|p| frame.world_from_hand * p).collect(),
-            tip_seen: true,
+        .map(|(f, r)| {
+            let at_rest: Vec<Point3> = r.iter().map(|p| frame.world_from_hand * p).collect();
+            FingerState {
+                displacement: largest_displacement(&f.vertices_in_world, &at_rest),
+                at: f.vertices_in_world.clone(),
+                tip_seen: true,
+            }
         })
         .collect()
 }
@@ -469,164 +472,206 @@ fn fingertip_plane(
     }
 }
 
-/// Presses with the hand at `rotation` toward `aim`, judges the press, and fits the plane from
-/// the contact source's view of its hold.
-#[allow(clippy::too_many_arguments)]
-fn observe_press<C: ContactEstimator + Clone>(
-    hand: &HandModel,
-    contacts: &GraspContacts<C>,
+/// What every press of one trial shares: the hand and its rest shape, the contact source, the
+/// plate, the aim point, the camera's seed and the options.
+struct Presses<'a, C> {
+    hand: &'a HandModel,
+    /// The rest shape, hand frame.
+    rest: HandShape,
+    /// Per finger, its most distal marker.
+    distal: Vec<usize>,
+    contacts: GraspContacts<C>,
     incline_deg: Real,
-    rotation: &UnitQuat,
     aim: Point3,
     camera_seed: u64,
-    press_m: Real,
-    options: &GraspOptions,
-) -> Result<ObservedPress, TouchError> {
-    let normal = plate_normal(incline_deg);
-    let (scene, frames) = simulate_press(incline_deg, *rotation, aim, press_m)?;
-    let outcome = outcome(&frames, rotation, &normal, options)?;
+    options: &'a GraspOptions,
+}
 
-    // Contacts and shapes over the hold.
-    let hold: Vec<(usize, &SimFrame)> = frames
-        .iter()
-        .enumerate()
-        .filter(|(_, f)| in_hold(f))
-        .collect();
-    let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
-        Point3::from(f.world_from_hand.translation.vector)
-    });
-    let rest = HandShape::rest(hand);
-    let distal = distal_markers(hand);
-    let rest_at = |transform: &dyn Fn(&Point3) -> Point3, finger: usize| -> Vec<Point3> {
-        rest.fingers[finger].iter().map(transform).collect()
-    };
-    let mut plane_points: Vec<ContactPoint> = Vec::new();
-    let mut true_points: Vec<ContactPoint> = Vec::new();
-    let mut shapes: Vec<Vec<FingerState>> = Vec::new();
-    for (_, f) in &hold {
-        true_points.extend(labelled_points(
-            f,
-            |finger| &f.fingers[finger].vertices_in_world,
-            |p| *p,
-        ));
+impl<'a, C: ContactEstimator + Clone> Presses<'a, C> {
+    fn new(
+        hand: &'a HandModel,
+        contacts: GraspContacts<C>,
+        incline_deg: Real,
+        aim: Point3,
+        camera_seed: u64,
+        options: &'a GraspOptions,
+    ) -> Self {
+        Self {
+            hand,
+            rest: HandShape::rest(hand),
+            distal: distal_markers(hand),
+            contacts,
+            incline_deg,
+            aim,
+            camera_seed,
+            options,
+        }
     }
-    let (contact, threshold, labels_only) = match contacts {
-        GraspContacts::Pipeline { contact, threshold } => (Some(contact), *threshold, false),
-        GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => (Some(contact), 1.0, true),
-        GraspContacts::Simulator => (None, 1.0, false),
-    };
-    match contact {
-        Some(contact) => {
-            let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
-            let detector =
-                MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
-            let shape = crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
-            let mut pipeline =
-                Pipeline::new(hand.clone(), detector, shape, contact.clone(), threshold)?;
-            for (k, f) in &hold {
-                let episode_frame = recorder.frame(&scene, f, *k as u64)?;
-                pipeline.reset();
-                let estimate = pipeline.process_episode_frame(&episode_frame)?;
-                let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
-                shapes.push(
-                    (0..hand.num_fingers())
-                        .map(|finger| FingerState {
-                            at: estimate
-                                .shape
-                                .fingers
-                                .get(finger)
-                                .map_or_else(Vec::new, |v| v.iter().map(to_world).collect()),
-                            rest: rest_at(&to_world, finger),
-                            tip_seen: estimate
-                                .keypoints
-                                .fingers
-                                .get(finger)
-                                .and_then(|m| m.get(distal[finger]))
-                                .is_some_and(Option::is_some),
-                        })
-                        .collect(),
-                );
-                if labels_only {
-                    plane_points.extend(labelled_points(
-                        f,
-                        |finger| {
-                            estimate
-                                .shape
-                                .fingers
-                                .get(finger)
-                                .map_or(&[], Vec::as_slice)
-                        },
-                        to_world,
-                    ));
-                } else {
-                    plane_points.extend_from_slice(&estimate.contacts_in_world);
+
+    /// Presses `press_m` past first touch with the hand at `rotation`, judges the press, and
+    /// fits the plane from the contact source's view of its hold.
+    fn observe(&self, rotation: &UnitQuat, press_m: Real) -> Result<ObservedPress, TouchError> {
+        let Self {
+            hand,
+            rest,
+            distal,
+            contacts,
+            incline_deg,
+            aim,
+            camera_seed,
+            options,
+        } = self;
+        let (incline_deg, aim, camera_seed) = (*incline_deg, *aim, *camera_seed);
+        let normal = plate_normal(incline_deg);
+
+        let (scene, frames) = simulate_press(incline_deg, *rotation, aim, press_m)?;
+        let outcome = outcome(&frames, rotation, &normal, options)?;
+
+        // Contacts and shapes over the hold.
+        let hold: Vec<(usize, &SimFrame)> = frames
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| in_hold(f))
+            .collect();
+        let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
+            Point3::from(f.world_from_hand.translation.vector)
+        });
+        let mut plane_points: Vec<ContactPoint> = Vec::new();
+        let mut true_points: Vec<ContactPoint> = Vec::new();
+        let mut shapes: Vec<Vec<FingerState>> = Vec::new();
+        for (_, f) in &hold {
+            true_points.extend(labelled_points(
+                f,
+                |finger| &f.fingers[finger].vertices_in_world,
+                |p| *p,
+            ));
+        }
+        let (contact, threshold, labels_only) = match contacts {
+            GraspContacts::Pipeline { contact, threshold } => (Some(contact), *threshold, false),
+            GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => {
+                (Some(contact), 1.0, true)
+            }
+            GraspContacts::Simulator => (None, 1.0, false),
+        };
+        match contact {
+            Some(contact) => {
+                let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
+                let detector =
+                    MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
+                let shape =
+                    crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
+                let mut pipeline =
+                    Pipeline::new((*hand).clone(), detector, shape, contact.clone(), threshold)?;
+                for (k, f) in &hold {
+                    let episode_frame = recorder.frame(&scene, f, *k as u64)?;
+                    pipeline.reset();
+                    let estimate = pipeline.process_episode_frame(&episode_frame)?;
+                    let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
+                    shapes.push(
+                        (0..hand.num_fingers())
+                            .map(|finger| {
+                                // Shape and rest compared in the hand frame (a rigid move
+                                // keeps distances).
+                                let at = estimate
+                                    .shape
+                                    .fingers
+                                    .get(finger)
+                                    .map_or(&[][..], Vec::as_slice);
+                                FingerState {
+                                    at: at.iter().map(to_world).collect(),
+                                    displacement: largest_displacement(at, &rest.fingers[finger]),
+                                    tip_seen: estimate
+                                        .keypoints
+                                        .fingers
+                                        .get(finger)
+                                        .and_then(|m| m.get(distal[finger]))
+                                        .is_some_and(Option::is_some),
+                                }
+                            })
+                            .collect(),
+                    );
+                    if labels_only {
+                        plane_points.extend(labelled_points(
+                            f,
+                            |finger| {
+                                estimate
+                                    .shape
+                                    .fingers
+                                    .get(finger)
+                                    .map_or(&[], Vec::as_slice)
+                            },
+                            to_world,
+                        ));
+                    } else {
+                        plane_points.extend_from_slice(&estimate.contacts_in_world);
+                    }
                 }
             }
+            None => {
+                plane_points.clone_from(&true_points);
+                shapes.extend(hold.iter().map(|(_, f)| simulated_hold_shape(f, rest)));
+            }
         }
-        None => {
-            plane_points.clone_from(&true_points);
-            shapes.extend(hold.iter().map(|(_, f)| simulated_hold_shape(f, &rest)));
-        }
-    }
 
-    let axis = rotation * Vector3::z();
-    let (loaded_fingers, tips) = loaded_fingertips(&shapes, &axis, options);
-    let mut step = PlaneStep {
-        press_depth_m: press_m,
-        source: None,
-        loaded_fingers,
-        tips: tips.iter().map(|p| [p.x, p.y, p.z]).collect(),
-        estimated_contacts: plane_points.len(),
-        inliers: 0,
-        estimated_normal: None,
-        estimated_incline_deg: None,
-        normal_error_deg: None,
-        fit_error: None,
-        press: None,
-    };
-    let mut inlier_indices = Vec::new();
-    // Through the loaded fingertips when three or more are loaded, else (or when their tips do
-    // not give a plane) RANSAC through the contact points.
-    let through_tips = if options.fingertip_plane {
-        fingertip_plane(step.loaded_fingers.len(), &tips, &-axis, &options.ransac)
-    } else {
-        None
-    };
-    let fit = match through_tips {
-        Some(plane) => Ok(plane),
-        None => {
-            let points: Vec<Point3> = plane_points.iter().map(|c| c.point).collect();
-            fit_plane_ransac(&points, &options.ransac).map(|fit| {
-                step.inliers = fit.inliers.len();
-                inlier_indices.clone_from(&fit.inliers);
-                (
-                    PlaneSource::ContactPoints,
-                    fit.oriented_toward(&wrist).normal,
-                )
-            })
-        }
-    };
-    let normal_est = match fit {
-        Ok((source, n)) => {
-            step.source = Some(source);
-            step.estimated_normal = Some([n.x, n.y, n.z]);
-            step.estimated_incline_deg = Some(angle_deg(&n, &Vector3::z()));
-            step.normal_error_deg = Some(angle_deg(&n, &normal));
-            Some(n)
-        }
-        Err(e) => {
-            step.fit_error = Some(e.to_string());
+        let axis = rotation * Vector3::z();
+        let (loaded_fingers, tips) = loaded_fingertips(&shapes, &axis, options);
+        let mut step = PlaneStep {
+            press_depth_m: press_m,
+            source: None,
+            loaded_fingers,
+            tips: tips.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            estimated_contacts: plane_points.len(),
+            inliers: 0,
+            estimated_normal: None,
+            estimated_incline_deg: None,
+            normal_error_deg: None,
+            fit_error: None,
+            press: None,
+        };
+        let mut inlier_indices = Vec::new();
+        // Through the loaded fingertips when three or more are loaded, else (or when their tips do
+        // not give a plane) RANSAC through the contact points.
+        let through_tips = if options.fingertip_plane {
+            fingertip_plane(step.loaded_fingers.len(), &tips, &-axis, &options.ransac)
+        } else {
             None
-        }
-    };
-    Ok(ObservedPress {
-        outcome,
-        step,
-        normal: normal_est,
-        plane_points,
-        inlier_indices,
-        true_points,
-    })
+        };
+        let fit = match through_tips {
+            Some(plane) => Ok(plane),
+            None => {
+                let points: Vec<Point3> = plane_points.iter().map(|c| c.point).collect();
+                fit_plane_ransac(&points, &options.ransac).map(|fit| {
+                    step.inliers = fit.inliers.len();
+                    inlier_indices.clone_from(&fit.inliers);
+                    (
+                        PlaneSource::ContactPoints,
+                        fit.oriented_toward(&wrist).normal,
+                    )
+                })
+            }
+        };
+        let normal_est = match fit {
+            Ok((source, n)) => {
+                step.source = Some(source);
+                step.estimated_normal = Some([n.x, n.y, n.z]);
+                step.estimated_incline_deg = Some(angle_deg(&n, &Vector3::z()));
+                step.normal_error_deg = Some(angle_deg(&n, &normal));
+                Some(n)
+            }
+            Err(e) => {
+                step.fit_error = Some(e.to_string());
+                None
+            }
+        };
+        Ok(ObservedPress {
+            outcome,
+            step,
+            normal: normal_est,
+            plane_points,
+            inlier_indices,
+            true_points,
+        })
+    }
 }
 
 /// Trial `trial`'s start on the plate inclined by `incline_deg`: the hand's orientation and the
@@ -665,19 +710,8 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
 ) -> Result<GraspTrial, TouchError> {
     let normal = plate_normal(incline_deg);
     let (mut rotation, aim) = trial_start(incline_deg, trial, options);
-    let observe = |rotation: &UnitQuat, press_m: Real| {
-        observe_press(
-            hand,
-            &contacts,
-            incline_deg,
-            rotation,
-            aim,
-            camera_seed,
-            press_m,
-            options,
-        )
-    };
-    let mut observed = observe(&rotation, options.press_m)?;
+    let presses = Presses::new(hand, contacts, incline_deg, aim, camera_seed, options);
+    let mut observed = presses.observe(&rotation, options.press_m)?;
     let first_press = observed.outcome.clone();
     let mut fits: Vec<PlaneStep> = Vec::new();
     let mut final_press = None;
@@ -694,7 +728,7 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
         let turn = UnitQuat::rotation_between(&axis, &(-n_est)).unwrap_or_else(UnitQuat::identity);
         rotation = turn * rotation;
         let next = if press < options.refinements {
-            observe(&rotation, options.press_m).map(|shallow| {
+            presses.observe(&rotation, options.press_m).map(|shallow| {
                 let turned = shallow.outcome.clone();
                 if shallow.step.loaded_fingers.len() >= 3
                     || options.deeper_press_m <= options.press_m
@@ -704,7 +738,9 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
                 // Press on: the plane comes from the deeper press, the turn's outcome from the
                 // shallow one (the depth every press is judged at). The deeper press is optional:
                 // if it cannot be made or seen, the shallow one's plane stands.
-                let deep = observe(&rotation, options.deeper_press_m).unwrap_or(shallow);
+                let deep = presses
+                    .observe(&rotation, options.deeper_press_m)
+                    .unwrap_or(shallow);
                 Some((turned, deep))
             })
         } else {
@@ -842,19 +878,15 @@ mod tests {
             .unwrap()
             .powf(TURN_DEG / 45.0);
         let rotation = turn * level;
-        let press = |press_m| {
-            observe_press(
-                &hand,
-                &GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
-                45.0,
-                &rotation,
-                Point3::origin(),
-                0,
-                press_m,
-                &options,
-            )
-            .unwrap()
-        };
+        let presses = Presses::new(
+            &hand,
+            GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+            45.0,
+            Point3::origin(),
+            0,
+            &options,
+        );
+        let press = |press_m| presses.observe(&rotation, press_m).unwrap();
         let shallow = press(options.press_m);
         let deep = press(options.deeper_press_m);
         assert_eq!(shallow.step.press_depth_m, options.press_m);
@@ -924,14 +956,17 @@ mod tests {
         let options = GraspOptions::default();
         let axis = Vector3::new(0.0, 0.0, -1.0);
         let rest = [Point3::new(0.0, 0.0, 0.0), Point3::new(0.0, 0.0, -0.05)];
-        let finger = |moved: [Real; 2], tip_seen: bool| FingerState {
-            at: rest
+        let finger = |moved: [Real; 2], tip_seen: bool| {
+            let at: Vec<Point3> = rest
                 .iter()
                 .zip(moved)
                 .map(|(p, dx)| Point3::new(p.x + dx, p.y, p.z))
-                .collect(),
-            rest: rest.to_vec(),
-            tip_seen,
+                .collect();
+            FingerState {
+                displacement: largest_displacement(&at, &rest),
+                at,
+                tip_seen,
+            }
         };
         let m = options.loaded_finger_m;
         let frames = [
@@ -963,8 +998,9 @@ mod tests {
         // A non-finite vertex is neither a displacement nor a tip.
         let mut broken = finger([0.0, 2.0 * m], true);
         broken.at.push(Point3::new(Real::NAN, 0.0, 1.0));
-        broken.rest.push(Point3::origin());
-        assert_eq!(broken.largest_displacement(), 2.0 * m);
+        let mut at_rest = rest.to_vec();
+        at_rest.push(Point3::origin());
+        assert_eq!(largest_displacement(&broken.at, &at_rest), 2.0 * m);
         assert_eq!(broken.tip(&axis), Some(Point3::new(2.0 * m, 0.0, -0.05)));
         assert_eq!(tips.len(), 2, "finger 3's tip was never seen");
         // Finger 0: the tip (z = −0.05) of frames 0 and 1, x averaged; finger 2: frame 1's.
