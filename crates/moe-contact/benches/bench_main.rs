@@ -106,15 +106,17 @@ fn contact(c: &mut Criterion) {
 
 /// One training step (forward with dropout, weighted cross-entropy, backward, AdamW) on a
 /// batch of 4 frames of the two-finger hand: 8 per-finger sets of 1024 points (xyz + rest xyz),
-/// or 4 whole-hand sets of 2048 points (xyz), as PyTorch's figure is measured.
+/// or 4 whole-hand sets of 2048 points (xyz), as PyTorch's figure is measured; and the compact
+/// network on the 8 per-finger sets.
 fn train_step(c: &mut Criterion) {
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("preset");
     let shape = bent(&hand);
-    for (set, label) in [
-        (PointSet::PerFinger, "per-finger"),
-        (PointSet::WholeHand, "whole-hand"),
+    for (config, set, label) in [
+        (DgcnnConfig::default(), PointSet::PerFinger, "per-finger"),
+        (DgcnnConfig::default(), PointSet::WholeHand, "whole-hand"),
+        (compact(), PointSet::PerFinger, "compact-per-finger"),
     ] {
-        let est = estimator(&hand, set);
+        let est = estimator_with(config, &hand, set);
         let features = est.features();
         let mut sets = TrainingSets::new(features.point_sets()[0].1, features.channels());
         for _ in 0..4 {

@@ -9,7 +9,7 @@ use moe_geom::SeededRng;
 
 use crate::config::{Aggregation, DgcnnConfig};
 use crate::error::ContactError;
-use crate::ops::{EdgeGraph, EdgeReduce, KnnSelect, MaxOverPoints};
+use crate::ops::{Dropout, EdgeGraph, EdgeReduce, KnnSelect, MaxOverPoints};
 
 /// Names of the tensors of a model file, in the order of the network.
 pub fn tensor_names() -> Vec<String> {
@@ -324,6 +324,9 @@ impl Dgcnn {
         let mut features = Vec::with_capacity(3);
         let mut neighbours: [Vec<u32>; 3] = Default::default();
         let mut h = x;
+        // A training pass's backward follows: the max reductions keep their minimising
+        // neighbours for it.
+        let training = matches!(mode, Mode::Train(_));
         for (l, layer) in self.layers.iter().enumerate() {
             let t0 = Instant::now();
             let local = match graphs {
@@ -332,7 +335,7 @@ impl Dgcnn {
             };
             timings.knn_s += t0.elapsed().as_secs_f64();
             let t0 = Instant::now();
-            h = self.edge_conv(layer, &h, &local, n)?;
+            h = self.edge_conv(layer, &h, &local, n, training)?;
             timings.edgeconv_s += t0.elapsed().as_secs_f64();
             features.push(h.clone());
             neighbours[l] = local;
@@ -353,6 +356,7 @@ impl Dgcnn {
         h: &Tensor,
         local: &[u32],
         n: usize,
+        keep_argmin: bool,
     ) -> candle_core::Result<Tensor> {
         let (b, _, c_in) = h.dims3()?;
         let k = self.config.k;
@@ -372,10 +376,7 @@ impl Dgcnn {
             };
             ab.apply_op2(
                 &layer.phi_bias,
-                EdgeReduce {
-                    graph,
-                    aggregation: self.config.aggregation,
-                },
+                EdgeReduce::new(graph, self.config.aggregation, keep_argmin),
             )?
         } else {
             edge_reduce_gathered(&ab, &layer.phi_bias, &global, k, self.config.aggregation)?
@@ -433,11 +434,20 @@ impl Dgcnn {
         if p == 0.0 {
             return Ok(x.clone());
         }
-        let scale = 1.0 / (1.0 - p);
-        let mask: Vec<f32> = (0..x.elem_count())
-            .map(|_| if rng.uniform() < p { 0.0 } else { scale as f32 })
-            .collect();
-        let mask = Tensor::from_vec(mask, x.shape(), &self.device)?.to_dtype(self.dtype)?;
+        // Element e takes the generator's e-th draw, as one sequential pass would.
+        let op = Dropout {
+            start: rng.clone(),
+            p,
+            scale: (1.0 / (1.0 - p)) as f32,
+        };
+        rng.skip(x.elem_count() as u64);
+        if self.device.is_cpu() {
+            return x.contiguous()?.apply_op1(op);
+        }
+        // Elsewhere the mask is drawn on the CPU (the op applied to ones) and multiplied in.
+        let mask = Tensor::ones(x.shape(), self.dtype, &Device::Cpu)?
+            .apply_op1_no_bwd(&op)?
+            .to_device(&self.device)?;
         x * mask
     }
 }
@@ -504,5 +514,70 @@ pub(crate) fn edge_reduce_gathered(
     match aggregation {
         Aggregation::Max => a.sub(&nb.min(1)?)?.relu(),
         Aggregation::Sum => a.unsqueeze(1)?.broadcast_sub(&nb)?.relu()?.sum(1),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ModelWeights;
+
+    #[test]
+    fn dropout_masks_are_the_generators_sequential_stream() {
+        let config = DgcnnConfig {
+            k: 4,
+            edge_widths: [4, 4, 4],
+            head_widths: [4, 4],
+            ..DgcnnConfig::default()
+        };
+        let net = ModelWeights::seeded(&config, config.input.channels(), 1)
+            .unwrap()
+            .build(None, DType::F32, &Device::Cpu)
+            .unwrap();
+        // Several parallel chunks and a partial one.
+        let count = 3 * (1 << 14) + 5;
+        let x = Tensor::ones(count, DType::F32, &Device::Cpu).unwrap();
+        let mut rng = SeededRng::new(11);
+        let _ = rng.normal(); // a pending normal deviate, which dropout must leave alone
+        let mut sequential = rng.clone();
+        let got = net
+            .dropout(&x, &mut Mode::Train(&mut rng))
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap();
+        let p = config.dropout;
+        let scale = (1.0 / (1.0 - p)) as f32;
+        let want: Vec<f32> = (0..count)
+            .map(|_| if sequential.uniform() < p { 0.0 } else { scale })
+            .collect();
+        assert_eq!(got, want);
+        assert_eq!(
+            rng, sequential,
+            "the generator ends where the sequential draws end"
+        );
+        let dropped = got.iter().filter(|&&v| v == 0.0).count() as f64 / count as f64;
+        assert!((dropped - p).abs() < 0.01, "dropped fraction {dropped}");
+        // The backward pass applies the same mask to the gradient: d/dx Σ probe ⊙ drop(x).
+        let mut again = SeededRng::new(11);
+        let _ = again.normal();
+        let xv = candle_core::Var::from_tensor(&(x * 3.0).unwrap()).unwrap();
+        let probe: Vec<f32> = (0..count).map(|e| (e % 7) as f32 - 3.0).collect();
+        let probe_t = Tensor::from_vec(probe.clone(), count, &Device::Cpu).unwrap();
+        let out = net
+            .dropout(xv.as_tensor(), &mut Mode::Train(&mut again))
+            .unwrap();
+        assert_eq!(
+            out.to_vec1::<f32>().unwrap(),
+            got.iter().map(|m| 3.0 * m).collect::<Vec<_>>()
+        );
+        let grads = (out * probe_t)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        let dx = grads.get(xv.as_tensor()).unwrap().to_vec1::<f32>().unwrap();
+        let want: Vec<f32> = probe.iter().zip(&got).map(|(q, m)| q * m).collect();
+        assert_eq!(dx, want);
     }
 }

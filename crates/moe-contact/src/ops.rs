@@ -14,13 +14,15 @@
 //! neighbours' rows, one point set per task, so results do not depend on the thread count.
 
 use std::ops::{Add, AddAssign, Mul, Sub, SubAssign};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use candle_core::backend::BackendStorage;
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, CustomOp3, Layout, Shape, Tensor};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
+
+use moe_geom::SeededRng;
 
 use crate::config::Aggregation;
 
@@ -48,6 +50,8 @@ pub(crate) trait Elem:
     fn from_slot(slot: usize) -> Self;
     /// The slot stored by [`Elem::from_slot`].
     fn to_slot(self) -> usize;
+    /// An `f32` in this type (exact).
+    fn from_f32(v: f32) -> Self;
     fn slice<'a>(s: &'a CpuStorage, l: &Layout, what: &str) -> candle_core::Result<&'a [Self]>;
     fn storage(v: Vec<Self>) -> CpuStorage;
 }
@@ -73,6 +77,10 @@ macro_rules! elem {
             #[inline(always)]
             fn to_slot(self) -> usize {
                 self as usize
+            }
+            #[inline(always)]
+            fn from_f32(v: f32) -> Self {
+                v.into()
             }
             fn slice<'a>(
                 s: &'a CpuStorage,
@@ -143,13 +151,14 @@ fn knn_select<T: Elem>(h: &[T], n: usize, c: usize, k: usize) -> Vec<u32> {
     let mut out = vec![0u32; n * k];
     out.par_chunks_mut(k * ROWS_PER_TASK)
         .enumerate()
-        .for_each(|(task, block)| {
-            // This task's rows of the inner-product matrix, one block in cache (never N × N).
+        .for_each_init(Vec::new, |inner, (task, block)| {
+            // This task's rows of the inner-product matrix, one block in cache (never N × N);
+            // the buffer is reused by the tasks a worker runs (the product overwrites it).
             let first = task * ROWS_PER_TASK;
             let rows = block.len() / k;
-            let mut inner = vec![T::ZERO; rows * n];
+            inner.resize(rows * n, T::ZERO);
             matmul(
-                MatMut::from_row_major_slice_mut(&mut inner, rows, n),
+                MatMut::from_row_major_slice_mut(&mut inner[..rows * n], rows, n),
                 Accum::Replace,
                 MatRef::from_row_major_slice(&h[first * c..(first + rows) * c], rows, c),
                 all.transpose(),
@@ -264,11 +273,27 @@ impl EdgeGraph {
 /// `out_i = ReLU(A_i + b − min_{j ∈ N(i)} B_j)`, for sum `out_i = Σ_{j ∈ N(i)} ReLU(A_i + b − B_j)`,
 /// per channel.
 pub(crate) struct EdgeReduce {
-    pub(crate) graph: EdgeGraph,
-    pub(crate) aggregation: Aggregation,
+    graph: EdgeGraph,
+    aggregation: Aggregation,
+    keep_argmin: bool,
+    /// With max aggregation and `keep_argmin`, the forward pass's per row and channel slot (in
+    /// the row's neighbour list) of the neighbour attaining the minimum, for the backward pass.
+    argmin: OnceLock<Arc<Vec<u8>>>,
 }
 
 impl EdgeReduce {
+    /// The reduction over `graph`. With `keep_argmin` (a forward pass whose backward will run)
+    /// and max aggregation, the forward pass also records which neighbour attains each minimum,
+    /// and the backward pass reads it instead of searching the neighbours again.
+    pub(crate) fn new(graph: EdgeGraph, aggregation: Aggregation, keep_argmin: bool) -> Self {
+        Self {
+            graph,
+            aggregation,
+            keep_argmin,
+            argmin: OnceLock::new(),
+        }
+    }
+
     fn is_sum(&self) -> bool {
         self.aggregation == Aggregation::Sum
     }
@@ -278,6 +303,8 @@ impl EdgeReduce {
 struct EdgeBackward {
     graph: EdgeGraph,
     sum: bool,
+    /// The forward pass's minimising slots, if it kept them (max aggregation).
+    argmin: Option<Arc<Vec<u8>>>,
 }
 
 /// Channels a register block of [`neighbour_min`] holds.
@@ -304,29 +331,42 @@ fn neighbour_min<T: Elem>(ab: &[T], nbrs: &[u32], c: usize, acc: &mut [T], arg: 
             }
         }
         Some(arg) => {
-            let mut lo = 0;
-            while lo < c {
-                let len = MIN_BLOCK.min(c - lo);
+            let full = c - c % MIN_BLOCK;
+            for lo in (0..full).step_by(MIN_BLOCK) {
                 let mut m = [T::ZERO; MIN_BLOCK];
                 let mut g = [T::ZERO; MIN_BLOCK];
-                m[..len].copy_from_slice(&first[lo..lo + len]);
+                m.copy_from_slice(&first[lo..lo + MIN_BLOCK]);
                 for (slot, &j) in nbrs.iter().enumerate().skip(1) {
                     let s = T::from_slot(slot);
-                    let b = &row(j)[lo..lo + len];
-                    for l in 0..len {
+                    let b = &row(j)[lo..lo + MIN_BLOCK];
+                    for l in 0..MIN_BLOCK {
                         let lower = b[l] < m[l];
                         m[l] = if lower { b[l] } else { m[l] };
                         g[l] = if lower { s } else { g[l] };
                     }
                 }
-                acc[lo..lo + len].copy_from_slice(&m[..len]);
-                arg[lo..lo + len].copy_from_slice(&g[..len]);
-                lo += len;
+                acc[lo..lo + MIN_BLOCK].copy_from_slice(&m);
+                arg[lo..lo + MIN_BLOCK].copy_from_slice(&g);
+            }
+            for ch in full..c {
+                let mut m = first[ch];
+                let mut g = T::ZERO;
+                for (slot, &j) in nbrs.iter().enumerate().skip(1) {
+                    let b = row(j)[ch];
+                    if b < m {
+                        m = b;
+                        g = T::from_slot(slot);
+                    }
+                }
+                acc[ch] = m;
+                arg[ch] = g;
             }
         }
     }
 }
 
+/// The forward reduction; with `argmin` (max aggregation only), also the slot of the
+/// minimising neighbour per row and channel, `(rows, C)`.
 fn edge_forward<T: Elem>(
     ab: &[T],
     bias: &[T],
@@ -334,9 +374,33 @@ fn edge_forward<T: Elem>(
     rows: usize,
     c: usize,
     sum: bool,
-) -> Vec<T> {
+    argmin: bool,
+) -> (Vec<T>, Option<Vec<u8>>) {
     let k = g.k;
     let mut out = vec![T::ZERO; rows * c];
+    if argmin && !sum {
+        let mut slots = vec![0u8; rows * c];
+        out.par_chunks_mut(c)
+            .zip(slots.par_chunks_mut(c))
+            .enumerate()
+            .for_each_init(
+                || (vec![T::ZERO; c], vec![T::ZERO; c]),
+                |(acc, arg), (i, (out, slots))| {
+                    let nbrs = &g.idx[i * k..(i + 1) * k];
+                    let a = &ab[i * 2 * c..i * 2 * c + c];
+                    neighbour_min(ab, nbrs, c, acc, Some(arg));
+                    for (((o, &a), &bias), &m) in out.iter_mut().zip(a).zip(bias).zip(acc.iter()) {
+                        let e = (a + bias) - m;
+                        *o = if e > T::ZERO { e } else { T::ZERO };
+                    }
+                    // Slots are below k ≤ MAX_K = 256.
+                    for (s, &v) in slots.iter_mut().zip(arg.iter()) {
+                        *s = v.to_slot() as u8;
+                    }
+                },
+            );
+        return (out, Some(slots));
+    }
     out.par_chunks_mut(c).enumerate().for_each_init(
         || vec![T::ZERO; c],
         |acc, (i, out)| {
@@ -361,9 +425,10 @@ fn edge_forward<T: Elem>(
             }
         },
     );
-    out
+    (out, None)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn edge_backward<T: Elem>(
     ab: &[T],
     bias: &[T],
@@ -372,6 +437,7 @@ fn edge_backward<T: Elem>(
     rows: usize,
     c: usize,
     sum: bool,
+    argmin: Option<&[u8]>,
 ) -> Vec<T> {
     let k = g.k;
     let set = g.set_len;
@@ -399,6 +465,17 @@ fn edge_backward<T: Elem>(
                             }
                         }
                     }
+                } else if let Some(saved) = argmin {
+                    // The forward pass's slots: the minimum is the slot's value, exactly.
+                    let slots = &saved[i * c..(i + 1) * c];
+                    for ch in 0..c {
+                        let j = nbrs[usize::from(slots[ch])] as usize;
+                        let m = ab[j * 2 * c + c + ch];
+                        if (a[ch] + bias[ch]) - m > T::ZERO {
+                            d_set[li * 2 * c + ch] += gi[ch];
+                            d_set[(j - base) * 2 * c + c + ch] -= gi[ch];
+                        }
+                    }
                 } else {
                     neighbour_min(ab, nbrs, c, &mut acc, Some(&mut arg));
                     for ch in 0..c {
@@ -414,26 +491,10 @@ fn edge_backward<T: Elem>(
     d_ab
 }
 
-fn edge_cpu_fwd(
-    g: &EdgeGraph,
-    sum: bool,
-    s1: &CpuStorage,
-    l1: &Layout,
-    s2: &CpuStorage,
-    l2: &Layout,
-) -> candle_core::Result<(CpuStorage, Shape)> {
-    let (rows, c) = g.check(l1, l2)?;
-    let out = dispatch!(s1, T => {
-        let ab = T::slice(s1, l1, "edge products")?;
-        let bias = T::slice(s2, l2, "edge bias")?;
-        T::storage(edge_forward::<T>(ab, bias, g, rows, c, sum))
-    });
-    Ok((out, Shape::from((rows, c))))
-}
-
 fn edge_bwd(
     g: &EdgeGraph,
     sum: bool,
+    argmin: Option<Arc<Vec<u8>>>,
     ab: &Tensor,
     bias: &Tensor,
     grad: &Tensor,
@@ -445,6 +506,7 @@ fn edge_bwd(
         &EdgeBackward {
             graph: g.clone(),
             sum,
+            argmin,
         },
     )?;
     // The bias enters beside A, so its gradient is A's summed over the rows.
@@ -467,7 +529,22 @@ impl CustomOp2 for EdgeReduce {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> candle_core::Result<(CpuStorage, Shape)> {
-        edge_cpu_fwd(&self.graph, self.is_sum(), s1, l1, s2, l2)
+        let g = &self.graph;
+        let (rows, c) = g.check(l1, l2)?;
+        let sum = self.is_sum();
+        let keep = self.keep_argmin && !sum;
+        let out = dispatch!(s1, T => {
+            let ab = T::slice(s1, l1, "edge products")?;
+            let bias = T::slice(s2, l2, "edge bias")?;
+            let (out, argmin) = edge_forward::<T>(ab, bias, g, rows, c, sum, keep);
+            if let Some(argmin) = argmin {
+                // A second forward pass through the same op (none is made) would find the
+                // same slots, so the first recorded stays.
+                let _ = self.argmin.set(Arc::new(argmin));
+            }
+            T::storage(out)
+        });
+        Ok((out, Shape::from((rows, c))))
     }
 
     fn bwd(
@@ -477,7 +554,8 @@ impl CustomOp2 for EdgeReduce {
         _res: &Tensor,
         grad: &Tensor,
     ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>)> {
-        edge_bwd(&self.graph, self.is_sum(), ab, bias, grad)
+        let argmin = self.argmin.get().cloned();
+        edge_bwd(&self.graph, self.is_sum(), argmin, ab, bias, grad)
     }
 }
 
@@ -503,9 +581,81 @@ impl CustomOp3 for EdgeBackward {
             let ab = T::slice(s1, l1, "edge products")?;
             let bias = T::slice(s2, l2, "edge bias")?;
             let grad = T::slice(s3, l3, "edge gradient")?;
-            T::storage(edge_backward::<T>(ab, bias, grad, &self.graph, rows, c, self.sum))
+            let argmin = match &self.argmin {
+                Some(a) if a.len() == rows * c => Some(a.as_slice()),
+                Some(_) => candle_core::bail!("edgeconv-backward: saved slots do not fit"),
+                None => None,
+            };
+            T::storage(edge_backward::<T>(
+                ab, bias, grad, &self.graph, rows, c, self.sum, argmin,
+            ))
         });
         Ok((out, Shape::from((rows, 2 * c))))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Dropout
+
+/// Inverted dropout whose mask is never stored: element `e` (in row-major order) is multiplied
+/// by 0 when the `e`-th uniform draw of `start`'s stream is below `p`, else by `scale` (an
+/// `f32`, as the mask's values). SplitMix64's stream is random-access
+/// ([`SeededRng::ahead`]), so the elements are drawn in parallel, and the backward pass draws
+/// the same mask again and applies it to the gradient.
+pub(crate) struct Dropout {
+    pub(crate) start: SeededRng,
+    pub(crate) p: f64,
+    pub(crate) scale: f32,
+}
+
+impl Dropout {
+    fn apply<T: Elem>(&self, x: &[T]) -> Vec<T> {
+        let keep = T::from_f32(self.scale);
+        // `uniform() < p` in integers: a draw's top 53 bits m give m·2⁻⁵³ < p exactly when
+        // m < ⌈p·2⁵³⌉ (scaling by a power of two is exact).
+        let below = (self.p * (1u64 << 53) as f64).ceil() as u64;
+        let mut out = vec![T::ZERO; x.len()];
+        out.par_chunks_mut(DROPOUT_CHUNK)
+            .zip(x.par_chunks(DROPOUT_CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (out, x))| {
+                let mut r = self.start.ahead((chunk * DROPOUT_CHUNK) as u64);
+                // The factor is looked up, not branched on: the draws are coin flips, which a
+                // branch predictor misses half the time.
+                let factor = [T::ZERO, keep];
+                for (o, &v) in out.iter_mut().zip(x) {
+                    *o = v * factor[usize::from((r.next_u64() >> 11) >= below)];
+                }
+            });
+        out
+    }
+}
+
+/// Elements of a dropout one task draws.
+const DROPOUT_CHUNK: usize = 1 << 14;
+
+impl CustomOp1 for Dropout {
+    fn name(&self) -> &'static str {
+        "dropout"
+    }
+
+    fn cpu_fwd(&self, s: &CpuStorage, l: &Layout) -> candle_core::Result<(CpuStorage, Shape)> {
+        let out = dispatch!(s, T => T::storage(self.apply::<T>(T::slice(s, l, "dropout input")?)));
+        Ok((out, l.shape().clone()))
+    }
+
+    fn bwd(
+        &self,
+        _arg: &Tensor,
+        _res: &Tensor,
+        grad: &Tensor,
+    ) -> candle_core::Result<Option<Tensor>> {
+        let again = Dropout {
+            start: self.start.clone(),
+            p: self.p,
+            scale: self.scale,
+        };
+        Ok(Some(grad.contiguous()?.apply_op1_no_bwd(&again)?))
     }
 }
 
@@ -694,6 +844,27 @@ mod tests {
                 neighbour_min(&ab32, &nbrs, c, &mut acc32, Some(&mut slot32));
                 let arg32: Vec<u32> = slot32.iter().map(|s| nbrs[s.to_slot()]).collect();
                 assert_eq!(arg32, want_arg, "f32, c = {c}, k = {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn dropout_drops_exactly_the_draws_below_p() {
+        // The integer comparison against ⌈p·2⁵³⌉ decides as `uniform() < p` does, for p that
+        // are and are not multiples of 2⁻⁵³, across chunk boundaries.
+        let count = 2 * DROPOUT_CHUNK + 3;
+        let ones = vec![1.0f64; count];
+        for p in [0.5, 0.3, 0.1, 1.0 / 3.0, 0.0, 0.999] {
+            let op = Dropout {
+                start: SeededRng::new(77),
+                p,
+                scale: 1.25,
+            };
+            let got = op.apply(&ones);
+            let mut seq = SeededRng::new(77);
+            for (e, &g) in got.iter().enumerate() {
+                let want = if seq.uniform() < p { 0.0 } else { 1.25 };
+                assert_eq!(g, want, "p = {p}, element {e}");
             }
         }
     }

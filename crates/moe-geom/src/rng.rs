@@ -8,6 +8,9 @@
 
 use crate::math::Real;
 
+/// SplitMix64's increment: every draw adds it to the state.
+const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
 /// SplitMix64 with uniform, normal and integer helpers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SeededRng {
@@ -26,7 +29,7 @@ impl SeededRng {
 
     /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        self.state = self.state.wrapping_add(GAMMA);
         let mut z = self.state;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -68,6 +71,23 @@ impl SeededRng {
         r * t.cos()
     }
 
+    /// A generator whose stream is this one's after `draws` more [`SeededRng::next_u64`] (or
+    /// [`SeededRng::uniform`]) calls, computed in constant time: the state advances by a
+    /// constant per draw. Lets parallel workers fill disjoint parts of one sequential stream.
+    /// A pending normal deviate is not carried over.
+    pub fn ahead(&self, draws: u64) -> Self {
+        Self {
+            state: self.state.wrapping_add(draws.wrapping_mul(GAMMA)),
+            spare_normal: None,
+        }
+    }
+
+    /// Moves the stream past `draws` [`SeededRng::next_u64`] (or [`SeededRng::uniform`])
+    /// calls, as if they had been made; a pending normal deviate stays pending, as it would.
+    pub fn skip(&mut self, draws: u64) {
+        self.state = self.state.wrapping_add(draws.wrapping_mul(GAMMA));
+    }
+
     /// An independent generator for stream `stream` (e.g. one per trajectory or per shard).
     pub fn split(&self, stream: u64) -> Self {
         let mut mix = Self::new(self.state ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03));
@@ -102,6 +122,29 @@ mod tests {
         assert!((su / n - 0.5).abs() < 0.005);
         assert!((sn / n).abs() < 0.01);
         assert!((sn2 / n - 1.0).abs() < 0.02);
+    }
+
+    #[test]
+    fn ahead_and_skip_continue_the_sequential_stream() {
+        let mut seq = SeededRng::new(99);
+        let _ = seq.normal(); // leaves a spare normal pending
+        let start = seq.clone();
+        let drawn: Vec<u64> = (0..1000).map(|_| seq.next_u64()).collect();
+        for at in [0usize, 1, 17, 999] {
+            let mut jumped = start.ahead(at as u64);
+            assert_eq!(jumped.next_u64(), drawn[at], "draw {at}");
+        }
+        let mut skipped = start.clone();
+        skipped.skip(1000);
+        assert_eq!(
+            skipped, seq,
+            "skip keeps the pending normal, as drawing would"
+        );
+        assert_eq!(skipped.next_u64(), seq.next_u64());
+        // Uniform draws use one step each, so they split the same way.
+        let mut a = SeededRng::new(5);
+        let u: Vec<Real> = (0..10).map(|_| a.uniform()).collect();
+        assert_eq!(SeededRng::new(5).ahead(7).uniform(), u[7]);
     }
 
     #[test]

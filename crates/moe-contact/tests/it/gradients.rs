@@ -130,3 +130,38 @@ fn dropout_is_drawn_from_the_seed() {
     assert_ne!(train(5), train(6));
     assert_ne!(train(5), eval);
 }
+
+#[test]
+fn a_training_pass_has_the_gradients_of_an_evaluation_pass() {
+    // Without dropout both passes compute the same function. A training pass's backward reads
+    // the minimising neighbours that its forward kept; an evaluation pass's searches again.
+    let (sets, n, c) = (2, 60, 3);
+    let mut config = small_config(Aggregation::Max);
+    config.dropout = 0.0;
+    let (vm, net) = trainable(&config, c, 23);
+    let x = tensor(&random_points(sets, n, c, 4), sets, n, c);
+    let mut rng = SeededRng::new(9);
+    let probe: Vec<f64> = (0..sets * n * 2)
+        .map(|_| rng.uniform_range(-1.0, 1.0))
+        .collect();
+    let probe = Tensor::from_vec(probe, (sets, n, 2), &Device::Cpu).unwrap();
+    let eval = objective(&net, &x, &probe).backward().unwrap();
+    let logits = net.forward_with(&x, Mode::Train(&mut rng)).unwrap().logits;
+    let train = (logits * &probe)
+        .unwrap()
+        .sum_all()
+        .unwrap()
+        .backward()
+        .unwrap();
+    for (name, var) in sorted_vars(&vm) {
+        let get = |g: &moe_contact::candle_core::backprop::GradStore| {
+            g.get(var.as_tensor())
+                .unwrap_or_else(|| panic!("no gradient for {name}"))
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f64>()
+                .unwrap()
+        };
+        assert_eq!(get(&train), get(&eval), "{name}");
+    }
+}
