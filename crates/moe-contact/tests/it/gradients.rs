@@ -25,8 +25,21 @@ fn trainable(config: &DgcnnConfig, c: usize, seed: u64) -> (VarMap, Dgcnn) {
 
 /// A smooth scalar of the logits: a fixed random linear functional.
 fn objective(net: &Dgcnn, x: &Tensor, probe: &Tensor) -> Tensor {
-    let logits = net.forward_with(x, Mode::Eval).unwrap().logits;
+    objective_in(net, x, probe, Mode::Eval)
+}
+
+/// [`objective`] with the forward pass in `mode`.
+fn objective_in(net: &Dgcnn, x: &Tensor, probe: &Tensor, mode: Mode<'_>) -> Tensor {
+    let logits = net.forward_with(x, mode).unwrap().logits;
     (logits * probe).unwrap().sum_all().unwrap()
+}
+
+/// The functional's weights: uniform in [-1, 1) for each logit of `sets` sets of `n` points.
+fn random_probe(rng: &mut SeededRng, sets: usize, n: usize) -> Tensor {
+    let probe: Vec<f64> = (0..sets * n * 2)
+        .map(|_| rng.uniform_range(-1.0, 1.0))
+        .collect();
+    Tensor::from_vec(probe, (sets, n, 2), &Device::Cpu).unwrap()
 }
 
 fn sorted_vars(vm: &VarMap) -> Vec<(String, Var)> {
@@ -44,10 +57,7 @@ fn gradients_agree_with_finite_differences() {
         let (vm, net) = trainable(&config, c, 17);
         let x = tensor(&random_points(sets, n, c, 2), sets, n, c);
         let mut rng = SeededRng::new(8);
-        let probe: Vec<f64> = (0..sets * n * 2)
-            .map(|_| rng.uniform_range(-1.0, 1.0))
-            .collect();
-        let probe = Tensor::from_vec(probe, (sets, n, 2), &Device::Cpu).unwrap();
+        let probe = random_probe(&mut rng, sets, n);
         let grads = objective(&net, &x, &probe).backward().unwrap();
         let eps = 1e-6;
         let mut checked = 0;
@@ -141,16 +151,9 @@ fn a_training_pass_has_the_gradients_of_an_evaluation_pass() {
     let (vm, net) = trainable(&config, c, 23);
     let x = tensor(&random_points(sets, n, c, 4), sets, n, c);
     let mut rng = SeededRng::new(9);
-    let probe: Vec<f64> = (0..sets * n * 2)
-        .map(|_| rng.uniform_range(-1.0, 1.0))
-        .collect();
-    let probe = Tensor::from_vec(probe, (sets, n, 2), &Device::Cpu).unwrap();
+    let probe = random_probe(&mut rng, sets, n);
     let eval = objective(&net, &x, &probe).backward().unwrap();
-    let logits = net.forward_with(&x, Mode::Train(&mut rng)).unwrap().logits;
-    let train = (logits * &probe)
-        .unwrap()
-        .sum_all()
-        .unwrap()
+    let train = objective_in(&net, &x, &probe, Mode::Train(&mut rng))
         .backward()
         .unwrap();
     for (name, var) in sorted_vars(&vm) {
