@@ -428,7 +428,16 @@ fn edge_forward<T: Elem>(
     (out, None)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The reduction a backward pass differentiates.
+#[derive(Clone, Copy)]
+enum Reduction<'a> {
+    Sum,
+    /// With the forward pass's minimising slots, `(rows, C)`, if it kept them.
+    Max {
+        argmin: Option<&'a [u8]>,
+    },
+}
+
 fn edge_backward<T: Elem>(
     ab: &[T],
     bias: &[T],
@@ -436,8 +445,7 @@ fn edge_backward<T: Elem>(
     g: &EdgeGraph,
     rows: usize,
     c: usize,
-    sum: bool,
-    argmin: Option<&[u8]>,
+    reduction: Reduction<'_>,
 ) -> Vec<T> {
     let k = g.k;
     let set = g.set_len;
@@ -454,7 +462,7 @@ fn edge_backward<T: Elem>(
                 let nbrs = &g.idx[i * k..(i + 1) * k];
                 let a = &ab[i * 2 * c..i * 2 * c + c];
                 let gi = &grad[i * c..(i + 1) * c];
-                if sum {
+                if let Reduction::Sum = reduction {
                     for &j in nbrs {
                         let lj = j as usize - base;
                         let b = &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
@@ -465,7 +473,10 @@ fn edge_backward<T: Elem>(
                             }
                         }
                     }
-                } else if let Some(saved) = argmin {
+                } else if let Reduction::Max {
+                    argmin: Some(saved),
+                } = reduction
+                {
                     // The forward pass's slots: the minimum is the slot's value, exactly.
                     let slots = &saved[i * c..(i + 1) * c];
                     for ch in 0..c {
@@ -581,14 +592,17 @@ impl CustomOp3 for EdgeBackward {
             let ab = T::slice(s1, l1, "edge products")?;
             let bias = T::slice(s2, l2, "edge bias")?;
             let grad = T::slice(s3, l3, "edge gradient")?;
-            let argmin = match &self.argmin {
-                Some(a) if a.len() == rows * c => Some(a.as_slice()),
-                Some(_) => candle_core::bail!("edgeconv-backward: saved slots do not fit"),
-                None => None,
+            let reduction = match (self.sum, &self.argmin) {
+                (true, _) => Reduction::Sum,
+                (false, Some(a)) if a.len() == rows * c => Reduction::Max {
+                    argmin: Some(a.as_slice()),
+                },
+                (false, Some(_)) => {
+                    candle_core::bail!("edgeconv-backward: saved slots do not fit")
+                }
+                (false, None) => Reduction::Max { argmin: None },
             };
-            T::storage(edge_backward::<T>(
-                ab, bias, grad, &self.graph, rows, c, self.sum, argmin,
-            ))
+            T::storage(edge_backward::<T>(ab, bias, grad, &self.graph, rows, c, reduction))
         });
         Ok((out, Shape::from((rows, 2 * c))))
     }
