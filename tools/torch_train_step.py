@@ -12,8 +12,9 @@ on the per-point features beside their max over the set, dropout 0.5), in PyTorc
 (top-k of the pairwise distances) outside the autograd graph and, by default, each EdgeConv in
 its factored form: max_j ReLU(W[h_j - h_i, h_i] + b) = ReLU(A_i - min_j B_j) with two
 per-point products A and B, the neighbours' rows of B gathered and their minimum taken
-(`--form literal`: the edge features [h_j - h_i, h_i] gathered for every edge and mapped by the
-linear layer, then the max, as DGCNN's reference code does). One step is what the bench's step is: forward with dropout, weighted
+and head.0's global half computed once per set, as the Rust network does (`--form literal`: the
+edge features [h_j - h_i, h_i] gathered for every edge and mapped by the linear layer, then the
+max, and head.0 on the global half repeated at every point, as DGCNN's reference code does). One step is what the bench's step is: forward with dropout, weighted
 cross-entropy, backward, AdamW (lr 1e-3, weight decay 1e-4), on a batch of 4 frames of the
 two-finger hand, either as 4 whole-hand sets of 2048 points (xyz) or as 8 per-finger sets of
 1024 points (xyz and rest-pose xyz). Points are two bent finger-like surfaces (as in
@@ -68,6 +69,7 @@ class EdgeConv(torch.nn.Module):
 class Dgcnn(torch.nn.Module):
     def __init__(self, in_channels, form):
         super().__init__()
+        self.form = form
         w1, w2, w3 = WIDTHS
         self.edges = torch.nn.ModuleList(
             [EdgeConv(in_channels, w1, form), EdgeConv(w1, w2, form), EdgeConv(w2, w3, form)])
@@ -84,9 +86,15 @@ class Dgcnn(torch.nn.Module):
             h = layer(h)
             feats.append(h)
         loc = torch.cat(feats, dim=2)
-        glob = loc.max(dim=1, keepdim=True).values.expand_as(loc)
-        z = torch.cat([loc, glob], dim=2)
-        z = self.dropout(torch.relu(self.head[0](z)))
+        glob = loc.max(dim=1, keepdim=True).values  # (B, 1, 448)
+        if self.form == "literal":
+            z = self.head[0](torch.cat([loc, glob.expand_as(loc)], dim=2))
+        else:
+            # head.0 on [loc | glob] as two products, the global one once per set.
+            w = self.head[0].weight
+            width = loc.shape[2]
+            z = loc @ w[:, :width].T + (glob @ w[:, width:].T + self.head[0].bias)
+        z = self.dropout(torch.relu(z))
         z = self.dropout(torch.relu(self.head[1](z)))
         return self.head[2](z)
 
@@ -117,16 +125,19 @@ def batch(layout, rng):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--steps", type=int, default=10, help="timed steps per layout")
+    parser.add_argument("--steps", type=int, default=10, help="timed steps per layout (>= 1)")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--form", choices=["factored", "literal"], default="factored",
-                        help="EdgeConv as two per-point products and a gathered min "
-                        "(factored) or a linear map of every gathered edge (literal)")
+                        help="EdgeConv as two per-point products and a gathered min and "
+                        "head.0's global half once per set (factored), or a linear map of "
+                        "every gathered edge and the global half at every point (literal)")
     args = parser.parse_args()
+    if args.steps < 1:
+        parser.error("--steps must be at least 1")
     torch.set_num_threads(args.threads)
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.form} EdgeConv")
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, {args.form} form")
     for layout in ["per-finger", "whole-hand"]:
         x, y = batch(layout, rng)
         model = Dgcnn(x.shape[2], args.form).train()

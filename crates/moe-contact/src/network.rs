@@ -376,7 +376,8 @@ impl Dgcnn {
             };
             ab.apply_op2(
                 &layer.phi_bias,
-                EdgeReduce::new(graph, self.config.aggregation, keep_argmin),
+                // Only a pass whose products a backward can reach keeps the slots.
+                EdgeReduce::new(graph, self.config.aggregation, keep_argmin && ab.track_op()),
             )?
         } else {
             edge_reduce_gathered(&ab, &layer.phi_bias, &global, k, self.config.aggregation)?
@@ -444,9 +445,11 @@ impl Dgcnn {
         if self.device.is_cpu() {
             return x.contiguous()?.apply_op1(op);
         }
-        // Elsewhere the mask is drawn on the CPU (the op applied to ones) and multiplied in.
-        let mask = Tensor::ones(x.shape(), self.dtype, &Device::Cpu)?
+        // Elsewhere the mask is drawn on the CPU (the op applied to ones, in f32 as its values
+        // are) and multiplied in.
+        let mask = Tensor::ones(x.shape(), DType::F32, &Device::Cpu)?
             .apply_op1_no_bwd(&op)?
+            .to_dtype(self.dtype)?
             .to_device(&self.device)?;
         x * mask
     }

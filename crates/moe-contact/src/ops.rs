@@ -544,14 +544,18 @@ impl CustomOp2 for EdgeReduce {
         let (rows, c) = g.check(l1, l2)?;
         let sum = self.is_sum();
         let keep = self.keep_argmin && !sum;
+        if keep && g.k > usize::from(u8::MAX) + 1 {
+            candle_core::bail!("edgeconv: k = {} neighbours have no one-byte slots", g.k);
+        }
         let out = dispatch!(s1, T => {
             let ab = T::slice(s1, l1, "edge products")?;
             let bias = T::slice(s2, l2, "edge bias")?;
             let (out, argmin) = edge_forward::<T>(ab, bias, g, rows, c, sum, keep);
             if let Some(argmin) = argmin {
-                // A second forward pass through the same op (none is made) would find the
-                // same slots, so the first recorded stays.
-                let _ = self.argmin.set(Arc::new(argmin));
+                // candle runs an op's forward once; a second run could not keep its slots.
+                if self.argmin.set(Arc::new(argmin)).is_err() {
+                    candle_core::bail!("edgeconv: forward run twice through one op");
+                }
             }
             T::storage(out)
         });

@@ -148,6 +148,8 @@ fn a_training_pass_has_the_gradients_of_an_evaluation_pass() {
     let (sets, n, c) = (2, 60, 3);
     let mut config = small_config(Aggregation::Max);
     config.dropout = 0.0;
+    // Widths past and between the minimum's blocks of eight channels.
+    config.edge_widths = [8, 12, 21];
     let (vm, net) = trainable(&config, c, 23);
     let x = tensor(&random_points(sets, n, c, 4), sets, n, c);
     let mut rng = SeededRng::new(9);
