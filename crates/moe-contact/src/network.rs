@@ -538,7 +538,7 @@ mod tests {
             .build(None, DType::F32, &Device::Cpu)
             .unwrap();
         // Several parallel chunks and a partial one.
-        let count = 3 * (1 << 14) + 5;
+        let count = 3 * crate::ops::DROPOUT_CHUNK + 5;
         let x = Tensor::ones(count, DType::F32, &Device::Cpu).unwrap();
         let mut rng = SeededRng::new(11);
         let _ = rng.normal(); // a pending normal deviate, which dropout must leave alone

@@ -378,6 +378,15 @@ fn edge_forward<T: Elem>(
 ) -> (Vec<T>, Option<Vec<u8>>) {
     let k = g.k;
     let mut out = vec![T::ZERO; rows * c];
+    // Row i of the max reduction, `ReLU(A_i + b − min_j B_j)`, the minimising slots into `arg`.
+    let max_row = |i: usize, out: &mut [T], acc: &mut [T], arg: Option<&mut [T]>| {
+        neighbour_min(ab, &g.idx[i * k..(i + 1) * k], c, acc, arg);
+        let a = &ab[i * 2 * c..i * 2 * c + c];
+        for (((o, &a), &bias), &m) in out.iter_mut().zip(a).zip(bias).zip(acc.iter()) {
+            let e = (a + bias) - m;
+            *o = if e > T::ZERO { e } else { T::ZERO };
+        }
+    };
     if argmin && !sum {
         let mut slots = vec![0u8; rows * c];
         out.par_chunks_mut(c)
@@ -386,13 +395,7 @@ fn edge_forward<T: Elem>(
             .for_each_init(
                 || (vec![T::ZERO; c], vec![T::ZERO; c]),
                 |(acc, arg), (i, (out, slots))| {
-                    let nbrs = &g.idx[i * k..(i + 1) * k];
-                    let a = &ab[i * 2 * c..i * 2 * c + c];
-                    neighbour_min(ab, nbrs, c, acc, Some(arg));
-                    for (((o, &a), &bias), &m) in out.iter_mut().zip(a).zip(bias).zip(acc.iter()) {
-                        let e = (a + bias) - m;
-                        *o = if e > T::ZERO { e } else { T::ZERO };
-                    }
+                    max_row(i, out, acc, Some(arg));
                     // Slots are below k ≤ MAX_K = 256.
                     for (s, &v) in slots.iter_mut().zip(arg.iter()) {
                         *s = v.to_slot() as u8;
@@ -404,10 +407,9 @@ fn edge_forward<T: Elem>(
     out.par_chunks_mut(c).enumerate().for_each_init(
         || vec![T::ZERO; c],
         |acc, (i, out)| {
-            let nbrs = &g.idx[i * k..(i + 1) * k];
-            let a = &ab[i * 2 * c..i * 2 * c + c];
             if sum {
-                for &j in nbrs {
+                let a = &ab[i * 2 * c..i * 2 * c + c];
+                for &j in &g.idx[i * k..(i + 1) * k] {
                     let b = &ab[j as usize * 2 * c + c..j as usize * 2 * c + 2 * c];
                     for (((o, &a), &bias), &b) in out.iter_mut().zip(a).zip(bias).zip(b) {
                         let e = (a + bias) - b;
@@ -417,11 +419,7 @@ fn edge_forward<T: Elem>(
                     }
                 }
             } else {
-                neighbour_min(ab, nbrs, c, acc, None);
-                for (((o, &a), &bias), &m) in out.iter_mut().zip(a).zip(bias).zip(acc.iter()) {
-                    let e = (a + bias) - m;
-                    *o = if e > T::ZERO { e } else { T::ZERO };
-                }
+                max_row(i, out, acc, None);
             }
         },
     );
@@ -650,7 +648,7 @@ impl Dropout {
 }
 
 /// Elements of a dropout one task draws.
-const DROPOUT_CHUNK: usize = 1 << 14;
+pub(crate) const DROPOUT_CHUNK: usize = 1 << 14;
 
 impl CustomOp1 for Dropout {
     fn name(&self) -> &'static str {
@@ -668,12 +666,8 @@ impl CustomOp1 for Dropout {
         _res: &Tensor,
         grad: &Tensor,
     ) -> candle_core::Result<Option<Tensor>> {
-        let again = Dropout {
-            start: self.start.clone(),
-            p: self.p,
-            scale: self.scale,
-        };
-        Ok(Some(grad.contiguous()?.apply_op1_no_bwd(&again)?))
+        // The same op on the gradient: the same mask, drawn again.
+        Ok(Some(grad.contiguous()?.apply_op1_no_bwd(self)?))
     }
 }
 
