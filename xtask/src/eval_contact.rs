@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use moe_contact::{ContactInput, DgcnnEstimator, KnnIndex};
-use moe_geom::{HandModel, LabelledFrame, Real};
+use moe_contact::{DgcnnEstimator, KnnIndex};
+use moe_geom::{ContactInput, HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::SceneConfig;
 use moe_touch::contact_eval::{
@@ -597,7 +597,6 @@ pub(crate) fn golden_arap() -> Result<serde_json::Value> {
 /// Golden contact stage: Table 1 of the shipped model on the held-out frames (no KNN rows, no
 /// timings), plus the network's summed contact probability per frame on the true shape.
 pub(crate) fn golden_table1() -> Result<serde_json::Value> {
-    use moe_contact::ContactEstimator;
     let (hand, frames, rule) = heldout_frames()?;
     let dgcnn = load_estimator(&workspace_root().join(SHIPPED_MODEL), &hand)?;
     let estimators = Estimators {
@@ -627,7 +626,7 @@ pub(crate) fn golden_table1() -> Result<serde_json::Value> {
     let sums = frames
         .iter()
         .map(|f| {
-            let map = dgcnn.estimate_input(&ContactInput::of_frame(f, &f.shape))?;
+            let map = dgcnn.estimate_map(&ContactInput::of_frame(f, &f.shape))?;
             Ok(map.fingers.iter().flatten().sum::<Real>())
         })
         .collect::<Result<Vec<Real>>>()?;

@@ -261,6 +261,7 @@ fn tally(
             let contact = SurfaceContact {
                 distances_m: finger.distances_m.clone(),
                 forces_n: finger.contact_force_n.clone(),
+                force_vectors_n: Vec::new(),
             };
             let all = vec![true; movable[i].len()];
             let mask = if rule.base_too { &all } else { &movable[i] };

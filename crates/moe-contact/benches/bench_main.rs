@@ -11,10 +11,12 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
-    ContactEstimator, DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, KnnIndex, ModelCard,
-    ModelWeights, PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
+    DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, KnnIndex, ModelCard, ModelWeights,
+    PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
 };
-use moe_geom::{FingerParams, HandModel, HandPreset, HandShape, LabelledFrame, Vector3};
+use moe_geom::{
+    ContactInput, FingerParams, HandModel, HandPreset, HandShape, LabelledFrame, Vector3,
+};
 
 /// Every finger bent toward its +x side (deterministic).
 fn bent(hand: &HandModel) -> HandShape {
@@ -92,14 +94,24 @@ fn contact(c: &mut Criterion) {
             let name = format!("contact/{preset}/{label}");
             print_split(&name, &est, &shape);
             c.bench_function(&name, |b| {
-                b.iter(|| black_box(est.estimate(black_box(&shape), None).expect("estimate")))
+                b.iter(|| {
+                    black_box(
+                        est.estimate_map(&ContactInput::shape(black_box(&shape)))
+                            .expect("estimate"),
+                    )
+                })
             });
         }
         let est = estimator_with(compact(), &hand, PointSet::PerFinger);
         let name = format!("contact/{preset}/per-finger/compact");
         print_split(&name, &est, &shape);
         c.bench_function(&name, |b| {
-            b.iter(|| black_box(est.estimate(black_box(&shape), None).expect("estimate")))
+            b.iter(|| {
+                black_box(
+                    est.estimate_map(&ContactInput::shape(black_box(&shape)))
+                        .expect("estimate"),
+                )
+            })
         });
     }
 }

@@ -1,99 +1,15 @@
-//! The contact-estimator seam, and the DGCNN behind it.
+//! The DGCNN behind the contact-estimator seam ([`moe_geom::ContactEstimator`]), and the
+//! features it turns an observation into.
 
 use candle_core::{DType, Device, Tensor};
-use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, LabelledFrame, Point3};
+use moe_geom::{
+    ContactEstimate, ContactEstimator, ContactInput, ContactMap, HandModel, HandShape, Iso3, Point3,
+};
 
 use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
 use crate::deformation::DeformationFeatures;
 use crate::error::ContactError;
 use crate::network::{Dgcnn, Mode, StageTimings, contact_probability};
-
-/// One observation of a hand: its deformed shape (hand frame) and, for estimators that use
-/// them, its keypoints and the tendon pulls the robot commanded.
-#[derive(Debug, Clone, Copy)]
-pub struct ContactInput<'a> {
-    /// The deformed surface of every finger, hand frame.
-    pub shape: &'a HandShape,
-    /// The observed markers, hand frame (`None` where the caller has none).
-    pub keypoints: Option<&'a HandKeypoints>,
-    /// `tendon_pull_m[f][t]`: pulled length of tendon `t` of finger `f`, metres, in the order of
-    /// the finger model's tendon routes (`None` where the caller has none).
-    pub tendon_pull_m: Option<&'a [Vec<f64>]>,
-}
-
-impl<'a> ContactInput<'a> {
-    /// A shape alone.
-    pub fn shape(shape: &'a HandShape) -> Self {
-        Self {
-            shape,
-            keypoints: None,
-            tendon_pull_m: None,
-        }
-    }
-
-    /// A labelled frame's observation with `shape` in place of its own (an estimate of it):
-    /// the frame's markers and tendon pulls.
-    pub fn of_frame(frame: &'a LabelledFrame, shape: &'a HandShape) -> Self {
-        Self {
-            shape,
-            keypoints: Some(&frame.markers),
-            tendon_pull_m: Some(&frame.tendon_pull_m),
-        }
-    }
-}
-
-/// Something that says, for every vertex of a deformed hand, how likely it is to touch the
-/// world.
-pub trait ContactEstimator {
-    /// The contact map of one observation.
-    ///
-    /// # Errors
-    /// An observation that does not fit the estimator's hand, non-finite input, or what the
-    /// estimator needs and was not given (keypoints for a keypoint-based estimator).
-    fn estimate(
-        &self,
-        shape: &HandShape,
-        keypoints: Option<&HandKeypoints>,
-    ) -> Result<ContactMap, ContactError>;
-
-    /// The contact map of one observation with everything the caller has of it. Estimators
-    /// that use the tendon pulls override it; by default it is [`ContactEstimator::estimate`].
-    ///
-    /// # Errors
-    /// As [`ContactEstimator::estimate`], and pulls that do not fit the hand.
-    fn estimate_input(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
-        self.estimate(input.shape, input.keypoints)
-    }
-
-    /// The contact maps of several observations, in order. Estimators that gain from batching
-    /// override it; the result equals calling [`ContactEstimator::estimate_input`] on each.
-    ///
-    /// # Errors
-    /// The first observation's error.
-    fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
-        inputs.iter().map(|i| self.estimate_input(i)).collect()
-    }
-}
-
-/// A borrowed estimator estimates as the estimator does (so that a large index can serve
-/// several pipelines without a copy).
-impl<T: ContactEstimator + ?Sized> ContactEstimator for &T {
-    fn estimate(
-        &self,
-        shape: &HandShape,
-        keypoints: Option<&HandKeypoints>,
-    ) -> Result<ContactMap, ContactError> {
-        (**self).estimate(shape, keypoints)
-    }
-
-    fn estimate_input(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
-        (**self).estimate_input(input)
-    }
-
-    fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
-        (**self).estimate_batch(inputs)
-    }
-}
 
 /// Where one point set's rows come from: its fingers in order, and its length.
 #[derive(Debug, Clone)]
@@ -437,8 +353,14 @@ impl FeatureBuilder {
     }
 }
 
-/// The DGCNN as a [`ContactEstimator`] for one hand: turns a hand shape into the network's input
-/// features (as the model card says) and the logits back into a contact map.
+/// The DGCNN as a [`ContactEstimator`] for one hand: turns a hand shape (and the tendon pulls,
+/// when the card's features take them) into the network's input features and the logits back
+/// into a contact map.
+///
+/// The network keeps no state between observations, so its estimates need only `&self`:
+/// [`DgcnnEstimator::estimate_map`] and the batched [`DgcnnEstimator::estimate_batch`] serve
+/// several threads at once, and a shared reference is a [`ContactEstimator`] too (one model
+/// serves several pipelines without a copy).
 #[derive(Debug, Clone)]
 pub struct DgcnnEstimator {
     net: Dgcnn,
@@ -527,6 +449,31 @@ impl DgcnnEstimator {
     /// How shapes become the network's input.
     pub fn features(&self) -> &FeatureBuilder {
         &self.features
+    }
+
+    /// The contact map of one observation: its shape, and its tendon pulls when the card's
+    /// features take them (its keypoints, pose and time are not used).
+    ///
+    /// # Errors
+    /// A shape that does not fit the hand (naming the finger and vertex), missing or misfitting
+    /// tendon pulls for a model that takes them, or a failing tensor operation.
+    pub fn estimate_map(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
+        let (mut maps, _) = self.estimate_inputs(std::slice::from_ref(input))?;
+        maps.pop().ok_or_else(|| ContactError::InvalidBatch {
+            message: "no contact map returned".into(),
+        })
+    }
+
+    /// The contact maps of several observations, in order, through the network together: equal
+    /// to [`DgcnnEstimator::estimate_map`] on each.
+    ///
+    /// # Errors
+    /// As [`DgcnnEstimator::estimate_inputs`].
+    pub fn estimate_batch(
+        &self,
+        inputs: &[ContactInput<'_>],
+    ) -> Result<Vec<ContactMap>, ContactError> {
+        Ok(self.estimate_inputs(inputs)?.0)
     }
 
     /// Contact maps of several shapes, and the network's stage timings summed over its passes.
@@ -623,26 +570,20 @@ impl DgcnnEstimator {
 }
 
 impl ContactEstimator for DgcnnEstimator {
-    fn estimate(
-        &self,
-        shape: &HandShape,
-        keypoints: Option<&HandKeypoints>,
-    ) -> Result<ContactMap, ContactError> {
-        self.estimate_input(&ContactInput {
-            shape,
-            keypoints,
-            tendon_pull_m: None,
-        })
-    }
+    type Error = ContactError;
 
-    fn estimate_input(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
-        let (mut maps, _) = self.estimate_inputs(std::slice::from_ref(input))?;
-        maps.pop().ok_or_else(|| ContactError::InvalidBatch {
-            message: "no contact map returned".into(),
-        })
+    /// [`DgcnnEstimator::estimate_map`], without forces.
+    fn estimate(&mut self, input: &ContactInput<'_>) -> Result<ContactEstimate, ContactError> {
+        self.estimate_map(input).map(ContactEstimate::from_map)
     }
+}
 
-    fn estimate_batch(&self, inputs: &[ContactInput<'_>]) -> Result<Vec<ContactMap>, ContactError> {
-        Ok(self.estimate_inputs(inputs)?.0)
+/// A shared model estimates as the model does: the network keeps no state between observations.
+impl ContactEstimator for &DgcnnEstimator {
+    type Error = ContactError;
+
+    /// [`DgcnnEstimator::estimate_map`], without forces.
+    fn estimate(&mut self, input: &ContactInput<'_>) -> Result<ContactEstimate, ContactError> {
+        self.estimate_map(input).map(ContactEstimate::from_map)
     }
 }

@@ -7,11 +7,13 @@
 
 use std::collections::HashMap;
 
-use moe_geom::{ContactMap, HandKeypoints, HandShape, LabelledFrame, Point3, SeededRng};
+use moe_geom::{
+    ContactEstimate, ContactEstimator, ContactInput, ContactMap, HandKeypoints, HandShape,
+    LabelledFrame, Point3, SeededRng,
+};
 use safetensors::tensor::Dtype;
 
 use crate::error::ContactError;
-use crate::estimator::ContactEstimator;
 use crate::tensor_file::{self, Entry};
 
 /// The training frames' keypoints, contact vertices and (optionally) shapes.
@@ -256,6 +258,31 @@ impl KnnIndex {
         ContactMap { fingers }
     }
 
+    /// The contact map of one observation: the contact vertices of the training frame whose
+    /// keypoints are nearest to the observation's (its shape only has to fit the index's hand;
+    /// its pulls, pose and time are not used).
+    ///
+    /// # Errors
+    /// [`ContactError::UnavailableFeatures`] for an observation without keypoints,
+    /// [`ContactError::InvalidBatch`] for a shape of another hand, and as
+    /// [`KnnIndex::nearest`].
+    pub fn estimate_map(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
+        let keypoints = input.keypoints.ok_or(ContactError::UnavailableFeatures {
+            features: "keypoints".into(),
+            given: "a hand shape without keypoints",
+        })?;
+        let v: Vec<usize> = input.shape.fingers.iter().map(Vec::len).collect();
+        if v != self.vertices_per_finger {
+            return Err(ContactError::InvalidBatch {
+                message: format!(
+                    "a shape with {v:?} vertices per finger; the index has {:?}",
+                    self.vertices_per_finger
+                ),
+            });
+        }
+        Ok(self.contact_map(self.nearest(keypoints)?))
+    }
+
     /// The index as safetensors bytes (f64 keypoints, u32 contact ids with per-frame-finger
     /// offsets, f32 shapes if kept; the layout in the metadata).
     ///
@@ -376,25 +403,22 @@ impl KnnIndex {
 }
 
 impl ContactEstimator for KnnIndex {
-    fn estimate(
-        &self,
-        shape: &HandShape,
-        keypoints: Option<&HandKeypoints>,
-    ) -> Result<ContactMap, ContactError> {
-        let keypoints = keypoints.ok_or(ContactError::UnavailableFeatures {
-            features: "keypoints".into(),
-            given: "a hand shape without keypoints",
-        })?;
-        let v: Vec<usize> = shape.fingers.iter().map(Vec::len).collect();
-        if v != self.vertices_per_finger {
-            return Err(ContactError::InvalidBatch {
-                message: format!(
-                    "a shape with {v:?} vertices per finger; the index has {:?}",
-                    self.vertices_per_finger
-                ),
-            });
-        }
-        Ok(self.contact_map(self.nearest(keypoints)?))
+    type Error = ContactError;
+
+    /// [`KnnIndex::estimate_map`], without forces.
+    fn estimate(&mut self, input: &ContactInput<'_>) -> Result<ContactEstimate, ContactError> {
+        self.estimate_map(input).map(ContactEstimate::from_map)
+    }
+}
+
+/// A shared index estimates as the index does: a search keeps no state between observations
+/// (so that one large index serves several pipelines or threads without a copy).
+impl ContactEstimator for &KnnIndex {
+    type Error = ContactError;
+
+    /// [`KnnIndex::estimate_map`], without forces.
+    fn estimate(&mut self, input: &ContactInput<'_>) -> Result<ContactEstimate, ContactError> {
+        self.estimate_map(input).map(ContactEstimate::from_map)
     }
 }
 

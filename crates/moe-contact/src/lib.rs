@@ -1,13 +1,18 @@
 //! Contact estimation on deformed soft-finger meshes.
 //!
-//! A [`ContactEstimator`] takes a hand's deformed shape (and, where it needs them, its
-//! keypoints) and returns a [`moe_geom::ContactMap`]: per vertex, the probability that it
-//! touches the world. The DGCNN of the paper (§4.3.2, App. D) is [`Dgcnn`], a candle module
-//! with fused CPU kernels (a partial-selection kNN and EdgeConv reductions that never form the
-//! per-edge tensor), and [`DgcnnEstimator`] puts it behind the trait for one hand; [`KnnIndex`]
-//! is the paper's nearest-keypoints baseline behind the same trait. [`Trainer`] trains the
-//! network on labelled point sets in memory ([`TrainingSets`]), with checkpoints that resume to
-//! the same weights.
+//! The estimator seam, [`moe_geom::ContactEstimator`], lives in `moe-geom` beside the shape
+//! estimator's, so that an estimator that needs no network (a physical one) does not depend on
+//! candle: it takes a hand's observation ([`moe_geom::ContactInput`]: the deformed shape and,
+//! where the estimator needs them, keypoints and tendon pulls) and returns a
+//! [`moe_geom::ContactEstimate`], whose [`moe_geom::ContactMap`] gives per vertex the probability
+//! that it touches the world. This crate holds its learned and baseline implementations. The
+//! DGCNN of the paper (§4.3.2, App. D) is [`Dgcnn`], a candle module with fused CPU kernels (a
+//! partial-selection kNN and EdgeConv reductions that never form the per-edge tensor), and
+//! [`DgcnnEstimator`] puts it behind the trait for one hand; [`KnnIndex`] is the paper's
+//! nearest-keypoints baseline behind the same trait. Both also estimate through `&self`
+//! (`estimate_map`, and the DGCNN's batched `estimate_batch`), so that evaluations run them on
+//! many frames at once. [`Trainer`] trains the network on labelled point sets in memory
+//! ([`TrainingSets`]), with checkpoints that resume to the same weights.
 //!
 //! Architecture invariant: this is the only crate that depends on candle. It takes and returns
 //! in-memory values (shapes in the hand frame, model-file bytes, per-vertex probabilities) and
@@ -22,7 +27,7 @@ mod deformation;
 pub mod device;
 /// The crate's error type.
 pub mod error;
-/// The estimator trait and the DGCNN estimator.
+/// The DGCNN behind the contact-estimator seam, and its input features.
 pub mod estimator;
 /// The KNN baselines.
 pub mod knn;
@@ -49,7 +54,7 @@ pub use config::{
 };
 pub use device::{DeviceKind, open_device};
 pub use error::ContactError;
-pub use estimator::{ContactEstimator, ContactInput, DgcnnEstimator, FeatureBuilder};
+pub use estimator::{DgcnnEstimator, FeatureBuilder};
 pub use knn::{KnnIndex, KnnMatch};
 pub use metrics::{ContactMetrics, ContactReport};
 pub use network::{

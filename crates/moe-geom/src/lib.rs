@@ -16,7 +16,8 @@ pub mod error;
 pub mod finger;
 /// Multi-finger hands and their keypoints.
 pub mod hand;
-/// One instant of a hand: deformed shape, contact map, labelled frame.
+/// One instant of a hand: deformed shape, contact map, labelled frame; the shape- and
+/// contact-estimator seams.
 pub mod instant;
 /// Scalar and linear-algebra aliases, and the seam to parry's glam types.
 pub mod math;
@@ -41,7 +42,10 @@ pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;
 pub use finger::{FingerModel, FingerParams, TendonRoute};
 pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
-pub use instant::{ContactMap, ContactPoint, HandShape, LabelledFrame, ShapeEstimator};
+pub use instant::{
+    ContactEstimate, ContactEstimator, ContactInput, ContactMap, ContactPoint, HandShape,
+    LabelledFrame, ShapeEstimator, ShapeInput,
+};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
 pub use plane::{PlaneFit, RansacConfig, fit_plane_ransac};

@@ -107,6 +107,11 @@ impl FingerBody {
         &self.fem
     }
 
+    /// The FEM model, to change how it solves (see [`FemModel::set_exact_static_tangent`]).
+    pub fn fem_mut(&mut self) -> &mut FemModel {
+        &mut self.fem
+    }
+
     /// The surface vertices, embedded in the tets (same order as the finger mesh).
     pub fn surface(&self) -> &Embedding {
         &self.surface

@@ -9,7 +9,11 @@
 //! `μ·|f_n|` at sliding speeds above `v_ε`, viscous below it, implicit in the velocity.
 //!
 //! Contact force and labels: at a saved frame, every surface vertex reports the normal magnitude
-//! of the penalty force the obstacles exert on it, `Σ_o k·max(0, −d_o)` newtons ([`surface_contact`]).
+//! of the penalty force the obstacles exert on it, `Σ_o k·max(0, −d_o)` newtons, and the force
+//! itself, `Σ_o n_o·k·max(0, −d_o)` (world frame, `n_o` the obstacle's outward normal) — the
+//! vector sum over a finger's vertices is the net contact force on the finger, smaller than the
+//! sum of the magnitudes where the vertices are pushed different ways, as on a convex hull's
+//! edge ([`surface_contact`]).
 //! A vertex is *in contact* by one of three rules ([`LabelRule`]); "can move" means at least one
 //! node of its element is free, so that a press can show in the deformation (a vertex held by
 //! the fixed base alone is never labelled by the first two: nothing about the finger's shape can
@@ -214,10 +218,27 @@ pub struct SurfaceContact {
     /// Normal magnitude of the penalty force, summed over the obstacles, newtons:
     /// `Σ_o k·max(0, −d_o)`.
     pub forces_n: Vec<Real>,
+    /// The penalty force itself, summed over the obstacles, world frame, newtons:
+    /// `Σ_o n_o·k·max(0, −d_o)` with `n_o` the obstacle's outward unit normal at the vertex
+    /// ([`Obstacle::signed_distance`]). Its norm equals `forces_n` where a single obstacle
+    /// presses, and is smaller where several press from different sides.
+    pub force_vectors_n: Vec<Vector3>,
+}
+
+impl SurfaceContact {
+    /// The vector sum of the vertices' penalty forces (world frame, newtons), summed in vertex
+    /// order: the net contact force on the body whose vertices these are. Vertices pushed
+    /// different ways cancel in part, so its norm is at most the sum of `forces_n`.
+    pub fn net_force_n(&self) -> Vector3 {
+        self.force_vectors_n
+            .iter()
+            .fold(Vector3::zeros(), |sum, f| sum + f)
+    }
 }
 
 /// Per surface vertex: the smallest signed distance to any obstacle at poses `poses` and the
-/// penalty force of stiffness `stiffness_n_per_m` (see [`SurfaceContact`]).
+/// penalty force of stiffness `stiffness_n_per_m`, as a magnitude and as a world-frame vector
+/// (see [`SurfaceContact`]).
 pub fn surface_contact(
     surface_in_world: &[Point3],
     obstacles: &[Obstacle],
@@ -227,17 +248,26 @@ pub fn surface_contact(
     let mut out = SurfaceContact {
         distances_m: Vec::with_capacity(surface_in_world.len()),
         forces_n: Vec::with_capacity(surface_in_world.len()),
+        force_vectors_n: Vec::with_capacity(surface_in_world.len()),
     };
     for p in surface_in_world {
-        let (mut d_min, mut force) = (Real::INFINITY, 0.0);
+        let (mut d_min, mut force, mut vector) = (Real::INFINITY, 0.0, Vector3::zeros());
         for (o, pose) in obstacles.iter().zip(poses) {
-            // A point exactly on the surface has no normal but distance 0.
-            let d = o.signed_distance(pose, p).map_or(0.0, |s| s.distance_m);
+            // A point exactly on the surface has no normal but distance 0 (and no force).
+            let sd = o.signed_distance(pose, p);
+            let d = sd.map_or(0.0, |s| s.distance_m);
             d_min = d_min.min(d);
-            force += stiffness_n_per_m * (-d).max(0.0);
+            let magnitude = stiffness_n_per_m * (-d).max(0.0);
+            force += magnitude;
+            if let Some(s) = sd
+                && magnitude > 0.0
+            {
+                vector += s.normal * magnitude;
+            }
         }
         out.distances_m.push(d_min);
         out.forces_n.push(force);
+        out.force_vectors_n.push(vector);
     }
     out
 }
@@ -373,5 +403,109 @@ mod tests {
         );
         assert_eq!(surface_distances(&pts, &[], &[]), vec![Real::INFINITY; 4]);
         assert_eq!(surface_contact(&pts, &[], &[], 1e4).forces_n, vec![0.0; 4]);
+        // The force vectors: none outside or on the surface, 50 N along +z inside.
+        assert_eq!(&c.force_vectors_n[..3], &[Vector3::zeros(); 3]);
+        assert!((c.force_vectors_n[3] - Vector3::new(0.0, 0.0, 50.0)).norm() < 1e-9);
+    }
+
+    fn obstacle(shape: ObstacleShape) -> Obstacle {
+        Obstacle::new(
+            0,
+            &ObstacleConfig {
+                shape,
+                trajectory: PoseTrajectory::default(),
+            },
+        )
+        .unwrap()
+    }
+
+    /// A slab 2 cm thick whose face toward +z (`up`) or −z lies at height `face_z`.
+    fn slab(face_z: Real, up: bool) -> (Obstacle, Iso3) {
+        let centre = if up { face_z - 0.01 } else { face_z + 0.01 };
+        (
+            obstacle(ObstacleShape::Cuboid {
+                half_extents_m: [0.05, 0.05, 0.01],
+            }),
+            Iso3::translation(0.0, 0.0, centre),
+        )
+    }
+
+    #[test]
+    fn a_press_with_one_normal_has_a_net_force_equal_to_the_magnitudes() {
+        // A flat face pressed at several depths: every normal is +z, so the vector sum is the
+        // sum of the magnitudes, along +z.
+        let (plate, pose) = slab(0.0, true);
+        let pts: Vec<Point3> = [1e-4, 3e-4, 0.0, -1e-3, 2e-3]
+            .iter()
+            .enumerate()
+            .map(|(i, &depth)| Point3::new(0.004 * i as Real, -0.002, -depth))
+            .collect();
+        let c = surface_contact(&pts, std::slice::from_ref(&plate), &[pose], 1e4);
+        let total: Real = c.forces_n.iter().sum();
+        assert!((total - 1e4 * 2.4e-3).abs() < 1e-9, "{total}");
+        let net = c.net_force_n();
+        assert!((net - Vector3::new(0.0, 0.0, total)).norm() < 1e-9, "{net}");
+        for (f, &m) in c.force_vectors_n.iter().zip(&c.forces_n) {
+            assert!((f.norm() - m).abs() < 1e-12);
+        }
+        // A ball pressed by a patch symmetric about its pole: the net force is along the pole's
+        // normal, and shorter than the sum of the magnitudes, whose normals tilt apart.
+        let ball = obstacle(ObstacleShape::Ball { radius_m: 0.01 });
+        let (a, z) = (0.002, 0.0095);
+        let patch = [
+            Point3::new(0.0, 0.0, z),
+            Point3::new(a, 0.0, z),
+            Point3::new(-a, 0.0, z),
+            Point3::new(0.0, a, z),
+            Point3::new(0.0, -a, z),
+        ];
+        let c = surface_contact(
+            &patch,
+            std::slice::from_ref(&ball),
+            &[Iso3::identity()],
+            1e4,
+        );
+        let total: Real = c.forces_n.iter().sum();
+        let net = c.net_force_n();
+        assert!(c.forces_n.iter().all(|&f| f > 0.0));
+        assert!(net.x.abs() < 1e-12 && net.y.abs() < 1e-12, "{net}");
+        assert!(net.z > 0.95 * total && net.z < total, "{net} vs {total}");
+    }
+
+    #[test]
+    fn a_squeeze_from_two_sides_has_no_net_force() {
+        // Slab A below pushes up, slab B above pushes down, each 0.5 mm into a 2 mm thick body.
+        let (below, below_pose) = slab(0.0005, true);
+        let (above, above_pose) = slab(0.0015, false);
+        let obstacles = [below, above];
+        let poses = [below_pose, above_pose];
+        let body = [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(0.01, 0.0, 0.0),
+            Point3::new(0.0, 0.0, 0.002),
+            Point3::new(0.01, 0.0, 0.002),
+            // In between, clear of both.
+            Point3::new(0.005, 0.0, 0.001),
+        ];
+        let c = surface_contact(&body, &obstacles, &poses, 1e4);
+        let total: Real = c.forces_n.iter().sum();
+        assert!((total - 4.0 * 5.0).abs() < 1e-9, "{total}");
+        assert!(c.net_force_n().norm() < 1e-9, "{}", c.net_force_n());
+        assert_eq!(c.forces_n[4], 0.0);
+        // A vertex inside both (overlapping slabs) carries both magnitudes and no net force.
+        let (low, low_pose) = slab(0.001, true);
+        let (high, high_pose) = slab(0.0, false);
+        let c = surface_contact(
+            &[Point3::new(0.0, 0.0, 0.0005)],
+            &[low, high],
+            &[low_pose, high_pose],
+            1e4,
+        );
+        assert!((c.forces_n[0] - 10.0).abs() < 1e-9, "{:?}", c.forces_n);
+        assert!(
+            c.force_vectors_n[0].norm() < 1e-9,
+            "{}",
+            c.force_vectors_n[0]
+        );
     }
 }

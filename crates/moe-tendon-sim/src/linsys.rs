@@ -10,7 +10,7 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Conj, Mat, Par, Side};
+use faer::{Conj, Mat, MatMut, Par, Side};
 use moe_geom::{Matrix3, Real};
 
 /// Marker for a node that is not a free unknown.
@@ -128,13 +128,7 @@ impl SparseSystem {
 
     /// Allocates the numeric storage.
     pub(crate) fn buffers(&self) -> SystemBuffers {
-        let par = Par::Seq;
-        let req = StackReq::any_of(&[
-            self.cholesky
-                .factorize_numeric_llt_scratch::<Real>(par, Default::default()),
-            self.cholesky
-                .solve_in_place_scratch::<Real>(self.max_rhs, par),
-        ]);
+        let req = self.solve_scratch(self.max_rhs);
         SystemBuffers {
             values: vec![0.0; self.matrix.row_idx().len()],
             l_values: vec![0.0; self.cholesky.len_val()],
@@ -182,25 +176,68 @@ impl SparseSystem {
         buf: &mut SystemBuffers,
         ncols: usize,
     ) -> Result<(), NotPositiveDefinite> {
-        let par = Par::Seq;
-        let stack = MemStack::new(&mut buf.mem);
-        let a = SparseColMatRef::new(self.matrix.as_ref(), &buf.values);
-        let llt: LltRef<'_, u32, Real> = self
-            .cholesky
+        let SystemBuffers {
+            values,
+            l_values,
+            mem,
+            rhs,
+        } = buf;
+        self.factor_values(values, l_values, mem)?;
+        self.solve_factored(l_values, mem, rhs.as_mut().subcols_mut(0, ncols));
+        Ok(())
+    }
+
+    /// Factorises the matrix of `values` into `l_values` (for
+    /// [`SparseSystem::solve_factored`]); `mem` must hold at least the factorisation's scratch
+    /// (as [`SparseSystem::buffers`] and [`SparseSystem::solve_scratch`] size it).
+    pub(crate) fn factor_values(
+        &self,
+        values: &[Real],
+        l_values: &mut [Real],
+        mem: &mut MemBuffer,
+    ) -> Result<(), NotPositiveDefinite> {
+        let stack = MemStack::new(mem);
+        let a = SparseColMatRef::new(self.matrix.as_ref(), values);
+        self.cholesky
             .factorize_numeric_llt(
-                &mut buf.l_values,
+                l_values,
                 a,
                 Side::Lower,
                 LltRegularization::default(),
-                par,
+                Par::Seq,
                 stack,
                 Default::default(),
             )
             .map_err(|_| NotPositiveDefinite)?;
-        let stack = MemStack::new(&mut buf.mem);
-        let rhs = buf.rhs.as_mut().subcols_mut(0, ncols);
-        llt.solve_in_place_with_conj(Conj::No, rhs, par, stack);
         Ok(())
+    }
+
+    /// Solves in place with the factor `l_values` left by [`SparseSystem::factor`]; `mem` must
+    /// hold the scratch of [`SparseSystem::solve_scratch`] for `rhs.ncols()` columns.
+    pub(crate) fn solve_factored(
+        &self,
+        l_values: &[Real],
+        mem: &mut MemBuffer,
+        rhs: MatMut<'_, Real>,
+    ) {
+        let llt: LltRef<'_, u32, Real> = LltRef::new(&self.cholesky, l_values);
+        let stack = MemStack::new(mem);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
+    }
+
+    /// Scratch of a factorisation and of a solve with `ncols` right-hand sides.
+    pub(crate) fn solve_scratch(&self, ncols: usize) -> StackReq {
+        StackReq::any_of(&[
+            self.cholesky
+                .factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
+            self.cholesky
+                .solve_in_place_scratch::<Real>(ncols, Par::Seq),
+        ])
+    }
+
+    /// Number of values of the factor.
+    pub(crate) fn factor_len(&self) -> usize {
+        self.cholesky.len_val()
     }
 
     /// Ensures `buf.rhs` has at least `ncols` columns and zeroes the first `ncols`.

@@ -15,7 +15,7 @@ pub use crate::body::{BASE_TOLERANCE_M, FingerBody, FingerInputs};
 pub use crate::contact::PosedObstacles;
 pub use crate::embedding::{Embedded, Embedding, INSIDE_TOLERANCE};
 pub use crate::fem::{
-    FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport, TermsFn,
+    FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport, Tangent, TermsFn,
 };
 pub use crate::polar::polar_rotation;
 pub use crate::tendon::Tendon;

@@ -13,6 +13,12 @@
 //! from the target along `n`. The object stays fixed in the world; the wrist moves the hand along
 //! `n` by the gap plus a random press depth, holds, and retracts. Placements that would start in
 //! contact with any finger are redrawn.
+//!
+//! The silicone ([`RandomSceneParams::material`](crate::randomize::RandomSceneParams::material))
+//! and the tet-mesh resolution
+//! ([`RandomSceneParams::voxel`](crate::randomize::RandomSceneParams::voxel)) are parameters,
+//! not draws: a data set of a stiffer finger or a finer mesh draws exactly the scenes of the
+//! default one.
 
 use std::f64::consts::{PI, TAU};
 
@@ -23,12 +29,14 @@ use moe_geom::{FingerParams, HandModel, HandPreset, Iso3, Point3, Real, Vector3}
 use serde::{Deserialize, Serialize};
 
 use crate::contact::ContactParams;
-use crate::error::SimError;
+use crate::error::{SimError, require_positive};
+use crate::material::Material;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
 use crate::run::run_saving;
 use crate::scene::{PresetHandConfig, Scene, SceneConfig, SimFrame};
 use crate::surface::obstacle_surface;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
+use crate::voxelize::VoxelParams;
 
 /// Object families of the randomised scenes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -151,8 +159,15 @@ pub struct RandomSceneParams {
     /// A frame is kept every this many steps. Default 5.
     pub save_every_steps: u64,
     /// Contact model and label rule of the scenes. Default [`ContactParams::default`]
-    /// (the force rule).
+    /// (the press rule).
     pub contact: ContactParams,
+    /// Silicone of every finger (`[material]` in a parameter file, e.g.
+    /// `youngs_modulus_pa = 125000.0` for a stiffer finger). Default [`Material::default`],
+    /// the paper's 100 kPa.
+    pub material: Material,
+    /// Tet-mesh resolution of every finger (`[voxel]`, e.g. `cell_size_m = 0.0025` for a finer
+    /// mesh). Default [`VoxelParams::default`], 3.5 mm cells.
+    pub voxel: VoxelParams,
 }
 
 impl Default for RandomSceneParams {
@@ -171,6 +186,8 @@ impl Default for RandomSceneParams {
             dt_secs: 0.01,
             save_every_steps: 5,
             contact: ContactParams::default(),
+            material: Material::default(),
+            voxel: VoxelParams::default(),
         }
     }
 }
@@ -283,6 +300,19 @@ pub fn sample_scene(
     })
 }
 
+impl RandomSceneParams {
+    /// Checks the parameters ([`sample_scene`] does too, on every draw).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] naming the first bad one: no family or region, an invalid
+    /// contact model or material (e.g. `youngs_modulus_pa` ≤ 0), a non-positive
+    /// `voxel cell_size_m`, a bad press-depth range, or a non-positive or non-finite time,
+    /// gap or pull.
+    pub fn validate(&self) -> Result<(), SimError> {
+        validate(self)
+    }
+}
+
 fn validate(params: &RandomSceneParams) -> Result<(), SimError> {
     let bad = |name, value, reason| {
         Err(SimError::InvalidParameter {
@@ -298,6 +328,8 @@ fn validate(params: &RandomSceneParams) -> Result<(), SimError> {
         return bad("regions", 0.0, "at least one finger region is needed");
     }
     params.contact.validate()?;
+    params.material.validate()?;
+    require_positive("voxel cell_size_m", params.voxel.cell_size_m)?;
     let [lo, hi] = params.press_depth_m;
     if !(lo >= 0.0 && hi >= lo && hi.is_finite()) {
         return bad("press_depth_m", hi, "must be a non-negative range [lo, hi]");
@@ -535,6 +567,8 @@ fn build_config(
         actuation,
         obstacles: vec![obstacle],
         contact: params.contact.clone(),
+        material: params.material.clone(),
+        voxel: params.voxel.clone(),
         ..SceneConfig::default()
     };
     config.solver.dt_secs = params.dt_secs;
@@ -684,6 +718,149 @@ mod tests {
                 ..
             }
         );
+        for e in [0.0, -1e5, Real::NAN] {
+            let p = RandomSceneParams {
+                material: Material {
+                    youngs_modulus_pa: e,
+                    ..Material::default()
+                },
+                ..RandomSceneParams::default()
+            };
+            moe_geom::assert_err!(
+                sample_scene(&p, 0, 0),
+                SimError::InvalidParameter {
+                    name: "youngs_modulus_pa",
+                    ..
+                }
+            );
+        }
+        let p = RandomSceneParams {
+            material: Material {
+                poisson_ratio: 0.5,
+                ..Material::default()
+            },
+            ..RandomSceneParams::default()
+        };
+        moe_geom::assert_err!(
+            sample_scene(&p, 0, 0),
+            SimError::InvalidParameter {
+                name: "poisson_ratio",
+                ..
+            }
+        );
+        for h in [0.0, -0.001, Real::INFINITY] {
+            let p = RandomSceneParams {
+                voxel: VoxelParams { cell_size_m: h },
+                ..RandomSceneParams::default()
+            };
+            moe_geom::assert_err!(
+                sample_scene(&p, 0, 0),
+                SimError::InvalidParameter {
+                    name: "voxel cell_size_m",
+                    ..
+                }
+            );
+        }
+    }
+
+    /// `params` with Young's modulus times `factor` and cells of `cell_size_m`.
+    fn with_material(factor: Real, cell_size_m: Real) -> RandomSceneParams {
+        let default = RandomSceneParams::default();
+        RandomSceneParams {
+            material: Material {
+                youngs_modulus_pa: factor * default.material.youngs_modulus_pa,
+                ..Material::default()
+            },
+            voxel: VoxelParams { cell_size_m },
+            ..default
+        }
+    }
+
+    #[test]
+    fn material_and_mesh_are_parameters_that_draw_nothing() {
+        let default = RandomSceneParams::default();
+        let other = with_material(1.25, 0.0025);
+        for t in 0..6 {
+            let a = sample_scene(&default, 5, t).unwrap();
+            let b = sample_scene(&other, 5, t).unwrap();
+            // The default parameters give the scene configuration of before they existed.
+            assert_eq!(a.config.material, SceneConfig::default().material);
+            assert_eq!(a.config.voxel, SceneConfig::default().voxel);
+            assert_eq!(b.config.material, other.material);
+            assert_eq!(b.config.voxel, other.voxel);
+            // Nothing else differs: the parameters draw no random number.
+            let mut b = b;
+            b.config.material = a.config.material.clone();
+            b.config.voxel = a.config.voxel.clone();
+            assert_eq!(a, b, "trajectory {t}");
+        }
+        // A parameter file sets them by section; an empty one is the default.
+        let parsed: RandomSceneParams = toml::from_str(
+            "[material]\nyoungs_modulus_pa = 125000.0\n[voxel]\ncell_size_m = 0.0025\n",
+        )
+        .unwrap();
+        assert_eq!(parsed, other);
+        assert_eq!(
+            toml::from_str::<RandomSceneParams>("").unwrap(),
+            RandomSceneParams::default()
+        );
+        assert!(toml::from_str::<RandomSceneParams>("[material]\nyoungs = 1.0\n").is_err());
+        // And they are recorded where the parameters are (a data set's card).
+        let json = serde_json::to_value(&other).unwrap();
+        assert_eq!(json["material"]["youngs_modulus_pa"], 125000.0);
+        assert_eq!(json["voxel"]["cell_size_m"], 0.0025);
+    }
+
+    /// One static step of the scene sampled with `params` (trajectory 0 of seed 5) without its
+    /// object and wrist motion, under `actuation` of finger 0: the largest displacement of a
+    /// vertex of finger 0 from rest (hand frame, metres) and the tension of tendon 0 (N).
+    fn bend(params: &RandomSceneParams, actuation: ActuationSchedule) -> (Real, Real) {
+        let mut config = sample_scene(params, 5, 0).unwrap().config;
+        config.obstacles.clear();
+        config.wrist = PoseTrajectory::default();
+        config.solver.mode = crate::scene::SolverMode::Static;
+        config.duration_secs = config.solver.dt_secs;
+        config.actuation = vec![actuation];
+        let mut scene = Scene::new(config).unwrap();
+        let mut state = scene.initial_state();
+        let rest = scene.frame(&state);
+        let info = scene.step(&mut state).unwrap();
+        let bent = scene.frame(&state);
+        let deflection = rest.fingers[0]
+            .vertices_in_hand
+            .iter()
+            .zip(&bent.fingers[0].vertices_in_hand)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        (deflection, info.tendons[0][0].tension_n)
+    }
+
+    #[test]
+    fn a_stiffer_finger_bends_less_under_the_same_pull() {
+        let schedule = |mode, value: Real| ActuationSchedule {
+            mode,
+            keyframes: vec![ActuationKeyframe {
+                time_secs: 0.0,
+                values: vec![value, 0.0, 0.0, 0.0],
+            }],
+        };
+        let default = RandomSceneParams::default();
+        let stiff = with_material(1.25, default.voxel.cell_size_m);
+        // The same tension: the bend scales with 1/E in the linear range.
+        let force = schedule(crate::trajectory::ActuationMode::Force, 0.3);
+        let (soft_bend, _) = bend(&default, force.clone());
+        let (stiff_bend, _) = bend(&stiff, force);
+        assert!(soft_bend > 1e-3, "the pull bends the finger: {soft_bend} m");
+        let ratio = stiff_bend / soft_bend;
+        assert!((0.7..0.9).contains(&ratio), "bend ratio {ratio}");
+        // The same pulled length: the bend is nearly the cable's, and the tension it takes grows
+        // with E.
+        let pull = schedule(crate::trajectory::ActuationMode::Displacement, 0.003);
+        let (soft_bend, soft_tension) = bend(&default, pull.clone());
+        let (stiff_bend, stiff_tension) = bend(&stiff, pull);
+        assert!(stiff_bend < soft_bend, "{stiff_bend} ≥ {soft_bend}");
+        let ratio = stiff_tension / soft_tension;
+        assert!((1.15..1.4).contains(&ratio), "tension ratio {ratio}");
     }
 
     /// A short schedule so that the test runs quickly in the dev profile.
@@ -729,6 +906,22 @@ mod tests {
                     .map(|g| g.labels.iter().filter(|&&l| l).count())
                     .sum();
                 assert!(labelled > 0, "{family:?}: no label at full press");
+                // The object pushes the pressed finger back against the press.
+                let force = f.fingers[sampled.finger].force_in_hand_n;
+                assert!(
+                    force.dot(&sampled.normal_in_hand) < 0.0,
+                    "{family:?}: net force {force} along the press normal"
+                );
+            }
+            // A finger's net force is the vector sum of its vertices' forces: no longer than the
+            // sum of their magnitudes.
+            for f in &frames {
+                for g in &f.fingers {
+                    let magnitudes: Real = g.contact_force_n.iter().sum();
+                    let net = g.force_in_hand_n.norm();
+                    assert!(net <= magnitudes * (1.0 + 1e-12), "{net} > {magnitudes}");
+                    assert_eq!(net == 0.0, magnitudes == 0.0);
+                }
             }
             for f in &frames {
                 let pose = obstacle.pose_at(f.time_secs);

@@ -233,6 +233,12 @@ pub struct FingerSimFrame {
     pub distances_m: Vec<Real>,
     /// Normal magnitude of the obstacles' penalty force on each vertex, newtons.
     pub contact_force_n: Vec<Real>,
+    /// The net contact force on the finger, hand frame, newtons: the vector sum of the
+    /// vertices' penalty forces
+    /// ([`SurfaceContact::net_force_n`](crate::SurfaceContact::net_force_n)).
+    /// Where vertices are pushed different ways (a finger on an edge, or squeezed from two
+    /// sides) its norm is smaller than the sum of `contact_force_n`.
+    pub force_in_hand_n: Vector3,
     /// Contact label per vertex, by the scene's [`ContactParams::label_rule`].
     pub labels: Vec<bool>,
     /// The command of each tendon at this time, with its unit (a pull in metres or a tension in
@@ -594,7 +600,8 @@ impl Scene {
         Ok(())
     }
 
-    /// The surfaces, distances, contact labels and tendon commands of `state`.
+    /// The surfaces, distances, contact forces (per vertex and each finger's net force), contact
+    /// labels and tendon commands of `state`.
     pub fn frame(&self, state: &SimState) -> SimFrame {
         let t = state.time_secs;
         let world_from_hand = self.config.wrist.pose_at(t);
@@ -615,11 +622,13 @@ impl Scene {
                 );
                 let labels =
                     contact_labels(&contact, b.movable_surface_vertices(), &self.config.contact);
+                let force_in_hand_n = hand_from_world.transform_vector(&contact.net_force_n());
                 FingerSimFrame {
                     vertices_in_hand: world.iter().map(|p| hand_from_world * p).collect(),
                     vertices_in_world: world,
                     distances_m: contact.distances_m,
                     contact_force_n: contact.forces_n,
+                    force_in_hand_n,
                     labels,
                     tendons: (0..b.tendons().len())
                         .map(|j| command(self.config.actuation.get(i), j, t))

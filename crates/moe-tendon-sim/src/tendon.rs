@@ -178,8 +178,10 @@ impl Tendon {
     }
 
     /// Adds this tendon's terms for positions `x` to `terms` (without allocating once `terms`
-    /// has room: the segment directions are recomputed where needed instead of stored).
-    pub(crate) fn add_terms(
+    /// has room: the segment directions are recomputed where needed instead of stored): in
+    /// displacement mode a unilateral rank-one term on the length excess, in force mode the
+    /// cable forces, and in both the segments' geometric stiffness.
+    pub fn add_terms(
         &self,
         x: &[Point3],
         command: TendonCommand,

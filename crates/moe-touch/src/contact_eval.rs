@@ -19,13 +19,11 @@
 use std::time::Instant;
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
-use moe_contact::{
-    ContactEstimator, ContactInput, ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex,
-};
+use moe_contact::{ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex};
 use moe_geom::math::UnitQuat;
 use moe_geom::{
-    HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng, Vector3,
-    WorldFromHand, bcd,
+    ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng,
+    Vector3, WorldFromHand, bcd,
 };
 use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use serde::Serialize;
@@ -482,13 +480,13 @@ pub fn evaluate_table1(
         let t = Instant::now();
         let on_true = estimators
             .dgcnn
-            .estimate_input(&ContactInput::of_frame(frame, &frame.shape))?;
+            .estimate_map(&ContactInput::of_frame(frame, &frame.shape))?;
         seconds[0] += t.elapsed().as_secs_f64();
         predictions[0] = labels_above(&on_true.fingers, threshold);
         let t = Instant::now();
         let on_arap = estimators
             .dgcnn
-            .estimate_input(&ContactInput::of_frame(frame, &arap_shape))?;
+            .estimate_map(&ContactInput::of_frame(frame, &arap_shape))?;
         seconds[1] += t.elapsed().as_secs_f64();
         predictions[1] = labels_above(&on_arap.fingers, threshold);
         for (slot, (index, acc)) in [
@@ -738,7 +736,7 @@ pub fn evaluate_plates(
             for frame in frames.iter().filter(|f| f.contact_count() > 0) {
                 contact_frames += 1;
                 let estimated = arap.estimate(&frame.markers)?.shape;
-                let p = dgcnn.estimate_input(&ContactInput::of_frame(frame, &estimated))?;
+                let p = dgcnn.estimate_map(&ContactInput::of_frame(frame, &estimated))?;
                 d.add(
                     &frame.shape,
                     &frame.contact,

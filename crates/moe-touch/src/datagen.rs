@@ -20,8 +20,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use moe_io::dataset::{
-    CARD_FILE, DatasetCard, DatasetFrame, DatasetLayout, FrameStats, ShardEntry, shard_file_name,
-    shard_stats, write_shard,
+    CARD_FILE, DatasetCard, DatasetFrame, DatasetLayout, FORMAT_VERSION, FrameStats, ShardEntry,
+    shard_file_name, shard_stats, write_shard,
 };
 use moe_tendon_sim::randomize::{
     OBJECT_PARAM_LEN, ObjectFamily, RandomSceneParams, simulate_trajectory,
@@ -302,6 +302,10 @@ pub fn generate(
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Settings {
+    /// The shard format ([`FORMAT_VERSION`]; 1 in directories of writers before it was
+    /// recorded), so that shards of two formats never share a directory.
+    #[serde(default = "format_version_1")]
+    format_version: u32,
     trajectories: u64,
     trajectories_per_shard: u64,
     seed: u64,
@@ -309,8 +313,13 @@ struct Settings {
     generator: serde_json::Value,
 }
 
-/// File holding the settings of a data set directory (seed, sizes, layout, randomisation).
+/// File holding the settings of a data set directory (shard format, seed, sizes, layout,
+/// randomisation).
 pub const SETTINGS_FILE: &str = "plan.json";
+
+fn format_version_1() -> u32 {
+    1
+}
 
 /// Refuses to add shards to a directory generated with other settings (a resumed run with
 /// another seed or other ranges would otherwise mix two data sets); records the settings on the
@@ -322,6 +331,7 @@ fn check_settings(
     generator: &serde_json::Value,
 ) -> Result<(), TouchError> {
     let settings = Settings {
+        format_version: FORMAT_VERSION,
         trajectories: plan.trajectories,
         trajectories_per_shard: plan.trajectories_per_shard,
         seed: plan.seed,
@@ -372,12 +382,15 @@ fn write_card_if_complete(
 /// Draws per trajectory before a failing simulation is reported.
 pub const MAX_DRAWS: u64 = 4;
 
-/// The frame layout of a data set simulated with `params`.
+/// The frame layout of a data set simulated with `params`, after checking the parameters (so
+/// that a bad parameter file stops a run before it writes anything).
 ///
 /// # Errors
-/// [`TouchError::Geometry`] for invalid finger parameters or fingers with different numbers
-/// of tendons ([`moe_geom::HandModel::tendons_per_finger`]).
+/// [`TouchError::Simulation`] naming an invalid randomisation parameter
+/// ([`RandomSceneParams::validate`]); [`TouchError::Geometry`] for invalid finger parameters
+/// or fingers with different numbers of tendons ([`moe_geom::HandModel::tendons_per_finger`]).
 pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, TouchError> {
+    params.validate()?;
     let hand = moe_geom::HandModel::preset(params.preset, &params.finger)?;
     let fingers = hand.fingers();
     let tendons_per_finger = hand.tendons_per_finger()?;
@@ -459,6 +472,14 @@ pub fn simulated_frames(
                 .iter()
                 .flat_map(|g| g.distances_m.iter().map(|&v| v as f32))
                 .collect();
+            let finger_force_n = f
+                .fingers
+                .iter()
+                .map(|g| {
+                    let n = g.force_in_hand_n;
+                    [n.x as f32, n.y as f32, n.z as f32]
+                })
+                .collect();
             let markers = f
                 .fingers
                 .iter()
@@ -479,6 +500,7 @@ pub fn simulated_frames(
                 contact,
                 contact_force_n,
                 obstacle_distance_m,
+                finger_force_n: Some(finger_force_n),
                 markers,
                 world_from_hand: [t.x, t.y, t.z, q.i, q.j, q.k, q.w],
                 tendon_pull_m: pulls.iter().flatten().map(|&v| v as f32).collect(),
@@ -567,6 +589,7 @@ mod tests {
                     contact: (0..4).map(|_| u8::from(rng.uniform() < 0.3)).collect(),
                     contact_force_n: (0..4).map(|_| rng.uniform() as f32).collect(),
                     obstacle_distance_m: vec![f32::INFINITY; 4],
+                    finger_force_n: Some(vec![[0.0, 0.0, 0.1 * k as f32]]),
                     markers: vec![[0.0, 0.0, rng.uniform() as f32]],
                     world_from_hand: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
                     tendon_pull_m: vec![rng.uniform() as f32],
@@ -718,6 +741,18 @@ mod tests {
             "{err:?}"
         );
         run(&plan(2, 2), &dir, serde_json::json!({"a": 1}), 9).unwrap();
+        // A directory of a writer before format version 2 (no finger forces; its plan.json does
+        // not record the format) takes no shard of this one.
+        let settings = dir.join(SETTINGS_FILE);
+        let mut old: serde_json::Value = moe_io::read_json(&settings).unwrap();
+        assert_eq!(old["format_version"], FORMAT_VERSION);
+        old.as_object_mut().unwrap().remove("format_version");
+        moe_io::write_json(&settings, &old).unwrap();
+        let err = run(&plan(2, 2), &dir, serde_json::json!({"a": 1}), 9).unwrap_err();
+        assert!(
+            matches!(&err, TouchError::SettingsMismatch { dir: d } if *d == dir),
+            "{err:?}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -770,6 +805,25 @@ mod tests {
             ..RandomSceneParams::default()
         };
         let layout = simulated_layout(&params).unwrap();
+        // A bad parameter is refused before anything is simulated, naming it.
+        let soft = RandomSceneParams {
+            material: moe_tendon_sim::Material {
+                youngs_modulus_pa: 0.0,
+                ..moe_tendon_sim::Material::default()
+            },
+            ..params.clone()
+        };
+        let err = simulated_layout(&soft).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TouchError::Simulation(moe_tendon_sim::SimError::InvalidParameter {
+                    name: "youngs_modulus_pa",
+                    ..
+                })
+            ),
+            "{err:?}"
+        );
         let dir = scratch("simulated");
         let plan = GenPlan {
             trajectories: 2,
@@ -796,6 +850,26 @@ mod tests {
             frames,
             [frames_of(0).unwrap(), frames_of(1).unwrap()].concat()
         );
+        // Every frame carries each finger's net contact force, no longer than the sum of its
+        // vertices' force magnitudes, and the presses show in some.
+        assert!(card.has_finger_force());
+        let mut pressed = 0;
+        for f in &frames {
+            let forces = f.finger_force_n.as_ref().unwrap();
+            let magnitudes = layout.per_finger(&f.contact_force_n, |&v| f64::from(v));
+            assert_eq!(forces.len(), magnitudes.len());
+            for (force, m) in forces.iter().zip(&magnitudes) {
+                let net = force
+                    .iter()
+                    .map(|&c| f64::from(c).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                let total: f64 = m.iter().sum();
+                assert!(net <= total * (1.0 + 1e-5) + 1e-9, "{net} > {total}");
+                pressed += usize::from(net > 1e-2);
+            }
+        }
+        assert!(pressed > 0, "no frame presses a finger");
         // Frame 0 is the rest hand: its markers are the rest markers.
         let hand = moe_geom::HandModel::preset(params.preset, &params.finger).unwrap();
         let rest = hand.rest_keypoints();

@@ -80,6 +80,10 @@ pub enum TouchError {
     /// Contact estimation failed.
     #[error(transparent)]
     Contact(#[from] moe_contact::ContactError),
+    /// The contact estimator of a pipeline failed: its own error, boxed (for the DGCNN and the
+    /// KNN baseline a [`moe_contact::ContactError`], which `downcast_ref` recovers).
+    #[error("contact estimation: {0}")]
+    ContactEstimation(Box<dyn std::error::Error + Send + Sync>),
     /// A geometric input is malformed.
     #[error(transparent)]
     Geometry(#[from] moe_geom::GeomError),

@@ -25,8 +25,8 @@
 
 use moe_geom::math::UnitQuat;
 use moe_geom::{
-    ContactPoint, HandModel, HandShape, Point3, RansacConfig, Real, SeededRng, Vector3,
-    fit_plane_ransac,
+    ContactEstimator, ContactPoint, HandModel, HandShape, Point3, RansacConfig, Real, SeededRng,
+    Vector3, fit_plane_ransac,
 };
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
 use moe_tendon_sim::{Scene, SimFrame, run_saving};
@@ -37,7 +37,6 @@ use crate::episode::{EpisodeRecorder, saved_frame_at};
 use crate::perception::{DetectorConfig, MarkerDetector};
 use crate::pipeline::Pipeline;
 use moe_arap::ShapeConfig;
-use moe_contact::ContactEstimator;
 
 /// Settings of a grasp trial.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -487,7 +486,7 @@ struct Presses<'a, C> {
     options: &'a GraspOptions,
 }
 
-impl<'a, C: ContactEstimator + Clone> Presses<'a, C> {
+impl<'a, C: ContactEstimator> Presses<'a, C> {
     fn new(
         hand: &'a HandModel,
         contacts: GraspContacts<C>,
@@ -509,8 +508,9 @@ impl<'a, C: ContactEstimator + Clone> Presses<'a, C> {
     }
 
     /// Presses `press_m` past first touch with the hand at `rotation`, judges the press, and
-    /// fits the plane from the contact source's view of its hold.
-    fn observe(&self, rotation: &UnitQuat, press_m: Real) -> Result<ObservedPress, TouchError> {
+    /// fits the plane from the contact source's view of its hold (a pipeline lent the contact
+    /// estimator, reset before every hold frame).
+    fn observe(&mut self, rotation: &UnitQuat, press_m: Real) -> Result<ObservedPress, TouchError> {
         let Self {
             hand,
             rest,
@@ -561,7 +561,7 @@ impl<'a, C: ContactEstimator + Clone> Presses<'a, C> {
                 let shape =
                     crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
                 let mut pipeline =
-                    Pipeline::new((*hand).clone(), detector, shape, contact.clone(), threshold)?;
+                    Pipeline::new((*hand).clone(), detector, shape, contact, threshold)?;
                 for (k, f) in &hold {
                     let episode_frame = recorder.frame(&scene, f, *k as u64)?;
                     pipeline.reset();
@@ -700,7 +700,7 @@ fn trial_start(incline_deg: Real, trial: u64, options: &GraspOptions) -> (UnitQu
 /// pipeline stage on the first or a refining press. A plane that cannot be fitted or pressed
 /// along is reported in the trial, and a deeper press that fails is passed over (the shallow
 /// press's plane stands), not returned as errors.
-pub fn run_grasp_trial<C: ContactEstimator + Clone>(
+pub fn run_grasp_trial<C: ContactEstimator>(
     hand: &HandModel,
     contacts: GraspContacts<C>,
     incline_deg: Real,
@@ -710,7 +710,7 @@ pub fn run_grasp_trial<C: ContactEstimator + Clone>(
 ) -> Result<GraspTrial, TouchError> {
     let normal = plate_normal(incline_deg);
     let (mut rotation, aim) = trial_start(incline_deg, trial, options);
-    let presses = Presses::new(hand, contacts, incline_deg, aim, camera_seed, options);
+    let mut presses = Presses::new(hand, contacts, incline_deg, aim, camera_seed, options);
     let mut observed = presses.observe(&rotation, options.press_m)?;
     let first_press = observed.outcome.clone();
     let mut fits: Vec<PlaneStep> = Vec::new();
@@ -878,15 +878,15 @@ mod tests {
             .unwrap()
             .powf(TURN_DEG / 45.0);
         let rotation = turn * level;
-        let presses = Presses::new(
+        let mut presses = Presses::new(
             &hand,
-            GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+            GraspContacts::<moe_contact::DgcnnEstimator>::Simulator,
             45.0,
             Point3::origin(),
             0,
             &options,
         );
-        let press = |press_m| presses.observe(&rotation, press_m).unwrap();
+        let mut press = |press_m| presses.observe(&rotation, press_m).unwrap();
         let shallow = press(options.press_m);
         let deep = press(options.deeper_press_m);
         assert_eq!(shallow.step.press_depth_m, options.press_m);
@@ -907,7 +907,7 @@ mod tests {
         };
         let trial = run_grasp_trial(
             &hand_model(),
-            GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+            GraspContacts::<moe_contact::DgcnnEstimator>::Simulator,
             0.0,
             0,
             0,

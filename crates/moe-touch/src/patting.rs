@@ -10,7 +10,7 @@
 //! reach).
 
 use moe_geom::bodies::{ArmParams, HeadParams};
-use moe_geom::{Iso3, Point3, Real, ShapeEstimator, TriMesh};
+use moe_geom::{ContactEstimator, Iso3, Point3, Real, ShapeEstimator, TriMesh};
 use moe_gpis::bench_scene::SceneKind;
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
@@ -20,7 +20,6 @@ use serde::Serialize;
 use crate::TouchError;
 use crate::episode::{EpisodeRecorder, saved_frame_at};
 use crate::pipeline::Pipeline;
-use moe_contact::ContactEstimator;
 
 /// The number of poses of a body's patting scene.
 pub fn pats_of(body: SceneKind) -> usize {
@@ -199,7 +198,10 @@ mod tests {
     use super::*;
     use crate::perception::{DetectorConfig, MarkerDetector};
     use moe_contact::ContactError;
-    use moe_geom::{ContactMap, FingerParams, HandKeypoints, HandModel, HandPreset, HandShape};
+    use moe_geom::{
+        ContactEstimate, ContactInput, ContactMap, FingerParams, HandKeypoints, HandModel,
+        HandPreset, HandShape,
+    };
 
     /// The simulator's own shape of one frame, whatever the keypoints.
     struct TrueShape(HandShape);
@@ -215,12 +217,9 @@ mod tests {
     struct TrueContact(ContactMap);
 
     impl ContactEstimator for TrueContact {
-        fn estimate(
-            &self,
-            _: &HandShape,
-            _: Option<&HandKeypoints>,
-        ) -> Result<ContactMap, ContactError> {
-            Ok(self.0.clone())
+        type Error = ContactError;
+        fn estimate(&mut self, _: &ContactInput<'_>) -> Result<ContactEstimate, ContactError> {
+            Ok(ContactEstimate::from_map(self.0.clone()))
         }
     }
 

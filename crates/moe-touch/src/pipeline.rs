@@ -4,10 +4,10 @@
 use std::path::Path;
 use std::time::Instant;
 
-use moe_contact::{ContactEstimator, ContactInput, DgcnnEstimator, ModelCard};
+use moe_contact::{DgcnnEstimator, ModelCard};
 use moe_geom::{
-    ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape, Real, ShapeEstimator,
-    WorldFromHand,
+    ContactEstimator, ContactInput, ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape,
+    Real, ShapeEstimator, ShapeInput, WorldFromHand,
 };
 use serde::Serialize;
 
@@ -80,7 +80,7 @@ pub fn check_contact_threshold(threshold: Real) -> Result<(), TouchError> {
 }
 
 /// The stages, and the state a stream of frames needs (marker tracks, the shape estimator's
-/// warm start); see the module documentation.
+/// warm start, whatever the contact estimator carries); see the module documentation.
 #[derive(Debug)]
 pub struct Pipeline<S, C> {
     hand: HandModel,
@@ -151,10 +151,12 @@ where
         self.threshold
     }
 
-    /// Forgets the stream: marker tracks and the shape estimator's warm start.
+    /// Forgets the stream: marker tracks, the shape estimator's warm start and what the contact
+    /// estimator carried from frame to frame.
     pub fn reset(&mut self) {
         self.detector.reset();
         self.shape.reset();
+        self.contact.reset();
         if let Some(f) = &mut self.keypoint_filter {
             f.reset();
         }
@@ -163,8 +165,8 @@ where
         }
     }
 
-    /// Runs every stage on a recorded episode frame: its images, its wrist pose and its tendon
-    /// pulls.
+    /// Runs every stage on a recorded episode frame: its images, its wrist pose, its tendon
+    /// pulls and its time.
     ///
     /// # Errors
     /// As [`Pipeline::process_with_pulls`].
@@ -172,13 +174,14 @@ where
         &mut self,
         frame: &moe_io::EpisodeFrame,
     ) -> Result<FrameEstimate, TouchError> {
-        self.process_with_pulls(
+        self.process_observation(
             RgbdFrame {
                 color_rgb8: &frame.color_rgb8,
                 depth_m: &frame.depth_m,
             },
             WorldFromHand::new(frame.world_from_hand),
             Some(&frame.tendon_pull_m),
+            Some(1e-9 * frame.time_ns as f64),
         )
     }
 
@@ -208,6 +211,18 @@ where
         world_from_hand: WorldFromHand,
         tendon_pull_m: Option<&[Vec<f64>]>,
     ) -> Result<FrameEstimate, TouchError> {
+        self.process_observation(frame, world_from_hand, tendon_pull_m, None)
+    }
+
+    /// [`Pipeline::process_with_pulls`], with the frame's time in seconds where the caller has
+    /// one (for estimators that carry state between frames).
+    fn process_observation(
+        &mut self,
+        frame: RgbdFrame<'_>,
+        world_from_hand: WorldFromHand,
+        tendon_pull_m: Option<&[Vec<f64>]>,
+        time_secs: Option<f64>,
+    ) -> Result<FrameEstimate, TouchError> {
         let start = Instant::now();
         let mut detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
         if let Some(f) = &mut self.keypoint_filter {
@@ -216,14 +231,25 @@ where
         let t_markers = Instant::now();
         let shape = self
             .shape
-            .estimate_shape(&detection.keypoints)
+            .estimate_shape_with(&ShapeInput {
+                keypoints: &detection.keypoints,
+                tendon_pull_m,
+                world_from_hand: Some(&world_from_hand),
+                time_secs,
+            })
             .map_err(|e| TouchError::ShapeEstimation(Box::new(e)))?;
         let t_shape = Instant::now();
-        let mut contact = self.contact.estimate_input(&ContactInput {
-            shape: &shape,
-            keypoints: Some(&detection.keypoints),
-            tendon_pull_m,
-        })?;
+        let mut contact = self
+            .contact
+            .estimate(&ContactInput {
+                shape: &shape,
+                keypoints: Some(&detection.keypoints),
+                tendon_pull_m,
+                world_from_hand: Some(&world_from_hand),
+                time_secs,
+            })
+            .map_err(|e| TouchError::ContactEstimation(Box::new(e)))?
+            .map;
         if let Some(s) = &mut self.contact_smoother {
             contact = s.smooth(&contact);
         }

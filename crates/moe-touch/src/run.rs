@@ -1,8 +1,8 @@
 //! Running the pipeline over a recorded episode: the result frames (for the Foxglove file) and
 //! the figures against the ground truth where the episode has it.
 
-use moe_contact::{ContactEstimator, ContactMetrics, ContactReport};
-use moe_geom::{HandShape, Real, ShapeEstimator, bcd};
+use moe_contact::{ContactMetrics, ContactReport};
+use moe_geom::{ContactEstimator, HandShape, Real, ShapeEstimator, bcd};
 use moe_io::{EpisodeFrame, EpisodeInfo, RunFrame, RunTruth};
 use serde::Serialize;
 

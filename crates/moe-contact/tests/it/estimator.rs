@@ -1,11 +1,14 @@
-//! The DGCNN behind the `ContactEstimator` trait, on hands.
+//! The DGCNN behind the `moe_geom::ContactEstimator` trait, on hands.
 
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
-    ContactError, ContactEstimator, ContactInput, DgcnnEstimator, FeatureBuilder, FeatureFrame,
-    InputFeature, InputSpec, ModelCard, ModelWeights, PointSet,
+    ContactError, DgcnnEstimator, FeatureBuilder, FeatureFrame, InputFeature, InputSpec, ModelCard,
+    ModelWeights, PointSet,
 };
-use moe_geom::{FingerParams, GeomError, HandModel, HandPreset, HandShape, Vector3};
+use moe_geom::{
+    ContactEstimator, ContactInput, FingerParams, GeomError, HandModel, HandPreset, HandShape,
+    Vector3,
+};
 
 use crate::common::small_config;
 
@@ -70,7 +73,9 @@ fn pressed(hand: &HandModel) -> HandShape {
 fn identical_fingers_in_their_own_frames_get_identical_maps() {
     let hand = hand(HandPreset::ThreeFinger);
     let est = estimator(&hand, PointSet::PerFinger, FeatureFrame::Finger, true);
-    let map = est.estimate(&pressed(&hand), None).unwrap();
+    let map = est
+        .estimate_map(&ContactInput::shape(&pressed(&hand)))
+        .unwrap();
     for f in 1..3 {
         let diff = map.fingers[0]
             .iter()
@@ -94,14 +99,19 @@ fn a_batch_equals_one_estimate_at_a_time() {
         (PointSet::WholeHand, FeatureFrame::Hand),
         (PointSet::PerFinger, FeatureFrame::Finger),
     ] {
-        let est = estimator(&hand, set, frame, false);
+        let mut est = estimator(&hand, set, frame, false);
         let a = HandShape::rest(&hand);
         let b = pressed(&hand);
         let batch = est
             .estimate_batch(&[ContactInput::shape(&a), ContactInput::shape(&b)])
             .unwrap();
         for (got, shape) in batch.iter().zip([&a, &b]) {
-            let one = est.estimate(shape, None).unwrap();
+            // Through the trait: the map of `estimate_map`, and no forces.
+            let input = ContactInput::shape(shape);
+            let estimate = est.estimate(&input).unwrap();
+            assert_eq!(estimate.vertex_force_n, None);
+            assert_eq!(estimate.map, est.estimate_map(&input).unwrap());
+            let one = estimate.map;
             for (x, y) in got
                 .fingers
                 .iter()
@@ -120,7 +130,7 @@ fn a_shape_of_another_hand_is_refused_naming_the_finger() {
     let est = estimator(&hand, PointSet::WholeHand, FeatureFrame::Hand, false);
     let mut shape = HandShape::rest(&hand);
     shape.fingers[1].truncate(100);
-    match est.estimate(&shape, None) {
+    match est.estimate_map(&ContactInput::shape(&shape)) {
         Err(ContactError::Geometry(GeomError::FingerLengthMismatch {
             finger: 1,
             got: 100,
@@ -130,7 +140,7 @@ fn a_shape_of_another_hand_is_refused_naming_the_finger() {
     }
     let mut shape = HandShape::rest(&hand);
     shape.fingers[0][12].z = f64::INFINITY;
-    match est.estimate(&shape, None) {
+    match est.estimate_map(&ContactInput::shape(&shape)) {
         Err(ContactError::Geometry(GeomError::NonFiniteFingerPoint {
             finger: 0,
             index: 12,
@@ -140,7 +150,7 @@ fn a_shape_of_another_hand_is_refused_naming_the_finger() {
     }
     let three = HandShape::rest(&self::hand(HandPreset::ThreeFinger));
     assert!(matches!(
-        est.estimate(&three, None),
+        est.estimate_map(&ContactInput::shape(&three)),
         Err(ContactError::Geometry(GeomError::LengthMismatch {
             expected: 2,
             got: 3,
@@ -412,19 +422,17 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
         DgcnnEstimator::new(net, card, &hand).unwrap()
     };
     let base = ModelWeights::seeded(&plain, 3, 5).unwrap();
-    let before = build(&plain, &base).estimate(&shape, None).unwrap();
+    let before = build(&plain, &base)
+        .estimate_map(&ContactInput::shape(&shape))
+        .unwrap();
     let widened = build(&with_pulls, &base.with_input_channels(6).unwrap());
     let p = pulls([0.004, -0.004, 0.0, 0.0], [0.0, 0.0, -0.005, 0.005]);
-    let input = ContactInput {
-        shape: &shape,
-        keypoints: None,
-        tendon_pull_m: Some(&p),
-    };
-    let after = widened.estimate_input(&input).unwrap();
+    let input = ContactInput::shape(&shape).with_tendon_pulls(&p);
+    let after = widened.estimate_map(&input).unwrap();
     let moved = largest_difference(&after, &before);
     assert!(moved < 1e-12, "{moved:e}");
     assert!(matches!(
-        widened.estimate(&shape, None),
+        widened.estimate_map(&ContactInput::shape(&shape)),
         Err(ContactError::UnavailableFeatures { .. })
     ));
     assert!(matches!(
@@ -436,14 +444,9 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
         &with_pulls,
         &ModelWeights::seeded(&with_pulls, 6, 5).unwrap(),
     );
-    let a = full.estimate_input(&input).unwrap();
+    let a = full.estimate_map(&input).unwrap();
     let none = pulls([0.0; 4], [0.0; 4]);
-    let b = full
-        .estimate_input(&ContactInput {
-            tendon_pull_m: Some(&none),
-            ..input
-        })
-        .unwrap();
+    let b = full.estimate_map(&input.with_tendon_pulls(&none)).unwrap();
     let diff = largest_difference(&a, &b);
     assert!(diff > 1e-6, "{diff:e}");
 }

@@ -1,10 +1,10 @@
 //! The KNN baselines: a training frame queried against its own index is found at distance 0
 //! with its exact labels; occluded markers drop out of the distance; the index survives a file.
 
-use moe_contact::{ContactError, ContactEstimator, KnnIndex};
+use moe_contact::{ContactError, KnnIndex};
 use moe_geom::{
-    FingerParams, HandModel, HandPreset, HandShape, LabelledFrame, SeededRng, ShapeEstimator,
-    Vector3, WorldFromHand,
+    ContactEstimator, ContactInput, FingerParams, HandModel, HandPreset, HandShape, LabelledFrame,
+    SeededRng, ShapeEstimator, Vector3, WorldFromHand,
 };
 
 /// Frames of a small two-finger hand: every vertex moved by a random bend, markers at their
@@ -66,7 +66,11 @@ fn a_training_frame_finds_itself_with_its_exact_labels() {
     for (i, f) in train.iter().enumerate() {
         let m = index.nearest(&f.markers).unwrap();
         assert_eq!((m.frame, m.distance_m), (i, 0.0), "frame {i}");
-        let map = index.estimate(&f.shape, Some(&f.markers)).unwrap();
+        let estimate = index
+            .estimate(&ContactInput::shape(&f.shape).with_keypoints(&f.markers))
+            .unwrap();
+        assert_eq!(estimate.vertex_force_n, None);
+        let map = estimate.map;
         for (labels, probs) in f.contact.iter().zip(&map.fingers) {
             for (&l, &p) in labels.iter().zip(probs) {
                 assert_eq!(p, if l { 1.0 } else { 0.0 });
@@ -103,7 +107,7 @@ fn occluded_markers_are_left_out_of_the_distance() {
         Err(ContactError::InvalidBatch { .. })
     ));
     assert!(matches!(
-        index.estimate(&train[0].shape, None),
+        index.estimate_map(&ContactInput::shape(&train[0].shape)),
         Err(ContactError::UnavailableFeatures { .. })
     ));
 }

@@ -23,6 +23,10 @@ pub struct FrameStats {
     pub contact_vertices: u64,
     /// Vertices, over all frames.
     pub vertices: u64,
+    /// Frames that carry the fingers' net contact forces (`finger_force_n`; 0 in cards of
+    /// format version 1, whose shards lack the tensor).
+    #[serde(default)]
+    pub force_frames: u64,
 }
 
 impl FrameStats {
@@ -41,6 +45,7 @@ impl FrameStats {
         self.contact_frames += other.contact_frames;
         self.contact_vertices += other.contact_vertices;
         self.vertices += other.vertices;
+        self.force_frames += other.force_frames;
     }
 }
 
@@ -74,8 +79,10 @@ pub struct DatasetCard {
     pub families: BTreeMap<String, FrameStats>,
 }
 
-/// The shard format version this crate writes.
-pub const FORMAT_VERSION: u32 = 1;
+/// The shard format version this crate writes. Version 2 added the optional `finger_force_n`
+/// tensor (and the card's [`FrameStats::force_frames`]); cards and shards of version 1 read as
+/// before, their frames without finger forces.
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Statistics of a shard's frames, overall and per family.
 pub fn shard_stats(
@@ -98,6 +105,7 @@ pub fn shard_stats(
             contact_frames: u64::from(contacts > 0),
             contact_vertices: contacts,
             vertices: f.contact.len() as u64,
+            force_frames: u64::from(f.finger_force_n.is_some()),
         };
         total.add(&one);
         per_family.entry(name.clone()).or_default().add(&one);
@@ -112,6 +120,13 @@ pub fn shard_stats(
 }
 
 impl DatasetCard {
+    /// Whether every frame of the data set carries the fingers' net contact forces
+    /// ([`DatasetFrame::finger_force_n`]): false for an empty data set and for one written
+    /// before format version 2.
+    pub fn has_finger_force(&self) -> bool {
+        self.totals.frames > 0 && self.totals.force_frames == self.totals.frames
+    }
+
     /// A card for shards whose statistics are given (trajectories never span shards).
     pub fn new(
         layout: DatasetLayout,

@@ -68,6 +68,12 @@ pub struct DatasetFrame {
     pub contact_force_n: Vec<f32>,
     /// Smallest signed distance per vertex to any obstacle, metres (`+∞` without obstacles).
     pub obstacle_distance_m: Vec<f32>,
+    /// Net contact force on each finger, hand frame, newtons: the vector sum of the penalty
+    /// forces on its vertices (smaller than the finger's sum of `contact_force_n` where its
+    /// vertices are pushed different ways). `None` for a frame of a shard without the
+    /// `finger_force_n` tensor (format version 1); whether a whole data set has it:
+    /// [`DatasetCard::has_finger_force`](super::DatasetCard::has_finger_force).
+    pub finger_force_n: Option<Vec<[f32; 3]>>,
     /// Ground-truth marker centres, hand frame, metres.
     pub markers: Vec<[f32; 3]>,
     /// Wrist pose: translation xyz (metres), then quaternion xyzw.

@@ -9,7 +9,8 @@
 //! ```
 //!
 //! Each shard stacks its frames along the first axis of these tensors (`F` frames, `V` surface
-//! vertices of the whole hand, `M` markers, `T` tendons, `P` object parameters):
+//! vertices of the whole hand, `M` markers, `T` tendons, `P` object parameters, `N_fingers`
+//! fingers):
 //!
 //! | tensor | dtype | shape | content |
 //! |---|---|---|---|
@@ -24,6 +25,18 @@
 //! | `tendon_pull_m` | F32 | `[F, T]` | pulled length of every tendon, fingers concatenated |
 //! | `object_family` | U8 | `[F]` | index into the layout's `object_families` |
 //! | `object_params` | F32 | `[F, P]` | the object's family parameters (zero-padded) |
+//! | `finger_force_n` | F32 | `[F, N_fingers, 3]` | net contact force on each finger, hand frame, newtons (format version 2) |
+//!
+//! `finger_force_n` is the vector sum of the penalty forces on a finger's vertices, so it is the
+//! force the object exerts on the finger; the sum of the finger's `contact_force_n` magnitudes
+//! overstates it where the vertices are pushed different ways (on an edge of the object, or
+//! squeezed from two sides). Shards of format version 1 lack the tensor and read with
+//! [`DatasetFrame::finger_force_n`](crate::dataset::DatasetFrame::finger_force_n) `None`;
+//! [`DatasetCard::has_finger_force`](crate::dataset::DatasetCard::has_finger_force) says whether
+//! every frame of a data set has it (the card counts those frames in
+//! [`FrameStats::force_frames`](crate::dataset::FrameStats::force_frames)). The card's
+//! `format_version` is the version of the writer
+//! ([`FORMAT_VERSION`](crate::dataset::FORMAT_VERSION)).
 //!
 //! The shard's safetensors metadata holds the layout as JSON under `moe_touch_layout`. In Python:
 //!

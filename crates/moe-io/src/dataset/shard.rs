@@ -12,6 +12,9 @@ use crate::error::IoError;
 /// Metadata key under which a shard stores its layout.
 pub const LAYOUT_KEY: &str = "moe_touch_layout";
 
+/// Name of the optional tensor of the fingers' net contact forces (format version 2).
+const FINGER_FORCE: &str = "finger_force_n";
+
 fn check_frame(
     path: &Path,
     layout: &DatasetLayout,
@@ -65,6 +68,19 @@ fn check_frame(
             format!("object family {} is not in the layout", f.object_family),
         ));
     }
+    if let Some(forces) = &f.finger_force_n {
+        let fingers = layout.finger_num_vertices.len();
+        if forces.len() != fingers {
+            return Err(IoError::invalid(
+                path,
+                item(),
+                format!(
+                    "{} finger forces, the layout has {fingers} fingers",
+                    forces.len()
+                ),
+            ));
+        }
+    }
     if f.contact.iter().any(|&c| c > 1) {
         return Err(IoError::invalid(
             path,
@@ -79,6 +95,11 @@ fn check_frame(
         .or_else(|| finite3(&f.markers).map(|i| format!("marker {i}")))
         .or_else(|| finite(&f.tendon_pull_m).map(|i| format!("tendon pull {i}")))
         .or_else(|| finite(&f.object_params).map(|i| format!("object parameter {i}")))
+        .or_else(|| {
+            (f.finger_force_n.as_deref())
+                .and_then(finite3)
+                .map(|i| format!("finger force {i}"))
+        })
         .or_else(|| {
             (f.world_from_hand.iter().position(|c| !c.is_finite()))
                 .map(|i| format!("wrist pose component {i}"))
@@ -144,8 +165,19 @@ pub fn shard_bytes(
             "a shard needs at least one frame",
         ));
     }
+    let with_forces = frames[0].finger_force_n.is_some();
     for (k, f) in frames.iter().enumerate() {
         check_frame(path, layout, k, f)?;
+        if f.finger_force_n.is_some() != with_forces {
+            return Err(IoError::invalid(
+                path,
+                format!(
+                    "frame {k} (trajectory {}, frame {})",
+                    f.trajectory_id, f.frame_index
+                ),
+                "finger forces must be given for every frame of a shard or for none",
+            ));
+        }
     }
     let n = frames.len();
     let (v, m, t, p) = (
@@ -154,7 +186,7 @@ pub fn shard_bytes(
         layout.total_tendons(),
         layout.object_param_len,
     );
-    let tensors: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
+    let mut tensors: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
         (
             "trajectory_id",
             Dtype::U64,
@@ -254,6 +286,19 @@ pub fn shard_bytes(
             ),
         ),
     ];
+    if with_forces {
+        tensors.push((
+            FINGER_FORCE,
+            Dtype::F32,
+            vec![n, layout.finger_num_vertices.len(), 3],
+            bytes_of(
+                frames
+                    .iter()
+                    .flat_map(|f| f.finger_force_n.iter().flatten().flatten().copied()),
+                f32::to_le_bytes,
+            ),
+        ));
+    }
     let views = tensors
         .iter()
         .map(|(name, dtype, shape, data)| {
@@ -384,6 +429,19 @@ fn parse_shard_unguarded(
     let tendons = f32s(tensor(path, &st, "tendon_pull_m", Dtype::F32, &[n, t])?);
     let family = tensor(path, &st, "object_family", Dtype::U8, &[n])?;
     let params = f32s(tensor(path, &st, "object_params", Dtype::F32, &[n, p])?);
+    // Absent from shards of format version 1: their frames carry no finger forces.
+    let fingers = layout.finger_num_vertices.len();
+    let forces = if st.names().contains(&FINGER_FORCE) {
+        Some(f32s(tensor(
+            path,
+            &st,
+            FINGER_FORCE,
+            Dtype::F32,
+            &[n, fingers, 3],
+        )?))
+    } else {
+        None
+    };
     let triples = |flat: &[f32]| -> Vec<[f32; 3]> {
         flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
     };
@@ -401,6 +459,9 @@ fn parse_shard_unguarded(
             contact: contact[v * k..v * (k + 1)].to_vec(),
             contact_force_n: force[v * k..v * (k + 1)].to_vec(),
             obstacle_distance_m: distance[v * k..v * (k + 1)].to_vec(),
+            finger_force_n: forces
+                .as_ref()
+                .map(|all| triples(&all[3 * fingers * k..3 * fingers * (k + 1)])),
             markers: triples(&markers[3 * m * k..3 * m * (k + 1)]),
             world_from_hand,
             tendon_pull_m: tendons[t * k..t * (k + 1)].to_vec(),

@@ -26,6 +26,7 @@ fn frame(traj: u64, k: u32) -> DatasetFrame {
         contact: vec![0, 1, u8::from(k.is_multiple_of(2)), 0, 1],
         contact_force_n: vec![0.0, 0.25, 0.01 * s, 0.0, 1.5],
         obstacle_distance_m: vec![0.01, -1e-5, -1e-6 * s, f32::INFINITY, -2e-4],
+        finger_force_n: Some(vec![[0.0, 0.1 * s, -0.25], [-1.5, 0.0, 0.0]]),
         markers: vec![[0.1, 0.2, s], [0.3, 0.4, s]],
         world_from_hand: [
             0.1,
@@ -115,6 +116,135 @@ fn shards_round_trip_exactly() {
     assert_eq!(back, frames);
     // Deterministic bytes.
     assert_eq!(bytes, shard_bytes(path, &layout(), &frames).unwrap());
+}
+
+/// Frames as a shard of format version 1 held them: no finger forces.
+fn frames_without_forces() -> Vec<DatasetFrame> {
+    (0..2)
+        .flat_map(|t| (0..3).map(move |k| frame(t, k)))
+        .map(|f| DatasetFrame {
+            finger_force_n: None,
+            ..f
+        })
+        .collect()
+}
+
+#[test]
+fn finger_forces_are_optional_per_shard() {
+    let path = Path::new("s.safetensors");
+    let with: Vec<DatasetFrame> = (0..2).map(|k| frame(4, k)).collect();
+    let bytes = shard_bytes(path, &layout(), &with).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    let forces = st.tensor("finger_force_n").unwrap();
+    assert_eq!(forces.dtype(), safetensors::Dtype::F32);
+    assert_eq!(forces.shape(), &[2, 2, 3]);
+    // Without forces the tensor is left out (the shard of format version 1) and reads as None.
+    let without = frames_without_forces();
+    let bytes = shard_bytes(path, &layout(), &without).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    assert!(st.tensor("finger_force_n").is_err());
+    assert_eq!(st.names().len(), 11);
+    let (_, back) = parse_shard(path, &bytes).unwrap();
+    assert_eq!(back, without);
+    assert!(back.iter().all(|f| f.finger_force_n.is_none()));
+    // A shard has them for every frame or for none.
+    let mut mixed = with.clone();
+    mixed[1].finger_force_n = None;
+    moe_geom::assert_err!(
+        shard_bytes(path, &layout(), &mixed),
+        IoError::InvalidData { item, message, .. }
+            if item == "frame 1 (trajectory 4, frame 1)" && message.contains("every frame")
+    );
+    // One force per finger, finite.
+    let mut f = frame(4, 0);
+    f.finger_force_n = Some(vec![[0.0; 3]]);
+    moe_geom::assert_err!(
+        shard_bytes(path, &layout(), &[f]),
+        IoError::InvalidData { message, .. }
+            if message == "1 finger forces, the layout has 2 fingers"
+    );
+    let mut f = frame(4, 0);
+    f.finger_force_n.as_mut().unwrap()[1][2] = f32::NAN;
+    moe_geom::assert_err!(
+        shard_bytes(path, &layout(), &[f]),
+        IoError::InvalidData { message, .. } if message == "non-finite value in finger force 1"
+    );
+}
+
+/// `bytes` (a valid shard) with its `finger_force_n` tensor replaced by `dtype`, `shape`, `data`.
+fn with_force_tensor(
+    bytes: &[u8],
+    dtype: safetensors::Dtype,
+    shape: Vec<usize>,
+    data: &[u8],
+) -> Vec<u8> {
+    let (_, metadata) = safetensors::SafeTensors::read_metadata(bytes).unwrap();
+    let st = safetensors::SafeTensors::deserialize(bytes).unwrap();
+    let mut views: Vec<(String, safetensors::tensor::TensorView<'_>)> = st
+        .tensors()
+        .into_iter()
+        .filter(|(name, _)| name != "finger_force_n")
+        .collect();
+    views.push((
+        "finger_force_n".into(),
+        safetensors::tensor::TensorView::new(dtype, shape, data).unwrap(),
+    ));
+    safetensors::serialize(views, metadata.metadata().clone()).unwrap()
+}
+
+#[test]
+fn finger_forces_of_the_wrong_kind_are_named() {
+    let path = Path::new("s.safetensors");
+    let frames: Vec<DatasetFrame> = (0..2).map(|k| frame(4, k)).collect();
+    let bytes = shard_bytes(path, &layout(), &frames).unwrap();
+    // The same values re-serialised read back exactly.
+    let good = safetensors::SafeTensors::deserialize(&bytes)
+        .unwrap()
+        .tensor("finger_force_n")
+        .unwrap()
+        .data()
+        .to_vec();
+    let (_, back) = parse_shard(
+        path,
+        &with_force_tensor(&bytes, safetensors::Dtype::F32, vec![2, 2, 3], &good),
+    )
+    .unwrap();
+    assert_eq!(back, frames);
+    let wrong = [
+        (safetensors::Dtype::F64, vec![2, 2, 3], vec![0u8; 96]),
+        (safetensors::Dtype::F32, vec![2, 3, 3], vec![0u8; 72]),
+        (safetensors::Dtype::F32, vec![2, 6], vec![0u8; 48]),
+    ];
+    for (dtype, shape, data) in wrong {
+        moe_geom::assert_err!(
+            parse_shard(path, &with_force_tensor(&bytes, dtype, shape.clone(), &data)),
+            IoError::InvalidData { item, .. } if item == "tensor finger_force_n"
+        );
+    }
+    let mut nan = good.clone();
+    nan[4 * 10..4 * 11].copy_from_slice(&f32::NAN.to_le_bytes());
+    moe_geom::assert_err!(
+        parse_shard(path, &with_force_tensor(&bytes, safetensors::Dtype::F32, vec![2, 2, 3], &nan)),
+        IoError::InvalidData { item, message, .. }
+            if item == "frame 1 (trajectory 4, frame 1)"
+                && message == "non-finite value in finger force 1"
+    );
+}
+
+#[test]
+fn a_data_set_of_format_version_1_reads_without_finger_forces() {
+    // The committed held-out shard was written before finger forces existed.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/contact/heldout");
+    let reader = DatasetReader::open(&dir).unwrap();
+    assert_eq!(reader.card().format_version, 1);
+    assert_eq!(reader.card().totals.force_frames, 0);
+    assert!(!reader.card().has_finger_force());
+    let frames: Vec<DatasetFrame> = reader
+        .frames(None, SplitFractions::default())
+        .map(Result::unwrap)
+        .collect();
+    assert_eq!(frames.len() as u64, reader.card().totals.frames);
+    assert!(frames.iter().all(|f| f.finger_force_n.is_none()));
 }
 
 #[test]
@@ -216,7 +346,10 @@ fn reader_iterates_shards_lazily_and_splits_by_trajectory() {
         all.extend(frames);
     }
     let card = DatasetCard::new(layout(), 42, serde_json::json!({"test": true}), entries);
+    assert_eq!(card.format_version, FORMAT_VERSION);
     assert_eq!(card.totals.frames, 36);
+    assert_eq!(card.totals.force_frames, 36);
+    assert!(card.has_finger_force());
     assert_eq!(card.totals.trajectories, 12);
     assert_eq!(
         card.families["sphere"].frames + card.families["plate"].frames,

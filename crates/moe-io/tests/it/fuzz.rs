@@ -102,6 +102,7 @@ fn shard_sample() -> Vec<u8> {
                 contact: vec![0, 1, 0, 0, u8::from(k == 1)],
                 contact_force_n: vec![0.0, 0.02, 0.0, 0.0, 0.5 * s],
                 obstacle_distance_m: vec![0.01, -1e-5, 2e-3, f32::INFINITY, 0.0],
+                finger_force_n: Some(vec![[0.0, -0.02, 0.0], [0.1 * s, 0.0, -0.5 * s]]),
                 markers: vec![[0.0, 0.0, s], [0.01, 0.0, s]],
                 world_from_hand: [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0],
                 tendon_pull_m: vec![0.001 * k as f32, 0.0],

@@ -29,6 +29,7 @@ impl FemModel {
             damping: h,
             force: h * h,
             momentum: h,
+            exact: false,
         };
         (drive.inputs.terms)(&state.x, &state.v, drive.terms);
         self.solve(ws, ctx, c, state, drive, true)?;

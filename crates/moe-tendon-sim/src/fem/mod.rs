@@ -17,10 +17,12 @@ mod model;
 mod newton;
 mod solve;
 mod step;
+mod tangent;
 mod workspace;
 
 pub use model::FemModel;
 pub(crate) use step::Advance;
+pub use tangent::Tangent;
 pub use workspace::FemWorkspace;
 
 /// Builds the interaction terms of a solve from the current positions and velocities.

@@ -27,6 +27,8 @@ pub struct FemModel {
     pub(super) fixed: Vec<bool>,
     pub(super) system: SparseSystem,
     pub(super) max_rank_ones: usize,
+    /// Static solves and tangents use the exact Hessian of the corotated energy.
+    pub(super) exact_static_tangent: bool,
 }
 
 /// Shape-function gradients `g_a` (`∇N_a`) and the volume of a rest tetrahedron.
@@ -109,7 +111,23 @@ impl FemModel {
             fixed,
             system,
             max_rank_ones,
+            exact_static_tangent: false,
         })
+    }
+
+    /// Whether static solves and [`FemModel::factor_tangent`] use the exact Hessian of the
+    /// corotated energy (the derivative of the elements' rotations included) instead of the
+    /// corotated stiffness `R K⁰ Rᵀ` that dynamic steps use. The equilibrium is the same; the
+    /// exact tangent makes Newton converge quadratically and is the true linear response (the
+    /// compliance an estimator reads), which the corotated one is not under large rotation and
+    /// stress. Default off (the simulator's data do not depend on it).
+    pub fn set_exact_static_tangent(&mut self, exact: bool) {
+        self.exact_static_tangent = exact;
+    }
+
+    /// See [`FemModel::set_exact_static_tangent`].
+    pub fn exact_static_tangent(&self) -> bool {
+        self.exact_static_tangent
     }
 
     /// The tet mesh (rest shape).

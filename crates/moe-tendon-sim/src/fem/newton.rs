@@ -28,6 +28,7 @@ impl FemModel {
             damping: 0.0,
             force: 1.0,
             momentum: 0.0,
+            exact: self.exact_static_tangent,
         };
         let gravity = drive.inputs.gravity;
         state.v.iter_mut().for_each(|v| *v = Vector3::zeros());

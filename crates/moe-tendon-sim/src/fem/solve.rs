@@ -1,11 +1,12 @@
 //! Assembly and solve of one linearised system (elasticity, mass, interaction terms, rank-one
 //! terms by a Woodbury update).
 
-use moe_geom::{Matrix3, Real, Vector3};
+use moe_geom::{Matrix3, Point3, Real, Vector3};
 
 use super::{BodyState, Drive, FemModel, FemWorkspace, StepContext};
 use crate::error::SimError;
 use crate::linsys::FIXED;
+use crate::terms::Terms;
 
 /// Coefficients of one linearised solve `(c_M M + c_K K + c_E K_ext + c_D D_ext) Δx = c_F f + …`.
 #[derive(Debug, Clone, Copy)]
@@ -17,6 +18,9 @@ pub(super) struct Coefficients {
     pub(super) force: Real,
     /// `h` for the momentum term `h M v₀` (0 for static solves).
     pub(super) momentum: Real,
+    /// Add the derivative of the elements' rotations to the elastic stiffness (the exact
+    /// Hessian of the corotated energy) instead of the corotated approximation `R K⁰ Rᵀ`.
+    pub(super) exact: bool,
 }
 
 impl FemModel {
@@ -56,9 +60,6 @@ impl FemModel {
             woodbury,
             ..
         } = ws;
-        buf.values.fill(0.0);
-        force.fill(Vector3::zeros());
-        coupling.fill(Vector3::zeros());
         for i in 0..x.len() {
             dx[i] = if self.fixed[i] && move_fixed {
                 targets[i] - x[i]
@@ -66,98 +67,17 @@ impl FemModel {
                 Vector3::zeros()
             };
         }
-        // Adds block B = A_ab for the ordered node pair (a, b).
-        let couple =
-            |values: &mut [Real], coupling: &mut [Vector3], a: u32, b: u32, blk: &Matrix3| {
-                let fa = sys.free_of(a);
-                if fa == FIXED {
-                    return;
-                }
-                let fb = sys.free_of(b);
-                if fb == FIXED {
-                    coupling[a as usize] -= blk * dx[b as usize];
-                } else if fa >= fb {
-                    sys.add_block(values, fa, fb, blk);
-                }
-            };
-        // Elasticity.
-        for t in 0..self.mesh.num_tets() {
-            let (r, stress) = self.element_state(t, x, ctx)?;
-            let tet = &self.mesh.tets()[t];
-            let g = &self.grads[t];
-            let vol = self.volumes[t];
-            let rg = g.map(|ga| r * ga);
-            for a in 0..4 {
-                force[tet[a] as usize] -= r * (stress * g[a]) * vol;
-            }
-            let k = c.stiffness * vol;
-            for a in 0..4 {
-                for b in 0..4 {
-                    let blk = (rg[a] * rg[b].transpose() * self.lambda
-                        + rg[b] * rg[a].transpose() * self.mu
-                        + Matrix3::identity() * (self.mu * g[a].dot(&g[b])))
-                        * k;
-                    couple(&mut buf.values, coupling, tet[a], tet[b], &blk);
-                }
-            }
-        }
-        // Mass and gravity.
-        for (i, (fi_force, &mass)) in force.iter_mut().zip(&self.mass).enumerate() {
-            *fi_force += gravity * mass;
-            let fi = sys.free_of(i as u32);
-            if fi != FIXED && c.mass != 0.0 {
-                sys.add_block(
-                    &mut buf.values,
-                    fi,
-                    fi,
-                    &Matrix3::from_diagonal_element(c.mass * mass),
-                );
-            }
-        }
-        for &(n, f) in &terms.nodal_forces {
-            force[n as usize] += f;
-        }
-        // Point terms.
-        for p in &terms.points {
-            let e = &p.point;
-            let blk = p.stiffness * c.external + p.damping * c.damping;
-            // The damping force −D(v − v_t) contributes h²·D v_t to the right-hand side.
-            let damp_force = if c.damping != 0.0 {
-                p.damping * p.target_velocity
-            } else {
-                Vector3::zeros()
-            };
-            for k in 0..4 {
-                force[e.nodes[k] as usize] += (p.force + damp_force) * e.weights[k];
-                for l in 0..4 {
-                    let b = blk * (e.weights[k] * e.weights[l]);
-                    couple(&mut buf.values, coupling, e.nodes[k], e.nodes[l], &b);
-                }
-            }
-        }
-        // Pair terms.
-        for p in &terms.pairs {
-            let nodes: [u32; 8] = std::array::from_fn(|k| {
-                if k < 4 {
-                    p.a.nodes[k]
-                } else {
-                    p.b.nodes[k - 4]
-                }
-            });
-            let w: [Real; 8] = std::array::from_fn(|k| {
-                if k < 4 {
-                    p.a.weights[k]
-                } else {
-                    -p.b.weights[k - 4]
-                }
-            });
-            for k in 0..8 {
-                for l in 0..8 {
-                    let b = p.stiffness * (c.external * w[k] * w[l]);
-                    couple(&mut buf.values, coupling, nodes[k], nodes[l], &b);
-                }
-            }
-        }
+        self.assemble(
+            &mut buf.values,
+            force,
+            coupling,
+            dx,
+            c,
+            x,
+            terms,
+            gravity,
+            ctx,
+        )?;
         // Right-hand sides: column 0 the base system, columns 1..=m the rank-one gradients.
         sys.prepare_rhs(buf, 1 + m);
         for i in 0..x.len() {
@@ -241,6 +161,151 @@ impl FemModel {
             }
         }
         *slope = s;
+        Ok(())
+    }
+
+    /// The matrix `Q = 2μ I + 2c (tr(S) I − S)⁻¹` with `c = λ (tr S − 3) − 2μ` of element `t`
+    /// (`F = R S`): the elastic stiffness gains `−(V/2) R [g_a]× Q [g_b]× Rᵀ` from the
+    /// derivative of `R` (with `Rᵀ dR = [ω]×`, `(tr(S) I − S) ω = 2 axial(skew(Rᵀ dF))`).
+    /// Zero at rest; `None` where `tr(S) I − S` is singular (a degenerate element).
+    fn rotation_stiffness(&self, t: usize, x: &[Point3], r: &Matrix3) -> Option<Matrix3> {
+        let f = self.deformation_gradient(t, x);
+        let s = r.transpose() * f;
+        let s = (s + s.transpose()) * 0.5;
+        let tr = s.trace();
+        let m = Matrix3::identity() * tr - s;
+        let inv = m.try_inverse()?;
+        let c = self.lambda * (tr - 3.0) - 2.0 * self.mu;
+        Some(Matrix3::identity() * (2.0 * self.mu) + inv * (2.0 * c))
+    }
+
+    /// Assembles the lower triangle of `c_M M + c_K K + c_E K_ext + c_D D_ext` at `x` into
+    /// `values` (the rank-one terms excepted), the forces at `x` (elastic, gravity, nodal and
+    /// point forces with the damping terms' target velocities) into `force`, and into
+    /// `coupling` the forces on free nodes from the prescribed motion `dx` of the fixed nodes.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn assemble(
+        &self,
+        values: &mut [Real],
+        force: &mut [Vector3],
+        coupling: &mut [Vector3],
+        dx: &[Vector3],
+        c: Coefficients,
+        x: &[Point3],
+        terms: &Terms,
+        gravity: &Vector3,
+        ctx: StepContext,
+    ) -> Result<(), SimError> {
+        let sys = &self.system;
+        values.fill(0.0);
+        force.fill(Vector3::zeros());
+        coupling.fill(Vector3::zeros());
+        // Adds block B = A_ab for the ordered node pair (a, b).
+        let couple =
+            |values: &mut [Real], coupling: &mut [Vector3], a: u32, b: u32, blk: &Matrix3| {
+                let fa = sys.free_of(a);
+                if fa == FIXED {
+                    return;
+                }
+                let fb = sys.free_of(b);
+                if fb == FIXED {
+                    coupling[a as usize] -= blk * dx[b as usize];
+                } else if fa >= fb {
+                    sys.add_block(values, fa, fb, blk);
+                }
+            };
+        // Elasticity.
+        for t in 0..self.mesh.num_tets() {
+            let (r, stress) = self.element_state(t, x, ctx)?;
+            let tet = &self.mesh.tets()[t];
+            let g = &self.grads[t];
+            let vol = self.volumes[t];
+            let rg = g.map(|ga| r * ga);
+            for a in 0..4 {
+                force[tet[a] as usize] -= r * (stress * g[a]) * vol;
+            }
+            let k = c.stiffness * vol;
+            let rotation_term = if c.exact {
+                self.rotation_stiffness(t, x, &r)
+            } else {
+                None
+            };
+            for a in 0..4 {
+                for b in 0..4 {
+                    let mut blk = (rg[a] * rg[b].transpose() * self.lambda
+                        + rg[b] * rg[a].transpose() * self.mu
+                        + Matrix3::identity() * (self.mu * g[a].dot(&g[b])))
+                        * k;
+                    if let Some(q) = &rotation_term {
+                        // −(V/2) R [g_a]× Q [g_b]× Rᵀ.
+                        blk -= r
+                            * g[a].cross_matrix()
+                            * q
+                            * g[b].cross_matrix()
+                            * r.transpose()
+                            * (0.5 * k);
+                    }
+                    couple(values, coupling, tet[a], tet[b], &blk);
+                }
+            }
+        }
+        // Mass and gravity.
+        for (i, (fi_force, &mass)) in force.iter_mut().zip(&self.mass).enumerate() {
+            *fi_force += gravity * mass;
+            let fi = sys.free_of(i as u32);
+            if fi != FIXED && c.mass != 0.0 {
+                sys.add_block(
+                    values,
+                    fi,
+                    fi,
+                    &Matrix3::from_diagonal_element(c.mass * mass),
+                );
+            }
+        }
+        for &(n, f) in &terms.nodal_forces {
+            force[n as usize] += f;
+        }
+        // Point terms.
+        for p in &terms.points {
+            let e = &p.point;
+            let blk = p.stiffness * c.external + p.damping * c.damping;
+            // The damping force −D(v − v_t) contributes h²·D v_t to the right-hand side.
+            let damp_force = if c.damping != 0.0 {
+                p.damping * p.target_velocity
+            } else {
+                Vector3::zeros()
+            };
+            for k in 0..4 {
+                force[e.nodes[k] as usize] += (p.force + damp_force) * e.weights[k];
+                for l in 0..4 {
+                    let b = blk * (e.weights[k] * e.weights[l]);
+                    couple(values, coupling, e.nodes[k], e.nodes[l], &b);
+                }
+            }
+        }
+        // Pair terms.
+        for p in &terms.pairs {
+            let nodes: [u32; 8] = std::array::from_fn(|k| {
+                if k < 4 {
+                    p.a.nodes[k]
+                } else {
+                    p.b.nodes[k - 4]
+                }
+            });
+            let w: [Real; 8] = std::array::from_fn(|k| {
+                if k < 4 {
+                    p.a.weights[k]
+                } else {
+                    -p.b.weights[k - 4]
+                }
+            });
+            for k in 0..8 {
+                for l in 0..8 {
+                    let b = p.stiffness * (c.external * w[k] * w[l]);
+                    couple(values, coupling, nodes[k], nodes[l], &b);
+                }
+            }
+        }
         Ok(())
     }
 }

@@ -5,4 +5,5 @@ mod contact;
 mod fixtures;
 mod mechanics;
 mod scene;
+mod tangent;
 mod tendons;

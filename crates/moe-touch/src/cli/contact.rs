@@ -8,10 +8,10 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use moe_contact::candle_core::{DType, Tensor};
 use moe_contact::{
-    Aggregation, ContactInput, DeviceKind, Dgcnn, DgcnnEstimator, InputFeature, Mode, ModelCard,
-    StageTimings, contact_probability, open_device,
+    Aggregation, DeviceKind, Dgcnn, DgcnnEstimator, InputFeature, Mode, ModelCard, StageTimings,
+    contact_probability, open_device,
 };
-use moe_geom::{ContactMap, HandModel, HandShape};
+use moe_geom::{ContactInput, ContactMap, HandModel, HandShape};
 use serde::Serialize;
 
 /// The float type the network computes in.
@@ -327,9 +327,8 @@ fn run_shape(
     }
     let (mut maps, timings) = estimator
         .estimate_inputs(&[ContactInput {
-            shape: &shape,
-            keypoints: None,
             tendon_pull_m: pulls.as_deref(),
+            ..ContactInput::shape(&shape)
         }])
         .with_context(|| format!("shape {}", dir.display()))?;
     let map: ContactMap = maps.pop().context("no contact map")?;

@@ -1,8 +1,7 @@
 //! The per-frame pipeline on the committed episode with the shipped model.
 
 use moe_arap::ShapeConfig;
-use moe_contact::ContactEstimator;
-use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
+use moe_geom::{ContactInput, FingerParams, HandModel, HandPreset, WorldFromHand};
 use moe_touch::contact_eval::study_shape_estimator;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
@@ -62,7 +61,9 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
             .unwrap();
         let det = d.detect(&frame.color_rgb8, &frame.depth_m).unwrap();
         let shape = arap.estimate(&det.keypoints).unwrap().shape;
-        let map = model.estimate(&shape, Some(&det.keypoints)).unwrap();
+        let map = model
+            .estimate_map(&ContactInput::shape(&shape).with_keypoints(&det.keypoints))
+            .unwrap();
         assert_eq!(est.keypoints, det.keypoints);
         assert_eq!(est.shape, shape);
         assert_eq!(est.contact, map);
@@ -336,7 +337,7 @@ fn every_committed_model_loads_and_finds_no_contact_at_rest() {
     let rest = moe_geom::HandShape::rest(&hand);
     for path in &models {
         let model = load_contact_model(path, &hand).unwrap();
-        let map = model.estimate(&rest, None).unwrap();
+        let map = model.estimate_map(&ContactInput::shape(&rest)).unwrap();
         let threshold = model.threshold();
         for (f, finger) in map.fingers.iter().enumerate() {
             for (v, &p) in finger.iter().enumerate() {
@@ -371,7 +372,7 @@ fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
     };
     let truth = run_grasp_trial(
         &hand,
-        GraspContacts::<&moe_contact::DgcnnEstimator>::Simulator,
+        GraspContacts::<moe_contact::DgcnnEstimator>::Simulator,
         30.0,
         1,
         0,

@@ -1,0 +1,195 @@
+//! The estimator's settings and the hand's material.
+
+use moe_geom::Real;
+use moe_tendon_sim::{Material, TendonParams, VoxelParams};
+use serde::{Deserialize, Serialize};
+
+use crate::error::PhysicsError;
+
+/// What the hand is made of, as the estimator models it: the silicone's elasticity, the
+/// damping that dynamic observations are corrected for, and the tendons' stiffness. Calibration
+/// (`moe-touch calibrate`) fits it from contact-free frames; the defaults are the nominal
+/// values of the hand's design (the paper's E = 100 kPa, ν = 0.1).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HandMaterial {
+    /// Silicone body.
+    pub material: Material,
+    /// Tendons.
+    pub tendon: TendonParams,
+}
+
+impl HandMaterial {
+    /// Checks every value.
+    ///
+    /// # Errors
+    /// [`PhysicsError::InvalidParameter`] naming the first non-physical one (E ≤ 0, Poisson's
+    /// ratio outside (−1, 0.5), density ≤ 0, negative damping, tendon stiffness ≤ 0).
+    pub fn validate(&self) -> Result<(), PhysicsError> {
+        let sim = |e: moe_tendon_sim::SimError| match e {
+            moe_tendon_sim::SimError::InvalidParameter {
+                name,
+                value,
+                reason,
+            } => PhysicsError::InvalidParameter {
+                name,
+                value,
+                reason,
+            },
+            _ => PhysicsError::InvalidParameter {
+                name: "material",
+                value: Real::NAN,
+                reason: "rejected by the simulator",
+            },
+        };
+        self.material.validate().map_err(sim)?;
+        self.tendon.validate().map_err(sim)?;
+        Ok(())
+    }
+}
+
+/// How the physics estimator models a finger and decides what it sees.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PhysicsConfig {
+    /// The estimator's own volume discretisation. Default 4 mm cells: not the data generator's
+    /// 3.5 mm (a model is never the data's own mesh), and cheaper.
+    pub voxel: VoxelParams,
+    /// Static solves stop when the largest nodal update is below this, metres. Default 1e-6.
+    pub static_tolerance_m: Real,
+    /// Newton iterations of a static solve. Default 60.
+    pub static_max_iterations: usize,
+    /// Standard deviation of an observed marker coordinate about the model's prediction,
+    /// metres: marker noise and model error together. Default 1e-4.
+    pub marker_sigma_m: Real,
+    /// A finger is pressed when one load explains the markers better than none by at least
+    /// this many units of χ² (the likelihood-ratio statistic). Default 25.
+    pub detection_chi2: Real,
+    /// Smallest force reported as a contact, newtons. Default 0.02.
+    pub min_force_n: Real,
+    /// Largest force of one load, newtons: a fit asking for more is capped. Default 10.
+    pub max_force_n: Real,
+    /// Friction coefficient of the loads' admissible cone: 0 admits only forces along the
+    /// inward surface normal (frictionless contact). Default 0.
+    pub friction: Real,
+    /// Most loads per finger. Default 2.
+    pub max_loads_per_finger: usize,
+    /// A second load is kept when it lowers χ² by at least this much. Default 25.
+    pub second_load_chi2: Real,
+    /// Two loads of one finger are at least this far apart on the rest surface, metres.
+    /// Default 0.015.
+    pub min_load_separation_m: Real,
+    /// Radius of a load's patch on the rest surface, metres. Default 0.004.
+    pub patch_radius_m: Real,
+    /// Most Gauss–Newton iterations (search, loaded solve, re-linearisation) per frame.
+    /// Default 4.
+    pub gauss_newton_iterations: usize,
+    /// Gauss–Newton stops when the loads stay in place and their forces change by less than
+    /// this fraction. Default 0.02.
+    pub force_tolerance: Real,
+    /// Fewest observed markers of a finger the estimator works with. Default 3.
+    pub min_markers: usize,
+    /// Observations at most this far apart in time form a stream: the free finger is simulated
+    /// from one to the next (its lag behind the pulls is taken out of the markers). A longer
+    /// gap starts the stream again. Seconds; default 0.2.
+    pub stream_horizon_secs: Real,
+    /// How much of the contact response's lag is taken out of the markers in a stream (0: none,
+    /// 1: all, as a first-order lag with the body's damping time). Default 1.
+    pub contact_lag_gain: Real,
+    /// Largest time step of the free finger's simulation between observations, seconds; 0
+    /// turns the simulation off (the markers are then compared with the static free shape).
+    /// Default 0.01.
+    pub dynamic_step_secs: Real,
+}
+
+impl Default for PhysicsConfig {
+    fn default() -> Self {
+        Self {
+            voxel: VoxelParams { cell_size_m: 0.004 },
+            static_tolerance_m: 1e-6,
+            static_max_iterations: 60,
+            marker_sigma_m: 1e-4,
+            detection_chi2: 25.0,
+            min_force_n: 0.02,
+            max_force_n: 10.0,
+            friction: 0.0,
+            max_loads_per_finger: 2,
+            second_load_chi2: 25.0,
+            min_load_separation_m: 0.015,
+            patch_radius_m: 0.004,
+            gauss_newton_iterations: 4,
+            force_tolerance: 0.02,
+            min_markers: 3,
+            stream_horizon_secs: 0.2,
+            dynamic_step_secs: 0.01,
+            contact_lag_gain: 1.0,
+        }
+    }
+}
+
+impl PhysicsConfig {
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// [`PhysicsError::InvalidParameter`] naming the first bad one.
+    pub fn validate(&self) -> Result<(), PhysicsError> {
+        let bad = |name, value, reason| {
+            Err(PhysicsError::InvalidParameter {
+                name,
+                value,
+                reason,
+            })
+        };
+        for (name, v) in [
+            ("voxel.cell_size_m", self.voxel.cell_size_m),
+            ("static_tolerance_m", self.static_tolerance_m),
+            ("marker_sigma_m", self.marker_sigma_m),
+            ("patch_radius_m", self.patch_radius_m),
+            ("max_force_n", self.max_force_n),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, v, "must be finite and positive");
+            }
+        }
+        for (name, v) in [
+            ("detection_chi2", self.detection_chi2),
+            ("min_force_n", self.min_force_n),
+            ("friction", self.friction),
+            ("second_load_chi2", self.second_load_chi2),
+            ("min_load_separation_m", self.min_load_separation_m),
+            ("stream_horizon_secs", self.stream_horizon_secs),
+            ("dynamic_step_secs", self.dynamic_step_secs),
+            ("contact_lag_gain", self.contact_lag_gain),
+            ("force_tolerance", self.force_tolerance),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, v, "must be finite and non-negative");
+            }
+        }
+        if !(1..=10_000).contains(&self.static_max_iterations) {
+            return bad(
+                "static_max_iterations",
+                self.static_max_iterations as Real,
+                "must be in 1..=10000",
+            );
+        }
+        if !(1..=4).contains(&self.max_loads_per_finger) {
+            return bad(
+                "max_loads_per_finger",
+                self.max_loads_per_finger as Real,
+                "must be in 1..=4",
+            );
+        }
+        if !(1..=50).contains(&self.gauss_newton_iterations) {
+            return bad(
+                "gauss_newton_iterations",
+                self.gauss_newton_iterations as Real,
+                "must be in 1..=50",
+            );
+        }
+        if self.min_markers == 0 {
+            return bad("min_markers", 0.0, "must be at least 1");
+        }
+        Ok(())
+    }
+}

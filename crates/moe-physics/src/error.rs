@@ -1,0 +1,116 @@
+//! The error type of `moe-physics`.
+
+use moe_geom::{GeomError, Real};
+use moe_tendon_sim::SimError;
+
+/// Everything that can go wrong when building or running the physics estimator. Every variant
+/// names the offending item (finger, marker, parameter).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PhysicsError {
+    /// A parameter is outside its valid range.
+    #[error("parameter '{name}' = {value} is invalid: {reason}")]
+    InvalidParameter {
+        /// Parameter name, with its unit.
+        name: &'static str,
+        /// The value given.
+        value: Real,
+        /// What is required.
+        reason: &'static str,
+    },
+    /// The finger's mechanical model could not be built or solved (the source says how).
+    #[error("finger {finger}: {source}")]
+    Model {
+        /// Finger index.
+        finger: usize,
+        /// What the simulator reported.
+        #[source]
+        source: SimError,
+    },
+    /// A static solve did not converge for this finger and frame: the estimate of that finger
+    /// is unavailable for the frame (the stream goes on).
+    #[error(
+        "finger {finger}: the static solve did not converge in {iterations} iterations \
+         (last update {update_m:.3e} m) {stage}"
+    )]
+    StaticNotConverged {
+        /// Finger index.
+        finger: usize,
+        /// What was being solved (the free shape under the pulls, or the shape under the
+        /// estimated loads).
+        stage: &'static str,
+        /// Iterations run.
+        iterations: usize,
+        /// Size of the last Newton update, metres.
+        update_m: Real,
+    },
+    /// A finger has fewer observed markers than the method needs.
+    #[error(
+        "finger {finger}: {observed} observed markers, the physics estimator needs at least \
+         {needed}"
+    )]
+    TooFewMarkers {
+        /// Finger index.
+        finger: usize,
+        /// Markers observed in the frame.
+        observed: usize,
+        /// Markers needed.
+        needed: usize,
+    },
+    /// An input does not fit the hand (counts of fingers, markers or tendons).
+    #[error("{what}: expected {expected}, got {got}")]
+    LengthMismatch {
+        /// What was counted.
+        what: &'static str,
+        /// Expected count.
+        expected: usize,
+        /// Count given.
+        got: usize,
+    },
+    /// An input does not fit the hand for one finger.
+    #[error("finger {finger}: {what}: expected {expected}, got {got}")]
+    FingerLengthMismatch {
+        /// What was counted.
+        what: &'static str,
+        /// Finger index.
+        finger: usize,
+        /// Expected count.
+        expected: usize,
+        /// Count given.
+        got: usize,
+    },
+    /// A non-finite input value.
+    #[error("finger {finger}: {what} {index} is not finite")]
+    NonFinite {
+        /// What it is (a marker, a tendon pull).
+        what: &'static str,
+        /// Finger index.
+        finger: usize,
+        /// Index within the finger.
+        index: usize,
+    },
+    /// A value the estimator needs was not given.
+    #[error("the physics estimator needs {what}")]
+    Missing {
+        /// What is missing.
+        what: &'static str,
+    },
+    /// A geometric input was rejected.
+    #[error("invalid geometry: {0}")]
+    Geometry(#[from] GeomError),
+}
+
+impl PhysicsError {
+    /// The finger an error is about, when it is about one finger (the estimator then reports it
+    /// for that finger and goes on with the others).
+    pub fn finger(&self) -> Option<usize> {
+        match self {
+            Self::Model { finger, .. }
+            | Self::StaticNotConverged { finger, .. }
+            | Self::TooFewMarkers { finger, .. }
+            | Self::FingerLengthMismatch { finger, .. }
+            | Self::NonFinite { finger, .. } => Some(*finger),
+            _ => None,
+        }
+    }
+}

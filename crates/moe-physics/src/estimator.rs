@@ -1,0 +1,316 @@
+//! The hand-level physics estimator: every finger read backwards, in the hand frame.
+
+use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3};
+use serde::Serialize;
+
+use crate::config::{HandMaterial, PhysicsConfig};
+use crate::error::PhysicsError;
+use crate::finger::{FingerEstimate, FingerInverse, FingerObservation};
+
+/// One instant of the hand as the physics estimator sees it (hand frame).
+#[derive(Debug, Clone, Copy)]
+pub struct PhysicsObservation<'a> {
+    /// The observed markers, hand frame (`None` where unseen).
+    pub keypoints: &'a HandKeypoints,
+    /// `tendon_pull_m[f][t]`: pulled length of tendon `t` of finger `f`, metres.
+    pub tendon_pull_m: &'a [Vec<Real>],
+    /// Gravity in the hand frame, m/s² (`world_from_hand⁻¹ · g`).
+    pub gravity_in_hand: Vector3,
+    /// Time of the observation, seconds: observations close in time form a stream (see
+    /// [`PhysicsConfig::stream_horizon_secs`]); `None` for a lone frame.
+    pub time_secs: Option<Real>,
+}
+
+/// A load the estimator found, hand frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ContactLoad {
+    /// Finger index.
+    pub finger: usize,
+    /// The vertex at the centre of the loaded patch.
+    pub vertex: u32,
+    /// The patch's centre on the rest surface, hand frame, metres.
+    pub location_rest: Point3,
+    /// The same point on the estimated (loaded) surface, hand frame, metres.
+    pub location: Point3,
+    /// The force the world exerts on the finger, hand frame, newtons.
+    pub force_n: Vector3,
+    /// Its magnitude, newtons.
+    pub magnitude_n: Real,
+    /// Standard deviation of the magnitude, newtons.
+    pub magnitude_sd_n: Real,
+    /// Posterior standard deviation of the location along the finger's axis and around it,
+    /// metres (NaN for a second load of a finger).
+    pub location_sd_m: [Real; 2],
+    /// The patch: `(vertex, share of the force)`.
+    pub patch: Vec<(u32, Real)>,
+}
+
+/// What the estimator says of one finger.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FingerReport {
+    /// Probability that the finger is pressed.
+    pub pressed_probability: Real,
+    /// Likelihood-ratio statistic of the loads against none (χ² units).
+    pub statistic: Real,
+    /// RMS of the observed marker coordinates about the free shape, metres.
+    pub free_rms_m: Real,
+    /// RMS about the estimate, metres.
+    pub fit_rms_m: Real,
+    /// Markers used.
+    pub observed_markers: usize,
+    /// Linear solves of the frame (static Newton iterations, dynamic steps, tangents).
+    pub solves: usize,
+    /// Why there is no estimate for this finger in this frame (too few markers, a static solve
+    /// that did not converge); its shape is then the rest shape and its map zero.
+    pub error: Option<String>,
+}
+
+/// Everything the physics estimator estimates about one instant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhysicsEstimate {
+    /// The loads found, finger by finger.
+    pub loads: Vec<ContactLoad>,
+    /// The estimated surface of every finger, hand frame (dented where loaded).
+    pub shape: HandShape,
+    /// Per-vertex contact probability.
+    pub contact: ContactMap,
+    /// `force_n[f][v]`: the force on vertex `v` of finger `f`, hand frame, newtons.
+    pub vertex_force_n: Vec<Vec<Vector3>>,
+    /// Per finger: the decision's figures.
+    pub fingers: Vec<FingerReport>,
+}
+
+impl PhysicsEstimate {
+    /// The total force on each finger, hand frame, newtons.
+    pub fn finger_forces_n(&self) -> Vec<Vector3> {
+        let mut out = vec![Vector3::zeros(); self.fingers.len()];
+        for l in &self.loads {
+            out[l.finger] += l.force_n;
+        }
+        out
+    }
+}
+
+/// The physics estimator of a hand: per finger, the loads that explain its markers through its
+/// FEM model, and the shape they produce.
+#[derive(Debug)]
+pub struct PhysicsEstimator {
+    hand: HandModel,
+    material: HandMaterial,
+    config: PhysicsConfig,
+    fingers: Vec<FingerInverse>,
+}
+
+impl PhysicsEstimator {
+    /// Builds the model of every finger of `hand`.
+    ///
+    /// # Errors
+    /// Invalid material or settings, or a finger the FEM cannot mesh (naming the finger).
+    pub fn new(
+        hand: &HandModel,
+        material: &HandMaterial,
+        config: &PhysicsConfig,
+    ) -> Result<Self, PhysicsError> {
+        material.validate()?;
+        config.validate()?;
+        let fingers = hand
+            .fingers()
+            .iter()
+            .enumerate()
+            .map(|(i, f)| FingerInverse::new(i, &f.model, material, config))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            hand: hand.clone(),
+            material: material.clone(),
+            config: config.clone(),
+            fingers,
+        })
+    }
+
+    /// The hand.
+    pub fn hand(&self) -> &HandModel {
+        &self.hand
+    }
+
+    /// The material.
+    pub fn material(&self) -> &HandMaterial {
+        &self.material
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &PhysicsConfig {
+        &self.config
+    }
+
+    /// Forgets the stream (warm starts and the previous observation).
+    pub fn reset(&mut self) {
+        self.fingers.iter_mut().for_each(FingerInverse::reset);
+    }
+
+    /// Checks an observation against the hand.
+    fn check(&self, obs: &PhysicsObservation<'_>) -> Result<(), PhysicsError> {
+        let n = self.hand.num_fingers();
+        if obs.keypoints.fingers.len() != n {
+            return Err(PhysicsError::LengthMismatch {
+                what: "fingers of the keypoints",
+                expected: n,
+                got: obs.keypoints.fingers.len(),
+            });
+        }
+        if obs.tendon_pull_m.len() != n {
+            return Err(PhysicsError::LengthMismatch {
+                what: "fingers of the tendon pulls",
+                expected: n,
+                got: obs.tendon_pull_m.len(),
+            });
+        }
+        for (f, hf) in self.hand.fingers().iter().enumerate() {
+            let markers = &obs.keypoints.fingers[f];
+            let expected = hf.model.marker_vertices().len();
+            if markers.len() != expected {
+                return Err(PhysicsError::FingerLengthMismatch {
+                    what: "markers",
+                    finger: f,
+                    expected,
+                    got: markers.len(),
+                });
+            }
+            if let Some(index) = markers
+                .iter()
+                .position(|m| m.is_some_and(|p| !p.coords.iter().all(|c| c.is_finite())))
+            {
+                return Err(PhysicsError::NonFinite {
+                    what: "marker",
+                    finger: f,
+                    index,
+                });
+            }
+            let pulls = &obs.tendon_pull_m[f];
+            let expected = hf.model.tendon_routes().len();
+            if pulls.len() != expected {
+                return Err(PhysicsError::FingerLengthMismatch {
+                    what: "tendon pulls",
+                    finger: f,
+                    expected,
+                    got: pulls.len(),
+                });
+            }
+            if let Some(index) = pulls.iter().position(|p| !p.is_finite()) {
+                return Err(PhysicsError::NonFinite {
+                    what: "tendon pull",
+                    finger: f,
+                    index,
+                });
+            }
+        }
+        if !obs.gravity_in_hand.iter().all(|g| g.is_finite()) {
+            return Err(PhysicsError::InvalidParameter {
+                name: "gravity_in_hand",
+                value: Real::NAN,
+                reason: "must be finite",
+            });
+        }
+        Ok(())
+    }
+
+    /// Estimates the loads and the shape of every finger. A finger whose estimate fails (too
+    /// few markers, a static solve that does not converge) is reported in its
+    /// [`FingerReport::error`] with the rest shape and no contact; the others go on.
+    ///
+    /// # Errors
+    /// An observation that does not fit the hand (counts, non-finite values).
+    pub fn estimate(
+        &mut self,
+        obs: &PhysicsObservation<'_>,
+    ) -> Result<PhysicsEstimate, PhysicsError> {
+        self.check(obs)?;
+        let (keypoints, pulls) = (obs.keypoints, obs.tendon_pull_m);
+        let mut out = PhysicsEstimate {
+            loads: Vec::new(),
+            shape: HandShape {
+                fingers: Vec::new(),
+            },
+            contact: ContactMap {
+                fingers: Vec::new(),
+            },
+            vertex_force_n: Vec::new(),
+            fingers: Vec::new(),
+        };
+        for (f, hf) in self.hand.fingers().iter().enumerate() {
+            let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
+            let finger_from_hand = hand_from_finger.inverse();
+            let markers: Vec<Option<Point3>> = keypoints.fingers[f]
+                .iter()
+                .map(|m| m.map(|p| finger_from_hand * p))
+                .collect();
+            let fobs = FingerObservation {
+                markers: &markers,
+                gravity: finger_from_hand * obs.gravity_in_hand,
+                pulls: &pulls[f],
+                time_secs: obs.time_secs,
+            };
+            let nv = hf.model.mesh().num_vertices();
+            match self.fingers[f].estimate(&fobs) {
+                Ok(est) => self.push_finger(&mut out, f, &hand_from_finger, hf, est),
+                Err(e) => {
+                    out.shape.fingers.push(self.hand.rest_vertices_in_hand(f));
+                    out.contact.fingers.push(vec![0.0; nv]);
+                    out.vertex_force_n.push(vec![Vector3::zeros(); nv]);
+                    out.fingers.push(FingerReport {
+                        pressed_probability: 0.0,
+                        statistic: 0.0,
+                        free_rms_m: Real::NAN,
+                        fit_rms_m: Real::NAN,
+                        observed_markers: markers.iter().filter(|m| m.is_some()).count(),
+                        solves: 0,
+                        error: Some(e.to_string()),
+                    });
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    fn push_finger(
+        &self,
+        out: &mut PhysicsEstimate,
+        f: usize,
+        hand_from_finger: &Iso3,
+        hf: &moe_geom::HandFinger,
+        est: FingerEstimate,
+    ) {
+        let rest = hf.model.mesh().vertices();
+        let surface: Vec<Point3> = est.surface.iter().map(|p| hand_from_finger * p).collect();
+        for l in &est.loads {
+            let force_n = hand_from_finger * l.force;
+            out.loads.push(ContactLoad {
+                finger: f,
+                vertex: l.vertex,
+                location_rest: hand_from_finger * rest[l.vertex as usize],
+                location: surface[l.vertex as usize],
+                force_n,
+                magnitude_n: force_n.norm(),
+                magnitude_sd_n: l.force_sd_n,
+                location_sd_m: l.location_sd_m,
+                patch: l.patch.clone(),
+            });
+        }
+        out.shape.fingers.push(surface);
+        out.contact.fingers.push(est.probability);
+        out.vertex_force_n.push(
+            est.vertex_force
+                .iter()
+                .map(|v| hand_from_finger * v)
+                .collect(),
+        );
+        out.fingers.push(FingerReport {
+            pressed_probability: est.pressed_probability,
+            statistic: est.statistic,
+            free_rms_m: est.free_rms_m,
+            fit_rms_m: est.fit_rms_m,
+            observed_markers: est.observed_markers,
+            solves: est.solves,
+            error: None,
+        });
+    }
+}

@@ -1,0 +1,264 @@
+//! One finger's FEM model as the inverse uses it: static shapes under the tendon pulls, gravity
+//! and point loads on the surface, and the compliance from surface loads to the observed marker
+//! coordinates by reciprocity.
+//!
+//! Everything is in the finger frame with the base fixed at rest: the hand-level estimator
+//! turns markers and gravity into this frame and the results back.
+
+use faer::Mat;
+use moe_geom::{FingerModel, Point3, Real, Vector3};
+use moe_tendon_sim::mechanics::{
+    Embedded, FemWorkspace, FingerBody, Integrator, PointTerm, StepContext, Tangent, Terms,
+};
+use moe_tendon_sim::{BodyState, Material, SimError, TendonCommand, TendonParams, VoxelParams};
+
+/// A force on the surface, spread over a patch of vertices.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct PatchLoad {
+    /// `(surface vertex, share)`: shares sum to 1.
+    pub(crate) patch: Vec<(u32, Real)>,
+    /// The force, newtons, finger frame.
+    pub(crate) force: Vector3,
+}
+
+/// Settings of the static solves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct StaticSettings {
+    pub(crate) tolerance_m: Real,
+    pub(crate) max_iterations: usize,
+}
+
+/// A finger's FEM body with the scratch memory of its solves.
+#[derive(Debug)]
+pub(crate) struct FingerMechanics {
+    body: FingerBody,
+    ws: FemWorkspace,
+    tangent: Tangent,
+    rest_nodes: Vec<Point3>,
+    /// Per surface vertex: where a load on it acts, its embedding with the barycentric weights
+    /// clamped to the element (a vertex outside the voxel mesh is extrapolated by the surface
+    /// embedding; a force there would lever the element's nodes).
+    load_points: Vec<Embedded>,
+    tendon: TendonParams,
+    terms: Terms,
+}
+
+impl FingerMechanics {
+    /// Tetrahedralises `finger` at `voxel` with `material`.
+    pub(crate) fn new(
+        finger: &FingerModel,
+        material: &Material,
+        voxel: &VoxelParams,
+        tendon: &TendonParams,
+    ) -> Result<Self, SimError> {
+        tendon.validate()?;
+        let mut body = FingerBody::new(finger, material, voxel)?;
+        // Static solves converge quadratically, and the tangent is the true linear response.
+        body.fem_mut().set_exact_static_tangent(true);
+        let ws = body.workspace(0);
+        let tangent = body.fem().tangent();
+        let rest_nodes = body.fem().mesh().nodes().to_vec();
+        let load_points = body
+            .surface()
+            .points()
+            .iter()
+            .map(|e| {
+                let mut w = e.weights.map(|w| w.max(0.0));
+                let sum: Real = w.iter().sum();
+                w.iter_mut().for_each(|v| *v /= sum);
+                Embedded { weights: w, ..*e }
+            })
+            .collect();
+        Ok(Self {
+            body,
+            ws,
+            tangent,
+            rest_nodes,
+            load_points,
+            tendon: tendon.clone(),
+            terms: Terms::default(),
+        })
+    }
+
+    /// The FEM body.
+    pub(crate) fn body(&self) -> &FingerBody {
+        &self.body
+    }
+
+    /// Rest node positions (finger frame).
+    pub(crate) fn rest_nodes(&self) -> &[Point3] {
+        &self.rest_nodes
+    }
+
+    /// Position of surface vertex `v` for node positions `x`.
+    pub(crate) fn surface_position(&self, x: &[Point3], v: u32) -> Point3 {
+        self.body.surface().points()[v as usize].position(x)
+    }
+
+    /// The static equilibrium under `commands`, `gravity` (finger frame) and `loads`, by Newton
+    /// iterations from `x` (updated in place). Returns the iterations run.
+    pub(crate) fn solve_static(
+        &mut self,
+        x: &mut Vec<Point3>,
+        commands: &[TendonCommand],
+        gravity: &Vector3,
+        loads: &[PatchLoad],
+        settings: StaticSettings,
+        ctx: StepContext,
+    ) -> Result<usize, SimError> {
+        if commands.len() != self.body.tendons().len() {
+            return Err(SimError::LengthMismatch {
+                what: "tendon commands",
+                expected: self.body.tendons().len(),
+                got: commands.len(),
+            });
+        }
+        let mut state = BodyState {
+            x: std::mem::take(x),
+            v: vec![Vector3::zeros(); self.rest_nodes.len()],
+        };
+        let Self {
+            body,
+            ws,
+            rest_nodes,
+            ..
+        } = self;
+        let me = &*body;
+        let (tendon, load_points) = (&self.tendon, &self.load_points);
+        let mut terms_fn = |xs: &[Point3], _: &[Vector3], terms: &mut Terms| {
+            add_terms(me, tendon, load_points, xs, commands, loads, terms);
+        };
+        let result = me.fem().step(
+            ws,
+            ctx,
+            Integrator::Static {
+                tolerance_m: settings.tolerance_m,
+                max_iterations: settings.max_iterations,
+            },
+            &mut state,
+            moe_tendon_sim::mechanics::FemInputs {
+                targets: rest_nodes,
+                gravity: *gravity,
+                terms: &mut terms_fn,
+            },
+        );
+        *x = state.x;
+        result.map(|r| r.iterations)
+    }
+
+    /// Advances `state` by one backward-Euler step of `dt_secs` under `commands` (their values at
+    /// the end of the step) and `gravity`, with the material's Rayleigh damping and no load.
+    pub(crate) fn step_free(
+        &mut self,
+        state: &mut BodyState,
+        commands: &[TendonCommand],
+        gravity: &Vector3,
+        dt_secs: Real,
+        ctx: StepContext,
+    ) -> Result<(), SimError> {
+        let Self {
+            body,
+            ws,
+            rest_nodes,
+            ..
+        } = self;
+        let me = &*body;
+        let (tendon, load_points) = (&self.tendon, &self.load_points);
+        let mut terms_fn = |xs: &[Point3], _: &[Vector3], terms: &mut Terms| {
+            add_terms(me, tendon, load_points, xs, commands, &[], terms);
+        };
+        me.fem().step(
+            ws,
+            ctx,
+            Integrator::Dynamic { dt_secs },
+            state,
+            moe_tendon_sim::mechanics::FemInputs {
+                targets: rest_nodes,
+                gravity: *gravity,
+                terms: &mut terms_fn,
+            },
+        )?;
+        Ok(())
+    }
+
+    /// Factorises the tangent at `x` (with the tendon terms under `commands` and `loads`) and
+    /// returns the displacement field of every observed coordinate's unit load: column `j` of
+    /// the result is `K_T⁻¹ s_j` where `s_j` puts a unit force along axis `axes[j].1` at
+    /// surface vertex `axes[j].0`. By reciprocity (`K_T` symmetric), the displacement of
+    /// coordinate `j` under a unit force along axis `d` at any surface point `p` is the value
+    /// of column `j` interpolated at `p` along `d`.
+    pub(crate) fn reciprocal_fields(
+        &mut self,
+        x: &[Point3],
+        commands: &[TendonCommand],
+        gravity: &Vector3,
+        loads: &[PatchLoad],
+        axes: &[(u32, usize)],
+        ctx: StepContext,
+    ) -> Result<Mat<Real>, SimError> {
+        let mut terms = std::mem::take(&mut self.terms);
+        terms.clear();
+        add_terms(
+            &self.body,
+            &self.tendon,
+            &self.load_points,
+            x,
+            commands,
+            loads,
+            &mut terms,
+        );
+        let fem = self.body.fem();
+        let result = fem.factor_tangent(&mut self.tangent, x, &terms, gravity, ctx);
+        self.terms = terms;
+        result?;
+        let rows = self.tangent.num_rows();
+        let mut rhs = Mat::<Real>::zeros(rows, axes.len());
+        for (j, &(v, d)) in axes.iter().enumerate() {
+            let e = self.body.surface().points()[v as usize];
+            for k in 0..4 {
+                if let Some(i) = fem.free_index(e.nodes[k]) {
+                    rhs[(3 * i + d, j)] += e.weights[k];
+                }
+            }
+        }
+        self.tangent.solve_in_place(fem, rhs.as_mut())?;
+        Ok(rhs)
+    }
+
+    /// The free nodes a load on surface vertex `v` acts on, with their weights: `(free index,
+    /// weight)` (rows `3i..3i + 3` of a tangent's unknowns); fixed nodes take their share.
+    pub(crate) fn load_free_weights(&self, v: u32) -> Vec<(u32, Real)> {
+        let e = &self.load_points[v as usize];
+        let fem = self.body.fem();
+        (0..4)
+            .filter(|&k| e.weights[k] != 0.0)
+            .filter_map(|k| fem.free_index(e.nodes[k]).map(|i| (i as u32, e.weights[k])))
+            .collect()
+    }
+}
+
+/// Adds the tendon terms under `commands` and the point forces of `loads` at `x`.
+fn add_terms(
+    body: &FingerBody,
+    tendon: &TendonParams,
+    load_points: &[Embedded],
+    x: &[Point3],
+    commands: &[TendonCommand],
+    loads: &[PatchLoad],
+    terms: &mut Terms,
+) {
+    for (t, &c) in body.tendons().iter().zip(commands) {
+        t.add_terms(x, c, tendon, terms);
+    }
+    for load in loads {
+        for &(v, share) in &load.patch {
+            terms.points.push(PointTerm {
+                point: load_points[v as usize],
+                force: load.force * share,
+                stiffness: Default::default(),
+                damping: Default::default(),
+                target_velocity: Vector3::zeros(),
+            });
+        }
+    }
+}

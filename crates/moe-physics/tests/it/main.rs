@@ -1,0 +1,5 @@
+//! Integration tests of the physics estimator: known loads recovered from simulated markers,
+//! no load reported as none, two loads told apart, and bad input refused.
+
+mod common;
+mod recovery;
