@@ -43,6 +43,9 @@ pub(crate) enum EvalTarget {
     /// Grasping on the inclined plates: press, fit the plane, reorient, press again (paper
     /// Table 4).
     Grasp(crate::eval_grasp::GraspEvalArgs),
+    /// Contact from physics as tactile sensors are specified (detection, location and force by
+    /// the true force), beside the paper's metrics, from exact, noisy or perceived markers.
+    Physics(crate::eval_physics::PhysicsEvalArgs),
 }
 
 /// Benchmark size.
@@ -88,6 +91,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
         EvalTarget::Markers(a) => crate::eval_markers::run(a),
         EvalTarget::Patting(a) => crate::eval_patting::run(a),
         EvalTarget::Grasp(a) => crate::eval_grasp::run(a),
+        EvalTarget::Physics(a) => crate::eval_physics::run(a),
     }
 }
 

@@ -11,6 +11,7 @@ mod eval_grasp;
 mod eval_labels;
 mod eval_markers;
 mod eval_patting;
+mod eval_physics;
 mod figure;
 mod fixtures;
 mod gen_data;

@@ -44,9 +44,12 @@ mod finger;
 mod mechanics;
 /// Non-negative least squares.
 mod nnls;
+/// The estimator behind the shape and contact seams.
+mod stages;
 
 pub use config::{HandMaterial, PhysicsConfig};
 pub use error::PhysicsError;
 pub use estimator::{
     ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator, PhysicsObservation,
 };
+pub use stages::{PhysicsContactStage, PhysicsShapeStage, gravity_in_hand};

@@ -23,9 +23,9 @@ use moe_contact::{ContactMetrics, ContactReport, DgcnnEstimator, KnnIndex};
 use moe_geom::math::UnitQuat;
 use moe_geom::{
     ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng,
-    Vector3, WorldFromHand, bcd,
+    Vector3, bcd,
 };
-use moe_tendon_sim::{Scene, SceneConfig, run_saving};
+use moe_tendon_sim::SceneConfig;
 use serde::Serialize;
 
 use crate::error::TouchError;
@@ -669,43 +669,10 @@ pub fn simulate_labelled(
     config: &SceneConfig,
     hand: &HandModel,
 ) -> Result<Vec<LabelledFrame>, TouchError> {
-    let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
-    let steps = scene.num_steps();
-    let frames = run_saving(&mut scene, steps)?;
-    frames
-        .iter()
-        .enumerate()
-        .map(|(k, f)| {
-            let fingers: Vec<Vec<Point3>> = f
-                .fingers
-                .iter()
-                .map(|g| g.vertices_in_hand.clone())
-                .collect();
-            let markers = HandKeypoints {
-                fingers: hand
-                    .fingers()
-                    .iter()
-                    .zip(&fingers)
-                    .map(|(hf, v)| {
-                        hf.model
-                            .marker_vertices()
-                            .iter()
-                            .map(|&m| Some(v[m as usize]))
-                            .collect()
-                    })
-                    .collect(),
-            };
-            Ok(LabelledFrame {
-                trajectory_id: 0,
-                frame_index: k as u32,
-                shape: HandShape { fingers },
-                contact: f.fingers.iter().map(|g| g.labels.clone()).collect(),
-                markers,
-                world_from_hand: WorldFromHand::new(f.world_from_hand),
-                tendon_pull_m: f.tendon_pulls_m()?,
-            })
-        })
-        .collect()
+    Ok(crate::physics_eval::simulate_stream(config, hand, 0)?
+        .into_iter()
+        .map(|s| s.frame)
+        .collect())
 }
 
 /// Table 2: every plate scene, `trials` trials each (trial 0 unperturbed), UCD from predicted to

@@ -84,6 +84,9 @@ pub enum TouchError {
     /// KNN baseline a [`moe_contact::ContactError`], which `downcast_ref` recovers).
     #[error("contact estimation: {0}")]
     ContactEstimation(Box<dyn std::error::Error + Send + Sync>),
+    /// The physics estimator refused its input or failed.
+    #[error(transparent)]
+    Physics(#[from] moe_physics::PhysicsError),
     /// A geometric input is malformed.
     #[error(transparent)]
     Geometry(#[from] moe_geom::GeomError),

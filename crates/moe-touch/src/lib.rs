@@ -21,6 +21,9 @@ pub mod grasp;
 pub mod patting;
 /// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
 pub mod perception;
+/// Contact from physics evaluated as tactile sensors are specified (detection, location and
+/// force by the finger's true force), beside the paper's metrics.
+pub mod physics_eval;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.
 pub mod pipeline;
 /// Running the pipeline over a recorded episode, with figures against its ground truth.

@@ -1,0 +1,547 @@
+//! Contact from physics evaluated as tactile sensors are specified: per finger, how often a
+//! press is detected, how far the estimated place is from the true one and how far the force,
+//! by the finger's true force; beside the paper's per-vertex contact metrics, for the physics
+//! estimator, the DGCNN on the physics estimator's (dented) shapes and the paper's chain
+//! (SR-ARAP shape from the same markers, DGCNN) on the same frames.
+//!
+//! Frames are evaluated as streams: one trajectory after the other, in order, with the
+//! estimator reset between trajectories (the physics estimator simulates the free finger from
+//! one frame to the next). The markers are the simulated ones, the same with Gaussian noise,
+//! or ones a caller supplies (detected by the perception stage in rendered frames).
+
+use std::time::Instant;
+
+use moe_arap::ShapeConfig;
+use moe_contact::{ContactMetrics, ContactReport, DgcnnEstimator};
+use moe_geom::{
+    ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng,
+    Vector3, WorldFromHand, bcd,
+};
+use moe_physics::{PhysicsEstimate, PhysicsEstimator, PhysicsObservation, gravity_in_hand};
+use moe_tendon_sim::{Scene, SceneConfig, SimFrame, run_saving};
+use serde::Serialize;
+
+use crate::contact_eval::study_shape_estimator;
+use crate::error::TouchError;
+
+/// One frame of a stream with what the force evaluation needs besides the labels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamFrame {
+    /// The labelled frame (true surface, labels, markers, pose, pulls).
+    pub frame: LabelledFrame,
+    /// Time in its trajectory, seconds.
+    pub time_secs: Real,
+    /// `vertex_force_n[f][v]`: normal magnitude of the contact force on vertex `v` of finger
+    /// `f`, newtons.
+    pub vertex_force_n: Vec<Vec<Real>>,
+    /// The net contact force on each finger, hand frame, newtons (`None` for data sets made
+    /// before it was recorded: the force table then uses the summed magnitudes).
+    pub finger_force_n: Option<Vec<Vector3>>,
+}
+
+impl StreamFrame {
+    /// A simulated frame of `hand` as a stream frame (markers are the marker vertices of the
+    /// surface, pulls the commanded ones).
+    ///
+    /// # Errors
+    /// A force-driven tendon (its command is a tension, not a pull).
+    pub fn from_sim(
+        hand: &HandModel,
+        frame: &SimFrame,
+        trajectory_id: u64,
+        frame_index: u32,
+    ) -> Result<Self, TouchError> {
+        let fingers: Vec<Vec<Point3>> = frame
+            .fingers
+            .iter()
+            .map(|g| g.vertices_in_hand.clone())
+            .collect();
+        let markers = HandKeypoints {
+            fingers: hand
+                .fingers()
+                .iter()
+                .zip(&fingers)
+                .map(|(hf, v)| {
+                    hf.model
+                        .marker_vertices()
+                        .iter()
+                        .map(|&m| Some(v[m as usize]))
+                        .collect()
+                })
+                .collect(),
+        };
+        Ok(Self {
+            frame: LabelledFrame {
+                trajectory_id,
+                frame_index,
+                shape: HandShape { fingers },
+                contact: frame.fingers.iter().map(|g| g.labels.clone()).collect(),
+                markers,
+                world_from_hand: WorldFromHand::new(frame.world_from_hand),
+                tendon_pull_m: frame.tendon_pulls_m()?,
+            },
+            time_secs: frame.time_secs,
+            vertex_force_n: frame
+                .fingers
+                .iter()
+                .map(|g| g.contact_force_n.clone())
+                .collect(),
+            finger_force_n: Some(frame.fingers.iter().map(|g| g.force_in_hand_n).collect()),
+        })
+    }
+
+    /// The true net force on finger `f`: the recorded vector's magnitude, or the summed
+    /// magnitudes without it.
+    pub fn true_force_n(&self, f: usize) -> Real {
+        match &self.finger_force_n {
+            Some(v) => v[f].norm(),
+            None => self.vertex_force_n[f].iter().sum(),
+        }
+    }
+}
+
+/// The stream of a simulated scene (trajectory `trajectory_id`).
+///
+/// # Errors
+/// Divergence of the simulation, a scene whose hand is not `hand`'s layout, or a force-driven
+/// tendon.
+pub fn simulate_stream(
+    config: &SceneConfig,
+    hand: &HandModel,
+    trajectory_id: u64,
+) -> Result<Vec<StreamFrame>, TouchError> {
+    let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
+    let steps = scene.num_steps();
+    let frames = run_saving(&mut scene, steps)?;
+    frames
+        .iter()
+        .enumerate()
+        .map(|(k, f)| StreamFrame::from_sim(hand, f, trajectory_id, k as u32))
+        .collect()
+}
+
+/// Where the markers the estimators see come from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MarkerSource<'a> {
+    /// The simulated markers.
+    Exact,
+    /// The simulated markers moved by Gaussian noise of `sigma_m` per coordinate, seeded per
+    /// trajectory and frame.
+    Noisy {
+        /// Standard deviation per coordinate, metres.
+        sigma_m: Real,
+        /// Seed.
+        seed: u64,
+    },
+    /// Markers supplied per frame (detected in rendered frames; `None` where unseen).
+    Given(&'a [HandKeypoints]),
+}
+
+impl MarkerSource<'_> {
+    /// The markers of frame `k`.
+    fn markers(&self, k: usize, frame: &LabelledFrame) -> Result<HandKeypoints, TouchError> {
+        match *self {
+            Self::Exact => Ok(frame.markers.clone()),
+            Self::Noisy { sigma_m, seed } => {
+                let mut rng = SeededRng::new(seed)
+                    .split(frame.trajectory_id)
+                    .split(u64::from(frame.frame_index));
+                Ok(HandKeypoints {
+                    fingers: frame
+                        .markers
+                        .fingers
+                        .iter()
+                        .map(|f| {
+                            f.iter()
+                                .map(|m| {
+                                    m.map(|p| {
+                                        Point3::new(
+                                            p.x + sigma_m * rng.normal(),
+                                            p.y + sigma_m * rng.normal(),
+                                            p.z + sigma_m * rng.normal(),
+                                        )
+                                    })
+                                })
+                                .collect()
+                        })
+                        .collect(),
+                })
+            }
+            Self::Given(all) => all
+                .get(k)
+                .cloned()
+                .ok_or_else(|| TouchError::InvalidEvaluation {
+                    reason: format!("{} marker sets for frame {k}", all.len()),
+                }),
+        }
+    }
+
+    /// A short name for reports.
+    pub fn name(&self) -> String {
+        match self {
+            Self::Exact => "exact".into(),
+            Self::Noisy { sigma_m, .. } => format!("noise {:.2} mm", sigma_m * 1e3),
+            Self::Given(_) => "perceived".into(),
+        }
+    }
+}
+
+/// The force bins of the table, newtons: `[0, 0.05)`, `[0.05, 0.2)`, `[0.2, 0.5)`, `[0.5, ∞)`.
+pub const FORCE_BINS_N: [Real; 5] = [0.0, 0.05, 0.2, 0.5, Real::INFINITY];
+
+/// One force bin of the table: fingers whose true net force is in `[lo_n, hi_n)` and that are
+/// labelled in contact.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForceBin {
+    /// Lower edge, newtons.
+    pub lo_n: Real,
+    /// Upper edge, newtons (∞ for the last).
+    pub hi_n: Real,
+    /// Pressed finger-frames.
+    pub fingers: u64,
+    /// Of those, with a load found on the finger.
+    pub detected: u64,
+    /// `detected / fingers`.
+    pub detection_rate: Real,
+    /// Median distance between the estimated and the true place (force-weighted centroids on
+    /// the rest surface), mm; NaN when nothing was detected.
+    pub location_median_mm: Real,
+    /// Its along-the-finger part, mm.
+    pub along_median_mm: Real,
+    /// Median `|estimated − true|` net force, newtons.
+    pub force_error_median_n: Real,
+    /// Median of that error over the true force, percent.
+    pub force_error_median_pct: Real,
+}
+
+/// The force table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForceTable {
+    /// Per bin.
+    pub bins: Vec<ForceBin>,
+    /// Finger-frames not labelled in contact.
+    pub unpressed_fingers: u64,
+    /// Of those, with a load found (false alarms).
+    pub false_alarm_fingers: u64,
+    /// Smallest force `F` such that at least 90 % of the pressed fingers carrying `F` or more
+    /// are detected, newtons (NaN when no such force).
+    pub force_detected_90pct_n: Real,
+    /// Whether the true forces are net vectors (else summed magnitudes, an old data set).
+    pub net_force_truth: bool,
+}
+
+/// Figures of the physics estimator over the frames.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsEvaluation {
+    /// Where the markers came from.
+    pub markers: String,
+    /// Frames evaluated.
+    pub frames: u64,
+    /// Trajectories they come from.
+    pub trajectories: u64,
+    /// Contact by the physics estimator's per-vertex map (probability ≥ 0.5).
+    pub physics: ContactReport,
+    /// The DGCNN on the physics estimator's shapes.
+    pub dgcnn_on_physics: Option<ContactReport>,
+    /// The paper's chain on the same markers: the DGCNN on SR-ARAP shapes.
+    pub dgcnn_on_sr_arap: Option<ContactReport>,
+    /// Shape BCD of the physics estimator's surface against the true one, mm.
+    pub physics_shape_bcd_mm: Real,
+    /// Shape BCD of SR-ARAP from the same markers, mm (when the chain is evaluated).
+    pub sr_arap_shape_bcd_mm: Real,
+    /// The force table.
+    pub forces: ForceTable,
+    /// Median time of the physics estimator per frame, ms.
+    pub physics_ms_median: Real,
+    /// 90th percentile of that time, ms.
+    pub physics_ms_p90: Real,
+    /// Finger-frames whose estimate failed (too few markers, a static solve that did not
+    /// converge); they count as no contact.
+    pub failed_fingers: u64,
+}
+
+/// One pressed or unpressed finger-frame's outcome.
+#[derive(Debug, Clone, Copy)]
+struct FingerOutcome {
+    pressed: bool,
+    truth_n: Real,
+    detected: bool,
+    location_m: Real,
+    along_m: Real,
+    force_error_n: Real,
+}
+
+/// The physics estimator's outcome for finger `f` of `frame`.
+fn finger_outcome(
+    hand: &HandModel,
+    frame: &StreamFrame,
+    estimate: &PhysicsEstimate,
+    f: usize,
+) -> FingerOutcome {
+    let truth_n = frame.true_force_n(f);
+    let pressed = frame.frame.contact[f].iter().any(|&c| c);
+    let hf = &hand.fingers()[f];
+    let rest = hf.model.mesh().vertices();
+    let weights = &frame.vertex_force_n[f];
+    let total: Real = weights.iter().sum();
+    let loads: Vec<_> = estimate.loads.iter().filter(|l| l.finger == f).collect();
+    let detected = !loads.is_empty();
+    let (mut location_m, mut along_m, mut force_error_n) = (Real::NAN, Real::NAN, Real::NAN);
+    if detected && total > 0.0 {
+        // Force-weighted centroids on the rest surface, finger frame.
+        let truth: Vector3 = weights
+            .iter()
+            .zip(rest)
+            .map(|(w, p)| p.coords * (*w / total))
+            .sum();
+        let finger_from_hand = hf.hand_from_finger.iso().inverse();
+        let mass: Real = loads.iter().map(|l| l.magnitude_n).sum();
+        let est: Vector3 = loads
+            .iter()
+            .map(|l| {
+                (finger_from_hand * l.location_rest).coords * (l.magnitude_n / mass.max(1e-12))
+            })
+            .sum();
+        location_m = (est - truth).norm();
+        along_m = (est.z - truth.z).abs();
+        let net: Vector3 = loads.iter().map(|l| l.force_n).sum();
+        force_error_n = (net.norm() - truth_n).abs();
+    }
+    FingerOutcome {
+        pressed,
+        truth_n,
+        detected,
+        location_m,
+        along_m,
+        force_error_n,
+    }
+}
+
+fn median(mut v: Vec<Real>) -> Real {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return Real::NAN;
+    }
+    v.sort_by(Real::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The force table of the outcomes.
+fn force_table(outcomes: &[FingerOutcome], net_force_truth: bool) -> ForceTable {
+    let bins = FORCE_BINS_N
+        .windows(2)
+        .map(|w| {
+            let sel: Vec<&FingerOutcome> = outcomes
+                .iter()
+                .filter(|o| o.pressed && o.truth_n >= w[0] && o.truth_n < w[1])
+                .collect();
+            let det: Vec<&&FingerOutcome> = sel.iter().filter(|o| o.detected).collect();
+            ForceBin {
+                lo_n: w[0],
+                hi_n: w[1],
+                fingers: sel.len() as u64,
+                detected: det.len() as u64,
+                detection_rate: det.len() as Real / sel.len().max(1) as Real,
+                location_median_mm: median(det.iter().map(|o| o.location_m * 1e3).collect()),
+                along_median_mm: median(det.iter().map(|o| o.along_m * 1e3).collect()),
+                force_error_median_n: median(det.iter().map(|o| o.force_error_n).collect()),
+                force_error_median_pct: median(
+                    det.iter()
+                        .filter(|o| o.truth_n > 0.0)
+                        .map(|o| 100.0 * o.force_error_n / o.truth_n)
+                        .collect(),
+                ),
+            }
+        })
+        .collect();
+    let unpressed: Vec<&FingerOutcome> = outcomes.iter().filter(|o| !o.pressed).collect();
+    // Smallest F with ≥ 90 % detection among the pressed fingers carrying F or more.
+    let mut pressed: Vec<&FingerOutcome> = outcomes.iter().filter(|o| o.pressed).collect();
+    pressed.sort_by(|a, b| a.truth_n.total_cmp(&b.truth_n));
+    let mut force_detected_90pct_n = Real::NAN;
+    let mut detected_above = pressed.iter().filter(|o| o.detected).count();
+    for (k, o) in pressed.iter().enumerate() {
+        let n = pressed.len() - k;
+        if detected_above as Real >= 0.9 * n as Real {
+            force_detected_90pct_n = o.truth_n;
+            break;
+        }
+        detected_above -= usize::from(o.detected);
+    }
+    ForceTable {
+        bins,
+        unpressed_fingers: unpressed.len() as u64,
+        false_alarm_fingers: unpressed.iter().filter(|o| o.detected).count() as u64,
+        force_detected_90pct_n,
+        net_force_truth,
+    }
+}
+
+/// Per-vertex labels of probabilities at or above `threshold`.
+fn labels_at(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
+    map.iter()
+        .map(|f| f.iter().map(|&p| p >= threshold).collect())
+        .collect()
+}
+
+/// What else is evaluated on the same frames besides the physics estimator.
+#[derive(Debug, Clone, Copy)]
+pub struct Comparison<'a> {
+    /// The trained network: the DGCNN on the physics shapes, and on SR-ARAP shapes.
+    pub dgcnn: Option<&'a DgcnnEstimator>,
+    /// SR-ARAP options of the paper's chain.
+    pub shape: &'a ShapeConfig,
+}
+
+/// Evaluates `estimator` on `frames` (whole trajectories, in order) with markers from `source`,
+/// and the comparison on the same markers.
+///
+/// # Errors
+/// Frames or markers that do not fit the hand, or a failing estimator (a finger whose physics
+/// estimate fails is counted in [`PhysicsEvaluation::failed_fingers`] instead).
+pub fn evaluate_physics(
+    hand: &HandModel,
+    frames: &[StreamFrame],
+    source: MarkerSource<'_>,
+    estimator: &mut PhysicsEstimator,
+    comparison: Comparison<'_>,
+) -> Result<PhysicsEvaluation, TouchError> {
+    if frames.is_empty() {
+        return Err(TouchError::InvalidEvaluation {
+            reason: "no frames to evaluate".into(),
+        });
+    }
+    let mut arap = match comparison.dgcnn {
+        Some(_) => Some(study_shape_estimator(hand, comparison.shape)?),
+        None => None,
+    };
+    let mut physics = ContactMetrics::default();
+    let mut on_physics = ContactMetrics::default();
+    let mut on_arap = ContactMetrics::default();
+    let (mut physics_bcd, mut arap_bcd) = (0.0, 0.0);
+    let mut outcomes = Vec::new();
+    let mut times = Vec::with_capacity(frames.len());
+    let mut failed = 0;
+    let mut trajectories = 0;
+    let mut previous: Option<u64> = None;
+    for (k, sf) in frames.iter().enumerate() {
+        let frame = &sf.frame;
+        frame.shape.check_against(hand)?;
+        if previous != Some(frame.trajectory_id) {
+            estimator.reset();
+            trajectories += 1;
+            previous = Some(frame.trajectory_id);
+        }
+        let markers = source.markers(k, frame)?;
+        let start = Instant::now();
+        let est = estimator.estimate(&PhysicsObservation {
+            keypoints: &markers,
+            tendon_pull_m: &frame.tendon_pull_m,
+            gravity_in_hand: gravity_in_hand(&frame.world_from_hand),
+            time_secs: Some(sf.time_secs),
+        })?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        failed += est.fingers.iter().filter(|f| f.error.is_some()).count() as u64;
+        physics.add(
+            &frame.shape,
+            &frame.contact,
+            &labels_at(&est.contact.fingers, 0.5),
+        )?;
+        physics_bcd += bcd_of(&est.shape, &frame.shape)?;
+        for f in 0..hand.num_fingers() {
+            outcomes.push(finger_outcome(hand, sf, &est, f));
+        }
+        if let (Some(dgcnn), Some(arap)) = (comparison.dgcnn, arap.as_mut()) {
+            let input = ContactInput::of_frame(frame, &est.shape).with_keypoints(&markers);
+            let p = dgcnn.estimate_map(&input)?;
+            on_physics.add(
+                &frame.shape,
+                &frame.contact,
+                &labels_at(&p.fingers, dgcnn.threshold()),
+            )?;
+            let shape = arap.estimate(&markers)?.shape;
+            arap_bcd += bcd_of(&shape, &frame.shape)?;
+            let input = ContactInput::of_frame(frame, &shape).with_keypoints(&markers);
+            let p = dgcnn.estimate_map(&input)?;
+            on_arap.add(
+                &frame.shape,
+                &frame.contact,
+                &labels_at(&p.fingers, dgcnn.threshold()),
+            )?;
+        }
+    }
+    let n = frames.len() as Real;
+    let mut sorted = times.clone();
+    sorted.sort_by(Real::total_cmp);
+    let net = frames.iter().all(|f| f.finger_force_n.is_some());
+    Ok(PhysicsEvaluation {
+        markers: source.name(),
+        frames: frames.len() as u64,
+        trajectories,
+        physics: physics.report(),
+        dgcnn_on_physics: comparison.dgcnn.map(|_| on_physics.report()),
+        dgcnn_on_sr_arap: comparison.dgcnn.map(|_| on_arap.report()),
+        physics_shape_bcd_mm: 1e3 * physics_bcd / n,
+        sr_arap_shape_bcd_mm: if comparison.dgcnn.is_some() {
+            1e3 * arap_bcd / n
+        } else {
+            Real::NAN
+        },
+        forces: force_table(&outcomes, net),
+        physics_ms_median: median(sorted.clone()),
+        physics_ms_p90: sorted[(sorted.len() * 9 / 10).min(sorted.len() - 1)],
+        failed_fingers: failed,
+    })
+}
+
+/// The BCD between two shapes as whole-hand point sets (as Table 1's shape rows), metres.
+fn bcd_of(a: &HandShape, b: &HandShape) -> Result<Real, TouchError> {
+    let a: Vec<Point3> = a.fingers.iter().flatten().copied().collect();
+    let b: Vec<Point3> = b.fingers.iter().flatten().copied().collect();
+    Ok(bcd(&a, &b)?)
+}
+
+/// A simulated stream with the markers the perception stage detects in its rendered wrist
+/// camera frames: the scene is simulated, every saved frame rendered by the scene's camera
+/// (noise seeded by `seed`) and its markers detected and tracked by a detector with the
+/// default parameters. Returns the stream and, per frame, the detected keypoints.
+///
+/// # Errors
+/// As [`simulate_stream`], and a camera or detector the scene does not allow.
+pub fn simulate_perceived(
+    config: &SceneConfig,
+    hand: &HandModel,
+    trajectory_id: u64,
+    seed: u64,
+) -> Result<(Vec<StreamFrame>, Vec<HandKeypoints>), TouchError> {
+    let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
+    let recorder = crate::episode::EpisodeRecorder::new(&scene, "perceived", seed)?;
+    let mut detector = crate::perception::MarkerDetector::for_episode(
+        recorder.info(),
+        hand,
+        crate::perception::DetectorConfig::default(),
+    )?;
+    let steps = scene.num_steps();
+    let mut stream = Vec::new();
+    let mut seen = Vec::new();
+    moe_tendon_sim::run_with(&mut scene, steps, |scene, state| {
+        let saved = scene.frame(state);
+        let index = stream.len() as u64;
+        let rendered = recorder.frame(scene, &saved, index)?;
+        let detection = detector.detect(&rendered.color_rgb8, &rendered.depth_m)?;
+        seen.push(detection.keypoints);
+        stream.push(StreamFrame::from_sim(
+            hand,
+            &saved,
+            trajectory_id,
+            index as u32,
+        )?);
+        Ok::<(), TouchError>(())
+    })?;
+    Ok((stream, seen))
+}

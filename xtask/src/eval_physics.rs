@@ -1,0 +1,282 @@
+//! `cargo xtask eval physics`: contact from physics on held-out trajectories, as tactile
+//! sensors are specified (detection, location and force error by the finger's true force),
+//! beside the paper's per-vertex metrics for the physics estimator, the DGCNN on its shapes and
+//! the paper's chain (SR-ARAP + DGCNN) on the same markers — a thin command over
+//! `moe_touch::physics_eval`.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use moe_arap::ShapeConfig;
+use moe_geom::{HandKeypoints, HandModel, Real};
+use moe_io::{DatasetReader, Split, SplitFractions};
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator};
+use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
+use moe_touch::physics_eval::{
+    Comparison, MarkerSource, PhysicsEvaluation, StreamFrame, evaluate_physics, simulate_perceived,
+};
+
+use crate::eval_contact::load_estimator;
+use crate::train::dataset_hand;
+
+/// Arguments of `cargo xtask eval physics`.
+#[derive(Debug, Args)]
+pub(crate) struct PhysicsEvalArgs {
+    /// Data set directory (its frames, exact or with `--marker-noise`). Without it,
+    /// `--trajectories` are simulated afresh from `--seed` (`--perceived` needs that: the
+    /// frames are rendered and their markers detected).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Which frames of the data set: all (the physics estimator is not trained) or the test
+    /// trajectories.
+    #[arg(long, value_enum, default_value = "all")]
+    frames: crate::eval_contact::FrameSet,
+    /// Evaluate at most this many trajectories (the first ones).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    max_trajectories: Option<u64>,
+    /// Without `--data`: trajectories to simulate (ids 0..N of `--seed`).
+    #[arg(long, default_value_t = 20)]
+    trajectories: u64,
+    /// Without `--data`: the seed of the simulated trajectories (a data set made with this seed
+    /// has the same frames); with `--marker-noise`, the noise's.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Without `--data`: randomisation parameters (TOML or JSON, as `gen-data --params`).
+    #[arg(long)]
+    params: Option<PathBuf>,
+    /// Gaussian noise on every marker coordinate, metres.
+    #[arg(long, value_name = "M")]
+    marker_noise: Option<Real>,
+    /// Markers detected by the perception stage in the rendered frames (needs simulation).
+    #[arg(long, conflicts_with_all = ["data", "marker_noise"])]
+    perceived: bool,
+    /// The hand's material (TOML, as `moe-touch calibrate` writes it); default: nominal.
+    #[arg(long)]
+    material: Option<PathBuf>,
+    /// The estimator's settings (TOML or JSON `PhysicsConfig`); default: the documented ones.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// A contact model for the comparison rows (the DGCNN on the physics shapes and on SR-ARAP
+    /// shapes from the same markers).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Print one JSON object on stdout instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Frames of the data set, as streams.
+fn dataset_streams(
+    args: &PhysicsEvalArgs,
+    dir: &std::path::Path,
+) -> Result<(HandModel, Vec<StreamFrame>)> {
+    let reader = DatasetReader::open(dir)?;
+    let hand = dataset_hand(&reader)?;
+    let layout = reader.card().layout.clone();
+    let params: RandomSceneParams =
+        serde_json::from_value(reader.card().generator["params"].clone())
+            .context("the data set card's simulator parameters")?;
+    let frame_secs = params.dt_secs * params.save_every_steps as Real;
+    let split = match args.frames {
+        crate::eval_contact::FrameSet::Test => Some(Split::Test),
+        crate::eval_contact::FrameSet::All => None,
+    };
+    let mut out: Vec<StreamFrame> = Vec::new();
+    let mut trajectories = 0u64;
+    for f in reader.frames(split, SplitFractions::default()) {
+        let f = f?;
+        let new = out
+            .last()
+            .is_none_or(|l| l.frame.trajectory_id != f.trajectory_id);
+        if new {
+            if args.max_trajectories.is_some_and(|m| trajectories >= m) {
+                break;
+            }
+            trajectories += 1;
+        }
+        let labelled = f.to_labelled(&layout)?;
+        out.push(StreamFrame {
+            time_secs: f64::from(f.frame_index) * frame_secs,
+            vertex_force_n: layout.per_finger(&f.contact_force_n, |&v| f64::from(v)),
+            finger_force_n: f.finger_force_n.as_ref().map(|v| {
+                v.iter()
+                    .map(|c| moe_geom::Vector3::new(c[0].into(), c[1].into(), c[2].into()))
+                    .collect()
+            }),
+            frame: labelled,
+        });
+    }
+    if out.is_empty() {
+        bail!("{}: no frames to evaluate", dir.display());
+    }
+    Ok((hand, out))
+}
+
+/// Trajectories simulated afresh (rendered and perceived with `--perceived`).
+fn simulated_streams(
+    args: &PhysicsEvalArgs,
+) -> Result<(HandModel, Vec<StreamFrame>, Option<Vec<HandKeypoints>>)> {
+    let params: RandomSceneParams = match &args.params {
+        Some(p) => moe_io::read_config(p)?,
+        None => RandomSceneParams::default(),
+    };
+    let hand = HandModel::preset(params.preset, &params.finger)?;
+    let n = args.max_trajectories.unwrap_or(args.trajectories);
+    let mut frames = Vec::new();
+    let mut seen = Vec::new();
+    for t in 0..n {
+        let sampled = sample_scene(&params, args.seed, t)?;
+        if args.perceived {
+            let (s, k) = simulate_perceived(&sampled.config, &hand, t, args.seed ^ t)
+                .with_context(|| format!("trajectory {t}"))?;
+            frames.extend(s);
+            seen.extend(k);
+        } else {
+            frames.extend(
+                moe_touch::physics_eval::simulate_stream(&sampled.config, &hand, t)
+                    .with_context(|| format!("trajectory {t}"))?,
+            );
+        }
+        eprintln!("eval physics: simulated trajectory {} of {n}", t + 1);
+    }
+    Ok((hand, frames, args.perceived.then_some(seen)))
+}
+
+pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
+    let (hand, frames, perceived) = match &args.data {
+        Some(dir) => {
+            let (h, f) = dataset_streams(args, dir)?;
+            (h, f, None)
+        }
+        None => simulated_streams(args)?,
+    };
+    let material: HandMaterial = match &args.material {
+        Some(p) => moe_io::read_config(p)?,
+        None => HandMaterial::default(),
+    };
+    let config: PhysicsConfig = match &args.config {
+        Some(p) => moe_io::read_config(p)?,
+        None => PhysicsConfig::default(),
+    };
+    let mut estimator = PhysicsEstimator::new(&hand, &material, &config)?;
+    let dgcnn = args
+        .model
+        .as_ref()
+        .map(|m| load_estimator(m, &hand))
+        .transpose()?;
+    let source = match (&perceived, args.marker_noise) {
+        (Some(seen), _) => MarkerSource::Given(seen),
+        (None, Some(sigma_m)) => MarkerSource::Noisy {
+            sigma_m,
+            seed: args.seed,
+        },
+        (None, None) => MarkerSource::Exact,
+    };
+    let shape = ShapeConfig::default();
+    let eval = evaluate_physics(
+        &hand,
+        &frames,
+        source,
+        &mut estimator,
+        Comparison {
+            dgcnn: dgcnn.as_ref(),
+            shape: &shape,
+        },
+    )?;
+    if args.json {
+        println!("{}", serde_json::to_string(&eval)?);
+    } else {
+        print!("{}", table(&eval));
+    }
+    Ok(())
+}
+
+/// The report as Markdown tables.
+fn table(e: &PhysicsEvaluation) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{} frames of {} trajectories, markers: {}; physics estimator {:.1} ms per frame \
+         (median; p90 {:.1}); {} finger-frames failed",
+        e.frames,
+        e.trajectories,
+        e.markers,
+        e.physics_ms_median,
+        e.physics_ms_p90,
+        e.failed_fingers
+    );
+    let _ = writeln!(
+        s,
+        "\n| contact estimation | BCD mm | UCD mm | missed frames | false-alarm frames | P | R | F1 | IoU |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    let mut row = |name: &str, r: &moe_contact::ContactReport| {
+        let _ = writeln!(
+            s,
+            "| {name} | {:.2} | {:.2} | {:.1} % | {:.1} % | {:.3} | {:.3} | {:.3} | {:.3} |",
+            r.bcd_mm,
+            r.ucd_mm,
+            100.0 * r.miss_rate,
+            100.0 * r.false_alarm_rate,
+            r.precision,
+            r.recall,
+            r.f1,
+            r.iou
+        );
+    };
+    row("physics estimator", &e.physics);
+    if let Some(r) = &e.dgcnn_on_physics {
+        row("DGCNN on the physics shape", r);
+    }
+    if let Some(r) = &e.dgcnn_on_sr_arap {
+        row("DGCNN on the SR-ARAP shape", r);
+    }
+    let _ = writeln!(
+        s,
+        "\nshape BCD: physics {:.3} mm{}",
+        e.physics_shape_bcd_mm,
+        if e.sr_arap_shape_bcd_mm.is_finite() {
+            format!(", SR-ARAP {:.3} mm", e.sr_arap_shape_bcd_mm)
+        } else {
+            String::new()
+        }
+    );
+    let f = &e.forces;
+    let _ = writeln!(
+        s,
+        "\n| true force (N) | fingers | detected | location median mm (along) | force error median N (%) |\n|---|---|---|---|---|"
+    );
+    for b in &f.bins {
+        let _ = writeln!(
+            s,
+            "| {:.2}–{} | {} | {:.1} % | {:.2} ({:.2}) | {:.3} ({:.0} %) |",
+            b.lo_n,
+            if b.hi_n.is_finite() {
+                format!("{:.2}", b.hi_n)
+            } else {
+                "∞".into()
+            },
+            b.fingers,
+            100.0 * b.detection_rate,
+            b.location_median_mm,
+            b.along_median_mm,
+            b.force_error_median_n,
+            b.force_error_median_pct
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nfalse alarms: {} of {} unpressed finger-frames ({:.1} %); smallest force detected 90 % of the time: {:.3} N; truth: {}",
+        f.false_alarm_fingers,
+        f.unpressed_fingers,
+        100.0 * f.false_alarm_fingers as Real / f.unpressed_fingers.max(1) as Real,
+        f.force_detected_90pct_n,
+        if f.net_force_truth {
+            "net force vectors"
+        } else {
+            "summed magnitudes (an old data set)"
+        }
+    );
+    s
+}
