@@ -776,7 +776,7 @@ pub fn contact_ply(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use moe_geom::{FingerParams, HandPreset};
+    use moe_geom::{FingerParams, HandPreset, WorldFromHand};
     use moe_tendon_sim::{ObstacleConfig, ObstacleShape, PoseKeyframe, PoseTrajectory};
 
     #[test]
