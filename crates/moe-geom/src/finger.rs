@@ -1,15 +1,21 @@
-//! The parametric MOE finger: a tapered, round-tipped body of revolution with a flat base, seven
-//! marker vertices on its camera-facing side, a fixed base and four tendon routes.
+//! The parametric MOE finger: a tapered, round-tipped body of revolution with a flat base,
+//! marker vertices painted where its [`MarkerLayout`] says (by default seven in a row on its
+//! camera-facing side, paper §4.2), a fixed base and four tendon routes.
 //!
 //! Finger frame: the base disk lies in the plane z = 0 centred at the origin, the finger extends
 //! along +z, and +x points toward the hand's central axis — the side the wrist camera sees, where
 //! the markers sit. The four tendons run parallel to the axis in the ±x and ±y directions: two
 //! antagonistic pairs in two bending planes (paper §4.1), so pulling the +x tendon bends the
 //! finger toward +x.
+//!
+//! Angles around the finger's axis are measured from +x (the camera side, 0°) toward +y, in
+//! degrees from −180 to 180; the back of the finger is at ±180°.
 
 use std::f64::consts::{FRAC_PI_2, PI};
+use std::str::FromStr;
 
-use serde::{Deserialize, Serialize};
+use serde::de::{self, MapAccess, Visitor};
+use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::error::GeomError;
 use crate::math::{Point3, Real, is_finite_point};
@@ -28,10 +34,18 @@ pub struct FingerParams {
     /// Requested number of surface vertices. Default 1024; the mesh has this many within a few
     /// percent.
     pub vertex_budget: usize,
-    /// Number of marker vertices along the camera-facing side. Default 7 (paper §4.2).
+    /// Number of markers in each row of the [`MarkerLayout`] that does not give its own
+    /// `count`: with the default layout, the markers along the camera-facing side. Default 7
+    /// (paper §4.2).
     pub marker_count: usize,
     /// Distance of the tendons from the axis, as a fraction of the local body radius. Default 0.6.
     pub tendon_offset_ratio: Real,
+    /// Where the markers are painted: a preset name (`"camera-row"`, `"two-rows"`, `"sides"`,
+    /// `"tip-ring"`) or a table `{ rows = [{ angle_deg = 0, count = 7 }], tip_ring = 0 }`.
+    /// Default: one row of `marker_count` on the camera side (left out of the serialised form
+    /// when it is the default, so files written before layouts existed are unchanged).
+    #[serde(skip_serializing_if = "MarkerLayout::is_default")]
+    pub marker_layout: MarkerLayout,
 }
 
 impl Default for FingerParams {
@@ -43,6 +57,7 @@ impl Default for FingerParams {
             vertex_budget: 1024,
             marker_count: 7,
             tendon_offset_ratio: 0.6,
+            marker_layout: MarkerLayout::default(),
         }
     }
 }
@@ -93,7 +108,7 @@ impl FingerParams {
                 "must be in (0, 0.95)",
             );
         }
-        Ok(())
+        self.marker_layout.validate(self.marker_count)
     }
 
     /// Height where the cylindrical-conical body meets the hemispherical tip.

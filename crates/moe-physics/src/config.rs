@@ -89,6 +89,8 @@ pub struct PhysicsConfig {
     pub force_tolerance: Real,
     /// Fewest observed markers of a finger the estimator works with. Default 3.
     pub min_markers: usize,
+    /// Gravity in the world frame, m/s². Default (0, 0, −9.81).
+    pub gravity_m_s2: [Real; 3],
     /// Observations at most this far apart in time form a stream: the free finger is simulated
     /// from one to the next (its lag behind the pulls is taken out of the markers). A longer
     /// gap starts the stream again. Seconds; default 0.2.
@@ -120,6 +122,7 @@ impl Default for PhysicsConfig {
             gauss_newton_iterations: 4,
             force_tolerance: 0.02,
             min_markers: 3,
+            gravity_m_s2: [0.0, 0.0, -9.81],
             stream_horizon_secs: 0.2,
             dynamic_step_secs: 0.01,
             contact_lag_gain: 1.0,
@@ -186,6 +189,9 @@ impl PhysicsConfig {
                 self.gauss_newton_iterations as Real,
                 "must be in 1..=50",
             );
+        }
+        if let Some(&g) = self.gravity_m_s2.iter().find(|g| !g.is_finite()) {
+            return bad("gravity_m_s2", g, "must be finite");
         }
         if self.min_markers == 0 {
             return bad("min_markers", 0.0, "must be at least 1");

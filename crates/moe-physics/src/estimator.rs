@@ -1,6 +1,8 @@
 //! The hand-level physics estimator: every finger read backwards, in the hand frame.
 
-use moe_geom::{ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3};
+use moe_geom::{
+    ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3, WorldFromHand,
+};
 use serde::Serialize;
 
 use crate::config::{HandMaterial, PhysicsConfig};
@@ -14,8 +16,9 @@ pub struct PhysicsObservation<'a> {
     pub keypoints: &'a HandKeypoints,
     /// `tendon_pull_m[f][t]`: pulled length of tendon `t` of finger `f`, metres.
     pub tendon_pull_m: &'a [Vec<Real>],
-    /// Gravity in the hand frame, m/s² (`world_from_hand⁻¹ · g`).
-    pub gravity_in_hand: Vector3,
+    /// Where the hand is: gravity's direction in the hand and, in a stream, the wrist's motion
+    /// the free finger is simulated with.
+    pub world_from_hand: &'a WorldFromHand,
     /// Time of the observation, seconds: observations close in time form a stream (see
     /// [`PhysicsConfig::stream_horizon_secs`]); `None` for a lone frame.
     pub time_secs: Option<Real>,
@@ -142,6 +145,11 @@ impl PhysicsEstimator {
         &self.config
     }
 
+    /// Finger `f`'s estimator.
+    pub(crate) fn finger_mut(&mut self, f: usize) -> &mut FingerInverse {
+        &mut self.fingers[f]
+    }
+
     /// Forgets the stream (warm starts and the previous observation).
     pub fn reset(&mut self) {
         self.fingers.iter_mut().for_each(FingerInverse::reset);
@@ -203,9 +211,12 @@ impl PhysicsEstimator {
                 });
             }
         }
-        if !obs.gravity_in_hand.iter().all(|g| g.is_finite()) {
+        let iso = obs.world_from_hand.iso();
+        if !(iso.translation.vector.iter().all(|v| v.is_finite())
+            && iso.rotation.coords.iter().all(|v| v.is_finite()))
+        {
             return Err(PhysicsError::InvalidParameter {
-                name: "gravity_in_hand",
+                name: "world_from_hand",
                 value: Real::NAN,
                 reason: "must be finite",
             });
@@ -236,6 +247,9 @@ impl PhysicsEstimator {
             vertex_force_n: Vec::new(),
             fingers: Vec::new(),
         };
+        let world_from_hand: Iso3 = *obs.world_from_hand.iso();
+        let gravity_in_hand =
+            world_from_hand.inverse_transform_vector(&Vector3::from(self.config.gravity_m_s2));
         for (f, hf) in self.hand.fingers().iter().enumerate() {
             let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
             let finger_from_hand = hand_from_finger.inverse();
@@ -245,7 +259,8 @@ impl PhysicsEstimator {
                 .collect();
             let fobs = FingerObservation {
                 markers: &markers,
-                gravity: finger_from_hand * obs.gravity_in_hand,
+                gravity: finger_from_hand * gravity_in_hand,
+                world_from_finger: world_from_hand * hand_from_finger,
                 pulls: &pulls[f],
                 time_secs: obs.time_secs,
             };

@@ -22,7 +22,8 @@
 //!    threshold and the force the minimum; the contact probability is a logistic of `Δχ²`
 //!    about the threshold.
 
-use moe_geom::{FingerModel, Point3, Real, Vector3};
+use moe_geom::math::UnitQuat;
+use moe_geom::{FingerModel, Iso3, Point3, Real, Vector3};
 use moe_tendon_sim::mechanics::StepContext;
 use moe_tendon_sim::{BodyState, SimError, TendonCommand};
 use nalgebra::{DMatrix, DVector};
@@ -37,8 +38,11 @@ use crate::nnls::nnls;
 pub(crate) struct FingerObservation<'a> {
     /// Marker `m`, `None` when unseen.
     pub(crate) markers: &'a [Option<Point3>],
-    /// Gravity, m/s².
+    /// Gravity, m/s² (finger frame).
     pub(crate) gravity: Vector3,
+    /// Where the finger's base is in the world (the free finger is simulated in the world with
+    /// its base following it).
+    pub(crate) world_from_finger: Iso3,
     /// Pulled length of each tendon, metres.
     pub(crate) pulls: &'a [Real],
     /// Time of the observation, seconds (`None`: a lone frame).
@@ -161,12 +165,23 @@ struct Tracked {
     loads: Vec<(usize, Vector3)>,
 }
 
-/// The free finger simulated through the stream.
+/// The free finger simulated through the stream, in the world frame with its base following
+/// the wrist (as the hand moves, the finger's inertia shows).
 #[derive(Debug, Clone)]
 struct DynamicFree {
     state: BodyState,
     time_secs: Real,
     pulls: Vec<Real>,
+    world_from_finger: Iso3,
+    /// Gravity in the world frame, m/s².
+    gravity: Vector3,
+}
+
+/// The pose a fraction `a` of the way from `p0` to `p1` (translation linear, rotation slerp).
+fn interpolate(p0: &Iso3, p1: &Iso3, a: Real) -> Iso3 {
+    let t = p0.translation.vector.lerp(&p1.translation.vector, a);
+    let r: UnitQuat = p0.rotation.slerp(&p1.rotation, a);
+    Iso3::from_parts(t.into(), r)
 }
 
 /// The per-finger estimator.
@@ -319,6 +334,35 @@ impl FingerInverse {
         })
     }
 
+    /// Replaces the material (and forgets the stream).
+    pub(crate) fn set_material(&mut self, material: &HandMaterial) -> Result<(), PhysicsError> {
+        self.mech
+            .set_material(&material.material)
+            .map_err(|e| to_physics(self.index, "", e))?;
+        self.beta = material.material.rayleigh_stiffness;
+        self.reset();
+        Ok(())
+    }
+
+    /// `‖m − m_free‖²` and the number of observed coordinates of one observation, the free
+    /// finger simulated through the stream as the estimate does (no load is searched).
+    pub(crate) fn free_residual(
+        &mut self,
+        obs: &FingerObservation<'_>,
+    ) -> Result<(Real, usize), PhysicsError> {
+        let mut solves = 0;
+        let x = match self.advance_dynamic(obs, &mut solves) {
+            Some(x) => x,
+            None => {
+                let x = self.static_free(obs, &mut solves)?;
+                self.start_dynamic(obs, &x);
+                x
+            }
+        };
+        let n = 3 * obs.markers.iter().filter(|m| m.is_some()).count();
+        Ok((self.marker_residual_sq(&x, obs.markers), n))
+    }
+
     /// Forgets the stream.
     pub(crate) fn reset(&mut self) {
         self.warm_static = None;
@@ -414,6 +458,7 @@ impl FingerInverse {
             .max(1.0) as usize;
         let h = span / n as Real;
         let ctx = self.ctx();
+        let rest = self.mech.rest_nodes().to_vec();
         for k in 1..=n {
             let a = k as Real / n as Real;
             let pulls: Vec<Real> = d
@@ -423,9 +468,11 @@ impl FingerInverse {
                 .map(|(p0, p1)| p0 + a * (p1 - p0))
                 .collect();
             let commands = commands_of(&pulls);
+            let pose = interpolate(&d.world_from_finger, &obs.world_from_finger, a);
+            let targets: Vec<Point3> = rest.iter().map(|p| pose * p).collect();
             if self
                 .mech
-                .step_free(&mut d.state, &commands, &obs.gravity, h, ctx)
+                .step_free(&mut d.state, &commands, &d.gravity, &targets, h, ctx)
                 .is_err()
             {
                 return None;
@@ -434,7 +481,9 @@ impl FingerInverse {
         }
         d.time_secs = t;
         d.pulls = obs.pulls.to_vec();
-        let x = d.state.x.clone();
+        d.world_from_finger = obs.world_from_finger;
+        let finger_from_world = obs.world_from_finger.inverse();
+        let x = d.state.x.iter().map(|p| finger_from_world * p).collect();
         self.dynamic = Some(d);
         Some(x)
     }
@@ -444,11 +493,13 @@ impl FingerInverse {
         self.dynamic = match (obs.time_secs, self.config.dynamic_step_secs > 0.0) {
             (Some(t), true) => Some(DynamicFree {
                 state: BodyState {
-                    x: x.to_vec(),
+                    x: x.iter().map(|p| obs.world_from_finger * p).collect(),
                     v: vec![Vector3::zeros(); x.len()],
                 },
                 time_secs: t,
                 pulls: obs.pulls.to_vec(),
+                world_from_finger: obs.world_from_finger,
+                gravity: obs.world_from_finger * obs.gravity,
             }),
             _ => None,
         };
@@ -1054,6 +1105,95 @@ impl FingerInverse {
             observed_markers: observed,
             solves,
         })
+    }
+
+    /// The Cramér–Rao bound of a press at every candidate place, linearised at the static free
+    /// shape under `obs`'s pulls and gravity with every marker observed: the Fisher information
+    /// of the marker coordinates (independent Gaussian noise of `sigma_m` per coordinate, over
+    /// `frames` independent frames of a held press) about the press's place on the surface
+    /// (along the finger's axis and around it) and its force vector, at a force of
+    /// `force_n` along the inward normal. Per candidate: its vertex, the bound's standard
+    /// deviations along and around (metres) and of the force's magnitude (newtons).
+    pub(crate) fn location_bounds(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        force_n: Real,
+        sigma_m: Real,
+        frames: usize,
+    ) -> Result<Vec<(u32, [Real; 3])>, PhysicsError> {
+        let mut solves = 0;
+        let x = self.static_free(obs, &mut solves)?;
+        let all: Vec<Option<Point3>> = self
+            .markers
+            .iter()
+            .map(|&v| Some(self.mech.surface_position(&x, v)))
+            .collect();
+        let full = FingerObservation {
+            markers: &all,
+            ..*obs
+        };
+        let lin = self.linearise(&x, &full, &[], &mut solves)?;
+        let n_obs = lin.n_obs;
+        // Reciprocal fields again, to differentiate them in space.
+        let axes: Vec<(u32, usize)> = self
+            .markers
+            .iter()
+            .flat_map(|&v| (0..3).map(move |d| (v, d)))
+            .collect();
+        let fields = self
+            .mech
+            .reciprocal_fields(&x, &obs.commands(), &obs.gravity, &[], &axes, self.ctx())
+            .map_err(|e| to_physics(self.index, "(tangent)", e))?;
+        let info_scale = frames.max(1) as Real / (sigma_m * sigma_m);
+        let mut out = Vec::with_capacity(self.candidates.len());
+        for (c, patch) in self.patches.iter().enumerate() {
+            let inward = lin.inward[c];
+            let force = inward * force_n;
+            // Tangent directions at the patch: around the axis and along it.
+            let n = -inward;
+            let around = Vector3::z()
+                .cross(&n)
+                .try_normalize(1e-6)
+                .unwrap_or_else(|| Vector3::y());
+            let along = n.cross(&around).normalize();
+            // Jacobian columns: place along, place around, force x, y, z.
+            let mut j = DMatrix::<Real>::zeros(n_obs, 5);
+            for (col, dir) in [along, around].iter().enumerate() {
+                for &(u, share) in patch {
+                    for (i, grad) in self.mech.load_weight_gradients(u) {
+                        let dw = grad.dot(dir) * share;
+                        for k in 0..n_obs {
+                            let mut s = 0.0;
+                            for a in 0..3 {
+                                s += fields[(3 * i as usize + a, k)] * force[a];
+                            }
+                            j[(k, col)] += dw * s;
+                        }
+                    }
+                }
+            }
+            let base = 3 * c * n_obs;
+            for d in 0..3 {
+                for k in 0..n_obs {
+                    j[(k, 2 + d)] = lin.responses[base + d * n_obs + k];
+                }
+            }
+            let info = j.transpose() * &j * info_scale;
+            let bound = match info.try_inverse() {
+                Some(cov) => {
+                    let f = DVector::from_column_slice(inward.as_slice());
+                    let cov_f = cov.view((2, 2), (3, 3)).into_owned();
+                    [
+                        cov[(0, 0)].max(0.0).sqrt(),
+                        cov[(1, 1)].max(0.0).sqrt(),
+                        (f.transpose() * cov_f * &f)[(0, 0)].max(0.0).sqrt(),
+                    ]
+                }
+                None => [Real::INFINITY; 3],
+            };
+            out.push((self.candidates[c], bound));
+        }
+        Ok(out)
     }
 
     /// Standard deviation of each load's magnitude at fixed places and directions: `σ` times

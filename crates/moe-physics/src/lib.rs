@@ -32,6 +32,8 @@
 //! The estimator implements `moe_geom::ContactEstimator` (per-vertex contact probability and
 //! force) and `moe_geom::ShapeEstimator` (the dented surface).
 
+/// Fitting the hand's material to contact-free observations.
+mod calibration;
 /// Settings and the hand's material.
 mod config;
 /// The crate's error type.
@@ -44,12 +46,16 @@ mod finger;
 mod mechanics;
 /// Non-negative least squares.
 mod nnls;
+/// The Cramér–Rao bound of a press's place.
+mod observability;
 /// The estimator behind the shape and contact seams.
 mod stages;
 
+pub use calibration::{CalibrationFrame, CalibrationOptions, CalibrationReport, calibrate};
 pub use config::{HandMaterial, PhysicsConfig};
 pub use error::PhysicsError;
 pub use estimator::{
     ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator, PhysicsObservation,
 };
-pub use stages::{PhysicsContactStage, PhysicsShapeStage, gravity_in_hand};
+pub use observability::{BoundOptions, PlaceBound};
+pub use stages::{PhysicsContactStage, PhysicsShapeStage};

@@ -80,6 +80,11 @@ impl FingerMechanics {
         })
     }
 
+    /// Replaces the material.
+    pub(crate) fn set_material(&mut self, material: &Material) -> Result<(), SimError> {
+        self.body.fem_mut().set_material(material)
+    }
+
     /// The FEM body.
     pub(crate) fn body(&self) -> &FingerBody {
         &self.body
@@ -147,21 +152,19 @@ impl FingerMechanics {
     }
 
     /// Advances `state` by one backward-Euler step of `dt_secs` under `commands` (their values at
-    /// the end of the step) and `gravity`, with the material's Rayleigh damping and no load.
+    /// the end of the step) and `gravity`, with the material's Rayleigh damping and no load; the
+    /// fixed nodes move to `targets` (the frame of `state`, `targets` and `gravity` is the
+    /// caller's: the world, for a finger on a moving wrist).
     pub(crate) fn step_free(
         &mut self,
         state: &mut BodyState,
         commands: &[TendonCommand],
         gravity: &Vector3,
+        targets: &[Point3],
         dt_secs: Real,
         ctx: StepContext,
     ) -> Result<(), SimError> {
-        let Self {
-            body,
-            ws,
-            rest_nodes,
-            ..
-        } = self;
+        let Self { body, ws, .. } = self;
         let me = &*body;
         let (tendon, load_points) = (&self.tendon, &self.load_points);
         let mut terms_fn = |xs: &[Point3], _: &[Vector3], terms: &mut Terms| {
@@ -173,7 +176,7 @@ impl FingerMechanics {
             Integrator::Dynamic { dt_secs },
             state,
             moe_tendon_sim::mechanics::FemInputs {
-                targets: rest_nodes,
+                targets,
                 gravity: *gravity,
                 terms: &mut terms_fn,
             },
@@ -223,6 +226,28 @@ impl FingerMechanics {
         }
         self.tangent.solve_in_place(fem, rhs.as_mut())?;
         Ok(rhs)
+    }
+
+    /// The gradients, with respect to the load point's rest position, of the weights with which
+    /// a load near surface vertex `v` acts on the free nodes of its element: `(free index,
+    /// ∇w)` (the element's shape-function gradients).
+    pub(crate) fn load_weight_gradients(&self, v: u32) -> Vec<(u32, Vector3)> {
+        let e = &self.load_points[v as usize];
+        let fem = self.body.fem();
+        let c = fem.mesh().corners(e.tet as usize);
+        let m = moe_geom::Matrix3::from_columns(&[c[1] - c[0], c[2] - c[0], c[3] - c[0]]);
+        let Some(inv) = m.try_inverse() else {
+            return Vec::new();
+        };
+        let (g1, g2, g3) = (
+            inv.row(0).transpose(),
+            inv.row(1).transpose(),
+            inv.row(2).transpose(),
+        );
+        let grads = [-(g1 + g2 + g3), g1, g2, g3];
+        (0..4)
+            .filter_map(|k| fem.free_index(e.nodes[k]).map(|i| (i as u32, grads[k])))
+            .collect()
     }
 
     /// The free nodes a load on surface vertex `v` acts on, with their weights: `(free index,

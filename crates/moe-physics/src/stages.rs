@@ -6,21 +6,11 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use moe_geom::{
     ContactEstimate, ContactEstimator, ContactInput, HandKeypoints, HandShape, Real,
-    ShapeEstimator, ShapeInput, Vector3, WorldFromHand,
+    ShapeEstimator, ShapeInput, WorldFromHand,
 };
 
 use crate::error::PhysicsError;
 use crate::estimator::{PhysicsEstimate, PhysicsEstimator, PhysicsObservation};
-
-/// Gravity in the world frame, m/s².
-const GRAVITY_IN_WORLD: [Real; 3] = [0.0, 0.0, -9.81];
-
-/// Gravity in the hand frame for a hand at `world_from_hand`.
-pub fn gravity_in_hand(world_from_hand: &WorldFromHand) -> Vector3 {
-    world_from_hand
-        .iso()
-        .inverse_transform_vector(&Vector3::from(GRAVITY_IN_WORLD))
-}
 
 /// What an observation must carry for the physics estimator.
 fn observation<'a>(
@@ -36,9 +26,9 @@ fn observation<'a>(
         tendon_pull_m: tendon_pull_m.ok_or(PhysicsError::Missing {
             what: "the tendon pulls",
         })?,
-        gravity_in_hand: gravity_in_hand(world_from_hand.ok_or(PhysicsError::Missing {
+        world_from_hand: world_from_hand.ok_or(PhysicsError::Missing {
             what: "the hand's pose (world_from_hand), for the direction of gravity",
-        })?),
+        })?,
         time_secs,
     })
 }
@@ -111,7 +101,7 @@ struct Shared {
 struct ObservationKey {
     keypoints: HandKeypoints,
     pulls: Vec<Vec<Real>>,
-    gravity: Vector3,
+    world_from_hand: moe_geom::Iso3,
     time_secs: Option<Real>,
 }
 
@@ -121,7 +111,7 @@ impl Shared {
         let key = ObservationKey {
             keypoints: obs.keypoints.clone(),
             pulls: obs.tendon_pull_m.to_vec(),
-            gravity: obs.gravity_in_hand,
+            world_from_hand: *obs.world_from_hand.iso(),
             time_secs: obs.time_secs,
         };
         if let Some((k, e)) = &self.last

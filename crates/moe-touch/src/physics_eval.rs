@@ -17,7 +17,7 @@ use moe_geom::{
     ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng,
     Vector3, WorldFromHand, bcd,
 };
-use moe_physics::{PhysicsEstimate, PhysicsEstimator, PhysicsObservation, gravity_in_hand};
+use moe_physics::{PhysicsEstimate, PhysicsEstimator, PhysicsObservation};
 use moe_tendon_sim::{Scene, SceneConfig, SimFrame, run_saving};
 use serde::Serialize;
 
@@ -442,7 +442,7 @@ pub fn evaluate_physics(
         let est = estimator.estimate(&PhysicsObservation {
             keypoints: &markers,
             tendon_pull_m: &frame.tendon_pull_m,
-            gravity_in_hand: gravity_in_hand(&frame.world_from_hand),
+            world_from_hand: &frame.world_from_hand,
             time_secs: Some(sf.time_secs),
         })?;
         times.push(start.elapsed().as_secs_f64() * 1e3);

@@ -1,9 +1,9 @@
 //! Known loads recovered from the markers they produce.
 
-use moe_geom::{Point3, Real, Vector3};
+use moe_geom::{Point3, Real};
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator, PhysicsObservation};
 
-use crate::common::{GRAVITY, PointLoad, hand, no_pulls, normal_at, ring, simulate, vertex_near};
+use crate::common::{PointLoad, hand, no_pulls, normal_at, ring, simulate, vertex_near};
 
 fn estimator(config: &PhysicsConfig) -> PhysicsEstimator {
     PhysicsEstimator::new(&hand(), &HandMaterial::default(), config).unwrap()
@@ -17,7 +17,7 @@ fn observe(
     est.estimate(&PhysicsObservation {
         keypoints,
         tendon_pull_m: pulls,
-        gravity_in_hand: Vector3::from(GRAVITY),
+        world_from_hand: &moe_geom::WorldFromHand::identity(),
         time_secs: None,
     })
     .unwrap()

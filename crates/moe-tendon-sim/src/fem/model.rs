@@ -115,6 +115,22 @@ impl FemModel {
         })
     }
 
+    /// Replaces the material (elasticity, density and damping) without rebuilding the body:
+    /// what a calibration that tries many materials on one mesh needs.
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] for a bad material (the model is then unchanged).
+    pub fn set_material(&mut self, material: &Material) -> Result<(), SimError> {
+        material.validate()?;
+        let (lambda, mu) = material.lame();
+        let scale = material.density_kg_m3 / self.material.density_kg_m3;
+        self.mass.iter_mut().for_each(|m| *m *= scale);
+        self.lambda = lambda;
+        self.mu = mu;
+        self.material = material.clone();
+        Ok(())
+    }
+
     /// Whether static solves and [`FemModel::factor_tangent`] use the exact Hessian of the
     /// corotated energy (the derivative of the elements' rotations included) instead of the
     /// corotated stiffness `R K⁰ Rᵀ` that dynamic steps use. The equilibrium is the same; the

@@ -1,0 +1,132 @@
+//! Calibration recovers the material of a hand whose markers the data generator made.
+
+use moe_geom::{HandKeypoints, Real};
+use moe_physics::{CalibrationFrame, CalibrationOptions, HandMaterial, PhysicsConfig, calibrate};
+use moe_tendon_sim::{Material, SceneConfig, run_saving};
+
+use crate::common::hand;
+
+/// The calibration scene of `fixtures/scenes/calibration.toml` (moe-physics reads no files),
+/// shortened, with the material `material`.
+fn calibration_scene(material: Material) -> SceneConfig {
+    let text = include_str!("../../../../fixtures/scenes/calibration.toml");
+    let mut config: SceneConfig = toml::from_str(text).unwrap();
+    config.material = material;
+    config
+}
+
+/// The contact-free stream of a simulated calibration recording with exact markers.
+fn recording(material: Material, seconds: Real) -> Vec<CalibrationFrame> {
+    let mut config = calibration_scene(material);
+    config.duration_secs = seconds;
+    let hand = hand();
+    let mut scene = moe_tendon_sim::Scene::with_hand(config, hand.clone()).unwrap();
+    let steps = scene.num_steps();
+    run_saving(&mut scene, steps)
+        .unwrap()
+        .iter()
+        .map(|f| CalibrationFrame {
+            time_secs: f.time_secs,
+            keypoints: HandKeypoints {
+                fingers: hand
+                    .fingers()
+                    .iter()
+                    .zip(&f.fingers)
+                    .map(|(hf, g)| {
+                        hf.model
+                            .marker_vertices()
+                            .iter()
+                            .map(|&v| Some(g.vertices_in_hand[v as usize]))
+                            .collect()
+                    })
+                    .collect(),
+            },
+            tendon_pull_m: f.tendon_pulls_m().unwrap(),
+            world_from_hand: moe_geom::WorldFromHand::new(f.world_from_hand),
+        })
+        .collect()
+}
+
+#[test]
+fn calibration_recovers_a_stiffer_hand_within_five_percent() {
+    let truth = Material {
+        youngs_modulus_pa: 1.25e5,
+        ..Material::default()
+    };
+    let stream = recording(truth, 1.6);
+    let report = calibrate(
+        &hand(),
+        &[stream],
+        &HandMaterial::default(),
+        &PhysicsConfig::default(),
+        &CalibrationOptions {
+            fit_damping: false,
+            max_evaluations: 30,
+            ..CalibrationOptions::default()
+        },
+    )
+    .unwrap();
+    let e = report.material.material.youngs_modulus_pa;
+    eprintln!("{report:?}");
+    assert!(
+        (e - 1.25e5).abs() <= 0.05 * 1.25e5,
+        "fitted E {e} Pa for a hand of 125 kPa"
+    );
+    assert!(report.rms_fitted_m < report.rms_initial_m);
+}
+
+#[test]
+fn calibration_refuses_what_it_cannot_use() {
+    let hand = hand();
+    let config = PhysicsConfig::default();
+    let options = CalibrationOptions::default();
+    moe_geom::assert_err!(
+        calibrate(&hand, &[], &HandMaterial::default(), &config, &options),
+        moe_physics::PhysicsError::Missing { .. }
+    );
+    let mut bad = HandMaterial::default();
+    bad.material.youngs_modulus_pa = -1.0;
+    let frame = CalibrationFrame {
+        time_secs: 0.0,
+        keypoints: HandKeypoints {
+            fingers: vec![vec![None; 7]; 2],
+        },
+        tendon_pull_m: vec![vec![0.0; 4]; 2],
+        world_from_hand: moe_geom::WorldFromHand::identity(),
+    };
+    moe_geom::assert_err!(
+        calibrate(&hand, &[vec![frame.clone()]], &bad, &config, &options),
+        moe_physics::PhysicsError::InvalidParameter {
+            name: "youngs_modulus_pa",
+            ..
+        }
+    );
+    let mut short = frame.clone();
+    short.tendon_pull_m[1].pop();
+    moe_geom::assert_err!(
+        calibrate(
+            &hand,
+            &[vec![short]],
+            &HandMaterial::default(),
+            &config,
+            &options
+        ),
+        moe_physics::PhysicsError::FingerLengthMismatch { finger: 1, .. }
+    );
+    let mut nan = frame;
+    nan.keypoints.fingers[0][3] = Some(moe_geom::Point3::new(Real::NAN, 0.0, 0.0));
+    moe_geom::assert_err!(
+        calibrate(
+            &hand,
+            &[vec![nan]],
+            &HandMaterial::default(),
+            &config,
+            &options
+        ),
+        moe_physics::PhysicsError::NonFinite {
+            finger: 0,
+            index: 3,
+            ..
+        }
+    );
+}
