@@ -921,6 +921,34 @@ impl FingerInverse {
         Ok(lin)
     }
 
+    /// Gauss–Newton from `state` with as many loads as it carries (one when none), then, from a
+    /// single load, a pair when the second pays its way.
+    fn search_loads(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        mut state: Solved,
+        solves: &mut usize,
+    ) -> Result<(Solved, Linear), PhysicsError> {
+        let sigma2 = self.config.marker_sigma_m.powi(2);
+        let count = state.loads.len().max(1);
+        let mut lin = self.gauss_newton(obs, &mut state, count, solves)?;
+        if count == 1 && self.config.max_loads_per_finger >= 2 && !state.loads.is_empty() {
+            let mut two = state.clone();
+            let lin2 = self.gauss_newton(obs, &mut two, 2, solves)?;
+            if two.loads.len() == 2
+                && two
+                    .loads
+                    .iter()
+                    .all(|f| f.1.norm() >= self.config.min_force_n)
+                && (state.chi - two.chi) / sigma2 >= self.config.second_load_chi2
+            {
+                state = two;
+                lin = lin2;
+            }
+        }
+        Ok((state, lin))
+    }
+
     /// Estimates the finger's loads and shape from one observation.
     pub(crate) fn estimate(
         &mut self,
@@ -1008,6 +1036,8 @@ impl FingerInverse {
         };
         // A held press: start from the previous frame's loads when they explain the markers
         // better than none.
+        let fresh = state.clone();
+        let mut from_tracked = false;
         if let Some(tracked) = self.tracked.take() {
             let mut x = tracked.x;
             if let Ok(it) = self.solve(&mut x, &sobs, &tracked.loads, "") {
@@ -1019,23 +1049,18 @@ impl FingerInverse {
                         loads: tracked.loads,
                         chi,
                     };
+                    from_tracked = true;
                 }
             }
         }
-        let count = state.loads.len().max(1);
-        let mut lin = self.gauss_newton(&sobs, &mut state, count, &mut solves)?;
-        if count == 1 && self.config.max_loads_per_finger >= 2 && !state.loads.is_empty() {
-            let mut two = state.clone();
-            let lin2 = self.gauss_newton(&sobs, &mut two, 2, &mut solves)?;
-            if two.loads.len() == 2
-                && two
-                    .loads
-                    .iter()
-                    .all(|f| f.1.norm() >= self.config.min_force_n)
-                && (state.chi - two.chi) / sigma2 >= self.config.second_load_chi2
-            {
-                state = two;
-                lin = lin2;
+        let (mut state, mut lin) = self.search_loads(&sobs, state, &mut solves)?;
+        // The previous frame's loads can hold the search in a place the press has left: when
+        // they leave a tenth of the residual unexplained, search from the free shape too.
+        if from_tracked && state.chi > RESTART_FRACTION * chi0 {
+            let (other, other_lin) = self.search_loads(&sobs, fresh, &mut solves)?;
+            if other.chi < state.chi {
+                state = other;
+                lin = other_lin;
             }
         }
         // A second load that no longer pays its way is dropped by the test above; a pair
@@ -1262,6 +1287,9 @@ impl FingerInverse {
     }
 }
 
+/// A search from the previous frame's loads that leaves more than this fraction of the free
+/// residual unexplained is repeated from the free shape.
+const RESTART_FRACTION: Real = 0.1;
 /// Spacing of the candidates of the coarse pair search, metres.
 const PAIR_SPACING_M: Real = 0.005;
 /// Alternating re-placements of a pair's loads.

@@ -118,7 +118,10 @@ fn two_separated_loads_are_told_apart() {
         },
     ];
     let keypoints = simulate(&hand, &pulls, &loads);
-    let mut est = estimator(&PhysicsConfig::default());
+    let mut est = estimator(&PhysicsConfig {
+        max_loads_per_finger: 2,
+        ..PhysicsConfig::default()
+    });
     let e = observe(&mut est, &keypoints, &pulls);
     let rest = hand.fingers()[0].model.mesh().vertices();
     let found: Vec<_> = e.loads.iter().filter(|l| l.finger == 0).collect();

@@ -30,6 +30,8 @@ impl FemModel {
             momentum: 0.0,
             exact: self.exact_static_tangent,
         };
+        // The corotated stiffness, positive definite, where the exact Hessian is not.
+        let fallback = Coefficients { exact: false, ..c };
         let gravity = drive.inputs.gravity;
         state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
         let mut update = Real::INFINITY;
@@ -38,7 +40,12 @@ impl FemModel {
             (drive.inputs.terms)(&state.x, &state.v, drive.terms);
             let (x, targets) = (&state.x, drive.inputs.targets);
             let moves_fixed = it == 0 && (0..x.len()).any(|i| self.fixed[i] && targets[i] != x[i]);
-            self.solve(ws, ctx, c, state, drive, it == 0)?;
+            match self.solve(ws, ctx, c, state, drive, it == 0) {
+                Err(SimError::NotPositiveDefinite { .. }) if c.exact => {
+                    self.solve(ws, ctx, fallback, state, drive, it == 0)?;
+                }
+                other => other?,
+            }
             let (x, t) = (&mut state.x, &*drive.terms);
             // Backtracking line search on the total potential (exact elastic energy,
             // quadratic models of the interaction terms): the corotational tangent omits

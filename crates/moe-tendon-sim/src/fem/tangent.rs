@@ -38,6 +38,8 @@ pub struct Tangent {
     small_inv: Vec<Real>,
     active: usize,
     factored: bool,
+    /// Whether the elastic part is the exact Hessian (else the corotated stiffness).
+    exact: bool,
 }
 
 impl std::fmt::Debug for Tangent {
@@ -54,6 +56,13 @@ impl Tangent {
     /// Number of unknowns (three per free node).
     pub fn num_rows(&self) -> usize {
         self.g.nrows()
+    }
+
+    /// Whether the factorised elastic stiffness is the exact Hessian of the corotated energy
+    /// (false: the corotated stiffness, used where the exact one is not positive definite or
+    /// was not asked for; see [`FemModel::set_exact_static_tangent`]).
+    pub fn is_exact(&self) -> bool {
+        self.exact
     }
 
     /// Number of rank-one terms active at the configuration (taut tendons).
@@ -158,6 +167,7 @@ impl FemModel {
             small_inv: Vec::new(),
             active: 0,
             factored: false,
+            exact: false,
         }
     }
 
@@ -191,33 +201,50 @@ impl FemModel {
                 got: terms.rank_ones.len(),
             });
         }
-        let c = Coefficients {
-            mass: 0.0,
-            stiffness: 1.0,
-            external: 1.0,
-            damping: 0.0,
-            force: 1.0,
-            momentum: 0.0,
-            exact: self.exact_static_tangent,
-        };
-        self.assemble(
-            &mut tangent.values,
-            &mut tangent.force,
-            &mut tangent.coupling,
-            &tangent.zero_dx,
-            c,
-            x,
-            terms,
-            gravity,
-            ctx,
-        )?;
         let not_pd = SimError::NotPositiveDefinite {
             step: ctx.step,
             finger: ctx.finger,
         };
-        self.system
-            .factor_values(&tangent.values, &mut tangent.l_values, &mut tangent.mem)
-            .map_err(|_| not_pd)?;
+        // The exact Hessian is indefinite past a stability limit (a buckling finger): the
+        // corotated stiffness, positive definite, stands in for it there.
+        let mut factored = false;
+        for exact in [self.exact_static_tangent, false] {
+            let c = Coefficients {
+                mass: 0.0,
+                stiffness: 1.0,
+                external: 1.0,
+                damping: 0.0,
+                force: 1.0,
+                momentum: 0.0,
+                exact,
+            };
+            self.assemble(
+                &mut tangent.values,
+                &mut tangent.force,
+                &mut tangent.coupling,
+                &tangent.zero_dx,
+                c,
+                x,
+                terms,
+                gravity,
+                ctx,
+            )?;
+            if self
+                .system
+                .factor_values(&tangent.values, &mut tangent.l_values, &mut tangent.mem)
+                .is_ok()
+            {
+                factored = true;
+                tangent.exact = exact;
+                break;
+            }
+            if !exact {
+                break;
+            }
+        }
+        if !factored {
+            return Err(not_pd);
+        }
         // The active rank-one terms: their free gradients and A⁻¹ of them.
         let active: Vec<usize> = terms
             .rank_ones
