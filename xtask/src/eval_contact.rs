@@ -259,7 +259,7 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     Ok(())
 }
 
-fn plate_scenes() -> Result<Vec<PlateScene>> {
+pub(crate) fn plate_scenes() -> Result<Vec<PlateScene>> {
     let dir = workspace_root().join("fixtures/scenes");
     PLATES
         .iter()

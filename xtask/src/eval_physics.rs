@@ -11,10 +11,13 @@ use clap::Args;
 use moe_arap::ShapeConfig;
 use moe_geom::{HandKeypoints, HandModel, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
-use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator};
+use moe_physics::{
+    CalibrationFrame, CalibrationOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, calibrate,
+};
 use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
 use moe_touch::physics_eval::{
-    Comparison, MarkerSource, PhysicsEvaluation, StreamFrame, evaluate_physics, simulate_perceived,
+    Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame,
+    evaluate_physics, evaluate_plates_physics, simulate_perceived,
 };
 
 use crate::eval_contact::load_estimator;
@@ -54,6 +57,12 @@ pub(crate) struct PhysicsEvalArgs {
     /// The hand's material (TOML, as `moe-touch calibrate` writes it); default: nominal.
     #[arg(long)]
     material: Option<PathBuf>,
+    /// Calibrate first: simulate this contact-free scene (e.g. fixtures/scenes/calibration.toml)
+    /// with the evaluated hand's material and mesh (the data set's, or `--params`'), fit the
+    /// material to its markers from `--material` (or the nominal one), and evaluate with the
+    /// fitted material.
+    #[arg(long, value_name = "SCENE.toml")]
+    calibrate: Option<PathBuf>,
     /// The estimator's settings (TOML or JSON `PhysicsConfig`); default: the documented ones.
     #[arg(long)]
     config: Option<PathBuf>,
@@ -61,6 +70,10 @@ pub(crate) struct PhysicsEvalArgs {
     /// shapes from the same markers).
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Also Table 2: trials per plate scene (trial 0 as committed), the physics estimator and
+    /// (with `--model`) the DGCNN on its shapes; UCD predicted → true per region. 0 skips it.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u64).range(0..=100))]
+    plates: u64,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
@@ -70,7 +83,7 @@ pub(crate) struct PhysicsEvalArgs {
 fn dataset_streams(
     args: &PhysicsEvalArgs,
     dir: &std::path::Path,
-) -> Result<(HandModel, Vec<StreamFrame>)> {
+) -> Result<(HandModel, Vec<StreamFrame>, RandomSceneParams)> {
     let reader = DatasetReader::open(dir)?;
     let hand = dataset_hand(&reader)?;
     let layout = reader.card().layout.clone();
@@ -110,13 +123,18 @@ fn dataset_streams(
     if out.is_empty() {
         bail!("{}: no frames to evaluate", dir.display());
     }
-    Ok((hand, out))
+    Ok((hand, out, params))
 }
 
 /// Trajectories simulated afresh (rendered and perceived with `--perceived`).
 fn simulated_streams(
     args: &PhysicsEvalArgs,
-) -> Result<(HandModel, Vec<StreamFrame>, Option<Vec<HandKeypoints>>)> {
+) -> Result<(
+    HandModel,
+    Vec<StreamFrame>,
+    Option<Vec<HandKeypoints>>,
+    RandomSceneParams,
+)> {
     let params: RandomSceneParams = match &args.params {
         Some(p) => moe_io::read_config(p)?,
         None => RandomSceneParams::default(),
@@ -140,18 +158,56 @@ fn simulated_streams(
         }
         eprintln!("eval physics: simulated trajectory {} of {n}", t + 1);
     }
-    Ok((hand, frames, args.perceived.then_some(seen)))
+    Ok((hand, frames, args.perceived.then_some(seen), params))
+}
+
+/// The material fitted to the calibration scene simulated with the hand's own material and
+/// mesh (`params`), from `initial`.
+fn calibrated(
+    scene: &std::path::Path,
+    hand: &HandModel,
+    params: &RandomSceneParams,
+    initial: &HandMaterial,
+    config: &PhysicsConfig,
+) -> Result<HandMaterial> {
+    let mut scene_config: moe_tendon_sim::SceneConfig = moe_io::read_config(scene)?;
+    scene_config.material = params.material.clone();
+    scene_config.voxel = params.voxel.clone();
+    let stream = moe_touch::physics_eval::simulate_stream(&scene_config, hand, 0)
+        .with_context(|| format!("calibration scene {}", scene.display()))?;
+    let frames: Vec<CalibrationFrame> = stream
+        .iter()
+        .map(|s| CalibrationFrame {
+            time_secs: s.time_secs,
+            keypoints: s.frame.markers.clone(),
+            tendon_pull_m: s.frame.tendon_pull_m.clone(),
+            world_from_hand: s.frame.world_from_hand,
+        })
+        .collect();
+    let report = calibrate(hand, &[frames], initial, config, &CalibrationOptions::default())?;
+    eprintln!(
+        "eval physics: calibrated on {} frames: E {:.0} Pa (resolution {:.1} %), damping {:.4} s, \
+         RMS {:.4} -> {:.4} mm ({} evaluations)",
+        report.frames,
+        report.material.material.youngs_modulus_pa,
+        100.0 * report.youngs_modulus_resolution,
+        report.material.material.rayleigh_stiffness,
+        report.rms_initial_m * 1e3,
+        report.rms_fitted_m * 1e3,
+        report.evaluations
+    );
+    Ok(report.material)
 }
 
 pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
-    let (hand, frames, perceived) = match &args.data {
+    let (hand, frames, perceived, params) = match &args.data {
         Some(dir) => {
-            let (h, f) = dataset_streams(args, dir)?;
-            (h, f, None)
+            let (h, f, p) = dataset_streams(args, dir)?;
+            (h, f, None, p)
         }
         None => simulated_streams(args)?,
     };
-    let material: HandMaterial = match &args.material {
+    let mut material: HandMaterial = match &args.material {
         Some(p) => moe_io::read_config(p)?,
         None => HandMaterial::default(),
     };
@@ -159,6 +215,9 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
         Some(p) => moe_io::read_config(p)?,
         None => PhysicsConfig::default(),
     };
+    if let Some(scene) = &args.calibrate {
+        material = calibrated(scene, &hand, &params, &material, &config)?;
+    }
     let mut estimator = PhysicsEstimator::new(&hand, &material, &config)?;
     let dgcnn = args
         .model
@@ -184,12 +243,91 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
             shape: &shape,
         },
     )?;
+    let plates = if args.plates > 0 {
+        evaluate_plates_physics(
+            &hand,
+            &crate::eval_contact::plate_scenes()?,
+            args.plates,
+            args.seed,
+            &mut estimator,
+            dgcnn.as_ref(),
+        )?
+    } else {
+        Vec::new()
+    };
     if args.json {
-        println!("{}", serde_json::to_string(&eval)?);
+        println!(
+            "{}",
+            serde_json::json!({
+                "evaluation": eval,
+                "plates": { "trials": plates, "regions": plate_regions(&plates) },
+            })
+        );
     } else {
         print!("{}", table(&eval));
+        if !plates.is_empty() {
+            print!("{}", plate_table(&plates));
+        }
     }
     Ok(())
+}
+
+/// Per region: mean ± sd over the trials of the UCD (mm) of the physics estimator and of the
+/// DGCNN on its shapes, with the share of contact frames missed.
+fn plate_regions(plates: &[PhysicsPlateTrial]) -> serde_json::Value {
+    let mut out = serde_json::Map::new();
+    for region in ["tip", "middle", "base"] {
+        let trials: Vec<&PhysicsPlateTrial> =
+            plates.iter().filter(|t| t.region == region).collect();
+        let stat = |f: &dyn Fn(&PhysicsPlateTrial) -> Option<&moe_contact::ContactReport>| {
+            let reports: Vec<&moe_contact::ContactReport> =
+                trials.iter().filter_map(|t| f(t)).collect();
+            let v: Vec<Real> = reports
+                .iter()
+                .map(|r| r.ucd_mm)
+                .filter(|x| x.is_finite())
+                .collect();
+            let n = v.len() as Real;
+            let mean = v.iter().sum::<Real>() / n.max(1.0);
+            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<Real>() / n.max(1.0)).sqrt();
+            let frames: u64 = reports.iter().map(|r| r.contact_frames).sum();
+            let misses: u64 = reports.iter().map(|r| r.misses).sum();
+            serde_json::json!({
+                "ucd_mean_mm": mean, "ucd_sd_mm": sd, "trials": v.len(),
+                "missed_fraction": misses as Real / frames.max(1) as Real,
+            })
+        };
+        out.insert(
+            region.to_owned(),
+            serde_json::json!({
+                "physics": stat(&|t| Some(&t.physics)),
+                "dgcnn_on_physics": stat(&|t| t.dgcnn_on_physics.as_ref()),
+            }),
+        );
+    }
+    serde_json::Value::Object(out)
+}
+
+/// Table 2 as Markdown.
+fn plate_table(plates: &[PhysicsPlateTrial]) -> String {
+    use std::fmt::Write as _;
+    let regions = plate_regions(plates);
+    let mut s = String::from(
+        "\n| region | physics UCD mm (missed) | DGCNN on the physics shape UCD mm (missed) |\n|---|---|---|\n",
+    );
+    for region in ["tip", "middle", "base"] {
+        let cell = |k: &str| {
+            let r = &regions[region][k];
+            format!(
+                "{:.2} ± {:.2} ({:.0} %)",
+                r["ucd_mean_mm"].as_f64().unwrap_or(Real::NAN),
+                r["ucd_sd_mm"].as_f64().unwrap_or(Real::NAN),
+                100.0 * r["missed_fraction"].as_f64().unwrap_or(Real::NAN)
+            )
+        };
+        let _ = writeln!(s, "| {region} | {} | {} |", cell("physics"), cell("dgcnn_on_physics"));
+    }
+    s
 }
 
 /// The report as Markdown tables.

@@ -143,6 +143,7 @@ pub fn calibrate(
     options: &CalibrationOptions,
 ) -> Result<CalibrationReport, PhysicsError> {
     initial.validate()?;
+    initial.check_hand(hand)?;
     config.validate()?;
     let frames: usize = streams.iter().map(Vec::len).sum();
     if frames == 0 {
@@ -203,7 +204,8 @@ pub fn calibrate(
     } else {
         Real::INFINITY
     };
-    let material = problem.material(&best);
+    let mut material = problem.material(&best);
+    material.hand = Some(crate::config::HandSignature::of(hand));
     Ok(CalibrationReport {
         material,
         streams: streams.len(),

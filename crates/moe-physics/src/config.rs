@@ -17,6 +17,34 @@ pub struct HandMaterial {
     pub material: Material,
     /// Tendons.
     pub tendon: TendonParams,
+    /// The hand the material was fitted to (calibration records it; a material without it
+    /// fits any hand).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hand: Option<HandSignature>,
+}
+
+/// What identifies a hand to a material file: its fingers' vertex, marker and tendon counts.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandSignature {
+    /// Surface vertices of each finger.
+    pub vertices_per_finger: Vec<usize>,
+    /// Markers of each finger.
+    pub markers_per_finger: Vec<usize>,
+    /// Tendons of each finger.
+    pub tendons_per_finger: Vec<usize>,
+}
+
+impl HandSignature {
+    /// The signature of `hand`.
+    pub fn of(hand: &moe_geom::HandModel) -> Self {
+        let f = hand.fingers();
+        Self {
+            vertices_per_finger: f.iter().map(|f| f.model.mesh().num_vertices()).collect(),
+            markers_per_finger: f.iter().map(|f| f.model.marker_vertices().len()).collect(),
+            tendons_per_finger: f.iter().map(|f| f.model.tendon_routes().len()).collect(),
+        }
+    }
 }
 
 impl HandMaterial {
@@ -45,6 +73,21 @@ impl HandMaterial {
         self.material.validate().map_err(sim)?;
         self.tendon.validate().map_err(sim)?;
         Ok(())
+    }
+
+    /// Checks that the material describes `hand` (when it records a hand).
+    ///
+    /// # Errors
+    /// [`PhysicsError::MaterialOfAnotherHand`] with both signatures.
+    pub fn check_hand(&self, hand: &moe_geom::HandModel) -> Result<(), PhysicsError> {
+        let ours = HandSignature::of(hand);
+        match &self.hand {
+            Some(recorded) if *recorded != ours => Err(PhysicsError::MaterialOfAnotherHand {
+                recorded: format!("{recorded:?}"),
+                hand: format!("{ours:?}"),
+            }),
+            _ => Ok(()),
+        }
     }
 }
 

@@ -89,6 +89,18 @@ pub enum PhysicsError {
         /// Index within the finger.
         index: usize,
     },
+    /// The material file was fitted to another hand: recalibrate on this hand
+    /// (`moe-touch calibrate`), or remove its `hand` section to use it anyway.
+    #[error(
+        "the material was fitted to another hand ({recorded}), not this one ({hand}): \
+         calibrate on this hand with `moe-touch calibrate`"
+    )]
+    MaterialOfAnotherHand {
+        /// The hand the material records.
+        recorded: String,
+        /// The hand it was used with.
+        hand: String,
+    },
     /// A value the estimator needs was not given.
     #[error("the physics estimator needs {what}")]
     Missing {

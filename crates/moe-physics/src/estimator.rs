@@ -115,6 +115,7 @@ impl PhysicsEstimator {
         config: &PhysicsConfig,
     ) -> Result<Self, PhysicsError> {
         material.validate()?;
+        material.check_hand(hand)?;
         config.validate()?;
         let fingers = hand
             .fingers()

@@ -52,7 +52,7 @@ mod observability;
 mod stages;
 
 pub use calibration::{CalibrationFrame, CalibrationOptions, CalibrationReport, calibrate};
-pub use config::{HandMaterial, PhysicsConfig};
+pub use config::{HandMaterial, HandSignature, PhysicsConfig};
 pub use error::PhysicsError;
 pub use estimator::{
     ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator, PhysicsObservation,

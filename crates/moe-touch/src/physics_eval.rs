@@ -545,3 +545,78 @@ pub fn simulate_perceived(
     })?;
     Ok((stream, seen))
 }
+
+/// One trial of a plate scene (Table 2) for the physics estimator.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsPlateTrial {
+    /// Scene name.
+    pub scene: String,
+    /// Region pressed.
+    pub region: String,
+    /// Trial number (0: the scene as committed).
+    pub trial: u64,
+    /// Frames with true contact.
+    pub contact_frames: u64,
+    /// The physics estimator's map over those frames.
+    pub physics: ContactReport,
+    /// The DGCNN on the physics shapes over those frames.
+    pub dgcnn_on_physics: Option<ContactReport>,
+}
+
+/// Table 2 for the physics estimator: every plate scene, `trials` trials each (trial 0 as
+/// committed, the others perturbed as [`crate::contact_eval::perturbed_plate`] does), the whole
+/// stream estimated in order and the frames with true contact scored.
+///
+/// # Errors
+/// As [`simulate_stream`] and the estimators.
+pub fn evaluate_plates_physics(
+    hand: &HandModel,
+    scenes: &[crate::contact_eval::PlateScene],
+    trials: u64,
+    seed: u64,
+    estimator: &mut PhysicsEstimator,
+    dgcnn: Option<&DgcnnEstimator>,
+) -> Result<Vec<PhysicsPlateTrial>, TouchError> {
+    let mut out = Vec::new();
+    for (s, scene) in scenes.iter().enumerate() {
+        for trial in 0..trials {
+            let (config, _, _) =
+                crate::contact_eval::perturbed_plate(&scene.config, seed ^ (s as u64) << 32, trial);
+            let frames = simulate_stream(&config, hand, trial)?;
+            estimator.reset();
+            let (mut physics, mut on_physics) = (ContactMetrics::default(), ContactMetrics::default());
+            let mut contact_frames = 0;
+            for sf in &frames {
+                let frame = &sf.frame;
+                let est = estimator.estimate(&PhysicsObservation {
+                    keypoints: &frame.markers,
+                    tendon_pull_m: &frame.tendon_pull_m,
+                    world_from_hand: &frame.world_from_hand,
+                    time_secs: Some(sf.time_secs),
+                })?;
+                if frame.contact_count() == 0 {
+                    continue;
+                }
+                contact_frames += 1;
+                physics.add(&frame.shape, &frame.contact, &labels_at(&est.contact.fingers, 0.5))?;
+                if let Some(d) = dgcnn {
+                    let p = d.estimate_map(&ContactInput::of_frame(frame, &est.shape))?;
+                    on_physics.add(
+                        &frame.shape,
+                        &frame.contact,
+                        &labels_at(&p.fingers, d.threshold()),
+                    )?;
+                }
+            }
+            out.push(PhysicsPlateTrial {
+                scene: scene.name.clone(),
+                region: scene.region.clone(),
+                trial,
+                contact_frames,
+                physics: physics.report(),
+                dgcnn_on_physics: dgcnn.map(|_| on_physics.report()),
+            });
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,187 @@
+//! Bad input: refused with the item named, or reported for one finger while the rest goes on.
+
+use moe_geom::{Point3, Real, WorldFromHand, assert_err};
+use moe_physics::{
+    HandMaterial, HandSignature, PhysicsConfig, PhysicsError, PhysicsEstimator, PhysicsObservation,
+};
+
+use crate::common::{PointLoad, hand, no_pulls, normal_at, simulate, vertex_near};
+
+fn observe<'a>(
+    keypoints: &'a moe_geom::HandKeypoints,
+    pulls: &'a [Vec<Real>],
+    pose: &'a WorldFromHand,
+) -> PhysicsObservation<'a> {
+    PhysicsObservation {
+        keypoints,
+        tendon_pull_m: pulls,
+        world_from_hand: pose,
+        time_secs: None,
+    }
+}
+
+#[test]
+fn a_finger_with_too_few_markers_is_reported_and_the_others_estimated() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let v = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.045));
+    let mut keypoints = simulate(
+        &hand,
+        &pulls,
+        &[PointLoad {
+            finger: 0,
+            vertex: v,
+            force: -normal_at(&hand, 0, v) * 0.2,
+        }],
+    );
+    // Finger 1 keeps two of its seven markers.
+    for m in 2..7 {
+        keypoints.fingers[1][m] = None;
+    }
+    let pose = WorldFromHand::identity();
+    let mut est =
+        PhysicsEstimator::new(&hand, &HandMaterial::default(), &PhysicsConfig::default()).unwrap();
+    let e = est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
+    let message = e.fingers[1].error.as_deref().unwrap();
+    assert!(
+        message.contains("finger 1") && message.contains("2 observed markers"),
+        "{message}"
+    );
+    assert!(e.fingers[0].error.is_none());
+    assert_eq!(e.loads.len(), 1);
+    assert_eq!(e.loads[0].finger, 0);
+    // Its shape is the rest shape, its map zero.
+    assert_eq!(e.shape.fingers[1], hand.rest_vertices_in_hand(1));
+    assert!(e.contact.fingers[1].iter().all(|&p| p == 0.0));
+}
+
+#[test]
+fn observations_that_do_not_fit_the_hand_are_refused_naming_the_item() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let keypoints = simulate(&hand, &pulls, &[]);
+    let pose = WorldFromHand::identity();
+    let mut est =
+        PhysicsEstimator::new(&hand, &HandMaterial::default(), &PhysicsConfig::default()).unwrap();
+    let mut nan = keypoints.clone();
+    nan.fingers[1][4] = Some(Point3::new(0.0, Real::NAN, 0.0));
+    assert_err!(
+        est.estimate(&observe(&nan, &pulls, &pose)),
+        PhysicsError::NonFinite {
+            what: "marker",
+            finger: 1,
+            index: 4
+        }
+    );
+    let mut short = pulls.clone();
+    short[0].pop();
+    assert_err!(
+        est.estimate(&observe(&keypoints, &short, &pose)),
+        PhysicsError::FingerLengthMismatch {
+            what: "tendon pulls",
+            finger: 0,
+            expected: 4,
+            got: 3
+        }
+    );
+    let mut missing = keypoints.clone();
+    missing.fingers.pop();
+    assert_err!(
+        est.estimate(&observe(&missing, &pulls, &pose)),
+        PhysicsError::LengthMismatch { .. }
+    );
+    let mut bad_pull = pulls.clone();
+    bad_pull[1][2] = Real::INFINITY;
+    assert_err!(
+        est.estimate(&observe(&keypoints, &bad_pull, &pose)),
+        PhysicsError::NonFinite {
+            what: "tendon pull",
+            finger: 1,
+            index: 2
+        }
+    );
+}
+
+#[test]
+fn non_physical_materials_and_materials_of_another_hand_are_refused() {
+    let hand = hand();
+    let config = PhysicsConfig::default();
+    for (material, name) in [
+        (
+            HandMaterial {
+                material: moe_tendon_sim::Material {
+                    youngs_modulus_pa: 0.0,
+                    ..Default::default()
+                },
+                ..HandMaterial::default()
+            },
+            "youngs_modulus_pa",
+        ),
+        (
+            HandMaterial {
+                material: moe_tendon_sim::Material {
+                    poisson_ratio: 0.5,
+                    ..Default::default()
+                },
+                ..HandMaterial::default()
+            },
+            "poisson_ratio",
+        ),
+        (
+            HandMaterial {
+                material: moe_tendon_sim::Material {
+                    poisson_ratio: -1.2,
+                    ..Default::default()
+                },
+                ..HandMaterial::default()
+            },
+            "poisson_ratio",
+        ),
+    ] {
+        assert_err!(
+            PhysicsEstimator::new(&hand, &material, &config),
+            PhysicsError::InvalidParameter { name: got, .. } if *got == name
+        );
+    }
+    let three = moe_geom::HandModel::preset(
+        moe_geom::HandPreset::ThreeFinger,
+        &moe_geom::FingerParams::default(),
+    )
+    .unwrap();
+    let fitted = HandMaterial {
+        hand: Some(HandSignature::of(&three)),
+        ..HandMaterial::default()
+    };
+    let e = assert_err!(
+        PhysicsEstimator::new(&hand, &fitted, &config),
+        PhysicsError::MaterialOfAnotherHand { .. }
+    );
+    assert!(e.to_string().contains("moe-touch calibrate"), "{e}");
+    PhysicsEstimator::new(&three, &fitted, &config).unwrap();
+}
+
+#[test]
+fn a_static_solve_that_does_not_converge_is_reported_and_the_stream_goes_on() {
+    let hand = hand();
+    let pulls = vec![vec![0.004, -0.004, 0.0, 0.0], vec![0.0; 4]];
+    let keypoints = simulate(&hand, &pulls, &[]);
+    let pose = WorldFromHand::identity();
+    // One Newton iteration to a micrometre cannot bend a finger by its pulls from rest.
+    let mut est = PhysicsEstimator::new(
+        &hand,
+        &HandMaterial::default(),
+        &PhysicsConfig {
+            static_max_iterations: 1,
+            ..PhysicsConfig::default()
+        },
+    )
+    .unwrap();
+    let e = est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
+    let message = e.fingers[0].error.as_deref().unwrap();
+    assert!(
+        message.contains("finger 0") && message.contains("did not converge"),
+        "{message}"
+    );
+    // The same estimator goes on with the next observation.
+    est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
+}
