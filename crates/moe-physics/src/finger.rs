@@ -202,6 +202,8 @@ pub(crate) struct FingerInverse {
     area: Vec<Real>,
     /// Candidates at least [`PAIR_SPACING_M`] apart: the coarse pair search.
     pair_subset: Vec<usize>,
+    /// Per surface vertex: the outward normal at rest.
+    rest_normals: Vec<Vector3>,
     config: PhysicsConfig,
     /// The body's stiffness-proportional damping time, seconds.
     beta: Real,
@@ -318,6 +320,7 @@ impl FingerInverse {
             index,
             mech,
             pair_subset,
+            rest_normals: normals.clone(),
             markers: finger.marker_vertices().to_vec(),
             rest_surface,
             faces,
@@ -1090,7 +1093,15 @@ impl FingerInverse {
             let location_sd_m = self.location_spread(&lin, &fit, k);
             for &(u, s) in &self.patches[c] {
                 vertex_force[u as usize] += f * s;
-                probability[u as usize] = pressed_probability;
+            }
+            let centre = self.rest_surface[self.candidates[c] as usize];
+            let normal = -lin.inward[c];
+            let r = self.config.contact_radius_m;
+            for (u, p) in self.rest_surface.iter().enumerate() {
+                // The contact region: the rest surface within the radius, on the patch's side.
+                if (p - centre).norm() <= r && self.rest_normals[u].dot(&normal) > 0.0 {
+                    probability[u] = pressed_probability;
+                }
             }
             loads_out.push(FingerLoad {
                 vertex: self.candidates[c],
