@@ -54,6 +54,14 @@ pub(crate) struct ContactEvalArgs {
     /// by contact, and a figure of the per-region plate errors (SVG) to this directory.
     #[arg(long, value_name = "DIR")]
     pub(crate) out: Option<PathBuf>,
+    /// Add the physics estimator and the DGCNN on its shapes to Table 1 (the same frames, as
+    /// streams) and Table 2 (the same plate trials), with the force table; `xtask eval physics`
+    /// has the noisy, perceived and calibrated variants.
+    #[arg(long)]
+    pub(crate) physics: bool,
+    /// The hand's material for `--physics` (TOML, as `moe-touch calibrate` writes it).
+    #[arg(long, requires = "physics")]
+    pub(crate) material: Option<PathBuf>,
 }
 
 /// Frames of `--frames`.
@@ -148,6 +156,11 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     let dgcnn = load_estimator(&args.model, &hand)?;
     let layout = reader.card().layout.clone();
     let mut frames: Vec<LabelledFrame> = Vec::new();
+    let mut streams: Vec<moe_touch::physics_eval::StreamFrame> = Vec::new();
+    let params: moe_tendon_sim::randomize::RandomSceneParams =
+        serde_json::from_value(reader.card().generator["params"].clone())
+            .context("the data set card's simulator parameters")?;
+    let frame_secs = params.dt_secs * params.save_every_steps as Real;
     let mut proximity: Vec<Vec<Vec<bool>>> = Vec::new();
     let split = match args.frames {
         FrameSet::Test => Some(Split::Test),
@@ -157,6 +170,11 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
         let f = f?;
         let labelled = f.to_labelled(&layout)?;
         frames.push(labelled);
+        if args.physics {
+            streams.push(moe_touch::physics_eval::StreamFrame::from_dataset(
+                &f, &layout, frame_secs,
+            )?);
+        }
         proximity.push(layout.per_finger(&f.obstacle_distance_m, |&d| d < PROXIMITY_M));
         if args.max_frames.is_some_and(|m| frames.len() as u64 >= m) {
             break;
@@ -236,6 +254,11 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     } else {
         Vec::new()
     };
+    let physics = if args.physics {
+        Some(physics_rows(args, &hand, &streams, &dgcnn)?)
+    } else {
+        None
+    };
     if let Some(dir) = &args.out {
         write_out(dir, &hand, &frames, &kept, &plates)?;
     }
@@ -248,6 +271,10 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
                 "label_rule": rule,
                 "table1": table,
                 "table2": { "trials": plates, "regions": region_summary(&plates) },
+                "physics": physics.as_ref().map(|(e, p)| json!({
+                    "table1": e,
+                    "table2": { "trials": p, "regions": crate::eval_physics::plate_regions(p) },
+                })),
             }))?
         );
     } else {
@@ -255,8 +282,66 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
         if !plates.is_empty() {
             print!("{}", format_table2(&plates));
         }
+        if let Some((e, p)) = &physics {
+            print!(
+                "\nContact from physics on the same frames:\n{}",
+                crate::eval_physics::table(e)
+            );
+            if !p.is_empty() {
+                print!("{}", crate::eval_physics::plate_table(p));
+            }
+        }
     }
     Ok(())
+}
+
+/// The physics estimator's rows on the same frames (streams) and plate trials.
+fn physics_rows(
+    args: &ContactEvalArgs,
+    hand: &HandModel,
+    streams: &[moe_touch::physics_eval::StreamFrame],
+    dgcnn: &DgcnnEstimator,
+) -> Result<(
+    moe_touch::physics_eval::PhysicsEvaluation,
+    Vec<moe_touch::physics_eval::PhysicsPlateTrial>,
+)> {
+    let material: moe_physics::HandMaterial = match &args.material {
+        Some(p) => moe_io::read_config(p)?,
+        None => moe_physics::HandMaterial::default(),
+    };
+    let mut estimator = moe_physics::PhysicsEstimator::new(
+        hand,
+        &material,
+        &moe_physics::PhysicsConfig::default(),
+    )?;
+    eprintln!(
+        "eval contact: the physics estimator on {} frames",
+        streams.len()
+    );
+    let shape = moe_arap::ShapeConfig::default();
+    let eval = moe_touch::physics_eval::evaluate_physics(
+        hand,
+        streams,
+        moe_touch::physics_eval::MarkerSource::Exact,
+        &mut estimator,
+        moe_touch::physics_eval::Comparison {
+            dgcnn: Some(dgcnn),
+            shape: &shape,
+        },
+    )?;
+    let plates = if args.trials > 0 {
+        moe_touch::physics_eval::evaluate_plates_physics(
+            hand,
+            &plate_scenes()?,
+            args.trials,
+            args.seed,
+            &mut estimator,
+            Some(dgcnn),
+        )?
+    } else {
+        Vec::new()
+    };
+    Ok((eval, plates))
 }
 
 pub(crate) fn plate_scenes() -> Result<Vec<PlateScene>> {

@@ -16,8 +16,8 @@ use moe_physics::{
 };
 use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
 use moe_touch::physics_eval::{
-    Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame,
-    evaluate_physics, evaluate_plates_physics, simulate_perceived,
+    Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame, evaluate_physics,
+    evaluate_plates_physics, simulate_perceived,
 };
 
 use crate::eval_contact::load_estimator;
@@ -108,17 +108,7 @@ fn dataset_streams(
             }
             trajectories += 1;
         }
-        let labelled = f.to_labelled(&layout)?;
-        out.push(StreamFrame {
-            time_secs: f64::from(f.frame_index) * frame_secs,
-            vertex_force_n: layout.per_finger(&f.contact_force_n, |&v| f64::from(v)),
-            finger_force_n: f.finger_force_n.as_ref().map(|v| {
-                v.iter()
-                    .map(|c| moe_geom::Vector3::new(c[0].into(), c[1].into(), c[2].into()))
-                    .collect()
-            }),
-            frame: labelled,
-        });
+        out.push(StreamFrame::from_dataset(&f, &layout, frame_secs)?);
     }
     if out.is_empty() {
         bail!("{}: no frames to evaluate", dir.display());
@@ -184,7 +174,13 @@ fn calibrated(
             world_from_hand: s.frame.world_from_hand,
         })
         .collect();
-    let report = calibrate(hand, &[frames], initial, config, &CalibrationOptions::default())?;
+    let report = calibrate(
+        hand,
+        &[frames],
+        initial,
+        config,
+        &CalibrationOptions::default(),
+    )?;
     eprintln!(
         "eval physics: calibrated on {} frames: E {:.0} Pa (resolution {:.1} %), damping {:.4} s, \
          RMS {:.4} -> {:.4} mm ({} evaluations)",
@@ -274,7 +270,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
 
 /// Per region: mean ± sd over the trials of the UCD (mm) of the physics estimator and of the
 /// DGCNN on its shapes, with the share of contact frames missed.
-fn plate_regions(plates: &[PhysicsPlateTrial]) -> serde_json::Value {
+pub(crate) fn plate_regions(plates: &[PhysicsPlateTrial]) -> serde_json::Value {
     let mut out = serde_json::Map::new();
     for region in ["tip", "middle", "base"] {
         let trials: Vec<&PhysicsPlateTrial> =
@@ -309,7 +305,7 @@ fn plate_regions(plates: &[PhysicsPlateTrial]) -> serde_json::Value {
 }
 
 /// Table 2 as Markdown.
-fn plate_table(plates: &[PhysicsPlateTrial]) -> String {
+pub(crate) fn plate_table(plates: &[PhysicsPlateTrial]) -> String {
     use std::fmt::Write as _;
     let regions = plate_regions(plates);
     let mut s = String::from(
@@ -325,13 +321,18 @@ fn plate_table(plates: &[PhysicsPlateTrial]) -> String {
                 100.0 * r["missed_fraction"].as_f64().unwrap_or(Real::NAN)
             )
         };
-        let _ = writeln!(s, "| {region} | {} | {} |", cell("physics"), cell("dgcnn_on_physics"));
+        let _ = writeln!(
+            s,
+            "| {region} | {} | {} |",
+            cell("physics"),
+            cell("dgcnn_on_physics")
+        );
     }
     s
 }
 
 /// The report as Markdown tables.
-fn table(e: &PhysicsEvaluation) -> String {
+pub(crate) fn table(e: &PhysicsEvaluation) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
     let _ = writeln!(

@@ -90,6 +90,28 @@ impl StreamFrame {
         })
     }
 
+    /// A data set frame as a stream frame, `frame_secs` apart from the previous one of its
+    /// trajectory (the generator's time step times its frames' spacing).
+    ///
+    /// # Errors
+    /// A frame that does not fit `layout`.
+    pub fn from_dataset(
+        frame: &moe_io::DatasetFrame,
+        layout: &moe_io::DatasetLayout,
+        frame_secs: Real,
+    ) -> Result<Self, TouchError> {
+        Ok(Self {
+            time_secs: f64::from(frame.frame_index) * frame_secs,
+            vertex_force_n: layout.per_finger(&frame.contact_force_n, |&v| f64::from(v)),
+            finger_force_n: frame.finger_force_n.as_ref().map(|v| {
+                v.iter()
+                    .map(|c| Vector3::new(c[0].into(), c[1].into(), c[2].into()))
+                    .collect()
+            }),
+            frame: frame.to_labelled(layout)?,
+        })
+    }
+
     /// The true net force on finger `f`: the recorded vector's magnitude, or the summed
     /// magnitudes without it.
     pub fn true_force_n(&self, f: usize) -> Real {
@@ -584,7 +606,8 @@ pub fn evaluate_plates_physics(
                 crate::contact_eval::perturbed_plate(&scene.config, seed ^ (s as u64) << 32, trial);
             let frames = simulate_stream(&config, hand, trial)?;
             estimator.reset();
-            let (mut physics, mut on_physics) = (ContactMetrics::default(), ContactMetrics::default());
+            let (mut physics, mut on_physics) =
+                (ContactMetrics::default(), ContactMetrics::default());
             let mut contact_frames = 0;
             for sf in &frames {
                 let frame = &sf.frame;
@@ -598,7 +621,11 @@ pub fn evaluate_plates_physics(
                     continue;
                 }
                 contact_frames += 1;
-                physics.add(&frame.shape, &frame.contact, &labels_at(&est.contact.fingers, 0.5))?;
+                physics.add(
+                    &frame.shape,
+                    &frame.contact,
+                    &labels_at(&est.contact.fingers, 0.5),
+                )?;
                 if let Some(d) = dgcnn {
                     let p = d.estimate_map(&ContactInput::of_frame(frame, &est.shape))?;
                     on_physics.add(
