@@ -46,6 +46,9 @@ pub(crate) enum EvalTarget {
     /// Contact from physics as tactile sensors are specified (detection, location and force by
     /// the true force), beside the paper's metrics, from exact, noisy or perceived markers.
     Physics(crate::eval_physics::PhysicsEvalArgs),
+    /// The Cramér–Rao bound of a press's place and force for each marker layout of the study
+    /// (camera row, two rows, sides, tip ring), per region, and the bound map figure.
+    Observability(crate::eval_observability::ObservabilityEvalArgs),
 }
 
 /// Benchmark size.
@@ -92,6 +95,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
         EvalTarget::Patting(a) => crate::eval_patting::run(a),
         EvalTarget::Grasp(a) => crate::eval_grasp::run(a),
         EvalTarget::Physics(a) => crate::eval_physics::run(a),
+        EvalTarget::Observability(a) => crate::eval_observability::run(a),
     }
 }
 

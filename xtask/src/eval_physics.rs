@@ -48,6 +48,10 @@ pub(crate) struct PhysicsEvalArgs {
     /// Without `--data`: randomisation parameters (TOML or JSON, as `gen-data --params`).
     #[arg(long)]
     params: Option<PathBuf>,
+    /// Another marker layout on the same fingers (`camera-row`, `two-rows`, `sides`,
+    /// `tip-ring`): with `--data`, its markers are read off each frame's true surface.
+    #[arg(long, value_name = "PRESET")]
+    marker_layout: Option<moe_geom::MarkerLayoutPreset>,
     /// Gaussian noise on every marker coordinate, metres.
     #[arg(long, value_name = "M")]
     marker_noise: Option<Real>,
@@ -80,16 +84,27 @@ pub(crate) struct PhysicsEvalArgs {
 }
 
 /// Frames of the data set, as streams.
-fn dataset_streams(
-    args: &PhysicsEvalArgs,
-    dir: &std::path::Path,
-) -> Result<(HandModel, Vec<StreamFrame>, RandomSceneParams)> {
+fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Streams> {
     let reader = DatasetReader::open(dir)?;
-    let hand = dataset_hand(&reader)?;
+    let data_hand = dataset_hand(&reader)?;
     let layout = reader.card().layout.clone();
-    let params: RandomSceneParams =
+    let mut params: RandomSceneParams =
         serde_json::from_value(reader.card().generator["params"].clone())
             .context("the data set card's simulator parameters")?;
+    // Another marker layout on the same fingers: its markers are read off the true surface.
+    let hand = match args.marker_layout {
+        Some(preset) => {
+            params.finger.marker_layout = preset.layout();
+            let hand = HandModel::preset(params.preset, &params.finger)?;
+            for (a, b) in hand.fingers().iter().zip(data_hand.fingers()) {
+                if a.model.mesh().vertices() != b.model.mesh().vertices() {
+                    bail!("--marker-layout {preset}: the fingers' meshes differ from the data set's");
+                }
+            }
+            hand
+        }
+        None => data_hand,
+    };
     let frame_secs = params.dt_secs * params.save_every_steps as Real;
     let split = match args.frames {
         crate::eval_contact::FrameSet::Test => Some(Split::Test),
@@ -108,27 +123,54 @@ fn dataset_streams(
             }
             trajectories += 1;
         }
-        out.push(StreamFrame::from_dataset(&f, &layout, frame_secs)?);
+        let mut stream = StreamFrame::from_dataset(&f, &layout, frame_secs)?;
+        if args.marker_layout.is_some() {
+            stream.frame.markers = moe_geom::HandKeypoints {
+                fingers: hand
+                    .fingers()
+                    .iter()
+                    .zip(&stream.frame.shape.fingers)
+                    .map(|(hf, v)| {
+                        hf.model
+                            .marker_vertices()
+                            .iter()
+                            .map(|&m| Some(v[m as usize]))
+                            .collect()
+                    })
+                    .collect(),
+            };
+        }
+        out.push(stream);
     }
     if out.is_empty() {
         bail!("{}: no frames to evaluate", dir.display());
     }
-    Ok((hand, out, params))
+    Ok(Streams {
+        hand,
+        frames: out,
+        perceived: None,
+        params,
+    })
+}
+
+/// The frames to evaluate and what they were made with.
+struct Streams {
+    hand: HandModel,
+    frames: Vec<StreamFrame>,
+    /// Per frame, the markers detected in the rendered images (`--perceived`).
+    perceived: Option<Vec<HandKeypoints>>,
+    params: RandomSceneParams,
 }
 
 /// Trajectories simulated afresh (rendered and perceived with `--perceived`).
-fn simulated_streams(
-    args: &PhysicsEvalArgs,
-) -> Result<(
-    HandModel,
-    Vec<StreamFrame>,
-    Option<Vec<HandKeypoints>>,
-    RandomSceneParams,
-)> {
-    let params: RandomSceneParams = match &args.params {
+fn simulated_streams(args: &PhysicsEvalArgs) -> Result<Streams> {
+    let mut params: RandomSceneParams = match &args.params {
         Some(p) => moe_io::read_config(p)?,
         None => RandomSceneParams::default(),
     };
+    if let Some(preset) = args.marker_layout {
+        params.finger.marker_layout = preset.layout();
+    }
     let hand = HandModel::preset(params.preset, &params.finger)?;
     let n = args.max_trajectories.unwrap_or(args.trajectories);
     let mut frames = Vec::new();
@@ -148,7 +190,12 @@ fn simulated_streams(
         }
         eprintln!("eval physics: simulated trajectory {} of {n}", t + 1);
     }
-    Ok((hand, frames, args.perceived.then_some(seen), params))
+    Ok(Streams {
+        hand,
+        frames,
+        perceived: args.perceived.then_some(seen),
+        params,
+    })
 }
 
 /// The material fitted to the calibration scene simulated with the hand's own material and
@@ -196,11 +243,13 @@ fn calibrated(
 }
 
 pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
-    let (hand, frames, perceived, params) = match &args.data {
-        Some(dir) => {
-            let (h, f, p) = dataset_streams(args, dir)?;
-            (h, f, None, p)
-        }
+    let Streams {
+        hand,
+        frames,
+        perceived,
+        params,
+    } = match &args.data {
+        Some(dir) => dataset_streams(args, dir)?,
         None => simulated_streams(args)?,
     };
     let mut material: HandMaterial = match &args.material {

@@ -10,6 +10,7 @@ mod eval_contact;
 mod eval_grasp;
 mod eval_labels;
 mod eval_markers;
+mod eval_observability;
 mod eval_patting;
 mod eval_physics;
 mod figure;

@@ -40,7 +40,9 @@ pub use nalgebra;
 pub use chamfer::{Neighbor, PointIndex, bcd, ucd};
 pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;
-pub use finger::{FingerModel, FingerParams, TendonRoute};
+pub use finger::{
+    FingerModel, FingerParams, MarkerLayout, MarkerLayoutPreset, MarkerRow, TendonRoute,
+};
 pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
 pub use instant::{
     ContactEstimate, ContactEstimator, ContactInput, ContactMap, ContactPoint, HandShape,

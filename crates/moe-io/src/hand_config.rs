@@ -25,6 +25,24 @@
 //! position_m = [-0.025, 0.0, 0.0]
 //! ```
 //!
+//! A parametric finger's markers follow its `marker_layout` (see `moe_geom::MarkerLayout`): a
+//! preset name or a table of rows (each at an angle around the finger, 0° = the camera side,
+//! `count` defaulting to `marker_count`) and a ring near the tip.
+//!
+//! ```toml
+//! # Two rows of seven markers at ±35° (presets: camera-row, two-rows, sides, tip-ring).
+//! preset = "two-finger"
+//! [finger]
+//! marker_layout = "two-rows"
+//! ```
+//!
+//! ```toml
+//! # The camera row, three markers on the back and a ring of four at 85 % of the length.
+//! preset = "three-finger"
+//! [finger]
+//! marker_layout = { rows = [{ angle_deg = 0 }, { angle_deg = 180, count = 3 }], tip_ring = 4, tip_ring_height_ratio = 0.85 }
+//! ```
+//!
 //! The pose of an explicit finger is `hand_from_finger`: the finger frame is rotated by the
 //! axis-angle vector `rotation_axis_angle_rad` (axis × angle, radians) and then translated by
 //! `position_m`. Both default to zero.
@@ -285,5 +303,120 @@ mod tests {
             missing.to_string().contains("does-not-exist.obj"),
             "{missing}"
         );
+    }
+
+    fn marker_counts(h: &HandModel) -> Vec<usize> {
+        h.fingers()
+            .iter()
+            .map(|f| f.model.marker_vertices().len())
+            .collect()
+    }
+
+    #[test]
+    fn marker_layouts_by_name_or_table() {
+        for (name, count) in [
+            ("camera-row", 7),
+            ("two-rows", 14),
+            ("sides", 21),
+            ("tip-ring", 13),
+        ] {
+            let h = build(&format!(
+                "preset = \"two-finger\"\n[finger]\nmarker_layout = \"{name}\"\n"
+            ))
+            .unwrap();
+            assert_eq!(marker_counts(&h), [count, count], "{name}");
+        }
+        // The default layout spelled out is the default finger: same marker ids.
+        let default = build("preset = \"two-finger\"\n").unwrap();
+        let spelled = build(
+            "preset = \"two-finger\"\n[finger]\nmarker_layout = { rows = [{ angle_deg = 0 }] }\n",
+        )
+        .unwrap();
+        assert_eq!(spelled, default);
+        // A table: rows with and without a count, a ring; per explicit finger too.
+        let h = build(
+            "preset = \"three-finger\"\n[finger]\nmarker_count = 5\nmarker_layout = { rows = \
+             [{ angle_deg = 0 }, { angle_deg = 180, count = 3 }], tip_ring = 4, \
+             tip_ring_height_ratio = 0.85 }\n",
+        )
+        .unwrap();
+        assert_eq!(marker_counts(&h), [12, 12, 12]);
+        let h = build(
+            "[[fingers]]\nparams = { marker_layout = \"sides\" }\n\
+             [[fingers]]\nparams = { marker_layout = { tip_ring = 6 } }\nposition_m = [0.05, 0, 0]\n",
+        )
+        .unwrap();
+        assert_eq!(marker_counts(&h), [21, 13]);
+        // JSON takes the same forms.
+        let path = Path::new("hand.json");
+        let c: HandConfig = crate::config::parse_json(
+            br#"{"preset": "two-finger", "finger": {"marker_layout": {"rows": [{"angle_deg": 35}, {"angle_deg": -35}]}}}"#,
+            path,
+        )
+        .unwrap();
+        assert_eq!(
+            c.finger.as_ref().unwrap().marker_layout,
+            moe_geom::MarkerLayoutPreset::TwoRows.layout()
+        );
+    }
+
+    #[test]
+    fn marker_layouts_round_trip_and_the_default_is_not_written() {
+        let text = toml::to_string(&FingerParams::default()).unwrap();
+        assert!(!text.contains("marker_layout"), "{text}");
+        for preset in moe_geom::MarkerLayoutPreset::ALL {
+            let params = FingerParams {
+                marker_layout: preset.layout(),
+                ..FingerParams::default()
+            };
+            let text = toml::to_string(&params).unwrap();
+            let back: FingerParams = toml::from_str(&text).unwrap();
+            assert_eq!(back, params, "{text}");
+            let json = serde_json::to_string(&params).unwrap();
+            let back: FingerParams = serde_json::from_str(&json).unwrap();
+            assert_eq!(back, params, "{json}");
+        }
+    }
+
+    #[test]
+    fn bad_marker_layouts_are_refused_naming_them() {
+        let unknown = build("preset = \"two-finger\"\n[finger]\nmarker_layout = \"three-rows\"\n")
+            .unwrap_err();
+        let msg = unknown.to_string();
+        assert!(
+            matches!(unknown, IoError::Parse { line: Some(3), .. }),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("three-rows") && msg.contains("two-rows"),
+            "{msg}"
+        );
+        let field = build(
+            "preset = \"two-finger\"\n[finger]\nmarker_layout = { rows = [{ angle = 35 }] }\n",
+        )
+        .unwrap_err();
+        assert!(field.to_string().contains("angle"), "{field}");
+        for (text, name) in [
+            (
+                "marker_layout = { rows = [{ angle_deg = 270 }] }",
+                "marker_layout.rows.angle_deg",
+            ),
+            (
+                "marker_layout = { rows = [{ count = 0 }] }",
+                "marker_layout.rows.count",
+            ),
+            (
+                "marker_layout = { rows = [{ angle_deg = 0 }, { angle_deg = 1 }] }",
+                "marker_layout.rows",
+            ),
+            (
+                "marker_layout = { tip_ring = 6, tip_ring_height_ratio = 0.05 }",
+                "marker_layout.tip_ring_height_ratio",
+            ),
+        ] {
+            let err = build(&format!("preset = \"two-finger\"\n[finger]\n{text}\n")).unwrap_err();
+            assert!(matches!(err, IoError::Geometry { .. }), "{err}");
+            assert!(err.to_string().contains(name), "{text}: {err}");
+        }
     }
 }

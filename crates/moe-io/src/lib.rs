@@ -96,6 +96,7 @@ pub use model::{ModelFiles, read_model_files, write_model_files};
 pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
 pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
 pub use run_output::{
-    RUN_TOPICS, RunFrame, RunInfo, RunTruth, RunWriter, probability_colour, write_run,
+    FingerForceMessage, FingerForcesMessage, JsonTime, RUN_TOPICS, RunForces, RunFrame, RunInfo,
+    RunLoad, RunTruth, RunWriter, probability_colour, write_run,
 };
 pub use stl::{STL_WELD_RELATIVE_TOLERANCE, read_stl, read_stl_from};

@@ -10,9 +10,19 @@
 //! | `/estimate/markers` | `foxglove.SceneUpdate` (protobuf) | detected markers, hand frame |
 //! | `/estimate/mesh` | `foxglove.SceneUpdate` (protobuf) | estimated finger meshes, blue (0) to red (1) by contact probability |
 //! | `/estimate/contacts` | `foxglove.SceneUpdate` (protobuf) | estimated contact points, world frame |
+//! | `/estimate/forces` | `foxglove.SceneUpdate` (protobuf) | estimated loads as arrows, hand frame (runs with forces) |
+//! | `/estimate/finger_force` | `moe.FingerForces` (JSON) | net force on every finger, N, for Foxglove's Plot panel (runs with forces) |
 //! | `/truth/mesh` | `foxglove.SceneUpdate` (protobuf) | true finger meshes, contact vertices red (episodes with ground truth) |
 //! | `/truth/contacts` | `foxglove.SceneUpdate` (protobuf) | true contact points, world frame |
 //! | `/obstacles` | `foxglove.SceneUpdate` (protobuf) | obstacle meshes, world frame |
+//!
+//! The force topics are written only by a run whose estimator estimates force (the physics
+//! estimator): [`RunInfo::force_arrow_m_per_n`] says so, and every frame then carries
+//! [`RunFrame::forces`]. A load's arrow ends at the load's place on the estimated surface and
+//! points along the force the world exerts on the finger (into the finger); its length is the
+//! force's magnitude times `force_arrow_m_per_n` (recorded in `/run/info`). The finger forces
+//! plot as `/estimate/finger_force.fingers[0].magnitude_n` (or `.x_n`, `.y_n`, `.z_n`, hand
+//! frame; `.pressed_probability`).
 //!
 //! The file holds no timings, so the same episode and model give the same bytes.
 
@@ -20,13 +30,14 @@ use std::io::{Seek, Write};
 use std::path::{Path, PathBuf};
 
 use foxglove::messages as fg;
-use moe_geom::{Iso3, Point3};
+use moe_geom::math::UnitQuat;
+use moe_geom::{Iso3, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::episode::{
     EpisodeInfo, ObstacleMesh, add_channel, camera_calibration, color_image, contact_mesh_entity,
     encode, fg_color, fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities,
-    schema_of, spheres_entity, write_info, write_message,
+    schema_of, spheres_entity, timestamp, write_info, write_message,
 };
 use crate::error::IoError;
 
@@ -40,7 +51,84 @@ pub struct RunInfo {
     pub threshold: f64,
     /// The input episode's fixed information (scene, camera, finger layout).
     pub episode: EpisodeInfo,
+    /// Length of a force arrow per newton of force, metres, for a run whose estimator
+    /// estimates force (it then writes `/estimate/forces` and `/estimate/finger_force`, and
+    /// every frame carries [`RunFrame::forces`]); `None` for one that does not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_arrow_m_per_n: Option<f64>,
 }
+
+/// One load an estimator found: where the world presses a finger and how hard (hand frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunLoad {
+    /// Finger index.
+    pub finger: usize,
+    /// The load's place on the estimated surface, hand frame, metres.
+    pub location_in_hand: Point3,
+    /// The force the world exerts on the finger there, hand frame, newtons.
+    pub force_n: Vector3,
+}
+
+/// What an estimator that estimates force found in one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunForces {
+    /// Per finger: the net force the world exerts on it, hand frame, newtons.
+    pub finger_force_n: Vec<Vector3>,
+    /// Per finger: the probability that it is pressed, where the estimator says it.
+    pub pressed_probability: Option<Vec<f64>>,
+    /// The loads found (drawn as arrows).
+    pub loads: Vec<RunLoad>,
+}
+
+/// One finger of a `/estimate/finger_force` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerForceMessage {
+    /// Finger index.
+    pub finger: usize,
+    /// The net force on the finger, hand frame, newtons: x.
+    pub x_n: f64,
+    /// y.
+    pub y_n: f64,
+    /// z.
+    pub z_n: f64,
+    /// Its magnitude, newtons.
+    pub magnitude_n: f64,
+    /// Probability that the finger is pressed (where the estimator says it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pressed_probability: Option<f64>,
+    /// Loads found on the finger.
+    pub loads: usize,
+}
+
+/// The JSON body of `/estimate/finger_force` (schema `moe.FingerForces`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerForcesMessage {
+    /// Time of the frame.
+    pub timestamp: JsonTime,
+    /// The frame the forces are in (`hand`).
+    pub frame_id: String,
+    /// Every finger, in order.
+    pub fingers: Vec<FingerForceMessage>,
+}
+
+/// A time as Foxglove's JSON messages write it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JsonTime {
+    /// Whole seconds.
+    pub sec: u64,
+    /// Nanoseconds within the second.
+    pub nsec: u32,
+}
+
+/// The JSON schema of `/estimate/finger_force` messages, so that Foxglove offers their fields
+/// in the Plot panel's message paths.
+const FINGER_FORCES_SCHEMA: &str = r#"{"title":"moe.FingerForces","description":"Net force the world exerts on every finger, hand frame, newtons","type":"object","properties":{"timestamp":{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0}}},"frame_id":{"type":"string"},"fingers":{"type":"array","items":{"type":"object","properties":{"finger":{"type":"integer"},"x_n":{"type":"number"},"y_n":{"type":"number"},"z_n":{"type":"number"},"magnitude_n":{"type":"number"},"pressed_probability":{"type":"number"},"loads":{"type":"integer"}}}}}}"#;
+
+/// Colour of the force arrows.
+const FORCE_COLOR: [f64; 4] = [1.0, 0.62, 0.0, 1.0];
 
 /// The ground truth of a frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,17 +160,23 @@ pub struct RunFrame {
     pub contacts_in_world: Vec<Point3>,
     /// The ground truth, where the episode has it.
     pub truth: Option<RunTruth>,
+    /// The estimated forces, for a run whose estimator estimates force (see
+    /// [`RunInfo::force_arrow_m_per_n`]).
+    pub forces: Option<RunForces>,
 }
 
 /// The per-frame topics of a run file, in the order each frame writes them (`/run/info` comes
-/// once, first).
-pub const RUN_TOPICS: [&str; 9] = [
+/// once, first). The force topics are in runs with forces only; the truth topics in frames with
+/// ground truth only.
+pub const RUN_TOPICS: [&str; 11] = [
     "/camera/color",
     "/camera/calibration",
     "/tf",
     "/estimate/markers",
     "/estimate/mesh",
     "/estimate/contacts",
+    "/estimate/forces",
+    "/estimate/finger_force",
     "/truth/mesh",
     "/truth/contacts",
     "/obstacles",
@@ -102,7 +196,8 @@ pub fn probability_colour(p: f64) -> [u8; 3] {
 pub struct RunWriter<W: Write + Seek> {
     path: PathBuf,
     writer: mcap::Writer<W>,
-    channels: [u16; 9],
+    /// The channel of every topic of [`RUN_TOPICS`] the file has.
+    channels: [Option<u16>; RUN_TOPICS.len()],
     info: RunInfo,
     sequence: u32,
 }
@@ -124,23 +219,42 @@ impl<W: Write + Seek> RunWriter<W> {
     /// Inconsistent episode info (as for episodes), or a write failure.
     pub fn new(sink: W, info: &RunInfo, path: &Path) -> Result<Self, IoError> {
         crate::episode::check_info(path, &info.episode)?;
+        if let Some(scale) = info.force_arrow_m_per_n
+            && !(scale.is_finite() && scale > 0.0)
+        {
+            return Err(IoError::invalid(
+                path,
+                "run info",
+                format!("force_arrow_m_per_n = {scale} must be finite and positive"),
+            ));
+        }
         let mut writer = mcap_writer(sink, path)?;
         write_info(&mut writer, path, "/run/info", "moe.RunInfo", info)?;
-        let scene = || schema_of::<fg::SceneUpdate>();
+        let scene = || Some((schema_of::<fg::SceneUpdate>(), "protobuf"));
+        let forces = info.force_arrow_m_per_n.is_some();
+        let finger_forces = (
+            "moe.FingerForces".to_owned(),
+            "jsonschema".to_owned(),
+            FINGER_FORCES_SCHEMA.as_bytes().to_vec(),
+        );
         let schemas = [
-            schema_of::<fg::RawImage>(),
-            schema_of::<fg::CameraCalibration>(),
-            schema_of::<fg::FrameTransforms>(),
+            Some((schema_of::<fg::RawImage>(), "protobuf")),
+            Some((schema_of::<fg::CameraCalibration>(), "protobuf")),
+            Some((schema_of::<fg::FrameTransforms>(), "protobuf")),
             scene(),
             scene(),
             scene(),
+            scene().filter(|_| forces),
+            forces.then_some((finger_forces, "json")),
             scene(),
             scene(),
             scene(),
         ];
-        let mut channels = [0u16; RUN_TOPICS.len()];
+        let mut channels = [None; RUN_TOPICS.len()];
         for ((slot, topic), schema) in channels.iter_mut().zip(RUN_TOPICS).zip(schemas) {
-            *slot = add_channel(&mut writer, path, topic, schema, "protobuf")?;
+            if let Some((schema, encoding)) = schema {
+                *slot = Some(add_channel(&mut writer, path, topic, schema, encoding)?);
+            }
         }
         Ok(Self {
             path: path.to_path_buf(),
@@ -159,7 +273,9 @@ impl<W: Write + Seek> RunWriter<W> {
         let path = self.path.clone();
         let messages = self.encode(frame)?;
         for (channel, data) in self.channels.iter().zip(messages) {
-            let Some(data) = data else { continue };
+            let (Some(channel), Some(data)) = (channel, data) else {
+                continue;
+            };
             write_message(
                 &mut self.writer,
                 &path,
@@ -299,6 +415,28 @@ impl<W: Write + Seek> RunWriter<W> {
             0.002,
             [1.0, 0.1, 0.1, 1.0],
         )]);
+        let (forces, finger_forces) = match (&frame.forces, self.info.force_arrow_m_per_n) {
+            (None, None) => (None, None),
+            (Some(_), None) => {
+                return refuse(
+                    "carries forces, but the run info has no force_arrow_m_per_n".to_owned(),
+                );
+            }
+            (None, Some(_)) => {
+                return refuse(
+                    "carries no forces in a run with forces (force_arrow_m_per_n)".to_owned(),
+                );
+            }
+            (Some(fo), Some(scale)) => {
+                if let Err(message) = check_forces(fo, fingers) {
+                    return refuse(message);
+                }
+                (
+                    Some(update(vec![arrows_entity(t, &fo.loads, scale)])),
+                    Some(finger_forces_message(t, fo, path)?),
+                )
+            }
+        };
         let (truth_mesh, truth_contacts, obstacles) = match &frame.truth {
             None => (None, None, None),
             Some(tr) => {
@@ -338,11 +476,125 @@ impl<W: Write + Seek> RunWriter<W> {
             Some(markers),
             Some(mesh),
             Some(contacts),
+            forces,
+            finger_forces,
             truth_mesh,
             truth_contacts,
             obstacles,
         ])
     }
+}
+
+/// Checks a frame's forces against the hand; the message says what does not fit.
+fn check_forces(fo: &RunForces, fingers: usize) -> Result<(), String> {
+    if fo.finger_force_n.len() != fingers {
+        return Err(format!(
+            "{} finger forces for {fingers} fingers",
+            fo.finger_force_n.len()
+        ));
+    }
+    if let Some(p) = &fo.pressed_probability
+        && p.len() != fingers
+    {
+        return Err(format!(
+            "{} pressed probabilities for {fingers} fingers",
+            p.len()
+        ));
+    }
+    if let Some(f) = fo
+        .finger_force_n
+        .iter()
+        .position(|v| !v.iter().all(|c| c.is_finite()))
+    {
+        return Err(format!("the force on finger {f} is not finite"));
+    }
+    for (i, l) in fo.loads.iter().enumerate() {
+        if l.finger >= fingers {
+            return Err(format!(
+                "load {i} is on finger {} of {fingers} fingers",
+                l.finger
+            ));
+        }
+        if !(l.location_in_hand.iter().all(|c| c.is_finite())
+            && l.force_n.iter().all(|c| c.is_finite()))
+        {
+            return Err(format!("load {i} has a non-finite place or force"));
+        }
+    }
+    Ok(())
+}
+
+/// The loads as arrows in the hand frame: each ends at its place and points along its force,
+/// `scale` metres long per newton (a load without force draws nothing).
+fn arrows_entity(time_ns: u64, loads: &[RunLoad], scale: f64) -> fg::SceneEntity {
+    let arrows = loads
+        .iter()
+        .filter_map(|l| {
+            let magnitude = l.force_n.norm();
+            let direction = l.force_n.try_normalize(1e-12)?;
+            let length = scale * magnitude;
+            let tail = l.location_in_hand - length * direction;
+            let rotation =
+                UnitQuat::rotation_between(&Vector3::x(), &direction).unwrap_or_else(|| {
+                    UnitQuat::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI)
+                });
+            let q = rotation.quaternion();
+            Some(fg::ArrowPrimitive {
+                pose: Some(fg::Pose {
+                    position: Some(fg::Vector3 {
+                        x: tail.x,
+                        y: tail.y,
+                        z: tail.z,
+                    }),
+                    orientation: Some(fg::Quaternion {
+                        x: q.i,
+                        y: q.j,
+                        z: q.k,
+                        w: q.w,
+                    }),
+                }),
+                shaft_length: 0.75 * length,
+                shaft_diameter: 0.0015,
+                head_length: 0.25 * length,
+                head_diameter: 0.0035,
+                color: fg_color(FORCE_COLOR),
+            })
+        })
+        .collect();
+    fg::SceneEntity {
+        timestamp: timestamp(time_ns),
+        frame_id: "hand".to_owned(),
+        id: "forces".to_owned(),
+        arrows,
+        ..Default::default()
+    }
+}
+
+/// The `/estimate/finger_force` message of a frame.
+fn finger_forces_message(time_ns: u64, fo: &RunForces, path: &Path) -> Result<Vec<u8>, IoError> {
+    let message = FingerForcesMessage {
+        timestamp: JsonTime {
+            sec: time_ns / 1_000_000_000,
+            nsec: (time_ns % 1_000_000_000) as u32,
+        },
+        frame_id: "hand".to_owned(),
+        fingers: fo
+            .finger_force_n
+            .iter()
+            .enumerate()
+            .map(|(f, v)| FingerForceMessage {
+                finger: f,
+                x_n: v.x,
+                y_n: v.y,
+                z_n: v.z,
+                magnitude_n: v.norm(),
+                pressed_probability: fo.pressed_probability.as_ref().map(|p| p[f]),
+                loads: fo.loads.iter().filter(|l| l.finger == f).count(),
+            })
+            .collect(),
+    };
+    serde_json::to_vec(&message)
+        .map_err(|e| IoError::invalid(path, format!("run frame at {time_ns} ns"), e.to_string()))
 }
 
 /// Writes a whole run atomically: nothing appears at `path` unless every frame was written.
@@ -382,6 +634,19 @@ mod tests {
                 finger_num_vertices: vec![3],
                 tendons_per_finger: 1,
             },
+            force_arrow_m_per_n: None,
+        }
+    }
+
+    fn forces() -> RunForces {
+        RunForces {
+            finger_force_n: vec![Vector3::new(0.0, 0.0, -0.2)],
+            pressed_probability: Some(vec![0.9]),
+            loads: vec![RunLoad {
+                finger: 0,
+                location_in_hand: Point3::new(0.01, 0.0, 0.0),
+                force_n: Vector3::new(0.0, 0.0, -0.2),
+            }],
         }
     }
 
@@ -404,15 +669,16 @@ mod tests {
                 contact_vertices: vec![vec![1]],
                 obstacles: vec![],
             }),
+            forces: None,
         }
     }
 
     fn write(frames: &[RunFrame]) -> Result<Vec<u8>, IoError> {
-        let mut w = RunWriter::new(
-            std::io::Cursor::new(Vec::new()),
-            &info(),
-            Path::new("r.mcap"),
-        )?;
+        write_with(&info(), frames)
+    }
+
+    fn write_with(info: &RunInfo, frames: &[RunFrame]) -> Result<Vec<u8>, IoError> {
+        let mut w = RunWriter::new(std::io::Cursor::new(Vec::new()), info, Path::new("r.mcap"))?;
         for f in frames {
             w.write_frame(f)?;
         }
@@ -437,7 +703,9 @@ mod tests {
             })
             .collect();
         topics.sort();
-        assert_eq!(topics.len(), RUN_TOPICS.len() + 1);
+        // Without forces, no force topics.
+        assert_eq!(topics.len(), RUN_TOPICS.len() - 2 + 1);
+        assert!(!topics.iter().any(|(t, _)| t.starts_with("/estimate/f")));
         assert!(topics.contains(&("/camera/color".into(), "foxglove.RawImage".into())));
         assert!(topics.contains(&("/estimate/mesh".into(), "foxglove.SceneUpdate".into())));
         assert!(topics.contains(&("/run/info".into(), "moe.RunInfo".into())));
@@ -446,6 +714,125 @@ mod tests {
         assert_eq!(stats.message_count, 1 + 9 + 6);
         // Same input, same bytes.
         assert_eq!(bytes, write(&[frame(true), frame(false)]).unwrap());
+    }
+
+    #[test]
+    fn a_run_with_forces_draws_arrows_and_a_plottable_message() {
+        let mut info = info();
+        info.force_arrow_m_per_n = Some(0.1);
+        let mut f = frame(false);
+        f.forces = Some(forces());
+        let mut quiet = frame(false);
+        quiet.time_ns = 1_500_000_007;
+        quiet.forces = Some(RunForces {
+            finger_force_n: vec![Vector3::zeros()],
+            pressed_probability: Some(vec![0.0]),
+            loads: vec![],
+        });
+        let bytes = write_with(&info, &[f, quiet]).unwrap();
+        let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
+        let schema_of_topic = |topic: &str| {
+            summary
+                .channels
+                .values()
+                .find(|c| c.topic == topic)
+                .and_then(|c| {
+                    c.schema
+                        .as_ref()
+                        .map(|s| (s.name.clone(), s.encoding.clone()))
+                })
+        };
+        assert_eq!(
+            schema_of_topic("/estimate/forces"),
+            Some(("foxglove.SceneUpdate".into(), "protobuf".into()))
+        );
+        assert_eq!(
+            schema_of_topic("/estimate/finger_force"),
+            Some(("moe.FingerForces".into(), "jsonschema".into()))
+        );
+        let mut arrows = Vec::new();
+        let mut plots = Vec::new();
+        for m in mcap::MessageStream::new(&bytes).unwrap() {
+            let m = m.unwrap();
+            match m.channel.topic.as_str() {
+                "/estimate/forces" => {
+                    let u = <fg::SceneUpdate as foxglove::Decode>::decode(&m.data[..]).unwrap();
+                    assert_eq!(u.entities.len(), 1);
+                    assert_eq!(u.entities[0].frame_id, "hand");
+                    arrows.push(u.entities[0].arrows.clone());
+                }
+                "/estimate/finger_force" => {
+                    assert_eq!(m.channel.message_encoding, "json");
+                    let body: FingerForcesMessage = serde_json::from_slice(&m.data).unwrap();
+                    plots.push((m.log_time, body));
+                }
+                _ => {}
+            }
+        }
+        // One arrow in the first frame, none in the second (the arrows are replaced).
+        assert_eq!(arrows.len(), 2);
+        assert_eq!(arrows[0].len(), 1);
+        assert!(arrows[1].is_empty());
+        let a = &arrows[0][0];
+        // 0.2 N at 0.1 m/N: 20 mm long, pointing along −z and ending at the load's place.
+        assert!((a.shaft_length + a.head_length - 0.02).abs() < 1e-12);
+        let pose = a.pose.unwrap();
+        let p = pose.position.unwrap();
+        let q = pose.orientation.unwrap();
+        let rotation =
+            UnitQuat::new_normalize(moe_geom::nalgebra::Quaternion::new(q.w, q.x, q.y, q.z));
+        let direction = rotation * Vector3::x();
+        assert!(
+            (direction - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-9,
+            "{direction}"
+        );
+        let tip = Point3::new(p.x, p.y, p.z) + 0.02 * direction;
+        assert!((tip - Point3::new(0.01, 0.0, 0.0)).norm() < 1e-12, "{tip}");
+        assert_eq!(plots.len(), 2);
+        let (time, first) = &plots[0];
+        assert_eq!(*time, 5);
+        assert_eq!(first.fingers.len(), 1);
+        assert!((first.fingers[0].magnitude_n - 0.2).abs() < 1e-12);
+        assert_eq!(first.fingers[0].z_n, -0.2);
+        assert_eq!(first.fingers[0].loads, 1);
+        assert_eq!(first.fingers[0].pressed_probability, Some(0.9));
+        assert_eq!(
+            plots[1].1.timestamp,
+            JsonTime {
+                sec: 1,
+                nsec: 500_000_007
+            }
+        );
+        assert_eq!(plots[1].1.fingers[0].magnitude_n, 0.0);
+
+        // Forces that do not fit, or forces in a run without them (and the reverse): refused.
+        let refused = |info: &RunInfo, f: RunFrame, what: &str| {
+            moe_geom::assert_err!(
+                write_with(info, &[f]),
+                IoError::InvalidData { message, .. } if message.contains(what),
+                "{what}"
+            );
+        };
+        let mut f = frame(false);
+        f.forces = Some(forces());
+        refused(&super::tests::info(), f.clone(), "no force_arrow_m_per_n");
+        refused(&info, frame(false), "carries no forces");
+        let mut bad = f.clone();
+        bad.forces.as_mut().unwrap().loads[0].finger = 1;
+        refused(&info, bad, "load 0 is on finger 1 of 1 fingers");
+        let mut bad = f.clone();
+        bad.forces
+            .as_mut()
+            .unwrap()
+            .finger_force_n
+            .push(Vector3::zeros());
+        refused(&info, bad, "2 finger forces for 1 fingers");
+        let mut bad = f;
+        bad.forces.as_mut().unwrap().loads[0].force_n.x = f64::NAN;
+        refused(&info, bad, "load 0 has a non-finite place or force");
+        let mut zero = info.clone();
+        zero.force_arrow_m_per_n = Some(0.0);
+        moe_geom::assert_err!(write_with(&zero, &[]), IoError::InvalidData { .. });
     }
 
     #[test]

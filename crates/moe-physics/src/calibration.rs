@@ -37,7 +37,8 @@ pub struct CalibrationFrame {
 pub struct CalibrationOptions {
     /// Fit the damping time `β` too (else keep the initial one).
     pub fit_damping: bool,
-    /// Most evaluations of the objective (each simulates every stream). Default 60.
+    /// Most evaluations of the objective by the search (each simulates every stream); the
+    /// report's count adds three: the start and the two probes of the resolution. Default 60.
     pub max_evaluations: usize,
     /// `E` and `β` stay within this factor of their initial values. Default 4.
     pub range_factor: Real,
@@ -205,6 +206,9 @@ pub fn calibrate(
         Real::INFINITY
     };
     let mut material = problem.material(&best);
+    if !options.fit_damping {
+        material.material.rayleigh_stiffness = initial.material.rayleigh_stiffness;
+    }
     material.hand = Some(crate::config::HandSignature::of(hand));
     Ok(CalibrationReport {
         material,
@@ -336,14 +340,14 @@ fn nelder_mead(
         let xr = along(-1.0);
         let fr = f(&xr);
         evaluations += 1;
-        if fr < simplex[0].1 {
+        if fr < simplex[0].1 && evaluations < max_evaluations {
             let xe = along(-2.0);
             let fe = f(&xe);
             evaluations += 1;
             simplex[n] = if fe < fr { (xe, fe) } else { (xr, fr) };
         } else if fr < simplex[n - 1].1 {
             simplex[n] = (xr, fr);
-        } else {
+        } else if evaluations < max_evaluations {
             let t = if fr < simplex[n].1 { -0.5 } else { 0.5 };
             let xc = along(t);
             let fc = f(&xc);
@@ -353,12 +357,15 @@ fn nelder_mead(
             } else {
                 // Shrink toward the best.
                 let b = simplex[0].0;
-                for k in 1..=n {
-                    let mut x = simplex[k].0;
+                for vertex in simplex.iter_mut().skip(1) {
+                    if evaluations >= max_evaluations {
+                        break;
+                    }
+                    let mut x = vertex.0;
                     for d in 0..n {
                         x[d] = b[d] + 0.5 * (x[d] - b[d]);
                     }
-                    simplex[k] = (x, f(&x));
+                    *vertex = (x, f(&x));
                     evaluations += 1;
                 }
             }

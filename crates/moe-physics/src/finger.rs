@@ -448,7 +448,7 @@ impl FingerInverse {
         let mut d = match self.dynamic.take() {
             Some(d)
                 if t > d.time_secs
-                    && t - d.time_secs <= self.config.stream_horizon_secs
+                    && t - d.time_secs <= self.config.stream_horizon_secs + HORIZON_SLACK_SECS
                     && d.pulls.len() == obs.pulls.len() =>
             {
                 d
@@ -530,7 +530,11 @@ impl FingerInverse {
         let gain = self.config.contact_lag_gain;
         let (t, (t0, r0)) = (obs.time_secs?, previous?);
         let dt = t - t0;
-        if !(gain > 0.0 && self.beta > 0.0 && dt > 0.0 && dt <= self.config.stream_horizon_secs) {
+        if !(gain > 0.0
+            && self.beta > 0.0
+            && dt > 0.0
+            && dt <= self.config.stream_horizon_secs + HORIZON_SLACK_SECS)
+        {
             return None;
         }
         let a = (-dt / self.beta).exp();
@@ -1190,7 +1194,7 @@ impl FingerInverse {
             let around = Vector3::z()
                 .cross(&n)
                 .try_normalize(1e-6)
-                .unwrap_or_else(|| Vector3::y());
+                .unwrap_or_else(Vector3::y);
             let along = n.cross(&around).normalize();
             // Jacobian columns: place along, place around, force x, y, z.
             let mut j = DMatrix::<Real>::zeros(n_obs, 5);
@@ -1298,6 +1302,8 @@ impl FingerInverse {
     }
 }
 
+/// Round-off allowed on the stream horizon (times from nanosecond timestamps), seconds.
+const HORIZON_SLACK_SECS: Real = 1e-6;
 /// A search from the previous frame's loads that leaves more than this fraction of the free
 /// residual unexplained is repeated from the free shape.
 const RESTART_FRACTION: Real = 0.1;

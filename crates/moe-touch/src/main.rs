@@ -34,14 +34,19 @@ enum Command {
     /// Detect and track the red markers in every frame of an episode (wrist RGB-D → keypoints
     /// per finger); report detection against the ground truth when the episode has it.
     Markers(cli::markers::MarkersArgs),
-    /// Run the whole pipeline (markers → SR-ARAP → contact) over an episode: a result MCAP for
-    /// Foxglove and a report against the ground truth.
+    /// Run the whole pipeline (markers → SR-ARAP → contact, or markers → physics) over an
+    /// episode: a result MCAP for Foxglove and a report against the ground truth.
     Run(cli::run::RunArgs),
     /// Estimate a hand's deformed finger meshes from one frame of marker keypoints (SR-ARAP).
     Shape(cli::shape::ShapeArgs),
-    /// Estimate per-vertex contact with the DGCNN: on a point cloud, or on a hand shape as
-    /// `moe-touch shape` writes it (meshes coloured by contact probability, contact points).
+    /// Estimate per-vertex contact with the DGCNN (on a point cloud, or on a hand shape as
+    /// `moe-touch shape` writes it), or with physics from one frame of markers and tendon pulls
+    /// (loads with force and uncertainty, the dented shape): meshes coloured by contact
+    /// probability, contact points.
     Contact(cli::contact::ContactArgs),
+    /// Fit the hand's material (Young's modulus, damping) for the physics estimator to the
+    /// contact-free frames of an episode or a data set.
+    Calibrate(cli::calibrate::CalibrateArgs),
     /// Run a scripted tendon-FEM scene; write surface meshes per saved frame and a summary.
     Sim(cli::sim::SimArgs),
     /// Reconstruct an occluded surface from contact points (GPIS with a prior, sphere or constant
@@ -62,6 +67,7 @@ fn main() -> ExitCode {
         Command::Run(args) => cli::run::run(args),
         Command::Shape(args) => cli::shape::run(args),
         Command::Contact(args) => cli::contact::run(args),
+        Command::Calibrate(args) => cli::calibrate::run(args),
         Command::Sim(args) => cli::sim::run(args),
         Command::Surface(args) => cli::surface::run(args),
         Command::Plane(args) => cli::plane::run(args),

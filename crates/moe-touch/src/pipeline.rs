@@ -7,7 +7,7 @@ use std::time::Instant;
 use moe_contact::{DgcnnEstimator, ModelCard};
 use moe_geom::{
     ContactEstimator, ContactInput, ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape,
-    Real, ShapeEstimator, ShapeInput, WorldFromHand,
+    Real, ShapeEstimator, ShapeInput, Vector3, WorldFromHand,
 };
 use serde::Serialize;
 
@@ -48,6 +48,9 @@ pub struct FrameEstimate {
     pub shape: HandShape,
     /// Contact probability of every vertex.
     pub contact: ContactMap,
+    /// `vertex_force_n[f][v]`: the force on vertex `v` of finger `f`, hand frame, newtons, from
+    /// a contact estimator that estimates force (the physics estimator); `None` otherwise.
+    pub vertex_force_n: Option<Vec<Vec<Vector3>>>,
     /// Vertices at or above the contact threshold, positions in the hand frame.
     pub contacts_in_hand: Vec<ContactPoint>,
     /// The same contact points in the world frame.
@@ -239,7 +242,7 @@ where
             })
             .map_err(|e| TouchError::ShapeEstimation(Box::new(e)))?;
         let t_shape = Instant::now();
-        let mut contact = self
+        let estimate = self
             .contact
             .estimate(&ContactInput {
                 shape: &shape,
@@ -248,8 +251,9 @@ where
                 world_from_hand: Some(&world_from_hand),
                 time_secs,
             })
-            .map_err(|e| TouchError::ContactEstimation(Box::new(e)))?
-            .map;
+            .map_err(|e| TouchError::ContactEstimation(Box::new(e)))?;
+        let vertex_force_n = estimate.vertex_force_n;
+        let mut contact = estimate.map;
         if let Some(s) = &mut self.contact_smoother {
             contact = s.smooth(&contact);
         }
@@ -275,6 +279,7 @@ where
             keypoints: detection.keypoints,
             shape,
             contact,
+            vertex_force_n,
             contacts_in_hand,
             contacts_in_world,
             world_from_hand,

@@ -42,7 +42,7 @@ use crate::error::IoError;
 pub(crate) use foxglove::{
     add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color,
     fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities, schema_of, spheres_entity,
-    write_info, write_message,
+    timestamp, write_info, write_message,
 };
 pub use read::{parse_episode, parse_episode_prefix, read_episode};
 pub use write::{EpisodeWriter, create_episode, write_episode};

@@ -5,17 +5,20 @@
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use moe_arap::ShapeConfig;
-use moe_geom::{HandModel, Point3};
+use moe_geom::{ContactEstimator, HandModel, Point3, ShapeEstimator};
+use moe_physics::PhysicsContactStage;
 use moe_touch::Pipeline;
 use moe_touch::contact_eval::contact_ply;
 use moe_touch::perception::overlay::draw_keypoints;
 use moe_touch::perception::score::check_hand;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::run::{RunReport, run_episode, run_info};
+use moe_touch::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunReport, run_episode_with, run_info};
+
+use super::ContactMethod;
 
 /// The workspace this binary was built from (where the example episode and the model are).
 fn workspace() -> PathBuf {
@@ -32,9 +35,17 @@ pub(crate) struct DemoArgs {
     /// Episode (default: the committed example, plate pressing the tip of finger 0).
     #[arg(long, value_name = "EP.mcap")]
     episode: Option<PathBuf>,
-    /// Contact model (default: the shipped two-finger model).
+    /// How contact is estimated: `dgcnn` (SR-ARAP shape and the shipped network) or `physics`
+    /// (the finger's FEM model read backwards: the loads and the force on every finger too).
+    #[arg(long, value_enum, default_value = "dgcnn")]
+    contact: ContactMethod,
+    /// dgcnn: contact model (default: the shipped two-finger model).
     #[arg(long, value_name = "M.safetensors")]
     model: Option<PathBuf>,
+    /// physics: the hand's material (TOML or JSON, as `moe-touch calibrate` writes it; default:
+    /// the nominal silicone).
+    #[arg(long, value_name = "M.toml")]
+    material: Option<PathBuf>,
 }
 
 pub(crate) fn run(args: DemoArgs) -> Result<()> {
@@ -53,15 +64,56 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
     )?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("the demo's two-finger hand for {}", episode_path.display()))?;
-    let model = load_contact_model(&model_path, &hand)
-        .with_context(|| format!("model {}", model_path.display()))?;
-    let threshold = model.threshold();
     let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())?;
-    let intrinsics = *detector.intrinsics();
-    let hand_from_camera = detector.hand_from_camera();
-    let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &ShapeConfig::default())?;
-    let mut pipeline = Pipeline::new(hand.clone(), detector, shape, model, threshold)?;
-    let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, None)?;
+    match args.contact {
+        ContactMethod::Dgcnn => {
+            if args.material.is_some() {
+                bail!("--material is for --contact physics");
+            }
+            let model = load_contact_model(&model_path, &hand)
+                .with_context(|| format!("model {}", model_path.display()))?;
+            let threshold = model.threshold();
+            let shape =
+                moe_touch::contact_eval::study_shape_estimator(&hand, &ShapeConfig::default())?;
+            let pipeline = Pipeline::new(hand.clone(), detector, shape, model, threshold)?;
+            let model_name = model_path
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+            demo(&args, &hand, &episode, pipeline, None, &model_name)
+        }
+        ContactMethod::Physics => {
+            if args.model.is_some() {
+                bail!("--model is for --contact dgcnn; the physics estimator has no network");
+            }
+            let (shape, contact, name) =
+                super::run::physics_stages(&hand, args.material.as_deref(), None)?;
+            let stage = contact.clone();
+            let pipeline = Pipeline::new(
+                hand.clone(),
+                detector,
+                shape,
+                contact,
+                super::run::PHYSICS_THRESHOLD,
+            )?;
+            demo(&args, &hand, &episode, pipeline, Some(&stage), &name)
+        }
+    }
+}
+
+/// Runs the demo's pipeline over the episode and writes and prints its outputs.
+fn demo<S: ShapeEstimator, C: ContactEstimator>(
+    args: &DemoArgs,
+    hand: &HandModel,
+    episode: &moe_io::Episode,
+    mut pipeline: Pipeline<S, C>,
+    physics: Option<&PhysicsContactStage>,
+    model_name: &str,
+) -> Result<()> {
+    let intrinsics = *pipeline.detector().intrinsics();
+    let hand_from_camera = pipeline.detector().hand_from_camera();
+    let threshold = pipeline.threshold();
+    let (frames, report) =
+        run_episode_with(&mut pipeline, &episode.info, &episode.frames, None, physics)?;
 
     // The frame with the most estimated contact (the first of equals).
     let best = (0..frames.len())
@@ -75,7 +127,7 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
         plys.push((
             format!("frame_{best}_estimate_finger_{f}.ply"),
             contact_ply(
-                &hand,
+                hand,
                 f,
                 &frame.vertices_in_hand[f],
                 &frame.contact_probability[f],
@@ -88,7 +140,7 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
             }
             plys.push((
                 format!("frame_{best}_truth_finger_{f}.ply"),
-                contact_ply(&hand, f, &truth.vertices_in_hand[f], &labels)?,
+                contact_ply(hand, f, &truth.vertices_in_hand[f], &labels)?,
             ));
         }
     }
@@ -119,10 +171,8 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
     img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
         .context("encoding the figure")?;
     let report_text = serde_json::to_string_pretty(&report)?;
-    let model_name = model_path
-        .file_name()
-        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let info = run_info(&episode.info, &model_name, threshold);
+    let mut info = run_info(&episode.info, model_name, threshold);
+    info.force_arrow_m_per_n = physics.map(|_| DEFAULT_FORCE_ARROW_M_PER_N);
 
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -171,6 +221,20 @@ fn print_table(r: &RunReport, best: usize, out: &Path) {
         r.shape_ms.median_ms,
         r.contact_ms.median_ms
     );
+    if let Some(forces) = &r.forces {
+        let cells: Vec<String> = forces
+            .fingers
+            .iter()
+            .enumerate()
+            .map(|(f, s)| {
+                format!(
+                    "finger {f} up to {:.3} N in {} frames",
+                    s.max_magnitude_n, s.frames_with_force
+                )
+            })
+            .collect();
+        super::outln!("  estimated force             {}", cells.join(", "));
+    }
     super::outln!(
         "wrote {}: result.mcap (open in Foxglove with fixtures/foxglove/run_layout.json), report.json, figure.png, frame_{best}_*.ply",
         out.display()

@@ -2,6 +2,7 @@
 //! function. Figures go to stdout (one JSON object with `--json`), progress and logs to stderr.
 
 pub(crate) mod arap;
+pub(crate) mod calibrate;
 pub(crate) mod contact;
 pub(crate) mod demo;
 pub(crate) mod hand;
@@ -29,6 +30,58 @@ pub(crate) fn load_hand(spec: &str) -> anyhow::Result<moe_geom::HandModel> {
         );
     }
     Ok(moe_io::load_hand_config(&path)?)
+}
+
+/// Which estimator finds contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub(crate) enum ContactMethod {
+    /// The paper's graph network on the estimated shape (needs a trained model).
+    Dgcnn,
+    /// The finger's FEM model read backwards from the markers, the tendon pulls and the hand's
+    /// pose: contact places, force vectors and their uncertainty, and the dented shape.
+    Physics,
+}
+
+/// The hand's material from `--material` (TOML or JSON `HandMaterial`, as `moe-touch
+/// calibrate` writes it), checked; the nominal material without one. Also its name for reports.
+pub(crate) fn load_material(
+    path: Option<&std::path::Path>,
+) -> anyhow::Result<(moe_physics::HandMaterial, String)> {
+    use anyhow::Context;
+    let Some(path) = path else {
+        return Ok((moe_physics::HandMaterial::default(), "nominal".to_owned()));
+    };
+    let material: moe_physics::HandMaterial = moe_io::read_config(path)?;
+    material
+        .validate()
+        .with_context(|| format!("--material {}", path.display()))?;
+    Ok((material, path.display().to_string()))
+}
+
+/// The physics estimator's settings from `--physics-config` (TOML or JSON `PhysicsConfig`),
+/// checked; the defaults without one. Also its name for reports.
+pub(crate) fn load_physics_config(
+    path: Option<&std::path::Path>,
+) -> anyhow::Result<(moe_physics::PhysicsConfig, String)> {
+    use anyhow::Context;
+    let Some(path) = path else {
+        return Ok((moe_physics::PhysicsConfig::default(), "default".to_owned()));
+    };
+    let config: moe_physics::PhysicsConfig = moe_io::read_config(path)?;
+    config
+        .validate()
+        .with_context(|| format!("--physics-config {}", path.display()))?;
+    Ok((config, path.display().to_string()))
+}
+
+/// `n` and a noun, plural unless `n` is 1 ("1 load", "2 loads").
+pub(crate) fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
 }
 
 /// Prints `value` as one JSON object on stdout.

@@ -1,18 +1,29 @@
 //! `moe-touch run`: the whole pipeline over every frame of an episode; a result MCAP for
 //! Foxglove (input image, detected markers, estimated meshes coloured by contact probability,
-//! contact points in the world, and the ground truth beside them) and a report.
+//! contact points in the world, with the physics estimator the loads as arrows and the force on
+//! every finger, and the ground truth beside them) and a report.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use moe_arap::ShapeConfig;
+use moe_geom::{ContactEstimator, HandModel, ShapeEstimator};
+use moe_physics::{PhysicsContactStage, PhysicsEstimator, PhysicsShapeStage};
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
 use moe_touch::perception::score::check_hand;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::run::{RunReport, run_episode, run_info};
+use moe_touch::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunReport, run_episode_with, run_info};
+
+use super::ContactMethod;
+
+/// The shipped contact model, the default of `--model`.
+pub(crate) const DEFAULT_MODEL: &str = "models/contact-two-finger.safetensors";
+
+/// The contact threshold of the physics estimator's probabilities.
+pub(crate) const PHYSICS_THRESHOLD: f64 = 0.5;
 
 /// Arguments of `moe-touch run`.
 #[derive(Debug, Args)]
@@ -21,13 +32,27 @@ pub(crate) struct RunArgs {
     /// short runs up to its last complete frame, and the cut is reported.
     #[arg(long, value_name = "EP.mcap")]
     episode: PathBuf,
-    /// Trained contact model (`NAME.safetensors` with its card `NAME.json`).
-    #[arg(
-        long,
-        value_name = "M.safetensors",
-        default_value = "models/contact-two-finger.safetensors"
-    )]
-    model: PathBuf,
+    /// How the shape and the contact are estimated: `dgcnn` (SR-ARAP shape, then the trained
+    /// network on it) or `physics` (the finger's FEM model read backwards from the markers, the
+    /// episode's tendon pulls, the hand's pose and time: the dented shape, the loads and the
+    /// force on every finger, in the report and as arrows and a plottable topic in the result).
+    #[arg(long, value_enum, default_value = "dgcnn")]
+    contact: ContactMethod,
+    /// dgcnn: the trained contact model (`NAME.safetensors` with its card `NAME.json`)
+    /// [default: models/contact-two-finger.safetensors].
+    #[arg(long, value_name = "M.safetensors")]
+    model: Option<PathBuf>,
+    /// physics: the hand's material (TOML or JSON, as `moe-touch calibrate` writes it; default:
+    /// the nominal silicone).
+    #[arg(long, value_name = "M.toml")]
+    material: Option<PathBuf>,
+    /// physics: the estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`).
+    #[arg(long, value_name = "C.toml")]
+    physics_config: Option<PathBuf>,
+    /// physics: length of a force arrow in the result file per newton, metres [default: 0.2,
+    /// a 50 mN press draws a 10 mm arrow].
+    #[arg(long, value_name = "M_PER_N")]
+    force_scale: Option<f64>,
     /// Result file (MCAP; open it in Foxglove with fixtures/foxglove/run_layout.json).
     #[arg(long, value_name = "RESULT.mcap")]
     out: PathBuf,
@@ -41,10 +66,11 @@ pub(crate) struct RunArgs {
     /// Marker-detector parameters (TOML or JSON `DetectorConfig`).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
-    /// SR-ARAP iterations per frame.
-    #[arg(long, default_value_t = ShapeConfig::default().iterations)]
-    iterations: usize,
-    /// Start each frame's shape from the previous one (tracking; the paper starts from rest).
+    /// dgcnn: SR-ARAP iterations per frame [default: 50].
+    #[arg(long)]
+    iterations: Option<usize>,
+    /// dgcnn: start each frame's shape from the previous one (tracking; the paper starts from
+    /// rest).
     #[arg(long)]
     warm_start: bool,
     /// Filter the keypoints over time with a constant-velocity Kalman filter per marker
@@ -59,7 +85,67 @@ pub(crate) struct RunArgs {
     json: bool,
 }
 
+/// The physics estimator of `hand` as a pipeline's shape and contact stages, from the
+/// `--material` and `--physics-config` files; also the name of the estimator for the result.
+pub(crate) fn physics_stages(
+    hand: &HandModel,
+    material: Option<&Path>,
+    config: Option<&Path>,
+) -> Result<(PhysicsShapeStage, PhysicsContactStage, String)> {
+    let (material, material_name) = super::load_material(material)?;
+    let (config, _) = super::load_physics_config(config)?;
+    let estimator =
+        PhysicsEstimator::new(hand, &material, &config).context("the physics estimator")?;
+    let (shape, contact) = estimator.stages();
+    let name = match material_name.as_str() {
+        "nominal" => "physics (nominal material)".to_owned(),
+        _ => format!(
+            "physics (material {})",
+            Path::new(&material_name)
+                .file_name()
+                .map_or(material_name.clone(), |n| n.to_string_lossy().into_owned())
+        ),
+    };
+    Ok((shape, contact, name))
+}
+
+/// Checks a force arrow scale.
+pub(crate) fn check_force_scale(scale: f64) -> Result<f64> {
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("--force-scale {scale} must be a positive number of metres per newton");
+    }
+    Ok(scale)
+}
+
 pub(crate) fn run(args: RunArgs) -> Result<()> {
+    match args.contact {
+        ContactMethod::Dgcnn => {
+            for (given, flag) in [
+                (args.material.is_some(), "--material"),
+                (args.physics_config.is_some(), "--physics-config"),
+                (args.force_scale.is_some(), "--force-scale"),
+            ] {
+                if given {
+                    bail!("{flag} is for --contact physics");
+                }
+            }
+        }
+        ContactMethod::Physics => {
+            for (given, flag) in [
+                (args.model.is_some(), "--model"),
+                (args.iterations.is_some(), "--iterations"),
+                (args.warm_start, "--warm-start"),
+            ] {
+                if given {
+                    bail!(
+                        "{flag} is for --contact dgcnn (SR-ARAP and the network); the physics \
+                         estimator makes the shape itself and has no network"
+                    );
+                }
+            }
+        }
+    }
+    let force_scale = check_force_scale(args.force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N))?;
     let config: DetectorConfig = match &args.config {
         Some(path) => moe_io::read_config(path)?,
         None => DetectorConfig::default(),
@@ -73,6 +159,70 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             None => anyhow::anyhow!("{}: holds no episode", args.episode.display()),
         });
     };
+    let hand = super::load_hand(&args.hand)?;
+    check_hand(&hand, &episode.info)
+        .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
+    let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
+        .with_context(|| format!("the camera of {}", args.episode.display()))?;
+    match args.contact {
+        ContactMethod::Dgcnn => {
+            let model_path = args
+                .model
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(DEFAULT_MODEL));
+            let model = load_contact_model(&model_path, &hand).with_context(|| {
+                format!("model {} on hand '{}'", model_path.display(), args.hand)
+            })?;
+            let threshold = model.threshold();
+            let options = ShapeConfig {
+                iterations: args.iterations.unwrap_or(ShapeConfig::default().iterations),
+                warm_start: args.warm_start,
+                ..ShapeConfig::default()
+            };
+            let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &options)?;
+            let pipeline = Pipeline::new(hand, detector, shape, model, threshold)?;
+            let model_name = model_path
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+            finish(&args, pipeline, None, &episode, cut, &model_name, None)
+        }
+        ContactMethod::Physics => {
+            let (shape, contact, name) = physics_stages(
+                &hand,
+                args.material.as_deref(),
+                args.physics_config.as_deref(),
+            )?;
+            let stage = contact.clone();
+            let pipeline = Pipeline::new(hand, detector, shape, contact, PHYSICS_THRESHOLD)?;
+            finish(
+                &args,
+                pipeline,
+                Some(&stage),
+                &episode,
+                cut,
+                &name,
+                Some(force_scale),
+            )
+        }
+    }
+}
+
+/// Runs the pipeline over the episode, writes the result and the report, prints the summary.
+fn finish<S: ShapeEstimator, C: ContactEstimator>(
+    args: &RunArgs,
+    mut pipeline: Pipeline<S, C>,
+    physics: Option<&PhysicsContactStage>,
+    episode: &moe_io::Episode,
+    cut: Option<moe_io::IoError>,
+    model_name: &str,
+    force_scale: Option<f64>,
+) -> Result<()> {
+    if args.kalman {
+        pipeline = pipeline.with_keypoint_filter(KeypointFilter::new(KalmanConfig::default())?);
+    }
+    if let Some(alpha) = args.smooth_contact {
+        pipeline = pipeline.with_contact_smoothing(ContactSmoother::new(alpha)?);
+    }
     let truncated = cut.map(|err| {
         eprintln!(
             "warning: {err}; running the {} complete frames before the cut",
@@ -80,34 +230,16 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         );
         err.to_string()
     });
-    let hand = super::load_hand(&args.hand)?;
-    check_hand(&hand, &episode.info)
-        .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
-    let model = load_contact_model(&args.model, &hand)
-        .with_context(|| format!("model {} on hand '{}'", args.model.display(), args.hand))?;
-    let threshold = model.threshold();
-    let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
-        .with_context(|| format!("the camera of {}", args.episode.display()))?;
-    let options = ShapeConfig {
-        iterations: args.iterations,
-        warm_start: args.warm_start,
-        ..ShapeConfig::default()
-    };
-    let shape = moe_touch::contact_eval::study_shape_estimator(&hand, &options)?;
-    let mut pipeline = Pipeline::new(hand, detector, shape, model, threshold)?;
-    if args.kalman {
-        pipeline = pipeline.with_keypoint_filter(KeypointFilter::new(KalmanConfig::default())?);
-    }
-    if let Some(alpha) = args.smooth_contact {
-        pipeline = pipeline.with_contact_smoothing(ContactSmoother::new(alpha)?);
-    }
-    let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, truncated)
-        .with_context(|| format!("episode {}", args.episode.display()))?;
-    let model_name = args
-        .model
-        .file_name()
-        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let info = run_info(&episode.info, &model_name, threshold);
+    let (frames, report) = run_episode_with(
+        &mut pipeline,
+        &episode.info,
+        &episode.frames,
+        truncated,
+        physics,
+    )
+    .with_context(|| format!("episode {}", args.episode.display()))?;
+    let mut info = run_info(&episode.info, model_name, pipeline.threshold());
+    info.force_arrow_m_per_n = force_scale;
     // The report is built before anything is written; the result file is written whole.
     let report_text = serde_json::to_string_pretty(&report)?;
     moe_io::write_run(&args.out, &info, &frames)?;
@@ -122,11 +254,11 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         }
         return super::print_json(&value);
     }
-    print_summary(&report, &args);
+    print_summary(&report, &args.out);
     Ok(())
 }
 
-fn print_summary(r: &RunReport, args: &RunArgs) {
+pub(crate) fn print_summary(r: &RunReport, out: &Path) {
     super::outln!(
         "{} frames{}: {:.1} frames/s (per frame: markers {:.2} ms, shape {:.2} ms, contact {:.2} ms, total {:.2} ms median); wrote {}",
         r.frames,
@@ -140,7 +272,7 @@ fn print_summary(r: &RunReport, args: &RunArgs) {
         r.shape_ms.median_ms,
         r.contact_ms.median_ms,
         r.total_ms.median_ms,
-        args.out.display()
+        out.display()
     );
     if let (Some(m), Some(bcd), Some(c)) = (&r.markers, r.shape_bcd_mm, &r.contact) {
         super::outln!(
@@ -157,4 +289,51 @@ fn print_summary(r: &RunReport, args: &RunArgs) {
             c.false_alarms
         );
     }
+    print_forces(r);
+}
+
+/// The estimated force on every finger, frame by frame (runs whose estimator estimates force).
+pub(crate) fn print_forces(r: &RunReport) {
+    let Some(summary) = &r.forces else { return };
+    super::outln!("estimated force on each finger (N, hand frame x, y, z; loads found):");
+    for (k, frame) in r.per_frame.iter().enumerate() {
+        let Some(fingers) = &frame.finger_forces else {
+            continue;
+        };
+        let cells: Vec<String> = fingers
+            .iter()
+            .enumerate()
+            .map(|(f, x)| {
+                let loads = x
+                    .loads
+                    .map_or(String::new(), |n| format!(", {}", super::count(n, "load")));
+                let failed = if x.error.is_some() {
+                    ", no estimate"
+                } else {
+                    ""
+                };
+                format!(
+                    "finger {f} {:.3} ({:+.3}, {:+.3}, {:+.3}{loads}{failed})",
+                    x.magnitude_n, x.force_n.x, x.force_n.y, x.force_n.z
+                )
+            })
+            .collect();
+        super::outln!(
+            "  frame {k:>3} {:>8.3} s  {}",
+            1e-9 * frame.time_ns as f64,
+            cells.join("   ")
+        );
+    }
+    let cells: Vec<String> = summary
+        .fingers
+        .iter()
+        .enumerate()
+        .map(|(f, s)| {
+            format!(
+                "finger {f} up to {:.3} N ({} of {} frames with force)",
+                s.max_magnitude_n, s.frames_with_force, r.frames
+            )
+        })
+        .collect();
+    super::outln!("  {}", cells.join("; "));
 }

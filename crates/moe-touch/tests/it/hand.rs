@@ -1,6 +1,6 @@
 //! `moe-touch hand`.
 
-use crate::common::{assert_one_line_error, fixtures, run, run_json, scratch, stable};
+use crate::common::{assert_one_line_error, fixtures, run, run_json, run_ok, scratch, stable};
 
 #[test]
 fn presets_write_closed_meshes_and_matching_ids() {
@@ -161,5 +161,194 @@ fn a_closed_stdout_is_not_a_panic() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Median of a region's bound from the `--json` summary.
+fn region_median(summary: &serde_json::Value, region: &str, key: &str) -> f64 {
+    summary["bound"]["regions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["region"] == region)
+        .unwrap_or_else(|| panic!("region {region}"))[key]["median"]
+        .as_f64()
+        .unwrap()
+}
+
+#[test]
+fn marker_layouts_give_their_counts() {
+    for (layout, count) in [
+        ("camera-row", 7),
+        ("two-rows", 14),
+        ("sides", 21),
+        ("tip-ring", 13),
+    ] {
+        let dir = scratch(&format!("hand-layout-{layout}"));
+        let summary = run_json(&[
+            "hand",
+            "--marker-layout",
+            layout,
+            "--vertex-budget",
+            "512",
+            "--out",
+            dir.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(summary.get("bound").is_none(), "no bound unless asked");
+        for f in summary["fingers"].as_array().unwrap() {
+            let ids = f["marker_vertices"].as_array().unwrap();
+            assert_eq!(ids.len(), count, "{layout}");
+            let mut distinct: Vec<u64> = ids.iter().map(|v| v.as_u64().unwrap()).collect();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(distinct.len(), count, "{layout}: distinct vertices");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+/// `--bound` prints the three regions, writes finger 0's map with the bound per vertex, and the
+/// bound of N frames is that of one over √N.
+#[test]
+fn bound_reports_the_regions_and_writes_the_map() {
+    let dir = scratch("hand-bound");
+    let out = run_ok(&[
+        "hand",
+        "--marker-layout",
+        "two-rows",
+        "--out",
+        dir.to_str().unwrap(),
+        "--bound",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for line in [
+        "Cramér–Rao bound of a press on finger 0 (14 markers, layout two-rows)",
+        "tip (0.80–1.00)",
+        "middle (0.40–0.70)",
+        "base (0.12–0.35)",
+        "bound_finger_0.ply",
+    ] {
+        assert!(text.contains(line), "'{line}' missing from:\n{text}");
+    }
+    let map = moe_io::read_ply(&dir.join("bound_finger_0.ply")).unwrap();
+    let mesh = moe_io::read_mesh(&dir.join("finger_0.obj")).unwrap();
+    assert_eq!(
+        map.points,
+        mesh.vertices(),
+        "the map is finger 0 in the hand frame"
+    );
+    let colors = map.colors.as_ref().expect("a colour ramp");
+    assert_eq!(colors.len(), map.points.len());
+    let along = map.scalar("bound_along_mm").unwrap();
+    let around = map.scalar("bound_around_mm").unwrap();
+    let movable = map.scalar("movable").unwrap();
+    let markers = map.scalar("marker").unwrap();
+    assert_eq!(markers.iter().filter(|&&m| m == 1.0).count(), 14);
+    let moving: Vec<usize> = (0..along.len()).filter(|&v| movable[v] == 1.0).collect();
+    assert!(moving.len() > 800, "{} movable vertices", moving.len());
+    for &v in &moving {
+        assert!(along[v] > 0.0 && around[v] > 0.0, "vertex {v}");
+    }
+    // The summary: finite medians, the base (far from where the finger bends) worst.
+    let dir1 = scratch("hand-bound-json");
+    let bound_json = |frames: &str, dir: &std::path::Path| {
+        run_json(&[
+            "hand",
+            "--marker-layout",
+            "two-rows",
+            "--out",
+            dir.to_str().unwrap(),
+            "--bound",
+            "--bound-frames",
+            frames,
+            "--json",
+        ])
+    };
+    let one = bound_json("1", &dir1);
+    assert_eq!(one["bound"]["markers"], 14);
+    assert_eq!(one["bound"]["map"], "bound_finger_0.ply");
+    let written: serde_json::Value = moe_io::read_json(&dir1.join("hand.json")).unwrap();
+    assert_eq!(written, one, "hand.json holds the printed summary");
+    for region in ["tip", "middle", "base"] {
+        for key in ["along_mm", "around_mm", "force_sd_n"] {
+            let m = region_median(&one, region, key);
+            assert!(m.is_finite() && m > 0.0, "{region} {key}: {m}");
+        }
+    }
+    assert!(region_median(&one, "base", "along_mm") > region_median(&one, "tip", "along_mm"));
+    let four = bound_json("4", &dir1);
+    for region in ["tip", "middle", "base"] {
+        let ratio =
+            region_median(&one, region, "along_mm") / region_median(&four, region, "along_mm");
+        assert!(
+            (ratio - 2.0).abs() < 1e-3,
+            "{region}: 1 frame / 4 frames = {ratio}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::remove_dir_all(&dir1).unwrap();
+}
+
+#[test]
+fn bound_options_need_bound_and_bad_layouts_are_named() {
+    let dir = scratch("hand-bound-bad");
+    let out_dir = dir.join("out");
+    // A bound option without --bound is a usage error.
+    let out = run(&[
+        "hand",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--bound-frames",
+        "5",
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--bound"));
+    // An unknown layout name on the command line.
+    let out = run(&[
+        "hand",
+        "--marker-layout",
+        "four-rows",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("two-rows"));
+    // Markers that would share vertices: one line naming the layout field, nothing written.
+    let config = dir.join("crowded.toml");
+    std::fs::write(
+        &config,
+        "preset = \"two-finger\"\n[finger]\nmarker_layout = { rows = [{ angle_deg = 0 }, { angle_deg = 2 }] }\n",
+    )
+    .unwrap();
+    let out = run(&[
+        "hand",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--bound",
+    ]);
+    let msg = assert_one_line_error(&out);
+    assert!(msg.contains("marker_layout.rows"), "{msg}");
+    assert!(!out_dir.exists(), "nothing written");
+    // An unknown layout name in a config: the file, line and the presets.
+    std::fs::write(
+        &config,
+        "preset = \"two-finger\"\n[finger]\nmarker_layout = \"two-row\"\n",
+    )
+    .unwrap();
+    let out = run(&[
+        "hand",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let msg = assert_one_line_error(&out);
+    assert!(
+        msg.contains("crowded.toml:3") && msg.contains("two-rows"),
+        "{msg}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -6,6 +6,7 @@ mod contact;
 mod episode;
 mod hand;
 mod markers;
+mod physics;
 mod pipeline;
 mod plane;
 mod sim;

@@ -243,12 +243,35 @@ fn the_foxglove_layout_shows_only_topics_a_run_writes() {
         if let Some(t) = config["imageMode"]["imageTopic"].as_str() {
             topics.push(t.to_owned());
         }
+        // A plot's message paths: the topic, then the fields (`/topic.field[0].x`).
+        for path in config["paths"].as_array().into_iter().flatten() {
+            let value = path["value"].as_str().unwrap();
+            let (topic, fields) = value.split_once('.').unwrap();
+            if topic == "/estimate/finger_force" {
+                // The fields are those of the messages a run writes.
+                assert!(fields.starts_with("fingers["), "{id}: {value}");
+                let (_, field) = fields.split_once("].").unwrap();
+                let message = moe_io::FingerForceMessage {
+                    finger: 0,
+                    x_n: 0.0,
+                    y_n: 0.0,
+                    z_n: 0.0,
+                    magnitude_n: 0.0,
+                    pressed_probability: Some(0.0),
+                    loads: 0,
+                };
+                let written = serde_json::to_value(&message).unwrap();
+                assert!(written.get(field).is_some(), "{id}: {value}");
+            }
+            topics.push(topic.to_owned());
+        }
         for t in topics {
             assert!(moe_io::RUN_TOPICS.contains(&t.as_str()), "{id}: {t}");
             named += 1;
         }
     }
-    assert!(named >= 8);
+    assert!(named >= 12, "{named}");
+    assert!(panels.contains_key("Plot!force"));
 }
 
 #[test]
