@@ -103,7 +103,9 @@ pub struct PhysicsConfig {
     /// Newton iterations of a static solve. Default 60.
     pub static_max_iterations: usize,
     /// Standard deviation of an observed marker coordinate about the model's prediction,
-    /// metres: marker noise and model error together. Default 1e-4.
+    /// metres: marker noise and model error together. Default 3e-4, for markers detected by
+    /// the perception stage (0.16 mm per coordinate, heavier tails at the tip) on a model of
+    /// 0.1 mm error; with exact (simulated) markers 1e-4 (`fixtures/configs/physics-exact-markers.toml`).
     pub marker_sigma_m: Real,
     /// A finger is pressed when one load explains the markers better than none by at least
     /// this many units of χ² (the likelihood-ratio statistic). Default 25.
@@ -147,7 +149,9 @@ pub struct PhysicsConfig {
     /// gap starts the stream again. Seconds; default 0.2.
     pub stream_horizon_secs: Real,
     /// How much of the contact response's lag is taken out of the markers in a stream (0: none,
-    /// 1: all, as a first-order lag with the body's damping time). Default 1.
+    /// 1: all, as a first-order lag with the body's damping time). Taking it out triples the
+    /// markers' noise (the lag is inverted from two frames), so the default is 0; with exact
+    /// markers 1 is better (measured in the README).
     pub contact_lag_gain: Real,
     /// Largest time step of the free finger's simulation between observations, seconds; 0
     /// turns the simulation off (the markers are then compared with the static free shape).
@@ -161,7 +165,7 @@ impl Default for PhysicsConfig {
             voxel: VoxelParams { cell_size_m: 0.004 },
             static_tolerance_m: 1e-6,
             static_max_iterations: 60,
-            marker_sigma_m: 1e-4,
+            marker_sigma_m: 3e-4,
             detection_chi2: 25.0,
             min_force_n: 0.02,
             max_force_n: 10.0,
@@ -177,7 +181,7 @@ impl Default for PhysicsConfig {
             gravity_m_s2: [0.0, 0.0, -9.81],
             stream_horizon_secs: 0.2,
             dynamic_step_secs: 0.01,
-            contact_lag_gain: 1.0,
+            contact_lag_gain: 0.0,
         }
     }
 }
