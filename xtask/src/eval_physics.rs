@@ -98,7 +98,9 @@ fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Stre
             let hand = HandModel::preset(params.preset, &params.finger)?;
             for (a, b) in hand.fingers().iter().zip(data_hand.fingers()) {
                 if a.model.mesh().vertices() != b.model.mesh().vertices() {
-                    bail!("--marker-layout {preset}: the fingers' meshes differ from the data set's");
+                    bail!(
+                        "--marker-layout {preset}: the fingers' meshes differ from the data set's"
+                    );
                 }
             }
             hand

@@ -169,6 +169,28 @@ impl SparseSystem {
         }
     }
 
+    /// The position of free node `hi` among the off-diagonal row nodes of column node `lo`
+    /// (`hi > lo`): the slot [`SparseSystem::add_lower_block_at`] takes, so that a caller
+    /// adding the same pairs every step searches once. `None` for a pair outside the pattern.
+    pub(crate) fn lower_slot(&self, hi: u32, lo: u32) -> Option<u32> {
+        let rows = &self.row_nodes[self.row_ptr[lo as usize] + 1..self.row_ptr[lo as usize + 1]];
+        rows.binary_search(&hi).ok().map(|k| k as u32)
+    }
+
+    /// Adds `block` = `A_{hi,lo}` for free nodes `hi > lo`, `k` the slot of `hi` in column `lo`
+    /// ([`SparseSystem::lower_slot`]): what [`SparseSystem::add_block`] does for that pair,
+    /// without the search.
+    #[inline]
+    pub(crate) fn add_lower_block_at(&self, values: &mut [Real], lo: u32, k: u32, block: &Matrix3) {
+        let col_ptr = self.matrix.col_ptr();
+        for c in 0..3 {
+            let p0 = col_ptr[3 * lo as usize + c] as usize + (3 - c) + 3 * k as usize;
+            for r in 0..3 {
+                values[p0 + r] += block[(r, c)];
+            }
+        }
+    }
+
     /// Factorises the values in `buf` and solves in place for the first `ncols` columns of
     /// `buf.rhs`.
     pub(crate) fn factor_and_solve(

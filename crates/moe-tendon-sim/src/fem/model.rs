@@ -29,7 +29,14 @@ pub struct FemModel {
     pub(super) max_rank_ones: usize,
     /// Static solves and tangents use the exact Hessian of the corotated energy.
     pub(super) exact_static_tangent: bool,
+    /// Per element and ordered corner pair `4a + b` with free nodes `a > b` (as free indices):
+    /// the slot of the pair's block in the pattern ([`SparseSystem::lower_slot`]); [`NO_SLOT`]
+    /// otherwise. The element loop adds its blocks without searching the pattern.
+    pub(super) element_slots: Vec<[u32; 16]>,
 }
+
+/// No block slot (a fixed node, the diagonal, or the upper triangle).
+pub(super) const NO_SLOT: u32 = u32::MAX;
 
 /// Shape-function gradients `g_a` (`∇N_a`) and the volume of a rest tetrahedron.
 fn shape_gradients(c: &[Point3; 4]) -> ([Vector3; 4], Real) {
@@ -100,6 +107,20 @@ impl FemModel {
             element_pairs.chain(extra_pairs.iter().copied()),
             1 + max_rank_ones,
         );
+        let element_slots = mesh
+            .tets()
+            .iter()
+            .map(|tet| {
+                std::array::from_fn(|ab| {
+                    let (fa, fb) = (system.free_of(tet[ab / 4]), system.free_of(tet[ab % 4]));
+                    if fa == crate::linsys::FIXED || fb == crate::linsys::FIXED || fa <= fb {
+                        NO_SLOT
+                    } else {
+                        system.lower_slot(fa, fb).unwrap_or(NO_SLOT)
+                    }
+                })
+            })
+            .collect();
         Ok(Self {
             mesh,
             material,
@@ -112,6 +133,7 @@ impl FemModel {
             system,
             max_rank_ones,
             exact_static_tangent: false,
+            element_slots,
         })
     }
 

@@ -3,6 +3,7 @@
 
 use moe_geom::{Matrix3, Point3, Real, Vector3};
 
+use super::model::NO_SLOT;
 use super::{BodyState, Drive, FemModel, FemWorkspace, StepContext};
 use crate::error::SimError;
 use crate::linsys::FIXED;
@@ -230,8 +231,18 @@ impl FemModel {
             } else {
                 None
             };
+            let slots = &self.element_slots[t];
             for a in 0..4 {
+                let fa = sys.free_of(tet[a]);
+                if fa == FIXED {
+                    continue;
+                }
                 for b in 0..4 {
+                    let fb = sys.free_of(tet[b]);
+                    // The upper triangle is the lower one's mirror: nothing to add.
+                    if fb != FIXED && fa < fb {
+                        continue;
+                    }
                     let mut blk = (rg[a] * rg[b].transpose() * self.lambda
                         + rg[b] * rg[a].transpose() * self.mu
                         + Matrix3::identity() * (self.mu * g[a].dot(&g[b])))
@@ -245,7 +256,14 @@ impl FemModel {
                             * r.transpose()
                             * (0.5 * k);
                     }
-                    couple(values, coupling, tet[a], tet[b], &blk);
+                    let slot = slots[4 * a + b];
+                    if fb == FIXED {
+                        coupling[tet[a] as usize] -= blk * dx[tet[b] as usize];
+                    } else if slot != NO_SLOT {
+                        sys.add_lower_block_at(values, fb, slot, &blk);
+                    } else {
+                        sys.add_block(values, fa, fb, &blk);
+                    }
                 }
             }
         }
