@@ -62,6 +62,10 @@ pub(crate) struct ContactEvalArgs {
     /// The hand's material for `--physics` (TOML, as `moe-touch calibrate` writes it).
     #[arg(long, requires = "physics")]
     pub(crate) material: Option<PathBuf>,
+    /// The physics estimator's settings for `--physics` (e.g.
+    /// fixtures/configs/physics-exact-markers.toml, for the data set's exact markers).
+    #[arg(long, requires = "physics")]
+    pub(crate) physics_config: Option<PathBuf>,
 }
 
 /// Frames of `--frames`.
@@ -154,6 +158,11 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     let hand = dataset_hand(&reader)?;
     let rule = label_rule_of(&reader);
     let dgcnn = load_estimator(&args.model, &hand)?;
+    let mut physics_estimator = if args.physics {
+        Some(physics_estimator(args, &hand)?)
+    } else {
+        None
+    };
     let layout = reader.card().layout.clone();
     let mut frames: Vec<LabelledFrame> = Vec::new();
     let mut streams: Vec<moe_touch::physics_eval::StreamFrame> = Vec::new();
@@ -254,10 +263,9 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     } else {
         Vec::new()
     };
-    let physics = if args.physics {
-        Some(physics_rows(args, &hand, &streams, &dgcnn)?)
-    } else {
-        None
+    let physics = match physics_estimator.as_mut() {
+        Some(estimator) => Some(physics_rows(args, &hand, &streams, &dgcnn, estimator)?),
+        None => None,
     };
     if let Some(dir) = &args.out {
         write_out(dir, &hand, &frames, &kept, &plates)?;
@@ -323,7 +331,7 @@ fn physics_rows(
         hand,
         streams,
         moe_touch::physics_eval::MarkerSource::Exact,
-        &mut estimator,
+        estimator,
         moe_touch::physics_eval::Comparison {
             dgcnn: Some(dgcnn),
             shape: &shape,
@@ -335,7 +343,7 @@ fn physics_rows(
             &plate_scenes()?,
             args.trials,
             args.seed,
-            &mut estimator,
+            estimator,
             Some(dgcnn),
         )?
     } else {
