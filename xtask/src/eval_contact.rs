@@ -303,25 +303,36 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// The physics estimator of `--physics`, from `--material` and `--physics-config` (read before
+/// any evaluation, so that a bad file is refused at once).
+fn physics_estimator(
+    args: &ContactEvalArgs,
+    hand: &HandModel,
+) -> Result<moe_physics::PhysicsEstimator> {
+    let material: moe_physics::HandMaterial = match &args.material {
+        Some(p) => moe_io::read_config(p)?,
+        None => moe_physics::HandMaterial::default(),
+    };
+    let config: moe_physics::PhysicsConfig = match &args.physics_config {
+        Some(p) => moe_io::read_config(p)?,
+        None => moe_physics::PhysicsConfig::default(),
+    };
+    Ok(moe_physics::PhysicsEstimator::new(
+        hand, &material, &config,
+    )?)
+}
+
 /// The physics estimator's rows on the same frames (streams) and plate trials.
 fn physics_rows(
     args: &ContactEvalArgs,
     hand: &HandModel,
     streams: &[moe_touch::physics_eval::StreamFrame],
     dgcnn: &DgcnnEstimator,
+    estimator: &mut moe_physics::PhysicsEstimator,
 ) -> Result<(
     moe_touch::physics_eval::PhysicsEvaluation,
     Vec<moe_touch::physics_eval::PhysicsPlateTrial>,
 )> {
-    let material: moe_physics::HandMaterial = match &args.material {
-        Some(p) => moe_io::read_config(p)?,
-        None => moe_physics::HandMaterial::default(),
-    };
-    let mut estimator = moe_physics::PhysicsEstimator::new(
-        hand,
-        &material,
-        &moe_physics::PhysicsConfig::default(),
-    )?;
     eprintln!(
         "eval contact: the physics estimator on {} frames",
         streams.len()
