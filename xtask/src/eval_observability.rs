@@ -20,7 +20,10 @@ use clap::Args;
 use moe_geom::{
     FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,
 };
-use moe_physics::{BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound};
+use moe_physics::{
+    BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound, RegionBound, quantile,
+    region_bounds,
+};
 use serde::Serialize;
 
 /// Arguments of `cargo xtask eval observability`.
@@ -44,14 +47,6 @@ pub(crate) struct ObservabilityEvalArgs {
     json: bool,
 }
 
-/// The regions of the summary: name and heights as fractions of the finger's length (the tip
-/// includes the cap), as `moe-touch hand --bound` reports them.
-pub(crate) const REGIONS: [(&str, Real, Real); 3] = [
-    ("tip", 0.8, 1.0),
-    ("middle", 0.4, 0.7),
-    ("base", 0.12, 0.35),
-];
-
 /// Sides of the finger at mid height (40–70 % of the length): name and the range of the
 /// angle's magnitude around the axis from the camera side, degrees.
 const SIDES: [(&str, Real, Real); 3] = [
@@ -60,33 +55,13 @@ const SIDES: [(&str, Real, Real); 3] = [
     ("back", 135.0, 180.0),
 ];
 
-/// Median and 90th percentile over a region's vertices.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub(crate) struct Spread {
-    pub(crate) median: Real,
-    pub(crate) p90: Real,
-}
-
-/// The bound over one region.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub(crate) struct RegionSummary {
-    pub(crate) region: &'static str,
-    /// Movable surface vertices in the region.
-    pub(crate) vertices: usize,
-    /// Of those, the ones with an infinite bound.
-    pub(crate) unobservable: usize,
-    pub(crate) along_mm: Spread,
-    pub(crate) around_mm: Spread,
-    pub(crate) force_sd_n: Spread,
-}
-
 /// One layout's bound for one number of frames.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub(crate) struct LayoutSummary {
     pub(crate) layout: &'static str,
     pub(crate) markers: usize,
     pub(crate) frames: usize,
-    pub(crate) regions: Vec<RegionSummary>,
+    pub(crate) regions: Vec<RegionBound>,
     /// At mid height, by side: median along and around bounds, mm.
     pub(crate) mid_height_by_side: Vec<SideSummary>,
 }
@@ -137,16 +112,6 @@ pub(crate) fn layout_bounds(
     })
 }
 
-/// The `q` quantile of `values` (nearest rank; infinite values sort last; NaN for none).
-fn quantile(values: &[Real], q: Real) -> Real {
-    if values.is_empty() {
-        return Real::NAN;
-    }
-    let mut v = values.to_vec();
-    v.sort_by(Real::total_cmp);
-    v[((q * (v.len() - 1) as Real).round() as usize).min(v.len() - 1)]
-}
-
 /// Angle of a point around the finger's axis from the camera side (+x), degrees, −180 to 180.
 fn angle_deg(p: &Point3) -> Real {
     p.y.atan2(p.x).to_degrees()
@@ -173,30 +138,7 @@ impl LayoutBounds {
 
     /// The summary per region and, at mid height, per side.
     pub(crate) fn summary(&self, frames: usize) -> LayoutSummary {
-        let regions = REGIONS
-            .iter()
-            .map(|&(region, lo, hi)| {
-                let inside: Vec<&PlaceBound> = self.in_band(lo, hi).collect();
-                let spread = |f: fn(&PlaceBound) -> Real| {
-                    let v: Vec<Real> = inside.iter().map(|b| f(b)).collect();
-                    Spread {
-                        median: quantile(&v, 0.5),
-                        p90: quantile(&v, 0.9),
-                    }
-                };
-                RegionSummary {
-                    region,
-                    vertices: inside.len(),
-                    unobservable: inside
-                        .iter()
-                        .filter(|b| !(b.along_m.is_finite() && b.around_m.is_finite()))
-                        .count(),
-                    along_mm: spread(|b| b.along_m * 1e3),
-                    around_mm: spread(|b| b.around_m * 1e3),
-                    force_sd_n: spread(|b| b.force_sd_n),
-                }
-            })
-            .collect();
+        let regions = region_bounds(&self.bounds, self.length());
         let mid_height_by_side = SIDES
             .iter()
             .map(|&(side, lo, hi)| {
@@ -342,20 +284,10 @@ fn table(r: &Report) -> String {
     s
 }
 
-/// A viridis-like colour ramp, `t` from 0 (dark blue: small bound) to 1 (yellow).
+/// The figure's colour of `t` from 0 (dark blue: small bound) to 1 (yellow).
 fn ramp(t: Real) -> String {
-    const STOPS: [[Real; 3]; 5] = [
-        [68.0, 1.0, 84.0],
-        [59.0, 82.0, 139.0],
-        [33.0, 145.0, 140.0],
-        [94.0, 201.0, 98.0],
-        [253.0, 231.0, 37.0],
-    ];
-    let x = t.clamp(0.0, 1.0) * (STOPS.len() - 1) as Real;
-    let i = (x.floor() as usize).min(STOPS.len() - 2);
-    let f = x - i as Real;
-    let c = |k: usize| (STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k])).round() as u8;
-    format!("#{:02x}{:02x}{:02x}", c(0), c(1), c(2))
+    let [r, g, b] = moe_io::viridis_colour(t);
+    format!("#{r:02x}{g:02x}{b:02x}")
 }
 
 /// Ticks of a log scale from `lo` to `hi`: 1, 2, 5 × powers of ten.

@@ -97,6 +97,6 @@ pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
 pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
 pub use run_output::{
     FingerForceMessage, FingerForcesMessage, JsonTime, RUN_TOPICS, RunForces, RunFrame, RunInfo,
-    RunLoad, RunTruth, RunWriter, probability_colour, write_run,
+    RunLoad, RunTruth, RunWriter, probability_colour, viridis_colour, write_run,
 };
 pub use stl::{STL_WELD_RELATIVE_TOLERANCE, read_stl, read_stl_from};

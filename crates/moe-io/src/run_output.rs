@@ -192,6 +192,24 @@ pub fn probability_colour(p: f64) -> [u8; 3] {
     ]
 }
 
+/// A viridis-like colour ramp, `t` from 0 (dark blue) to 1 (yellow); NaN is 0: the colour of a
+/// scalar map on a mesh or in a figure.
+pub fn viridis_colour(t: f64) -> [u8; 3] {
+    const STOPS: [[f64; 3]; 5] = [
+        [68.0, 1.0, 84.0],
+        [59.0, 82.0, 139.0],
+        [33.0, 145.0, 140.0],
+        [94.0, 201.0, 98.0],
+        [253.0, 231.0, 37.0],
+    ];
+    let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+    let x = t * (STOPS.len() - 1) as f64;
+    let i = (x.floor() as usize).min(STOPS.len() - 2);
+    let f = x - i as f64;
+    let c = |k: usize| (STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k])).round() as u8;
+    [c(0), c(1), c(2)]
+}
+
 /// Writes a run to any seekable sink.
 pub struct RunWriter<W: Write + Seek> {
     path: PathBuf,

@@ -7,82 +7,28 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_geom::{
-    FingerParams, HandKeypoints, HandModel, HandPreset, Point3, Real, Vector3, WorldFromHand,
-};
+use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, Real, WorldFromHand};
+use moe_physics::testing::{PointLoad, static_markers};
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator, PhysicsObservation};
-use moe_tendon_sim::mechanics::{FemInputs, FingerBody, Integrator, PointTerm, StepContext, Terms};
-use moe_tendon_sim::{BodyState, Material, TendonCommand, TendonParams, VoxelParams};
 
-/// Static markers of `hand` (held fingers-up) under `pulls`, with `load` (newtons, finger frame)
-/// at the vertex of finger 0 nearest `at` (finger frame), by the data generator's model.
+/// Static markers of `hand` (held fingers-up) under `pulls`, with `load` (newtons, along the
+/// inward normal) at the vertex of finger 0 nearest `at` (finger frame), by the data
+/// generator's model.
 fn markers(hand: &HandModel, pulls: &[Vec<Real>], at: Point3, load: Real) -> HandKeypoints {
-    let fingers = hand
-        .fingers()
-        .iter()
-        .enumerate()
-        .map(|(f, hf)| {
-            let body =
-                FingerBody::new(&hf.model, &Material::default(), &VoxelParams::default()).unwrap();
-            let rest = body.fem().mesh().nodes().to_vec();
-            let mesh = hf.model.mesh();
-            let v = (0..mesh.num_vertices())
-                .min_by(|&a, &b| {
-                    (mesh.vertices()[a] - at)
-                        .norm()
-                        .total_cmp(&(mesh.vertices()[b] - at).norm())
-                })
-                .unwrap();
-            let force = -mesh.vertex_normals()[v] * if f == 0 { load } else { 0.0 };
-            let commands: Vec<TendonCommand> = pulls[f]
-                .iter()
-                .map(|&pull_m| TendonCommand::Displacement { pull_m })
-                .collect();
-            let gravity = hf.hand_from_finger.iso().inverse() * Vector3::new(0.0, 0.0, -9.81);
-            let mut state = BodyState {
-                x: rest.clone(),
-                v: vec![Vector3::zeros(); rest.len()],
-            };
-            let params = TendonParams::default();
-            let mut ws = body.workspace(0);
-            body.fem()
-                .step(
-                    &mut ws,
-                    StepContext::default(),
-                    Integrator::Static {
-                        tolerance_m: 1e-10,
-                        max_iterations: 200,
-                    },
-                    &mut state,
-                    FemInputs {
-                        targets: &rest,
-                        gravity,
-                        terms: &mut |x: &[Point3], _: &[Vector3], t: &mut Terms| {
-                            for (tendon, &c) in body.tendons().iter().zip(&commands) {
-                                tendon.add_terms(x, c, &params, t);
-                            }
-                            t.points.push(PointTerm {
-                                point: body.surface().points()[v],
-                                force,
-                                stiffness: Default::default(),
-                                damping: Default::default(),
-                                target_velocity: Vector3::zeros(),
-                            });
-                        },
-                    },
-                )
-                .unwrap();
-            hf.model
-                .marker_vertices()
-                .iter()
-                .map(|&m| {
-                    let p = body.surface().points()[m as usize].position(&state.x);
-                    Some(hf.hand_from_finger.iso() * p)
-                })
-                .collect()
+    let mesh = hand.fingers()[0].model.mesh();
+    let v = (0..mesh.num_vertices())
+        .min_by(|&a, &b| {
+            (mesh.vertices()[a] - at)
+                .norm()
+                .total_cmp(&(mesh.vertices()[b] - at).norm())
         })
-        .collect();
-    HandKeypoints { fingers }
+        .unwrap();
+    let loads = [PointLoad {
+        finger: 0,
+        vertex: v as u32,
+        force: -mesh.vertex_normals()[v] * load,
+    }];
+    static_markers(hand, pulls, &WorldFromHand::identity(), &loads).unwrap()
 }
 
 fn physics(c: &mut Criterion) {

@@ -224,68 +224,21 @@ pub fn calibrate(
 /// Checks that every frame fits the hand.
 fn check_frames(hand: &HandModel, streams: &[Vec<CalibrationFrame>]) -> Result<(), PhysicsError> {
     for frame in streams.iter().flatten() {
-        if frame.keypoints.fingers.len() != hand.num_fingers() {
-            return Err(PhysicsError::LengthMismatch {
-                what: "fingers of the keypoints",
-                expected: hand.num_fingers(),
-                got: frame.keypoints.fingers.len(),
-            });
-        }
-        if frame.tendon_pull_m.len() != hand.num_fingers() {
-            return Err(PhysicsError::LengthMismatch {
-                what: "fingers of the tendon pulls",
-                expected: hand.num_fingers(),
-                got: frame.tendon_pull_m.len(),
-            });
-        }
-        let iso = frame.world_from_hand.iso();
-        let pose_finite = iso.translation.vector.iter().all(|v| v.is_finite())
-            && iso.rotation.coords.iter().all(|v| v.is_finite());
-        if !frame.time_secs.is_finite() || !pose_finite {
+        crate::estimator::check_observation(
+            hand,
+            &crate::estimator::PhysicsObservation {
+                keypoints: &frame.keypoints,
+                tendon_pull_m: &frame.tendon_pull_m,
+                world_from_hand: &frame.world_from_hand,
+                time_secs: Some(frame.time_secs),
+            },
+        )?;
+        if !frame.time_secs.is_finite() {
             return Err(PhysicsError::InvalidParameter {
-                name: "calibration frame time or world_from_hand",
+                name: "calibration frame time_secs",
                 value: frame.time_secs,
                 reason: "must be finite",
             });
-        }
-        for (f, hf) in hand.fingers().iter().enumerate() {
-            let expected = hf.model.marker_vertices().len();
-            let markers = &frame.keypoints.fingers[f];
-            if markers.len() != expected {
-                return Err(PhysicsError::FingerLengthMismatch {
-                    what: "markers",
-                    finger: f,
-                    expected,
-                    got: markers.len(),
-                });
-            }
-            if let Some(index) = markers
-                .iter()
-                .position(|m| m.is_some_and(|p| !p.coords.iter().all(|c| c.is_finite())))
-            {
-                return Err(PhysicsError::NonFinite {
-                    what: "marker",
-                    finger: f,
-                    index,
-                });
-            }
-            let expected = hf.model.tendon_routes().len();
-            let pulls = &frame.tendon_pull_m[f];
-            if pulls.len() != expected {
-                return Err(PhysicsError::FingerLengthMismatch {
-                    what: "tendon pulls",
-                    finger: f,
-                    expected,
-                    got: pulls.len(),
-                });
-            }
-            if let Some(index) = pulls.iter().position(|p| !p.is_finite()) {
-                return Err(PhysicsError::NonFinite {
-                    what: "tendon pull",
-                    finger: f,
-                    index,
-                });
-            }
         }
     }
     Ok(())

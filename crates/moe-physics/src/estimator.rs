@@ -94,6 +94,73 @@ impl PhysicsEstimate {
     }
 }
 
+/// Checks that an observation fits `hand`: one marker list and one pull list per finger, of
+/// the finger's lengths, finite, and a finite pose.
+///
+/// # Errors
+/// [`PhysicsError::LengthMismatch`], [`PhysicsError::FingerLengthMismatch`] or
+/// [`PhysicsError::NonFinite`] naming the finger and the item, or
+/// [`PhysicsError::InvalidParameter`] for the pose.
+pub(crate) fn check_observation(
+    hand: &HandModel,
+    obs: &PhysicsObservation<'_>,
+) -> Result<(), PhysicsError> {
+    let n = hand.num_fingers();
+    for (what, got) in [
+        ("fingers of the keypoints", obs.keypoints.fingers.len()),
+        ("fingers of the tendon pulls", obs.tendon_pull_m.len()),
+    ] {
+        if got != n {
+            return Err(PhysicsError::LengthMismatch {
+                what,
+                expected: n,
+                got,
+            });
+        }
+    }
+    for (f, hf) in hand.fingers().iter().enumerate() {
+        let markers = &obs.keypoints.fingers[f];
+        let pulls = &obs.tendon_pull_m[f];
+        for (what, expected, got) in [
+            ("markers", hf.model.marker_vertices().len(), markers.len()),
+            ("tendon pulls", hf.model.tendon_routes().len(), pulls.len()),
+        ] {
+            if got != expected {
+                return Err(PhysicsError::FingerLengthMismatch {
+                    what,
+                    finger: f,
+                    expected,
+                    got,
+                });
+            }
+        }
+        let bad_marker = markers
+            .iter()
+            .position(|m| m.is_some_and(|p| !p.coords.iter().all(|c| c.is_finite())));
+        let bad_pull = pulls.iter().position(|p| !p.is_finite());
+        for (what, index) in [("marker", bad_marker), ("tendon pull", bad_pull)] {
+            if let Some(index) = index {
+                return Err(PhysicsError::NonFinite {
+                    what,
+                    finger: f,
+                    index,
+                });
+            }
+        }
+    }
+    let iso = obs.world_from_hand.iso();
+    if !(iso.translation.vector.iter().all(|v| v.is_finite())
+        && iso.rotation.coords.iter().all(|v| v.is_finite()))
+    {
+        return Err(PhysicsError::InvalidParameter {
+            name: "world_from_hand",
+            value: Real::NAN,
+            reason: "must be finite",
+        });
+    }
+    Ok(())
+}
+
 /// The physics estimator of a hand: per finger, the loads that explain its markers through its
 /// FEM model, and the shape they produce.
 #[derive(Debug)]
@@ -158,71 +225,7 @@ impl PhysicsEstimator {
 
     /// Checks an observation against the hand.
     fn check(&self, obs: &PhysicsObservation<'_>) -> Result<(), PhysicsError> {
-        let n = self.hand.num_fingers();
-        if obs.keypoints.fingers.len() != n {
-            return Err(PhysicsError::LengthMismatch {
-                what: "fingers of the keypoints",
-                expected: n,
-                got: obs.keypoints.fingers.len(),
-            });
-        }
-        if obs.tendon_pull_m.len() != n {
-            return Err(PhysicsError::LengthMismatch {
-                what: "fingers of the tendon pulls",
-                expected: n,
-                got: obs.tendon_pull_m.len(),
-            });
-        }
-        for (f, hf) in self.hand.fingers().iter().enumerate() {
-            let markers = &obs.keypoints.fingers[f];
-            let expected = hf.model.marker_vertices().len();
-            if markers.len() != expected {
-                return Err(PhysicsError::FingerLengthMismatch {
-                    what: "markers",
-                    finger: f,
-                    expected,
-                    got: markers.len(),
-                });
-            }
-            if let Some(index) = markers
-                .iter()
-                .position(|m| m.is_some_and(|p| !p.coords.iter().all(|c| c.is_finite())))
-            {
-                return Err(PhysicsError::NonFinite {
-                    what: "marker",
-                    finger: f,
-                    index,
-                });
-            }
-            let pulls = &obs.tendon_pull_m[f];
-            let expected = hf.model.tendon_routes().len();
-            if pulls.len() != expected {
-                return Err(PhysicsError::FingerLengthMismatch {
-                    what: "tendon pulls",
-                    finger: f,
-                    expected,
-                    got: pulls.len(),
-                });
-            }
-            if let Some(index) = pulls.iter().position(|p| !p.is_finite()) {
-                return Err(PhysicsError::NonFinite {
-                    what: "tendon pull",
-                    finger: f,
-                    index,
-                });
-            }
-        }
-        let iso = obs.world_from_hand.iso();
-        if !(iso.translation.vector.iter().all(|v| v.is_finite())
-            && iso.rotation.coords.iter().all(|v| v.is_finite()))
-        {
-            return Err(PhysicsError::InvalidParameter {
-                name: "world_from_hand",
-                value: Real::NAN,
-                reason: "must be finite",
-            });
-        }
-        Ok(())
+        check_observation(&self.hand, obs)
     }
 
     /// Estimates the loads and the shape of every finger. A finger whose estimate fails (too

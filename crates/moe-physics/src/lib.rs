@@ -50,6 +50,7 @@ mod nnls;
 mod observability;
 /// The estimator behind the shape and contact seams.
 mod stages;
+pub mod testing;
 
 pub use calibration::{CalibrationFrame, CalibrationOptions, CalibrationReport, calibrate};
 pub use config::{HandMaterial, HandSignature, PhysicsConfig};
@@ -57,5 +58,7 @@ pub use error::PhysicsError;
 pub use estimator::{
     ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator, PhysicsObservation,
 };
-pub use observability::{BoundOptions, PlaceBound};
+pub use observability::{
+    BOUND_REGIONS, BoundOptions, PlaceBound, RegionBound, Spread, quantile, region_bounds,
+};
 pub use stages::{PhysicsContactStage, PhysicsShapeStage};

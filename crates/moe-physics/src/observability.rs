@@ -140,3 +140,90 @@ impl PhysicsEstimator {
             .collect())
     }
 }
+
+/// Median and 90th percentile of a quantity over a set of places.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Spread {
+    /// The median.
+    pub median: Real,
+    /// The 90th percentile.
+    pub p90: Real,
+}
+
+impl Spread {
+    /// Nearest-rank quantiles of `values` (infinite values sort last; NaN for none).
+    pub fn of(values: &[Real]) -> Self {
+        Self {
+            median: quantile(values, 0.5),
+            p90: quantile(values, 0.9),
+        }
+    }
+}
+
+/// The `q` quantile of `values` by nearest rank (infinite values sort last; NaN for none).
+pub fn quantile(values: &[Real], q: Real) -> Real {
+    if values.is_empty() {
+        return Real::NAN;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(Real::total_cmp);
+    v[((q * (v.len() - 1) as Real).round() as usize).min(v.len() - 1)]
+}
+
+/// The regions a bound is summarised over: name and heights as fractions of the finger's
+/// length (the tip includes the cap).
+pub const BOUND_REGIONS: [(&str, Real, Real); 3] = [
+    ("tip", 0.8, 1.0),
+    ("middle", 0.4, 0.7),
+    ("base", 0.12, 0.35),
+];
+
+/// The bound over one region of a finger.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RegionBound {
+    /// `tip`, `middle` or `base` ([`BOUND_REGIONS`]).
+    pub region: &'static str,
+    /// The region's lowest height, a fraction of the finger's length.
+    pub z_from: Real,
+    /// Its highest height.
+    pub z_to: Real,
+    /// Movable surface vertices in the region.
+    pub vertices: usize,
+    /// Of those, the ones whose bound is infinite (the markers do not determine a press there).
+    pub unobservable: usize,
+    /// Along-the-axis bound, mm.
+    pub along_mm: Spread,
+    /// Around-the-axis bound, mm.
+    pub around_mm: Spread,
+    /// Force-magnitude bound, newtons.
+    pub force_sd_n: Spread,
+}
+
+/// The bounds of a finger of `length_m` summarised over [`BOUND_REGIONS`].
+pub fn region_bounds(bounds: &[PlaceBound], length_m: Real) -> Vec<RegionBound> {
+    BOUND_REGIONS
+        .iter()
+        .map(|&(region, lo, hi)| {
+            let inside: Vec<&PlaceBound> = bounds
+                .iter()
+                .filter(|b| (lo..=hi).contains(&(b.rest_in_finger.z / length_m)))
+                .collect();
+            let spread = |f: fn(&PlaceBound) -> Real| {
+                Spread::of(&inside.iter().map(|b| f(b)).collect::<Vec<_>>())
+            };
+            RegionBound {
+                region,
+                z_from: lo,
+                z_to: hi,
+                vertices: inside.len(),
+                unobservable: inside
+                    .iter()
+                    .filter(|b| !(b.along_m.is_finite() && b.around_m.is_finite()))
+                    .count(),
+                along_mm: spread(|b| b.along_m * 1e3),
+                around_mm: spread(|b| b.around_m * 1e3),
+                force_sd_n: spread(|b| b.force_sd_n),
+            }
+        })
+        .collect()
+}

@@ -2,23 +2,12 @@
 //! generator's own model (its 3.5 mm voxel mesh; the estimator models the finger with its own).
 
 use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, Real, Vector3};
-use moe_tendon_sim::mechanics::{FemInputs, FingerBody, Integrator, PointTerm, StepContext, Terms};
-use moe_tendon_sim::{BodyState, Material, TendonCommand, TendonParams, VoxelParams};
-
-/// Gravity in the world and in the hand frame (the hand held fingers-down at identity).
-pub(crate) const GRAVITY: [Real; 3] = [0.0, 0.0, -9.81];
 
 pub(crate) fn hand() -> HandModel {
     HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap()
 }
 
-/// A point load: finger, surface vertex, force in the finger frame.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct PointLoad {
-    pub(crate) finger: usize,
-    pub(crate) vertex: u32,
-    pub(crate) force: Vector3,
-}
+pub(crate) use moe_physics::testing::PointLoad;
 
 /// The surface vertex of finger `f` nearest `p` (finger frame).
 pub(crate) fn vertex_near(hand: &HandModel, f: usize, p: Point3) -> u32 {
@@ -34,72 +23,14 @@ pub(crate) fn normal_at(hand: &HandModel, f: usize, v: u32) -> Vector3 {
 }
 
 /// The static markers (hand frame) of every finger under `pulls` and `loads`, by the data
-/// generator's model.
+/// generator's model, the hand held fingers-up.
 pub(crate) fn simulate(
     hand: &HandModel,
     pulls: &[Vec<Real>],
     loads: &[PointLoad],
 ) -> HandKeypoints {
-    let g = Vector3::from(GRAVITY);
-    let fingers = hand
-        .fingers()
-        .iter()
-        .enumerate()
-        .map(|(f, hf)| {
-            let body =
-                FingerBody::new(&hf.model, &Material::default(), &VoxelParams::default()).unwrap();
-            let rest = body.fem().mesh().nodes().to_vec();
-            let mut state = BodyState {
-                x: rest.clone(),
-                v: vec![Vector3::zeros(); rest.len()],
-            };
-            let commands: Vec<TendonCommand> = pulls[f]
-                .iter()
-                .map(|&pull_m| TendonCommand::Displacement { pull_m })
-                .collect();
-            let finger_from_hand = hf.hand_from_finger.iso().inverse();
-            let params = TendonParams::default();
-            let mut ws = body.workspace(0);
-            body.fem()
-                .step(
-                    &mut ws,
-                    StepContext::default(),
-                    Integrator::Static {
-                        tolerance_m: 1e-10,
-                        max_iterations: 200,
-                    },
-                    &mut state,
-                    FemInputs {
-                        targets: &rest,
-                        gravity: finger_from_hand * g,
-                        terms: &mut |x: &[Point3], _: &[Vector3], t: &mut Terms| {
-                            for (tendon, &c) in body.tendons().iter().zip(&commands) {
-                                tendon.add_terms(x, c, &params, t);
-                            }
-                            for l in loads.iter().filter(|l| l.finger == f) {
-                                t.points.push(PointTerm {
-                                    point: body.surface().points()[l.vertex as usize],
-                                    force: l.force,
-                                    stiffness: Default::default(),
-                                    damping: Default::default(),
-                                    target_velocity: Vector3::zeros(),
-                                });
-                            }
-                        },
-                    },
-                )
-                .unwrap();
-            let hand_from_finger = hf.hand_from_finger.iso();
-            hf.model
-                .marker_vertices()
-                .iter()
-                .map(|&v| {
-                    Some(hand_from_finger * body.surface().points()[v as usize].position(&state.x))
-                })
-                .collect()
-        })
-        .collect();
-    HandKeypoints { fingers }
+    moe_physics::testing::static_markers(hand, pulls, &moe_geom::WorldFromHand::identity(), loads)
+        .unwrap()
 }
 
 /// Zero pulls for every tendon of `hand`.

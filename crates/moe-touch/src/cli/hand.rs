@@ -6,7 +6,10 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use moe_geom::{FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Real, TriMesh, Vector3};
-use moe_physics::{BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound};
+use moe_physics::{
+    BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound, RegionBound, Spread,
+    region_bounds,
+};
 use serde::Serialize;
 
 /// Arguments of `moe-touch hand`.
@@ -80,29 +83,6 @@ struct HandRecord {
     bound: Option<BoundRecord>,
 }
 
-/// Median and 90th percentile of a bound over a region's vertices.
-#[derive(Debug, Clone, Copy, Serialize)]
-struct Spread {
-    median: Real,
-    p90: Real,
-}
-
-/// The bound over one region of the finger.
-#[derive(Debug, Serialize)]
-struct RegionBound {
-    region: &'static str,
-    /// The region's heights, as fractions of the finger's length.
-    z_from: Real,
-    z_to: Real,
-    /// Movable surface vertices in the region.
-    vertices: usize,
-    /// Of those, the ones whose bound is infinite (the markers do not determine a press there).
-    unobservable: usize,
-    along_mm: Spread,
-    around_mm: Spread,
-    force_sd_n: Spread,
-}
-
 /// `--bound`'s report.
 #[derive(Debug, Serialize)]
 struct BoundRecord {
@@ -117,14 +97,6 @@ struct BoundRecord {
     regions: Vec<RegionBound>,
     map: String,
 }
-
-/// The regions of the bound summary: name and heights as fractions of the finger's length
-/// (the tip includes the cap).
-const REGIONS: [(&str, Real, Real); 3] = [
-    ("tip", 0.8, 1.0),
-    ("middle", 0.4, 0.7),
-    ("base", 0.12, 0.35),
-];
 
 /// Bounds above this (and infinite ones) are written to the map as this many millimetres.
 const MAP_CAP_MM: Real = 1000.0;
@@ -318,35 +290,7 @@ fn finger_bound(
         .context("the Cramér–Rao bound of finger 0")?;
     let rest = model.mesh().vertices();
     let length = rest.iter().map(|p| p.z).fold(Real::MIN, Real::max);
-    let regions = REGIONS
-        .iter()
-        .map(|&(region, lo, hi)| {
-            let inside: Vec<&PlaceBound> = bounds
-                .iter()
-                .filter(|b| (lo..=hi).contains(&(b.rest_in_finger.z / length)))
-                .collect();
-            let spread = |f: &dyn Fn(&PlaceBound) -> Real| {
-                let v: Vec<Real> = inside.iter().map(|b| f(b)).collect();
-                Spread {
-                    median: quantile(&v, 0.5),
-                    p90: quantile(&v, 0.9),
-                }
-            };
-            RegionBound {
-                region,
-                z_from: lo,
-                z_to: hi,
-                vertices: inside.len(),
-                unobservable: inside
-                    .iter()
-                    .filter(|b| !(b.along_m.is_finite() && b.around_m.is_finite()))
-                    .count(),
-                along_mm: spread(&|b| b.along_m * 1e3),
-                around_mm: spread(&|b| b.around_m * 1e3),
-                force_sd_n: spread(&|b| b.force_sd_n),
-            }
-        })
-        .collect();
+    let regions = region_bounds(&bounds, length);
     let map = "bound_finger_0.ply".to_owned();
     let ply = bound_map(mesh, model.marker_vertices(), &bounds);
     let record = BoundRecord {
@@ -362,16 +306,6 @@ fn finger_bound(
         map,
     };
     Ok((record, ply))
-}
-
-/// The `q` quantile of `values` (nearest rank; infinite values sort last; NaN for none).
-fn quantile(values: &[Real], q: Real) -> Real {
-    if values.is_empty() {
-        return Real::NAN;
-    }
-    let mut v = values.to_vec();
-    v.sort_by(Real::total_cmp);
-    v[((q * (v.len() - 1) as Real).round() as usize).min(v.len() - 1)]
 }
 
 /// Finger 0's rest mesh (hand frame) with the bound per vertex: scalars `bound_along_mm`,
@@ -409,7 +343,7 @@ fn bound_map(mesh: &TriMesh, markers: &[u32], bounds: &[PlaceBound]) -> moe_io::
             } else if movable[v] == 0.0 {
                 [160, 160, 160]
             } else {
-                ramp(((along[v] / 0.5).log10() / 2.0).clamp(0.0, 1.0))
+                moe_io::viridis_colour(((along[v] / 0.5).log10() / 2.0).clamp(0.0, 1.0))
             }
         })
         .collect();
@@ -421,22 +355,6 @@ fn bound_map(mesh: &TriMesh, markers: &[u32], bounds: &[PlaceBound]) -> moe_io::
         .with_scalar("marker", is_marker);
     ply.colors = Some(colors);
     ply
-}
-
-/// A viridis-like colour ramp, `t` from 0 (dark blue) to 1 (yellow).
-fn ramp(t: Real) -> [u8; 3] {
-    const STOPS: [[Real; 3]; 5] = [
-        [68.0, 1.0, 84.0],
-        [59.0, 82.0, 139.0],
-        [33.0, 145.0, 140.0],
-        [94.0, 201.0, 98.0],
-        [253.0, 231.0, 37.0],
-    ];
-    let x = t.clamp(0.0, 1.0) * (STOPS.len() - 1) as Real;
-    let i = (x.floor() as usize).min(STOPS.len() - 2);
-    let f = x - i as Real;
-    let c = |k: usize| (STOPS[i][k] + f * (STOPS[i + 1][k] - STOPS[i][k])).round() as u8;
-    [c(0), c(1), c(2)]
 }
 
 fn edge_length_range(mesh: &TriMesh) -> (f64, f64) {
