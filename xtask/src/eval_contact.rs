@@ -63,7 +63,7 @@ pub(crate) struct ContactEvalArgs {
     #[arg(long, requires = "physics")]
     pub(crate) material: Option<PathBuf>,
     /// The physics estimator's settings for `--physics` (e.g.
-    /// fixtures/configs/physics-exact-markers.toml, for the data set's exact markers).
+    /// fixtures/physics/exact-markers.toml, for the data set's exact markers).
     #[arg(long, requires = "physics")]
     pub(crate) physics_config: Option<PathBuf>,
 }

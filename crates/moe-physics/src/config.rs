@@ -105,7 +105,7 @@ pub struct PhysicsConfig {
     /// Standard deviation of an observed marker coordinate about the model's prediction,
     /// metres: marker noise and model error together. Default 3e-4, for markers detected by
     /// the perception stage (0.16 mm per coordinate, heavier tails at the tip) on a model of
-    /// 0.1 mm error; with exact (simulated) markers 1e-4 (`fixtures/configs/physics-exact-markers.toml`).
+    /// 0.1 mm error; with exact (simulated) markers 1e-4 (`fixtures/physics/exact-markers.toml`).
     pub marker_sigma_m: Real,
     /// A finger is pressed when one load explains the markers better than none by at least
     /// this many units of χ² (the likelihood-ratio statistic). Default 25.

@@ -119,7 +119,7 @@ fn two_separated_loads_are_told_apart() {
     ];
     let keypoints = simulate(&hand, &pulls, &loads);
     // Exact markers: their only error is the model's (as fixtures/configs/
-    // physics-exact-markers.toml says).
+    // fixtures/physics/exact-markers.toml says).
     let mut est = estimator(&PhysicsConfig {
         max_loads_per_finger: 2,
         marker_sigma_m: 1e-4,

@@ -206,6 +206,32 @@ fn physics_contact_writes_the_dented_shape_the_loads_and_the_finger_forces() {
     assert_ne!(a.points, b.points);
 }
 
+/// Every committed settings file of the physics estimator loads, is named in the report and
+/// finds the press on finger 0 only.
+#[test]
+fn the_committed_physics_settings_load_and_find_the_press() {
+    let dir = scratch("physics-settings");
+    let mut n = 0;
+    for entry in std::fs::read_dir(fixtures().join("physics")).unwrap() {
+        let config = entry.unwrap().path();
+        if config.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        let out = dir.join(format!("out-{n}"));
+        let report = ok_json(&physics_contact(
+            &pressed_keypoints(),
+            &out,
+            &["--physics-config", path(&config), "--json"],
+        ));
+        assert_eq!(report["physics_config"], path(&config));
+        let fingers = report["fingers"].as_array().unwrap();
+        assert!(fingers[0]["loads"].as_u64().unwrap() >= 1, "{}", config.display());
+        assert_eq!(fingers[1]["loads"], 0, "{}", config.display());
+        n += 1;
+    }
+    assert!(n >= 1, "the committed settings are found");
+}
+
 #[test]
 fn physics_contact_refuses_bad_input_in_one_line_and_writes_nothing() {
     let dir = scratch("physics-contact-errors");
