@@ -127,20 +127,7 @@ fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Stre
         }
         let mut stream = StreamFrame::from_dataset(&f, &layout, frame_secs)?;
         if args.marker_layout.is_some() {
-            stream.frame.markers = moe_geom::HandKeypoints {
-                fingers: hand
-                    .fingers()
-                    .iter()
-                    .zip(&stream.frame.shape.fingers)
-                    .map(|(hf, v)| {
-                        hf.model
-                            .marker_vertices()
-                            .iter()
-                            .map(|&m| Some(v[m as usize]))
-                            .collect()
-                    })
-                    .collect(),
-            };
+            stream.frame.markers = hand.keypoints_on(&stream.frame.shape.fingers);
         }
         out.push(stream);
     }

@@ -180,6 +180,27 @@ impl HandModel {
             .transform_points(f.model.mesh().vertices())
     }
 
+    /// The markers every finger shows when its surface vertices are `fingers[f]` (one list per
+    /// finger, in whatever frame they are given): each marker at its vertex, observed. A marker
+    /// whose vertex a list lacks, or a finger without a list, is unobserved.
+    pub fn keypoints_on<V: AsRef<[Point3]>>(&self, fingers: &[V]) -> HandKeypoints {
+        HandKeypoints {
+            fingers: self
+                .fingers
+                .iter()
+                .enumerate()
+                .map(|(i, f)| {
+                    let v = fingers.get(i).map_or(&[][..], AsRef::as_ref);
+                    f.model
+                        .marker_vertices()
+                        .iter()
+                        .map(|&m| v.get(m as usize).copied())
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+
     /// Rest marker positions of every finger in the hand frame (all present).
     pub fn rest_keypoints(&self) -> HandKeypoints {
         HandKeypoints {
@@ -270,6 +291,32 @@ mod tests {
                 ..
             }
         );
+    }
+
+    #[test]
+    fn keypoints_on_the_rest_surfaces_are_the_rest_keypoints_and_missing_vertices_unobserved() {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let rest: Vec<Vec<Point3>> = (0..2).map(|i| hand.rest_vertices_in_hand(i)).collect();
+        let kp = hand.keypoints_on(&rest);
+        let expected = hand.rest_keypoints();
+        for (a, b) in kp
+            .fingers
+            .iter()
+            .flatten()
+            .zip(expected.fingers.iter().flatten())
+        {
+            assert!((a.unwrap() - b.unwrap()).norm() < 1e-12);
+        }
+        // Finger 1 without vertices, finger 0 cut before its last marker's vertex.
+        let last = *hand.fingers()[0]
+            .model
+            .marker_vertices()
+            .iter()
+            .max()
+            .unwrap() as usize;
+        let kp = hand.keypoints_on(&[rest[0][..last].to_vec()]);
+        assert!(kp.fingers[1].iter().all(Option::is_none));
+        assert_eq!(kp.fingers[0].iter().filter(|m| m.is_none()).count(), 1);
     }
 
     #[test]

@@ -56,20 +56,7 @@ impl StreamFrame {
             .iter()
             .map(|g| g.vertices_in_hand.clone())
             .collect();
-        let markers = HandKeypoints {
-            fingers: hand
-                .fingers()
-                .iter()
-                .zip(&fingers)
-                .map(|(hf, v)| {
-                    hf.model
-                        .marker_vertices()
-                        .iter()
-                        .map(|&m| Some(v[m as usize]))
-                        .collect()
-                })
-                .collect(),
-        };
+        let markers = hand.keypoints_on(&fingers);
         Ok(Self {
             frame: LabelledFrame {
                 trajectory_id,

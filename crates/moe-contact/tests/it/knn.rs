@@ -31,21 +31,7 @@ fn frames(count: usize, seed: u64) -> Vec<LabelledFrame> {
                 .iter()
                 .map(|f| (0..f.len()).map(|_| rng.uniform() < 0.05).collect())
                 .collect();
-            let markers = moe_geom::HandKeypoints {
-                fingers: hand
-                    .fingers()
-                    .iter()
-                    .enumerate()
-                    .map(|(f, finger)| {
-                        finger
-                            .model
-                            .marker_vertices()
-                            .iter()
-                            .map(|&m| Some(shape.fingers[f][m as usize]))
-                            .collect()
-                    })
-                    .collect(),
-            };
+            let markers = hand.keypoints_on(&shape.fingers);
             LabelledFrame {
                 trajectory_id: t as u64,
                 frame_index: 0,

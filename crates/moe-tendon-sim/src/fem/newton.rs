@@ -21,15 +21,7 @@ impl FemModel {
         drive: &mut Drive<'_, '_>,
     ) -> Result<Advance, SimError> {
         crate::error::require_positive("tolerance_m", tolerance_m)?;
-        let c = Coefficients {
-            mass: 0.0,
-            stiffness: 1.0,
-            external: 1.0,
-            damping: 0.0,
-            force: 1.0,
-            momentum: 0.0,
-            exact: self.exact_static_tangent,
-        };
+        let c = Coefficients::statics(self.exact_static_tangent);
         // The corotated stiffness, positive definite, where the exact Hessian is not.
         let fallback = Coefficients { exact: false, ..c };
         let gravity = drive.inputs.gravity;

@@ -24,6 +24,22 @@ pub(super) struct Coefficients {
     pub(super) exact: bool,
 }
 
+impl Coefficients {
+    /// A static solve's coefficients: no mass, damping or momentum; the exact Hessian when
+    /// `exact`.
+    pub(super) fn statics(exact: bool) -> Self {
+        Self {
+            mass: 0.0,
+            stiffness: 1.0,
+            external: 1.0,
+            damping: 0.0,
+            force: 1.0,
+            momentum: 0.0,
+            exact,
+        }
+    }
+}
+
 impl FemModel {
     /// Assembles and solves one linearised system; leaves `Δx` in `ws.dx` and the linearised
     /// end values of the rank-one terms in `ws.woodbury.values`.

@@ -209,15 +209,7 @@ impl FemModel {
         // corotated stiffness, positive definite, stands in for it there.
         let mut factored = false;
         for exact in [self.exact_static_tangent, false] {
-            let c = Coefficients {
-                mass: 0.0,
-                stiffness: 1.0,
-                external: 1.0,
-                damping: 0.0,
-                force: 1.0,
-                momentum: 0.0,
-                exact,
-            };
+            let c = Coefficients::statics(exact);
             self.assemble(
                 &mut tangent.values,
                 &mut tangent.force,

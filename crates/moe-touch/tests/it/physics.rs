@@ -225,7 +225,11 @@ fn the_committed_physics_settings_load_and_find_the_press() {
         ));
         assert_eq!(report["physics_config"], path(&config));
         let fingers = report["fingers"].as_array().unwrap();
-        assert!(fingers[0]["loads"].as_u64().unwrap() >= 1, "{}", config.display());
+        assert!(
+            fingers[0]["loads"].as_u64().unwrap() >= 1,
+            "{}",
+            config.display()
+        );
         assert_eq!(fingers[1]["loads"], 0, "{}", config.display());
         n += 1;
     }
