@@ -31,7 +31,9 @@ pub struct ContactLoad {
     pub finger: usize,
     /// The vertex at the centre of the loaded patch.
     pub vertex: u32,
-    /// The patch's centre on the rest surface, hand frame, metres.
+    /// The load's place on the rest surface, hand frame, metres: the patch's centre vertex, or
+    /// with [`PhysicsConfig::place_radius_m`] the posterior mean of the place (an average of
+    /// nearby surface points, so slightly under a curved surface).
     pub location_rest: Point3,
     /// The same point on the estimated (loaded) surface, hand frame, metres.
     pub location: Point3,
@@ -305,8 +307,8 @@ impl PhysicsEstimator {
             out.loads.push(ContactLoad {
                 finger: f,
                 vertex: l.vertex,
-                location_rest: hand_from_finger * rest[l.vertex as usize],
-                location: surface[l.vertex as usize],
+                location_rest: hand_from_finger * weighted(&l.place, rest),
+                location: weighted(&l.place, &surface),
                 force_n,
                 magnitude_n: force_n.norm(),
                 magnitude_sd_n: l.force_sd_n,
@@ -332,4 +334,13 @@ impl PhysicsEstimator {
             error: None,
         });
     }
+}
+
+/// The point `Σ w·points[v]` of a place's vertices and weights.
+fn weighted(place: &[(u32, Real)], points: &[Point3]) -> Point3 {
+    place
+        .iter()
+        .map(|&(v, w)| points[v as usize].coords * w)
+        .sum::<Vector3>()
+        .into()
 }

@@ -67,6 +67,9 @@ fn commands_of(pulls: &[Real]) -> Vec<TendonCommand> {
 pub(crate) struct FingerLoad {
     /// The patch's centre vertex.
     pub(crate) vertex: u32,
+    /// The place: rest-surface vertices and weights summing to one (the centre vertex alone
+    /// unless `place_radius_m` asks for the posterior mean).
+    pub(crate) place: Vec<(u32, Real)>,
     /// The patch.
     pub(crate) patch: Vec<(u32, Real)>,
     /// Force, newtons.
@@ -1094,11 +1097,15 @@ impl FingerInverse {
         let force_sd = self.force_spread(&lin, &fit);
         let mut loads_out = Vec::with_capacity(state.loads.len());
         for (k, &(c, f)) in state.loads.iter().enumerate() {
-            let location_sd_m = self.location_spread(&lin, &fit, k);
+            let (location_sd_m, place) = self.location_spread(&lin, &fit, k);
             for &(u, s) in &self.patches[c] {
                 vertex_force[u as usize] += f * s;
             }
-            let centre = self.rest_surface[self.candidates[c] as usize];
+            let centre: Point3 = place
+                .iter()
+                .map(|&(u, w)| self.rest_surface[u as usize].coords * w)
+                .sum::<Vector3>()
+                .into();
             let normal = -lin.inward[c];
             let r = self.config.contact_radius_m;
             for (u, p) in self.rest_surface.iter().enumerate() {
@@ -1109,6 +1116,7 @@ impl FingerInverse {
             }
             loads_out.push(FingerLoad {
                 vertex: self.candidates[c],
+                place,
                 patch: self.patches[c].clone(),
                 force: f,
                 force_sd_n: force_sd[k],
@@ -1259,7 +1267,7 @@ impl FingerInverse {
     /// Posterior standard deviations of load `k`'s place along the finger's axis and around
     /// it: every candidate weighted by its area and the likelihood of its best single load for
     /// the residual the other loads leave.
-    fn location_spread(&self, lin: &Linear, fit: &Fit, k: usize) -> [Real; 2] {
+    fn location_spread(&self, lin: &Linear, fit: &Fit, k: usize) -> ([Real; 2], Vec<(u32, Real)>) {
         let sigma2 = self.config.marker_sigma_m.powi(2);
         let mut r = lin.r.clone();
         let mut buf = vec![0.0; lin.n_obs];
@@ -1278,9 +1286,11 @@ impl FingerInverse {
                 self.area[self.candidates[c] as usize] * (-(f.1 - best) / (2.0 * sigma2)).exp()
             })
             .collect();
+        let centre = fit.candidates[k];
+        let place = self.local_place(centre, &weights);
         let wsum: Real = weights.iter().sum();
         if wsum.is_nan() || wsum <= 0.0 {
-            return [Real::NAN; 2];
+            return ([Real::NAN; 2], place);
         }
         let position = |c: usize| self.rest_surface[self.candidates[c] as usize];
         let mut mean = Vector3::zeros();
@@ -1298,7 +1308,39 @@ impl FingerInverse {
                 - std::f64::consts::PI;
             around += w / wsum * (da * radius).powi(2);
         }
-        [along.sqrt(), around.sqrt()]
+        ([along.sqrt(), around.sqrt()], place)
+    }
+
+    /// The place of a load whose best patch is candidate `centre`, from the posterior
+    /// `weights` over every candidate: the centre vertex alone, or with `place_radius_m > 0`
+    /// the normalised weights of the candidates within that radius on the centre's side.
+    fn local_place(&self, centre: usize, weights: &[Real]) -> Vec<(u32, Real)> {
+        let v0 = self.candidates[centre];
+        let r = self.config.place_radius_m;
+        if r <= 0.0 {
+            return vec![(v0, 1.0)];
+        }
+        let (p0, n0) = (
+            self.rest_surface[v0 as usize],
+            self.rest_normals[v0 as usize],
+        );
+        let mut place: Vec<(u32, Real)> = self
+            .candidates
+            .iter()
+            .zip(weights)
+            .filter(|&(&v, &w)| {
+                w > 0.0
+                    && (self.rest_surface[v as usize] - p0).norm() <= r
+                    && self.rest_normals[v as usize].dot(&n0) > 0.0
+            })
+            .map(|(&v, &w)| (v, w))
+            .collect();
+        let total: Real = place.iter().map(|p| p.1).sum();
+        if !(total.is_finite() && total > 0.0) {
+            return vec![(v0, 1.0)];
+        }
+        place.iter_mut().for_each(|p| p.1 /= total);
+        place
     }
 }
 

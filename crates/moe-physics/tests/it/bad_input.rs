@@ -185,3 +185,28 @@ fn a_static_solve_that_does_not_converge_is_reported_and_the_stream_goes_on() {
     // The same estimator goes on with the next observation.
     est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
 }
+
+#[test]
+fn settings_out_of_range_are_named() {
+    for (config, name) in [
+        (
+            PhysicsConfig {
+                place_radius_m: -0.001,
+                ..PhysicsConfig::default()
+            },
+            "place_radius_m",
+        ),
+        (
+            PhysicsConfig {
+                contact_radius_m: Real::NAN,
+                ..PhysicsConfig::default()
+            },
+            "contact_radius_m",
+        ),
+    ] {
+        assert_err!(
+            config.validate(),
+            PhysicsError::InvalidParameter { name: got, .. } if *got == name
+        );
+    }
+}

@@ -160,3 +160,49 @@ fn two_separated_loads_are_told_apart() {
         );
     }
 }
+
+#[test]
+fn the_posterior_place_is_off_the_mesh_vertices_and_near_the_press() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let rest = hand.rest_vertices_in_hand(0);
+    let v = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.045));
+    let keypoints = simulate(
+        &hand,
+        &pulls,
+        &[PointLoad {
+            finger: 0,
+            vertex: v,
+            force: -normal_at(&hand, 0, v) * 0.2,
+        }],
+    );
+    let place_of = |place_radius_m: Real| {
+        let mut est = estimator(&PhysicsConfig {
+            place_radius_m,
+            ..PhysicsConfig::default()
+        });
+        let e = observe(&mut est, &keypoints, &pulls);
+        assert_eq!(e.loads.len(), 1, "{:?}", e.loads);
+        e.loads[0].clone()
+    };
+    // By default the place is the centre vertex of the best patch.
+    let at_vertex = place_of(0.0);
+    assert_eq!(at_vertex.location_rest, rest[at_vertex.vertex as usize]);
+    // The posterior mean: within the radius of that vertex, off it, and as close to the
+    // press as a vertex ring (a press between two candidates is placed between them).
+    let r = 0.008;
+    let mean = place_of(r);
+    assert_eq!(mean.vertex, at_vertex.vertex);
+    let from_vertex = (mean.location_rest - rest[mean.vertex as usize]).norm();
+    assert!(from_vertex > 1e-6 && from_vertex <= r, "{from_vertex} m");
+    let ring_radius = ring(&hand, 0, v)
+        .iter()
+        .map(|&u| (rest[u as usize] - rest[v as usize]).norm())
+        .fold(0.0, Real::max);
+    let miss = (mean.location_rest - rest[v as usize]).norm();
+    assert!(
+        miss <= ring_radius,
+        "{miss} m from the press (ring {ring_radius} m)"
+    );
+    assert_eq!(mean.force_n, at_vertex.force_n);
+}
