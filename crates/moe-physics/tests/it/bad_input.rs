@@ -5,7 +5,7 @@ use moe_physics::{
     HandMaterial, HandSignature, PhysicsConfig, PhysicsError, PhysicsEstimator, PhysicsObservation,
 };
 
-use crate::common::{PointLoad, hand, no_pulls, normal_at, simulate, vertex_near};
+use crate::common::{hand, no_pulls, press, simulate, vertex_near};
 
 fn observe<'a>(
     keypoints: &'a moe_geom::HandKeypoints,
@@ -25,15 +25,7 @@ fn a_finger_with_too_few_markers_is_reported_and_the_others_estimated() {
     let hand = hand();
     let pulls = no_pulls(&hand);
     let v = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.045));
-    let mut keypoints = simulate(
-        &hand,
-        &pulls,
-        &[PointLoad {
-            finger: 0,
-            vertex: v,
-            force: -normal_at(&hand, 0, v) * 0.2,
-        }],
-    );
+    let mut keypoints = simulate(&hand, &pulls, &[press(&hand, v, 0.2)]);
     // Finger 1 keeps two of its seven markers.
     for m in 2..7 {
         keypoints.fingers[1][m] = None;

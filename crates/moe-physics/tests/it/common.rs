@@ -33,6 +33,15 @@ pub(crate) fn simulate(
         .unwrap()
 }
 
+/// A press of `newtons` along the inward normal at vertex `v` of finger 0.
+pub(crate) fn press(hand: &HandModel, v: u32, newtons: Real) -> PointLoad {
+    PointLoad {
+        finger: 0,
+        vertex: v,
+        force: -normal_at(hand, 0, v) * newtons,
+    }
+}
+
 /// Zero pulls for every tendon of `hand`.
 pub(crate) fn no_pulls(hand: &HandModel) -> Vec<Vec<Real>> {
     hand.fingers()

@@ -3,7 +3,7 @@
 use moe_geom::{Point3, Real};
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator, PhysicsObservation};
 
-use crate::common::{PointLoad, hand, no_pulls, normal_at, ring, simulate, vertex_near};
+use crate::common::{hand, no_pulls, press, ring, simulate, vertex_near};
 
 fn estimator(config: &PhysicsConfig) -> PhysicsEstimator {
     PhysicsEstimator::new(&hand(), &HandMaterial::default(), config).unwrap()
@@ -36,16 +36,7 @@ fn a_point_load_is_found_within_a_vertex_ring_and_weighed_within_five_percent() 
         (Point3::new(-0.006, -0.005, 0.068), 0.1),
     ] {
         let v = vertex_near(&hand, 0, p);
-        let force = -normal_at(&hand, 0, v) * magnitude;
-        let keypoints = simulate(
-            &hand,
-            &pulls,
-            &[PointLoad {
-                finger: 0,
-                vertex: v,
-                force,
-            }],
-        );
+        let keypoints = simulate(&hand, &pulls, &[press(&hand, v, magnitude)]);
         est.reset();
         let e = observe(&mut est, &keypoints, &pulls);
         let loads: Vec<_> = e.loads.iter().filter(|l| l.finger == 0).collect();
@@ -105,21 +96,10 @@ fn two_separated_loads_are_told_apart() {
     let pulls = no_pulls(&hand);
     let a = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.03));
     let b = vertex_near(&hand, 0, Point3::new(0.0, -0.0085, 0.065));
-    let loads = [
-        PointLoad {
-            finger: 0,
-            vertex: a,
-            force: -normal_at(&hand, 0, a) * ma,
-        },
-        PointLoad {
-            finger: 0,
-            vertex: b,
-            force: -normal_at(&hand, 0, b) * mb,
-        },
-    ];
+    let loads = [press(&hand, a, ma), press(&hand, b, mb)];
     let keypoints = simulate(&hand, &pulls, &loads);
-    // Exact markers: their only error is the model's (as fixtures/configs/
-    // fixtures/physics/exact-markers.toml says).
+    // Exact markers: their only error is the model's (as fixtures/physics/exact-markers.toml
+    // says).
     let mut est = estimator(&PhysicsConfig {
         max_loads_per_finger: 2,
         marker_sigma_m: 1e-4,
@@ -167,15 +147,7 @@ fn the_posterior_place_is_off_the_mesh_vertices_and_near_the_press() {
     let pulls = no_pulls(&hand);
     let rest = hand.rest_vertices_in_hand(0);
     let v = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.045));
-    let keypoints = simulate(
-        &hand,
-        &pulls,
-        &[PointLoad {
-            finger: 0,
-            vertex: v,
-            force: -normal_at(&hand, 0, v) * 0.2,
-        }],
-    );
+    let keypoints = simulate(&hand, &pulls, &[press(&hand, v, 0.2)]);
     let place_of = |place_radius_m: Real| {
         let mut est = estimator(&PhysicsConfig {
             place_radius_m,
