@@ -139,8 +139,17 @@ pub struct PhysicsConfig {
     /// vertex, on its side of the surface (each candidate weighted by its area and the
     /// likelihood of its best single load), which is not tied to the rest mesh's vertices; it
     /// also centres the contact region. Metres. With markers of 0.2 mm noise, 0.008 placed
-    /// 0.2–0.5 N presses 0.9 mm closer than the vertex (README, "Where a load is placed").
+    /// 0.2–0.5 N presses 0.9 mm closer than the vertex (README, "Where a load is placed, and
+    /// memory across frames").
     pub place_radius_m: Real,
+    /// Memory of a press's place across a stream: how far a press may move on the rest
+    /// surface between two observations (the standard deviation of a Gaussian step), metres.
+    /// While a finger stays pressed, the previous observation's posterior over the place,
+    /// spread by this step, is the prior of the next one's search and posterior (with a small
+    /// chance of a press anywhere), so a held press's place averages the frames' noise. 0 (the
+    /// default) forgets: each observation is placed on its own. Measured in the README: it
+    /// helps markers with independent noise, not markers detected in camera frames.
+    pub place_memory_m: Real,
     /// Most Gauss–Newton iterations (search, loaded solve, re-linearisation) per frame.
     /// Default 4.
     pub gauss_newton_iterations: usize,
@@ -183,6 +192,7 @@ impl Default for PhysicsConfig {
             patch_radius_m: 0.004,
             contact_radius_m: 0.006,
             place_radius_m: 0.0,
+            place_memory_m: 0.0,
             gauss_newton_iterations: 4,
             force_tolerance: 0.02,
             min_markers: 3,
@@ -229,6 +239,7 @@ impl PhysicsConfig {
             ("dynamic_step_secs", self.dynamic_step_secs),
             ("contact_lag_gain", self.contact_lag_gain),
             ("place_radius_m", self.place_radius_m),
+            ("place_memory_m", self.place_memory_m),
             ("force_tolerance", self.force_tolerance),
         ] {
             if !(v.is_finite() && v >= 0.0) {

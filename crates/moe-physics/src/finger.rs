@@ -215,6 +215,11 @@ pub(crate) struct FingerInverse {
     dynamic: Option<DynamicFree>,
     /// The previous observation's contact residual and its time.
     previous_residual: Option<(Real, Vec<Option<Vector3>>)>,
+    /// The posterior over the candidates of the previous observation's press (one load, in a
+    /// stream), for `place_memory_m`.
+    place_memory: Option<Vec<Real>>,
+    /// This observation's prior over the candidates (normalised), when memory applies.
+    place_prior: Option<Vec<Real>>,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -337,6 +342,8 @@ impl FingerInverse {
             tracked: None,
             dynamic: None,
             previous_residual: None,
+            place_memory: None,
+            place_prior: None,
         })
     }
 
@@ -375,6 +382,42 @@ impl FingerInverse {
         self.tracked = None;
         self.dynamic = None;
         self.previous_residual = None;
+        self.place_memory = None;
+        self.place_prior = None;
+    }
+
+    /// The prior over the candidates of a press in this observation from the previous one's
+    /// posterior `memory`: each candidate's probability spread by a Gaussian step of
+    /// `place_memory_m` on the rest surface, mixed with a new press anywhere (area-weighted)
+    /// with probability [`NEW_PLACE_PROBABILITY`].
+    fn propagate(&self, memory: &[Real]) -> Vec<Real> {
+        let s2 = 2.0 * self.config.place_memory_m.powi(2);
+        let position = |c: usize| self.rest_surface[self.candidates[c] as usize];
+        let area = |c: usize| self.area[self.candidates[c] as usize];
+        let total_area: Real = (0..self.candidates.len()).map(area).sum();
+        let peak = memory.iter().copied().fold(0.0, Real::max);
+        let mut prior: Vec<Real> = (0..self.candidates.len())
+            .map(|c| NEW_PLACE_PROBABILITY * area(c) / total_area)
+            .collect();
+        let mut kernel = vec![0.0; self.candidates.len()];
+        for (from, &m) in memory.iter().enumerate() {
+            if m <= 1e-9 * peak {
+                continue;
+            }
+            let p = position(from);
+            let mut sum = 0.0;
+            for (c, k) in kernel.iter_mut().enumerate() {
+                *k = (-(position(c) - p).norm_squared() / s2).exp();
+                sum += *k;
+            }
+            let share = (1.0 - NEW_PLACE_PROBABILITY) * m / sum;
+            for (q, k) in prior.iter_mut().zip(&kernel) {
+                *q += share * k;
+            }
+        }
+        let total: Real = prior.iter().sum();
+        prior.iter_mut().for_each(|q| *q /= total);
+        prior
     }
 
     fn settings(&self) -> StaticSettings {
@@ -754,11 +797,17 @@ impl FingerInverse {
     /// The best single load.
     fn best_single(&self, lin: &Linear) -> Option<Fit> {
         let singles = self.single_fits(lin, &lin.r);
+        // With a prior over the place, the most probable place: −log of likelihood × prior.
+        let two_sigma2 = 2.0 * self.config.marker_sigma_m.powi(2);
+        let cost = |c: usize, res: Real| match &self.place_prior {
+            Some(prior) => res / two_sigma2 - prior[c].max(Real::MIN_POSITIVE).ln(),
+            None => res,
+        };
         singles
             .iter()
             .enumerate()
             .filter(|(_, (f, _))| f.norm() > 0.0)
-            .min_by(|a, b| a.1.1.total_cmp(&b.1.1))
+            .min_by(|a, b| cost(a.0, a.1.1).total_cmp(&cost(b.0, b.1.1)))
             .map(|(c, &(f, res))| Fit {
                 candidates: vec![c],
                 forces: vec![f],
@@ -997,6 +1046,12 @@ impl FingerInverse {
                 FreeReference { x, dynamic: false }
             }
         };
+        // The place's prior: the previous press, while the stream goes on.
+        let memory = self.place_memory.take();
+        self.place_prior = match memory {
+            Some(m) if free.dynamic && self.config.place_memory_m > 0.0 => Some(self.propagate(&m)),
+            _ => None,
+        };
         let lag_corrected = self.contact_lag_corrected(obs, &free.x);
         let markers: Vec<Option<Point3>> = lag_corrected.unwrap_or_else(|| obs.markers.to_vec());
         let chi0 = self.marker_residual_sq(&free.x, &markers);
@@ -1096,8 +1151,10 @@ impl FingerInverse {
         };
         let force_sd = self.force_spread(&lin, &fit);
         let mut loads_out = Vec::with_capacity(state.loads.len());
+        let mut posteriors = Vec::with_capacity(state.loads.len());
         for (k, &(c, f)) in state.loads.iter().enumerate() {
-            let (location_sd_m, place) = self.location_spread(&lin, &fit, k);
+            let (location_sd_m, place, posterior) = self.location_spread(&lin, &fit, k);
+            posteriors.push(posterior);
             for &(u, s) in &self.patches[c] {
                 vertex_force[u as usize] += f * s;
             }
@@ -1124,6 +1181,11 @@ impl FingerInverse {
             });
         }
         lin.r.clear();
+        // One press in a stream is remembered; two, or none, are not.
+        self.place_memory = match posteriors.pop() {
+            Some(p) if posteriors.is_empty() && !p.is_empty() => Some(p),
+            _ => None,
+        };
         self.tracked = Some(Tracked {
             x: state.x.clone(),
             loads: state.loads.clone(),
@@ -1267,7 +1329,12 @@ impl FingerInverse {
     /// Posterior standard deviations of load `k`'s place along the finger's axis and around
     /// it: every candidate weighted by its area and the likelihood of its best single load for
     /// the residual the other loads leave.
-    fn location_spread(&self, lin: &Linear, fit: &Fit, k: usize) -> ([Real; 2], Vec<(u32, Real)>) {
+    fn location_spread(
+        &self,
+        lin: &Linear,
+        fit: &Fit,
+        k: usize,
+    ) -> ([Real; 2], Vec<(u32, Real)>, Vec<Real>) {
         let sigma2 = self.config.marker_sigma_m.powi(2);
         let mut r = lin.r.clone();
         let mut buf = vec![0.0; lin.n_obs];
@@ -1283,15 +1350,20 @@ impl FingerInverse {
             .iter()
             .enumerate()
             .map(|(c, f)| {
-                self.area[self.candidates[c] as usize] * (-(f.1 - best) / (2.0 * sigma2)).exp()
+                let prior = match &self.place_prior {
+                    Some(prior) => prior[c],
+                    None => self.area[self.candidates[c] as usize],
+                };
+                prior * (-(f.1 - best) / (2.0 * sigma2)).exp()
             })
             .collect();
         let centre = fit.candidates[k];
         let place = self.local_place(centre, &weights);
         let wsum: Real = weights.iter().sum();
         if wsum.is_nan() || wsum <= 0.0 {
-            return ([Real::NAN; 2], place);
+            return ([Real::NAN; 2], place, Vec::new());
         }
+        let posterior: Vec<Real> = weights.iter().map(|w| w / wsum).collect();
         let position = |c: usize| self.rest_surface[self.candidates[c] as usize];
         let mut mean = Vector3::zeros();
         for (c, w) in weights.iter().enumerate() {
@@ -1308,7 +1380,7 @@ impl FingerInverse {
                 - std::f64::consts::PI;
             around += w / wsum * (da * radius).powi(2);
         }
-        ([along.sqrt(), around.sqrt()], place)
+        ([along.sqrt(), around.sqrt()], place, posterior)
     }
 
     /// The place of a load whose best patch is candidate `centre`, from the posterior
@@ -1349,6 +1421,9 @@ const HORIZON_SLACK_SECS: Real = 1e-6;
 /// A search from the previous frame's loads that leaves more than this fraction of the free
 /// residual unexplained is repeated from the free shape.
 const RESTART_FRACTION: Real = 0.1;
+/// With memory of a press's place, the probability that the next observation's press is a new
+/// one, anywhere on the finger.
+const NEW_PLACE_PROBABILITY: Real = 0.05;
 /// Spacing of the candidates of the coarse pair search, metres.
 const PAIR_SPACING_M: Real = 0.005;
 /// Alternating re-placements of a pair's loads.

@@ -178,3 +178,107 @@ fn the_posterior_place_is_off_the_mesh_vertices_and_near_the_press() {
     );
     assert_eq!(mean.force_n, at_vertex.force_n);
 }
+
+/// The markers of `keypoints` with Gaussian noise of `sigma_m` per coordinate.
+fn noisy(
+    keypoints: &moe_geom::HandKeypoints,
+    sigma_m: Real,
+    rng: &mut moe_geom::SeededRng,
+) -> moe_geom::HandKeypoints {
+    moe_geom::HandKeypoints {
+        fingers: keypoints
+            .fingers
+            .iter()
+            .map(|f| {
+                f.iter()
+                    .map(|m| {
+                        m.map(|p| {
+                            p + moe_geom::Vector3::new(rng.normal(), rng.normal(), rng.normal())
+                                * sigma_m
+                        })
+                    })
+                    .collect()
+            })
+            .collect(),
+    }
+}
+
+/// A held press seen in a stream of noisy frames: with memory of the place, the frames' places
+/// scatter less; a lone observation has no memory to use, and `reset` forgets it.
+#[test]
+fn memory_steadies_a_held_press_and_reset_forgets_it() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let v = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.045));
+    let keypoints = simulate(&hand, &pulls, &[press(&hand, v, 0.15)]);
+    let pose = moe_geom::WorldFromHand::identity();
+    let memory = PhysicsConfig {
+        place_memory_m: 0.003,
+        ..PhysicsConfig::default()
+    };
+    // The places of 8 frames 50 ms apart; the scatter: mean distance from their mean.
+    let places = |config: &PhysicsConfig| {
+        let mut est = estimator(config);
+        let mut rng = moe_geom::SeededRng::new(7);
+        let mut out = Vec::new();
+        for k in 0..8 {
+            let kp = noisy(&keypoints, 2e-4, &mut rng);
+            let e = est
+                .estimate(&PhysicsObservation {
+                    keypoints: &kp,
+                    tendon_pull_m: &pulls,
+                    world_from_hand: &pose,
+                    time_secs: Some(0.05 * k as Real),
+                })
+                .unwrap();
+            if let Some(l) = e.loads.iter().find(|l| l.finger == 0) {
+                out.push(l.location_rest);
+            }
+        }
+        out
+    };
+    let scatter = |p: &[Point3]| {
+        let mean: moe_geom::Vector3 =
+            p.iter().map(|q| q.coords).sum::<moe_geom::Vector3>() / p.len() as Real;
+        p.iter().map(|q| (q.coords - mean).norm()).sum::<Real>() / p.len() as Real
+    };
+    let (without, with) = (places(&PhysicsConfig::default()), places(&memory));
+    assert!(
+        without.len() >= 6 && with.len() >= 6,
+        "{without:?} {with:?}"
+    );
+    let (s0, s1) = (scatter(&without), scatter(&with));
+    eprintln!(
+        "scatter without memory {:.2} mm, with {:.2} mm",
+        s0 * 1e3,
+        s1 * 1e3
+    );
+    assert!(s1 < s0, "memory: {s1} m, none: {s0} m");
+
+    // A lone observation (no time) has no stream: memory changes nothing.
+    let lone = |config: &PhysicsConfig| observe(&mut estimator(config), &keypoints, &pulls).loads;
+    assert_eq!(lone(&memory), lone(&PhysicsConfig::default()));
+    // After a stream, reset makes the next estimate a fresh estimator's, bit for bit.
+    let mut est = estimator(&memory);
+    let mut rng = moe_geom::SeededRng::new(3);
+    let frames: Vec<_> = (0..3)
+        .map(|k| (noisy(&keypoints, 2e-4, &mut rng), 0.05 * k as Real))
+        .collect();
+    let run = |est: &mut PhysicsEstimator, kp: &moe_geom::HandKeypoints, t: Real| {
+        est.estimate(&PhysicsObservation {
+            keypoints: kp,
+            tendon_pull_m: &pulls,
+            world_from_hand: &pose,
+            time_secs: Some(t),
+        })
+        .unwrap()
+    };
+    for (kp, t) in &frames[..2] {
+        run(&mut est, kp, *t);
+    }
+    est.reset();
+    let after_reset = run(&mut est, &frames[2].0, frames[2].1);
+    let fresh = run(&mut estimator(&memory), &frames[2].0, frames[2].1);
+    assert_eq!(after_reset.loads, fresh.loads);
+    assert_eq!(after_reset.shape, fresh.shape);
+}
