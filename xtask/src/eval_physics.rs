@@ -409,6 +409,9 @@ pub(crate) fn table(e: &PhysicsEvaluation) -> String {
     if let Some(r) = &e.dgcnn_on_sr_arap {
         row("DGCNN on the SR-ARAP shape", r);
     }
+    if let Some(r) = &e.physics_placed_by_dgcnn {
+        row("physics, placed by the DGCNN on its shape", r);
+    }
     let _ = writeln!(
         s,
         "\nshape BCD: physics {:.3} mm{}",

@@ -254,6 +254,10 @@ pub struct PhysicsEvaluation {
     pub dgcnn_on_physics: Option<ContactReport>,
     /// The paper's chain on the same markers: the DGCNN on SR-ARAP shapes.
     pub dgcnn_on_sr_arap: Option<ContactReport>,
+    /// The two together: contact on the fingers the physics estimator finds pressed, where the
+    /// DGCNN on its shape puts it (the physics estimator's region on a finger where the
+    /// network finds none).
+    pub physics_placed_by_dgcnn: Option<ContactReport>,
     /// Shape BCD of the physics estimator's surface against the true one, mm.
     pub physics_shape_bcd_mm: Real,
     /// Shape BCD of SR-ARAP from the same markers, mm (when the chain is evaluated).
@@ -432,6 +436,7 @@ pub fn evaluate_physics(
     let mut physics = ContactMetrics::default();
     let mut on_physics = ContactMetrics::default();
     let mut on_arap = ContactMetrics::default();
+    let mut placed = ContactMetrics::default();
     let (mut physics_bcd, mut arap_bcd) = (0.0, 0.0);
     let mut outcomes = Vec::new();
     let mut times = Vec::with_capacity(frames.len());
@@ -456,11 +461,8 @@ pub fn evaluate_physics(
         })?;
         times.push(start.elapsed().as_secs_f64() * 1e3);
         failed += est.fingers.iter().filter(|f| f.error.is_some()).count() as u64;
-        physics.add(
-            &frame.shape,
-            &frame.contact,
-            &labels_at(&est.contact.fingers, 0.5),
-        )?;
+        let physics_labels = labels_at(&est.contact.fingers, 0.5);
+        physics.add(&frame.shape, &frame.contact, &physics_labels)?;
         physics_bcd += bcd_of(&est.shape, &frame.shape)?;
         for f in 0..hand.num_fingers() {
             outcomes.push(finger_outcome(hand, sf, &est, f));
@@ -468,11 +470,22 @@ pub fn evaluate_physics(
         if let (Some(dgcnn), Some(arap)) = (comparison.dgcnn, arap.as_mut()) {
             let input = ContactInput::of_frame(frame, &est.shape).with_keypoints(&markers);
             let p = dgcnn.estimate_map(&input)?;
-            on_physics.add(
-                &frame.shape,
-                &frame.contact,
-                &labels_at(&p.fingers, dgcnn.threshold()),
-            )?;
+            let network_labels = labels_at(&p.fingers, dgcnn.threshold());
+            on_physics.add(&frame.shape, &frame.contact, &network_labels)?;
+            let together: Vec<Vec<bool>> = physics_labels
+                .iter()
+                .zip(&network_labels)
+                .map(|(ph, nw)| {
+                    if !ph.iter().any(|&c| c) {
+                        vec![false; ph.len()]
+                    } else if nw.iter().any(|&c| c) {
+                        nw.clone()
+                    } else {
+                        ph.clone()
+                    }
+                })
+                .collect();
+            placed.add(&frame.shape, &frame.contact, &together)?;
             let shape = arap.estimate(&markers)?.shape;
             arap_bcd += bcd_of(&shape, &frame.shape)?;
             let input = ContactInput::of_frame(frame, &shape).with_keypoints(&markers);
@@ -495,6 +508,7 @@ pub fn evaluate_physics(
         physics: physics.report(),
         dgcnn_on_physics: comparison.dgcnn.map(|_| on_physics.report()),
         dgcnn_on_sr_arap: comparison.dgcnn.map(|_| on_arap.report()),
+        physics_placed_by_dgcnn: comparison.dgcnn.map(|_| placed.report()),
         physics_shape_bcd_mm: 1e3 * physics_bcd / n,
         sr_arap_shape_bcd_mm: if comparison.dgcnn.is_some() {
             1e3 * arap_bcd / n
