@@ -129,6 +129,17 @@ pub enum TouchError {
         /// What is wrong.
         reason: String,
     },
+    /// A frame of a stream is not after the previous one (out of order, or a repeated time).
+    #[error(
+        "frame time {time_secs} s is not after the previous frame's {previous_secs} s: a stream's \
+         frames must arrive in time order without repeats (reset the pipeline to start another)"
+    )]
+    StreamOutOfOrder {
+        /// The previous frame's time, seconds.
+        previous_secs: f64,
+        /// This frame's time, seconds.
+        time_secs: f64,
+    },
 }
 
 /// Formats an error and its causes on one line (`outer: inner: root`), without backtraces: a

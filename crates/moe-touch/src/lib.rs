@@ -30,4 +30,4 @@ pub mod pipeline;
 pub mod run;
 
 pub use error::TouchError;
-pub use pipeline::{FrameEstimate, Pipeline, RgbdFrame, StageTimings};
+pub use pipeline::{FrameEstimate, Pipeline, RgbdFrame, StageTimings, StreamEvent};

@@ -63,6 +63,33 @@ pub struct FrameEstimate {
     pub markers: MarkerDiagnostics,
     /// Per-stage wall time.
     pub timings: StageTimings,
+    /// Where the frame stands in the stream (whether the memory of earlier frames was kept).
+    pub stream: StreamEvent,
+}
+
+/// How far apart two frames of one stream may be by default, seconds: further apart, the
+/// pipeline forgets what its stages carried (as [`Pipeline::reset`]) and says so.
+pub const DEFAULT_MEMORY_HORIZON_SECS: Real = 1.0;
+
+/// Where a frame stands in the stream of frames the pipeline sees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum StreamEvent {
+    /// A frame without a time: the stages carry their state over as for the next frame.
+    Untimed,
+    /// The first timed frame since the pipeline was made or reset.
+    Started,
+    /// A frame within the memory horizon of the previous one.
+    Continued {
+        /// Time since the previous frame, seconds.
+        gap_secs: Real,
+    },
+    /// A frame further than the memory horizon from the previous one: what the stages carried
+    /// was forgotten (as by [`Pipeline::reset`]) before it.
+    Restarted {
+        /// Time since the previous frame, seconds.
+        gap_secs: Real,
+    },
 }
 
 /// Checks a contact threshold as [`Pipeline::new`] does, for callers that take one long before
@@ -93,6 +120,9 @@ pub struct Pipeline<S, C> {
     threshold: Real,
     keypoint_filter: Option<KeypointFilter>,
     contact_smoother: Option<ContactSmoother>,
+    memory_horizon_secs: Real,
+    /// The last timed frame's time, seconds.
+    last_time_secs: Option<Real>,
 }
 
 impl<S, C> Pipeline<S, C>
@@ -123,7 +153,27 @@ where
             threshold,
             keypoint_filter: None,
             contact_smoother: None,
+            memory_horizon_secs: DEFAULT_MEMORY_HORIZON_SECS,
+            last_time_secs: None,
         })
+    }
+
+    /// Sets how far apart, in seconds, two timed frames may be and still be one stream
+    /// (default [`DEFAULT_MEMORY_HORIZON_SECS`]); further apart, the stages forget the earlier
+    /// frames and the frame's [`FrameEstimate::stream`] says so.
+    ///
+    /// # Errors
+    /// [`TouchError::InvalidParameter`] for a horizon that is not finite and positive.
+    pub fn with_memory_horizon(mut self, secs: Real) -> Result<Self, TouchError> {
+        if !(secs.is_finite() && secs > 0.0) {
+            return Err(TouchError::InvalidParameter {
+                name: "memory horizon",
+                value: secs,
+                reason: "must be finite and positive (seconds)",
+            });
+        }
+        self.memory_horizon_secs = secs;
+        Ok(self)
     }
 
     /// Filters the detected keypoints over time before the shape stage (off by default: see
@@ -166,6 +216,43 @@ where
         if let Some(s) = &mut self.contact_smoother {
             s.reset();
         }
+        self.last_time_secs = None;
+    }
+
+    /// Where a frame at `time_secs` stands in the stream: refuses a time that is not finite or
+    /// not after the previous frame's (before any stage sees the frame), and forgets the stream
+    /// after a gap beyond the horizon.
+    fn enter_stream(&mut self, time_secs: Option<Real>) -> Result<StreamEvent, TouchError> {
+        let Some(t) = time_secs else {
+            return Ok(StreamEvent::Untimed);
+        };
+        if !t.is_finite() {
+            return Err(TouchError::InvalidParameter {
+                name: "frame time",
+                value: t,
+                reason: "must be finite (seconds)",
+            });
+        }
+        let event = match self.last_time_secs {
+            None => StreamEvent::Started,
+            Some(previous) if t <= previous => {
+                return Err(TouchError::StreamOutOfOrder {
+                    previous_secs: previous,
+                    time_secs: t,
+                });
+            }
+            Some(previous) if t - previous > self.memory_horizon_secs => {
+                self.reset();
+                StreamEvent::Restarted {
+                    gap_secs: t - previous,
+                }
+            }
+            Some(previous) => StreamEvent::Continued {
+                gap_secs: t - previous,
+            },
+        };
+        self.last_time_secs = Some(t);
+        Ok(event)
     }
 
     /// Runs every stage on a recorded episode frame: its images, its wrist pose, its tendon
@@ -226,6 +313,7 @@ where
         tendon_pull_m: Option<&[Vec<f64>]>,
         time_secs: Option<f64>,
     ) -> Result<FrameEstimate, TouchError> {
+        let stream = self.enter_stream(time_secs)?;
         let start = Instant::now();
         let mut detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
         if let Some(f) = &mut self.keypoint_filter {
@@ -291,6 +379,7 @@ where
                 contact_ms: ms(t_shape, end),
                 total_ms: ms(start, end),
             },
+            stream,
         })
     }
 }

@@ -8,7 +8,7 @@ use moe_physics::{ContactLoad, PhysicsContactStage, PhysicsEstimate};
 use serde::Serialize;
 
 use crate::perception::score::{MarkerReport, MarkerScore, has_ground_truth, visible_markers};
-use crate::{Pipeline, StageTimings, TouchError};
+use crate::{Pipeline, StageTimings, StreamEvent, TouchError};
 
 /// One frame of a run report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -27,6 +27,8 @@ pub struct FrameReport {
     pub true_contact_vertices: Option<usize>,
     /// Stage timings, milliseconds.
     pub timings: StageTimings,
+    /// Where the frame stands in the stream (a gap beyond the memory horizon restarts it).
+    pub stream: StreamEvent,
     /// Per finger, the estimated force on it (contact estimators that estimate force).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub finger_forces: Option<Vec<FingerForceRecord>>,
@@ -340,6 +342,7 @@ where
             shape_bcd_mm,
             true_contact_vertices,
             timings: est.timings,
+            stream: est.stream,
             finger_forces,
             loads,
         });

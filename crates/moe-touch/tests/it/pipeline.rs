@@ -5,7 +5,7 @@ use moe_geom::{ContactInput, FingerParams, HandModel, HandPreset, WorldFromHand}
 use moe_touch::contact_eval::study_shape_estimator;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::{Pipeline, RgbdFrame, TouchError};
+use moe_touch::{FrameEstimate, Pipeline, RgbdFrame, StreamEvent, TouchError};
 
 use crate::common::fixtures;
 
@@ -83,6 +83,93 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
         contact_frames > 0,
         "the plate presses the tip: some vertex is above {threshold}"
     );
+}
+
+/// What a frame's estimate says apart from its wall times.
+fn same_estimate(a: &FrameEstimate, b: &FrameEstimate) {
+    assert_eq!(a.keypoints, b.keypoints);
+    assert_eq!(a.shape, b.shape);
+    assert_eq!(a.contact, b.contact);
+    assert_eq!(a.contacts_in_hand, b.contacts_in_hand);
+    assert_eq!(a.contacts_in_world, b.contacts_in_world);
+}
+
+#[test]
+fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
+    let hand = hand();
+    let episode = episode();
+    let make = || {
+        Pipeline::new(
+            hand.clone(),
+            detector(&hand, &episode),
+            study_shape_estimator(&hand, &ShapeConfig::default()).unwrap(),
+            load_contact_model(&model_path(), &hand).unwrap(),
+            CHAIN_THRESHOLD,
+        )
+        .unwrap()
+    };
+    let f = &episode.frames;
+    let mut p = make();
+    assert_eq!(
+        p.process_episode_frame(&f[0]).unwrap().stream,
+        StreamEvent::Started
+    );
+    let gap = match p.process_episode_frame(&f[1]).unwrap().stream {
+        StreamEvent::Continued { gap_secs } => gap_secs,
+        other => panic!("{other:?}"),
+    };
+    assert!((gap - 0.2).abs() < 1e-9, "{gap}");
+    // A repeated time and a time back in the stream are refused, naming both times.
+    for k in [1, 0] {
+        let err = p.process_episode_frame(&f[k]).unwrap_err();
+        assert!(
+            matches!(err, TouchError::StreamOutOfOrder { time_secs, previous_secs }
+                if time_secs == 1e-9 * f[k].time_ns as f64 && previous_secs == 0.2),
+            "{err}"
+        );
+        assert!(
+            err.to_string()
+                .contains("not after the previous frame's 0.2 s"),
+            "{err}"
+        );
+    }
+    // The refused frames changed nothing: the next frame is an undisturbed stream's.
+    let mut undisturbed = make();
+    undisturbed.process_episode_frame(&f[0]).unwrap();
+    undisturbed.process_episode_frame(&f[1]).unwrap();
+    same_estimate(
+        &p.process_episode_frame(&f[2]).unwrap(),
+        &undisturbed.process_episode_frame(&f[2]).unwrap(),
+    );
+    // A gap beyond the horizon: the stream restarts, and says so, as a fresh pipeline.
+    let mut late = f[3].clone();
+    late.time_ns += 5_000_000_000;
+    let after_gap = p.process_episode_frame(&late).unwrap();
+    match after_gap.stream {
+        StreamEvent::Restarted { gap_secs } => assert!((gap_secs - 5.2).abs() < 1e-9),
+        other => panic!("{other:?}"),
+    }
+    same_estimate(&after_gap, &make().process_episode_frame(&late).unwrap());
+    // reset: the next frame starts a stream, whatever its time, as in a fresh pipeline.
+    p.reset();
+    let again = p.process_episode_frame(&f[4]).unwrap();
+    assert_eq!(again.stream, StreamEvent::Started);
+    same_estimate(&again, &make().process_episode_frame(&f[4]).unwrap());
+    // Frames without a time carry the stream over and say so.
+    let untimed = p
+        .process(
+            RgbdFrame {
+                color_rgb8: &f[5].color_rgb8,
+                depth_m: &f[5].depth_m,
+            },
+            WorldFromHand::new(f[5].world_from_hand),
+        )
+        .unwrap();
+    assert_eq!(untimed.stream, StreamEvent::Untimed);
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let err = make().with_memory_horizon(bad).unwrap_err();
+        assert!(matches!(err, TouchError::InvalidParameter { .. }), "{err}");
+    }
 }
 
 #[test]
@@ -226,6 +313,29 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     let err = assert_one_line_error(&o);
     assert!(err.contains("three-finger"), "{err}");
     assert!(!wrong.exists());
+
+    // An episode that repeats a frame's time: one clear error naming it, nothing written.
+    let recorded = moe_io::read_episode(&episode).unwrap();
+    let mut frames = recorded.frames[..3].to_vec();
+    frames.push(recorded.frames[2].clone());
+    let repeated = dir.join("repeated.mcap");
+    moe_io::write_episode(&repeated, &recorded.info, &frames).unwrap();
+    let repeated_out = dir.join("repeated-result.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        repeated.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        repeated_out.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(
+        err.contains("frame time 0.4 s is not after the previous frame's 0.4 s"),
+        "{err}"
+    );
+    assert!(!repeated_out.exists());
 }
 
 #[test]
