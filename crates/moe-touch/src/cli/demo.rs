@@ -46,6 +46,9 @@ pub(crate) struct DemoArgs {
     /// the nominal silicone).
     #[arg(long, value_name = "M.toml")]
     material: Option<PathBuf>,
+    /// physics: the estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`).
+    #[arg(long, value_name = "C.toml")]
+    physics_config: Option<PathBuf>,
 }
 
 pub(crate) fn run(args: DemoArgs) -> Result<()> {
@@ -70,6 +73,9 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
             if args.material.is_some() {
                 bail!("--material is for --contact physics");
             }
+            if args.physics_config.is_some() {
+                bail!("--physics-config is for --contact physics");
+            }
             let model = load_contact_model(&model_path, &hand)
                 .with_context(|| format!("model {}", model_path.display()))?;
             let threshold = model.threshold();
@@ -85,8 +91,11 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
             if args.model.is_some() {
                 bail!("--model is for --contact dgcnn; the physics estimator has no network");
             }
-            let (shape, contact, name) =
-                super::run::physics_stages(&hand, args.material.as_deref(), None)?;
+            let (shape, contact, name) = super::run::physics_stages(
+                &hand,
+                args.material.as_deref(),
+                args.physics_config.as_deref(),
+            )?;
             let stage = contact.clone();
             let pipeline = Pipeline::new(
                 hand.clone(),

@@ -425,6 +425,23 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
     let data = moe_io::read_ply(&out.join(ply)).unwrap();
     assert_eq!(data.points.len(), 1024);
     assert!(data.scalars.iter().any(|(n, _)| n == "contact_probability"));
+
+    // The physics estimator's options without it: one line, nothing written.
+    let settings = fixtures().join("physics/exact-markers.toml");
+    let refused = dir.join("refused");
+    let o = crate::common::run(&[
+        "demo",
+        "--out",
+        refused.to_str().unwrap(),
+        "--physics-config",
+        settings.to_str().unwrap(),
+    ]);
+    let err = crate::common::assert_one_line_error(&o);
+    assert!(
+        err.contains("--physics-config is for --contact physics"),
+        "{err}"
+    );
+    assert!(!refused.exists());
 }
 
 #[test]
