@@ -1,5 +1,6 @@
-//! The whole per-frame pipeline on the committed example episode with the shipped model:
-//! markers → SR-ARAP → DGCNN contact → contact points in the world.
+//! The whole per-frame pipeline on the committed example episode: markers → SR-ARAP → the
+//! shipped DGCNN → contact points in the world; and markers → the physics estimator (dented
+//! shape, loads) → contact points.
 //!
 //! `cargo bench -p moe-touch --bench pipeline`
 
@@ -58,9 +59,54 @@ fn bench_pipeline(c: &mut Criterion) {
     );
 }
 
+/// The pipeline with the physics estimator's stages (nominal material, default settings) on
+/// the pressed frame: a lone frame (the pipeline reset before each), and the frame held in a
+/// stream (each iteration 50 ms after the previous one).
+fn bench_physics_pipeline(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let episode = moe_io::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+        .expect("the committed episode reads");
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    let physics = || {
+        let estimator = moe_physics::PhysicsEstimator::new(
+            &hand,
+            &moe_physics::HandMaterial::default(),
+            &moe_physics::PhysicsConfig::default(),
+        )
+        .expect("physics estimator");
+        let (shape, contact) = estimator.stages();
+        let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
+            .expect("detector");
+        Pipeline::new(hand.clone(), detector, shape, contact, 0.5).expect("pipeline")
+    };
+    let mut frame = episode.frames[3].clone();
+    let mut lone = physics();
+    c.bench_function("pipeline/two-finger frame, physics from rest", |b| {
+        b.iter(|| {
+            lone.reset();
+            black_box(lone.process_episode_frame(black_box(&frame)).expect("runs"))
+        })
+    });
+    let mut stream = physics();
+    stream.process_episode_frame(&frame).expect("runs");
+    c.bench_function(
+        "pipeline/two-finger frame, physics tracked (50 ms frames)",
+        |b| {
+            b.iter(|| {
+                frame.time_ns += 50_000_000;
+                black_box(
+                    stream
+                        .process_episode_frame(black_box(&frame))
+                        .expect("runs"),
+                )
+            })
+        },
+    );
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30);
-    targets = bench_pipeline
+    targets = bench_pipeline, bench_physics_pipeline
 }
 criterion_main!(benches);
