@@ -84,7 +84,12 @@ pub(crate) struct PhysicsEvalArgs {
 }
 
 /// Frames of the data set, as streams.
-fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Streams> {
+fn dataset_streams(
+    dir: &std::path::Path,
+    marker_layout: Option<moe_geom::MarkerLayoutPreset>,
+    split: Option<Split>,
+    max_trajectories: Option<u64>,
+) -> Result<Streams> {
     let reader = DatasetReader::open(dir)?;
     let data_hand = dataset_hand(&reader)?;
     let layout = reader.card().layout.clone();
@@ -92,7 +97,7 @@ fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Stre
         serde_json::from_value(reader.card().generator["params"].clone())
             .context("the data set card's simulator parameters")?;
     // Another marker layout on the same fingers: its markers are read off the true surface.
-    let hand = match args.marker_layout {
+    let hand = match marker_layout {
         Some(preset) => {
             params.finger.marker_layout = preset.layout();
             let hand = HandModel::preset(params.preset, &params.finger)?;
@@ -108,10 +113,6 @@ fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Stre
         None => data_hand,
     };
     let frame_secs = params.dt_secs * params.save_every_steps as Real;
-    let split = match args.frames {
-        crate::eval_contact::FrameSet::Test => Some(Split::Test),
-        crate::eval_contact::FrameSet::All => None,
-    };
     let mut out: Vec<StreamFrame> = Vec::new();
     let mut trajectories = 0u64;
     for f in reader.frames(split, SplitFractions::default()) {
@@ -120,13 +121,13 @@ fn dataset_streams(args: &PhysicsEvalArgs, dir: &std::path::Path) -> Result<Stre
             .last()
             .is_none_or(|l| l.frame.trajectory_id != f.trajectory_id);
         if new {
-            if args.max_trajectories.is_some_and(|m| trajectories >= m) {
+            if max_trajectories.is_some_and(|m| trajectories >= m) {
                 break;
             }
             trajectories += 1;
         }
         let mut stream = StreamFrame::from_dataset(&f, &layout, frame_secs)?;
-        if args.marker_layout.is_some() {
+        if marker_layout.is_some() {
             stream.frame.markers = hand.keypoints_on(&stream.frame.shape.fingers);
         }
         out.push(stream);
@@ -238,7 +239,13 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
         perceived,
         params,
     } = match &args.data {
-        Some(dir) => dataset_streams(args, dir)?,
+        Some(dir) => {
+            let split = match args.frames {
+                crate::eval_contact::FrameSet::Test => Some(Split::Test),
+                crate::eval_contact::FrameSet::All => None,
+            };
+            dataset_streams(dir, args.marker_layout, split, args.max_trajectories)?
+        }
         None => simulated_streams(args)?,
     };
     let mut material: HandMaterial = match &args.material {
@@ -459,4 +466,63 @@ pub(crate) fn table(e: &PhysicsEvaluation) -> String {
         }
     );
     s
+}
+
+/// Golden physics stage: the physics estimator (nominal material, the settings for exact
+/// markers in `fixtures/physics/exact-markers.toml`) on the committed held-out trajectories as
+/// streams, from their exact markers: the contact figures, the force table and, per frame, the
+/// loads (finger, vertex, force) and every finger's statistic.
+pub(crate) fn golden_physics() -> Result<serde_json::Value> {
+    let root = crate::ci::workspace_root();
+    let Streams { hand, frames, .. } = dataset_streams(
+        &root.join(crate::eval_contact::HELDOUT_DIR),
+        None,
+        None,
+        None,
+    )?;
+    let config: PhysicsConfig =
+        moe_io::read_config(&root.join("fixtures/physics/exact-markers.toml"))?;
+    let mut estimator = PhysicsEstimator::new(&hand, &HandMaterial::default(), &config)?;
+    let shape = ShapeConfig::default();
+    let eval = evaluate_physics(
+        &hand,
+        &frames,
+        MarkerSource::Exact,
+        &mut estimator,
+        Comparison {
+            dgcnn: None,
+            shape: &shape,
+        },
+    )?;
+    let mut value = serde_json::to_value(&eval)?;
+    if let Some(o) = value.as_object_mut() {
+        o.remove("physics_ms_median");
+        o.remove("physics_ms_p90");
+    }
+    // The loads frame by frame, from a fresh estimator over the same streams.
+    estimator.reset();
+    let mut per_frame = Vec::with_capacity(frames.len());
+    let mut previous = None;
+    for sf in &frames {
+        if previous != Some(sf.frame.trajectory_id) {
+            estimator.reset();
+            previous = Some(sf.frame.trajectory_id);
+        }
+        let est = estimator.estimate(&moe_physics::PhysicsObservation {
+            keypoints: &sf.frame.markers,
+            tendon_pull_m: &sf.frame.tendon_pull_m,
+            world_from_hand: &sf.frame.world_from_hand,
+            time_secs: Some(sf.time_secs),
+        })?;
+        per_frame.push(serde_json::json!({
+            "loads": est.loads.iter().map(|l| serde_json::json!({
+                "finger": l.finger,
+                "vertex": l.vertex,
+                "force_n": [l.force_n.x, l.force_n.y, l.force_n.z],
+            })).collect::<Vec<_>>(),
+            "statistic": est.fingers.iter().map(|f| f.statistic).collect::<Vec<_>>(),
+        }));
+    }
+    value["per_frame"] = serde_json::Value::Array(per_frame);
+    Ok(value)
 }

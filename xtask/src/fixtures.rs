@@ -59,6 +59,11 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-4,
     },
     Fixture {
+        path: "fixtures/golden/physics_heldout_small.json",
+        generate: crate::eval_physics::golden_physics,
+        tolerance: 1e-4,
+    },
+    Fixture {
         path: "fixtures/golden/eval_patting_small.json",
         generate: crate::eval_patting::patting_fixture,
         tolerance: 1e-3,
