@@ -13,7 +13,7 @@ use moe_contact::{
     FeatureFrame, InputFeature, InputSpec, ModelCard, ModelWeights, Normalisation, OptimizerConfig,
     PointSet, TrainConfig, Trainer, TrainingSets, evaluation_of,
 };
-use moe_geom::{HandModel, LabelledFrame};
+use moe_geom::{HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_tendon_sim::randomize::RandomSceneParams;
 use moe_touch::contact_eval::{MarkerAugmentation, with_estimated_shapes};
@@ -156,6 +156,9 @@ enum InputShapeArg {
     /// Both: every training frame twice, as simulated and as SR-ARAP estimated; validation on
     /// the SR-ARAP shapes (what the model sees at run time).
     Both,
+    /// The physics estimator's dented shape from the frame's markers (nominal material, default
+    /// settings; each trajectory run as a stream), for training and validation.
+    Physics,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -383,6 +386,42 @@ fn write_model(
     Ok(())
 }
 
+/// The training and validation frames of one data set with the physics estimator's shapes
+/// (the training ones from perturbed markers when `augmentation` is given).
+fn physics_shapes(
+    reader: &DatasetReader,
+    hand: &HandModel,
+    train: Vec<LabelledFrame>,
+    validation: Vec<LabelledFrame>,
+    augmentation: Option<&MarkerAugmentation>,
+) -> Result<(Vec<LabelledFrame>, Vec<LabelledFrame>)> {
+    let params: RandomSceneParams =
+        serde_json::from_value(reader.card().generator["params"].clone())
+            .context("the data set card's simulator parameters")?;
+    let frame_secs = params.dt_secs * params.save_every_steps as Real;
+    let material = moe_physics::HandMaterial::default();
+    let config = moe_physics::PhysicsConfig::default();
+    let t = Instant::now();
+    let shapes = |frames: &[LabelledFrame], augmentation| {
+        moe_touch::physics_eval::with_physics_shapes(
+            hand,
+            frames,
+            frame_secs,
+            &material,
+            &config,
+            augmentation,
+        )
+    };
+    let train = shapes(&train, augmentation)?;
+    let validation = shapes(&validation, None)?;
+    eprintln!(
+        "train: physics shapes of {} frames from their markers in {:.0} s",
+        train.len() + validation.len(),
+        t.elapsed().as_secs_f64()
+    );
+    Ok((train, validation))
+}
+
 /// The marker perturbation of the training frames' SR-ARAP shapes, if any, checked.
 fn marker_augmentation(args: &TrainArgs) -> Result<Option<MarkerAugmentation>> {
     if args.marker_noise == 0.0 && args.marker_dropout == 0.0 && args.marker_tip_occlusion == 0.0 {
@@ -390,7 +429,7 @@ fn marker_augmentation(args: &TrainArgs) -> Result<Option<MarkerAugmentation>> {
     }
     if args.input_shape == InputShapeArg::Simulated {
         bail!(
-            "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb SR-ARAP shapes: use --input-shape sr-arap or both"
+            "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb estimated shapes: use --input-shape sr-arap, both or physics"
         );
     }
     let augmentation = MarkerAugmentation {
@@ -497,6 +536,8 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
     let hand = dataset_hand(&readers[0])?;
     let mut train_frames = Vec::new();
     let mut validation_frames = Vec::new();
+    // Validation metrics take the contact points on the true surfaces (the design's definition).
+    let mut validation_truth = Vec::new();
     for (reader, dir) in readers.iter().zip(&args.data) {
         let other = dataset_hand(reader)?;
         let same = other.num_fingers() == hand.num_fingers()
@@ -524,12 +565,19 @@ pub(crate) fn run(args: &TrainArgs) -> Result<()> {
                 dir.display()
             );
         }
+        validation_truth.extend(validation.iter().cloned());
+        let (train, validation) = if args.input_shape == InputShapeArg::Physics {
+            physics_shapes(reader, &hand, train, validation, augmentation.as_ref())?
+        } else {
+            (train, validation)
+        };
         train_frames.extend(train);
         validation_frames.extend(validation);
     }
-    // Validation metrics take the contact points on the true surfaces (the design's definition).
-    let validation_truth = validation_frames.clone();
-    let (train_frames, validation_frames) = if args.input_shape == InputShapeArg::Simulated {
+    let (train_frames, validation_frames) = if matches!(
+        args.input_shape,
+        InputShapeArg::Simulated | InputShapeArg::Physics
+    ) {
         (train_frames, validation_frames)
     } else {
         let t = Instant::now();

@@ -395,6 +395,82 @@ fn force_table(outcomes: &[FingerOutcome], net_force_truth: bool) -> ForceTable 
     }
 }
 
+/// `frames` with their shapes replaced by the physics estimator's (the dented surface it
+/// estimates from each frame's markers, perturbed by `augmentation` when given), each
+/// trajectory run as a stream (frames in order, `frame_index × frame_secs` seconds apart; the
+/// estimator reset at each new trajectory): the training input of a contact model that reads
+/// the physics estimator's shapes. Trajectories run in parallel, one estimator per thread. A
+/// finger the estimator cannot estimate keeps the estimator's free shape.
+///
+/// # Errors
+/// Frames that do not fit the hand, an invalid augmentation, or a failing estimator.
+pub fn with_physics_shapes(
+    hand: &HandModel,
+    frames: &[LabelledFrame],
+    frame_secs: Real,
+    material: &moe_physics::HandMaterial,
+    config: &moe_physics::PhysicsConfig,
+    augmentation: Option<&crate::contact_eval::MarkerAugmentation>,
+) -> Result<Vec<LabelledFrame>, TouchError> {
+    use rayon::prelude::*;
+    if let Some(a) = augmentation {
+        a.validate()?;
+    }
+    if !(frame_secs.is_finite() && frame_secs > 0.0) {
+        return Err(TouchError::InvalidParameter {
+            name: "frame_secs",
+            value: frame_secs,
+            reason: "must be finite and positive",
+        });
+    }
+    let distal_order = crate::contact_eval::distal_marker_order(hand);
+    // Runs of consecutive frames of one trajectory, with their first frame's index in `frames`.
+    let mut runs: Vec<(usize, &[LabelledFrame])> = Vec::new();
+    let mut start = 0;
+    for k in 1..=frames.len() {
+        if k == frames.len() || frames[k].trajectory_id != frames[start].trajectory_id {
+            runs.push((start, &frames[start..k]));
+            start = k;
+        }
+    }
+    let out: Vec<Vec<LabelledFrame>> = runs
+        .par_iter()
+        .map_init(
+            || PhysicsEstimator::new(hand, material, config),
+            |estimator, &(first, run)| {
+                let estimator = estimator
+                    .as_mut()
+                    .map_err(|e| TouchError::Physics(e.clone()))?;
+                estimator.reset();
+                run.iter()
+                    .enumerate()
+                    .map(|(j, frame)| {
+                        frame.shape.check_against(hand)?;
+                        let markers = match augmentation {
+                            Some(a) => {
+                                let mut rng = SeededRng::new(a.seed).split((first + j) as u64);
+                                a.apply(&frame.markers, &distal_order, &mut rng)
+                            }
+                            None => frame.markers.clone(),
+                        };
+                        let est = estimator.estimate(&PhysicsObservation {
+                            keypoints: &markers,
+                            tendon_pull_m: &frame.tendon_pull_m,
+                            world_from_hand: &frame.world_from_hand,
+                            time_secs: Some(f64::from(frame.frame_index) * frame_secs),
+                        })?;
+                        Ok(LabelledFrame {
+                            shape: est.shape,
+                            ..frame.clone()
+                        })
+                    })
+                    .collect::<Result<Vec<_>, TouchError>>()
+            },
+        )
+        .collect::<Result<_, _>>()?;
+    Ok(out.into_iter().flatten().collect())
+}
+
 /// Per-vertex labels of probabilities at or above `threshold`.
 fn labels_at(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
     map.iter()

@@ -735,3 +735,50 @@ fn calibrate_fits_the_material_from_contact_free_frames_and_refuses_what_it_cann
         "three-finger",
     );
 }
+
+/// The physics estimator's shapes as a training input: every frame kept in order with its
+/// labels, its shape the estimator's on its trajectory's stream (the same, bit for bit, as one
+/// estimator run over each trajectory in turn), whatever the threads.
+#[test]
+fn physics_shapes_for_training_are_each_trajectorys_stream() {
+    use moe_touch::physics_eval::with_physics_shapes;
+    let reader = moe_io::DatasetReader::open(&fixtures().join("contact/heldout")).unwrap();
+    let frames: Vec<moe_geom::LabelledFrame> = reader
+        .labelled_frames(None, moe_io::SplitFractions::default())
+        .collect::<Result<_, _>>()
+        .unwrap();
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+    let (material, config) = (
+        moe_physics::HandMaterial::default(),
+        moe_physics::PhysicsConfig::default(),
+    );
+    let frame_secs = 0.05;
+    let out = with_physics_shapes(&hand, &frames, frame_secs, &material, &config, None).unwrap();
+    assert_eq!(out.len(), frames.len());
+    let mut estimator = moe_physics::PhysicsEstimator::new(&hand, &material, &config).unwrap();
+    let mut previous = None;
+    let mut dented = 0;
+    for (a, b) in out.iter().zip(&frames) {
+        assert_eq!(
+            (a.trajectory_id, a.frame_index, &a.contact, &a.markers),
+            (b.trajectory_id, b.frame_index, &b.contact, &b.markers)
+        );
+        if previous != Some(b.trajectory_id) {
+            estimator.reset();
+            previous = Some(b.trajectory_id);
+        }
+        let e = estimator
+            .estimate(&moe_physics::PhysicsObservation {
+                keypoints: &b.markers,
+                tendon_pull_m: &b.tendon_pull_m,
+                world_from_hand: &b.world_from_hand,
+                time_secs: Some(f64::from(b.frame_index) * frame_secs),
+            })
+            .unwrap();
+        assert_eq!(a.shape, e.shape);
+        dented += usize::from(!e.loads.is_empty());
+    }
+    assert!(dented > 0, "the held-out frames have presses");
+    let err = with_physics_shapes(&hand, &frames, 0.0, &material, &config, None).unwrap_err();
+    assert!(err.to_string().contains("frame_secs"), "{err}");
+}
