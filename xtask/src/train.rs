@@ -84,7 +84,7 @@ pub(crate) struct TrainArgs {
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     max_frames: Option<usize>,
     /// Shapes the network learns from: the SR-ARAP estimate from each frame's markers (what it
-    /// sees at run time), or the simulated surface.
+    /// sees at run time), the simulated surface, both, or the physics estimator's dented shape.
     #[arg(long, value_enum, default_value = "both")]
     input_shape: InputShapeArg,
     /// Start from these weights (a trained model's NAME.safetensors) instead of seeded ones,
@@ -96,16 +96,16 @@ pub(crate) struct TrainArgs {
     #[arg(long, default_value_t = 1.0)]
     negative_fraction: f64,
     /// Standard deviation (m, per coordinate) of the Gaussian noise added to the training
-    /// frames' markers before their SR-ARAP shapes are computed, as detection adds it at run
+    /// frames' markers before their (SR-ARAP or physics) shapes are computed, as detection adds it at run
     /// time (one seeded draw per frame; validation frames keep their true markers).
     #[arg(long, value_name = "M", default_value_t = 0.0)]
     marker_noise: f64,
-    /// Probability that a training frame's marker is dropped before its SR-ARAP shape is
+    /// Probability that a training frame's marker is dropped before its estimated shape is
     /// computed, as an occluded or missed marker is at run time.
     #[arg(long, value_name = "P", default_value_t = 0.0)]
     marker_dropout: f64,
     /// Probability that a training frame's finger has its most distal markers hidden together
-    /// (a run of 1 to `--marker-tip-run` markers) before its SR-ARAP shape is computed, as a
+    /// (a run of 1 to `--marker-tip-run` markers) before its estimated shape is computed, as a
     /// pressing fingertip's are from the wrist camera.
     #[arg(long, value_name = "P", default_value_t = 0.0)]
     marker_tip_occlusion: f64,
@@ -422,7 +422,7 @@ fn physics_shapes(
     Ok((train, validation))
 }
 
-/// The marker perturbation of the training frames' SR-ARAP shapes, if any, checked.
+/// The marker perturbation of the training frames' estimated shapes, if any, checked.
 fn marker_augmentation(args: &TrainArgs) -> Result<Option<MarkerAugmentation>> {
     if args.marker_noise == 0.0 && args.marker_dropout == 0.0 && args.marker_tip_occlusion == 0.0 {
         return Ok(None);
@@ -866,7 +866,7 @@ mod tests {
                     "--input-shape",
                     "simulated",
                 ],
-                "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb SR-ARAP shapes: use --input-shape sr-arap or both",
+                "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb estimated shapes: use --input-shape sr-arap, both or physics",
             ),
         ];
         for (extra, expected) in cases {
