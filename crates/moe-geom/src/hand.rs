@@ -229,6 +229,32 @@ pub struct HandKeypoints {
 }
 
 impl HandKeypoints {
+    /// The same keypoints, every observed one moved by independent Gaussian noise of
+    /// `sigma_m` per coordinate (drawn from `rng` marker by marker, x, y then z); unobserved
+    /// ones stay unobserved.
+    #[must_use]
+    pub fn with_noise(&self, sigma_m: Real, rng: &mut crate::SeededRng) -> Self {
+        Self {
+            fingers: self
+                .fingers
+                .iter()
+                .map(|f| {
+                    f.iter()
+                        .map(|m| {
+                            m.map(|p| {
+                                Point3::new(
+                                    p.x + sigma_m * rng.normal(),
+                                    p.y + sigma_m * rng.normal(),
+                                    p.z + sigma_m * rng.normal(),
+                                )
+                            })
+                        })
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+
     /// Checks that the keypoints fit `hand` (one list per finger, one entry per marker, finite).
     ///
     /// # Errors
@@ -291,6 +317,30 @@ mod tests {
                 ..
             }
         );
+    }
+
+    #[test]
+    fn noise_moves_observed_keypoints_by_its_scale_and_keeps_the_unobserved() {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let mut kp = hand.rest_keypoints();
+        kp.fingers[1][2] = None;
+        let draw = |sigma| kp.with_noise(sigma, &mut crate::SeededRng::new(5));
+        assert_eq!(draw(0.0), kp);
+        assert_eq!(draw(1e-3), draw(1e-3));
+        let noisy = draw(1e-3);
+        assert_eq!(noisy.fingers[1][2], None);
+        let moves: Vec<Real> = noisy
+            .fingers
+            .iter()
+            .flatten()
+            .zip(kp.fingers.iter().flatten())
+            .filter_map(|(a, b)| Some((a.as_ref()? - b.as_ref()?).norm()))
+            .collect();
+        assert_eq!(moves.len(), 13);
+        // A 3-D Gaussian of 1 mm per coordinate: every move under 6 mm, their RMS about √3 mm.
+        assert!(moves.iter().all(|&m| m > 0.0 && m < 6e-3), "{moves:?}");
+        let rms = (moves.iter().map(|m| m * m).sum::<Real>() / 13.0).sqrt();
+        assert!((0.8e-3..2.8e-3).contains(&rms), "{rms}");
     }
 
     #[test]

@@ -155,26 +155,7 @@ impl MarkerSource<'_> {
                 let mut rng = SeededRng::new(seed)
                     .split(frame.trajectory_id)
                     .split(u64::from(frame.frame_index));
-                Ok(HandKeypoints {
-                    fingers: frame
-                        .markers
-                        .fingers
-                        .iter()
-                        .map(|f| {
-                            f.iter()
-                                .map(|m| {
-                                    m.map(|p| {
-                                        Point3::new(
-                                            p.x + sigma_m * rng.normal(),
-                                            p.y + sigma_m * rng.normal(),
-                                            p.z + sigma_m * rng.normal(),
-                                        )
-                                    })
-                                })
-                                .collect()
-                        })
-                        .collect(),
-                })
+                Ok(frame.markers.with_noise(sigma_m, &mut rng))
             }
             Self::Given(all) => all
                 .get(k)

@@ -179,30 +179,6 @@ fn the_posterior_place_is_off_the_mesh_vertices_and_near_the_press() {
     assert_eq!(mean.force_n, at_vertex.force_n);
 }
 
-/// The markers of `keypoints` with Gaussian noise of `sigma_m` per coordinate.
-fn noisy(
-    keypoints: &moe_geom::HandKeypoints,
-    sigma_m: Real,
-    rng: &mut moe_geom::SeededRng,
-) -> moe_geom::HandKeypoints {
-    moe_geom::HandKeypoints {
-        fingers: keypoints
-            .fingers
-            .iter()
-            .map(|f| {
-                f.iter()
-                    .map(|m| {
-                        m.map(|p| {
-                            p + moe_geom::Vector3::new(rng.normal(), rng.normal(), rng.normal())
-                                * sigma_m
-                        })
-                    })
-                    .collect()
-            })
-            .collect(),
-    }
-}
-
 /// A held press seen in a stream of noisy frames: with memory of the place, the frames' places
 /// scatter less; a lone observation has no memory to use, and `reset` forgets it.
 #[test]
@@ -222,7 +198,7 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
         let mut rng = moe_geom::SeededRng::new(7);
         let mut out = Vec::new();
         for k in 0..8 {
-            let kp = noisy(&keypoints, 2e-4, &mut rng);
+            let kp = keypoints.with_noise(2e-4, &mut rng);
             let e = est
                 .estimate(&PhysicsObservation {
                     keypoints: &kp,
@@ -262,7 +238,7 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
     let mut est = estimator(&memory);
     let mut rng = moe_geom::SeededRng::new(3);
     let frames: Vec<_> = (0..3)
-        .map(|k| (noisy(&keypoints, 2e-4, &mut rng), 0.05 * k as Real))
+        .map(|k| (keypoints.with_noise(2e-4, &mut rng), 0.05 * k as Real))
         .collect();
     let run = |est: &mut PhysicsEstimator, kp: &moe_geom::HandKeypoints, t: Real| {
         est.estimate(&PhysicsObservation {
