@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::episode::{
     EpisodeInfo, ObstacleMesh, add_channel, camera_calibration, color_image, contact_mesh_entity,
-    encode, fg_color, fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities,
+    encode, fg_color, fg_pose, fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities,
     schema_of, spheres_entity, timestamp, write_info, write_message,
 };
 use crate::error::IoError;
@@ -556,21 +556,8 @@ fn arrows_entity(time_ns: u64, loads: &[RunLoad], scale: f64) -> fg::SceneEntity
                 UnitQuat::rotation_between(&Vector3::x(), &direction).unwrap_or_else(|| {
                     UnitQuat::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI)
                 });
-            let q = rotation.quaternion();
             Some(fg::ArrowPrimitive {
-                pose: Some(fg::Pose {
-                    position: Some(fg::Vector3 {
-                        x: tail.x,
-                        y: tail.y,
-                        z: tail.z,
-                    }),
-                    orientation: Some(fg::Quaternion {
-                        x: q.i,
-                        y: q.j,
-                        z: q.k,
-                        w: q.w,
-                    }),
-                }),
+                pose: Some(fg_pose(&tail, &rotation)),
                 shaft_length: 0.75 * length,
                 shaft_diameter: 0.0015,
                 head_length: 0.25 * length,

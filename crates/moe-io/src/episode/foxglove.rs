@@ -46,6 +46,27 @@ pub(crate) fn fg_point(p: &Point3) -> fg::Point3 {
     }
 }
 
+pub(crate) fn fg_quaternion(q: &UnitQuat) -> fg::Quaternion {
+    fg::Quaternion {
+        x: q.i,
+        y: q.j,
+        z: q.k,
+        w: q.w,
+    }
+}
+
+/// A pose at `position` turned by `rotation`.
+pub(crate) fn fg_pose(position: &Point3, rotation: &UnitQuat) -> fg::Pose {
+    fg::Pose {
+        position: Some(fg::Vector3 {
+            x: position.x,
+            y: position.y,
+            z: position.z,
+        }),
+        orientation: Some(fg_quaternion(rotation)),
+    }
+}
+
 pub(crate) fn fg_color(c: [f64; 4]) -> Option<fg::Color> {
     Some(fg::Color {
         r: c[0],
@@ -62,7 +83,6 @@ pub(crate) fn fg_transform(
     iso: &Iso3,
 ) -> fg::FrameTransform {
     let t = iso.translation.vector;
-    let q = iso.rotation.quaternion();
     fg::FrameTransform {
         timestamp: timestamp(time_ns),
         parent_frame_id: parent.to_owned(),
@@ -72,12 +92,7 @@ pub(crate) fn fg_transform(
             y: t.y,
             z: t.z,
         }),
-        rotation: Some(fg::Quaternion {
-            x: q.i,
-            y: q.j,
-            z: q.k,
-            w: q.w,
-        }),
+        rotation: Some(fg_quaternion(&iso.rotation)),
     }
 }
 
@@ -152,19 +167,7 @@ pub(crate) fn spheres_entity(
         spheres: points
             .iter()
             .map(|m| fg::SpherePrimitive {
-                pose: Some(fg::Pose {
-                    position: Some(fg::Vector3 {
-                        x: m.x,
-                        y: m.y,
-                        z: m.z,
-                    }),
-                    orientation: Some(fg::Quaternion {
-                        x: 0.0,
-                        y: 0.0,
-                        z: 0.0,
-                        w: 1.0,
-                    }),
-                }),
+                pose: Some(fg_pose(m, &UnitQuat::identity())),
                 size: Some(fg::Vector3 {
                     x: size_m,
                     y: size_m,
@@ -186,19 +189,7 @@ pub(crate) fn mesh_entity(
     colors: Option<Vec<fg::Color>>,
 ) -> fg::SceneEntity {
     let triangle = fg::TriangleListPrimitive {
-        pose: Some(fg::Pose {
-            position: Some(fg::Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-            }),
-            orientation: Some(fg::Quaternion {
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-                w: 1.0,
-            }),
-        }),
+        pose: Some(fg_pose(&Point3::origin(), &UnitQuat::identity())),
         points: vertices.iter().map(fg_point).collect(),
         color: fg_color(FREE_COLOR),
         colors: colors.unwrap_or_default(),

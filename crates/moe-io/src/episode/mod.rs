@@ -40,7 +40,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::IoError;
 pub(crate) use foxglove::{
-    add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color,
+    add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color, fg_pose,
     fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities, schema_of, spheres_entity,
     timestamp, write_info, write_message,
 };

@@ -5,7 +5,7 @@
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::ShapeConfig;
 use moe_geom::{ContactEstimator, HandModel, Point3, ShapeEstimator};
@@ -35,28 +35,18 @@ pub(crate) struct DemoArgs {
     /// Episode (default: the committed example, plate pressing the tip of finger 0).
     #[arg(long, value_name = "EP.mcap")]
     episode: Option<PathBuf>,
-    /// How contact is estimated: `dgcnn` (SR-ARAP shape and the shipped network) or `physics`
-    /// (the finger's FEM model read backwards: the loads and the force on every finger too).
-    #[arg(long, value_enum, default_value = "dgcnn")]
-    contact: ContactMethod,
-    /// dgcnn: contact model (default: the shipped two-finger model).
-    #[arg(long, value_name = "M.safetensors")]
-    model: Option<PathBuf>,
-    /// physics: the hand's material (TOML or JSON, as `moe-touch calibrate` writes it; default:
-    /// the nominal silicone).
-    #[arg(long, value_name = "M.toml")]
-    material: Option<PathBuf>,
-    /// physics: the estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`).
-    #[arg(long, value_name = "C.toml")]
-    physics_config: Option<PathBuf>,
+    #[command(flatten)]
+    estimator: super::run::EstimatorArgs,
 }
 
 pub(crate) fn run(args: DemoArgs) -> Result<()> {
+    args.estimator.check(&[], &[])?;
     let episode_path = args
         .episode
         .clone()
         .unwrap_or_else(|| workspace().join("fixtures/episodes/plate_tip_front_small.mcap"));
     let model_path = args
+        .estimator
         .model
         .clone()
         .unwrap_or_else(|| workspace().join("models/contact-two-finger.safetensors"));
@@ -68,14 +58,8 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
     check_hand(&hand, &episode.info)
         .with_context(|| format!("the demo's two-finger hand for {}", episode_path.display()))?;
     let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())?;
-    match args.contact {
+    match args.estimator.contact {
         ContactMethod::Dgcnn => {
-            if args.material.is_some() {
-                bail!("--material is for --contact physics");
-            }
-            if args.physics_config.is_some() {
-                bail!("--physics-config is for --contact physics");
-            }
             let model = load_contact_model(&model_path, &hand)
                 .with_context(|| format!("model {}", model_path.display()))?;
             let threshold = model.threshold();
@@ -88,14 +72,7 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
             demo(&args, &hand, &episode, pipeline, None, &model_name)
         }
         ContactMethod::Physics => {
-            if args.model.is_some() {
-                bail!("--model is for --contact dgcnn; the physics estimator has no network");
-            }
-            let (shape, contact, name) = super::run::physics_stages(
-                &hand,
-                args.material.as_deref(),
-                args.physics_config.as_deref(),
-            )?;
+            let (shape, contact, name) = args.estimator.physics_stages(&hand)?;
             let stage = contact.clone();
             let pipeline = Pipeline::new(
                 hand.clone(),

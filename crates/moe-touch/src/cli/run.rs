@@ -25,23 +25,19 @@ pub(crate) const DEFAULT_MODEL: &str = "models/contact-two-finger.safetensors";
 /// The contact threshold of the physics estimator's probabilities.
 pub(crate) const PHYSICS_THRESHOLD: f64 = 0.5;
 
-/// Arguments of `moe-touch run`.
+/// How the shape and the contact are estimated: the options `run` and `demo` share.
 #[derive(Debug, Args)]
-pub(crate) struct RunArgs {
-    /// Episode to read (MCAP, as `moe-touch sim --out EP.mcap` records it). An episode cut
-    /// short runs up to its last complete frame, and the cut is reported.
-    #[arg(long, value_name = "EP.mcap")]
-    episode: PathBuf,
+pub(crate) struct EstimatorArgs {
     /// How the shape and the contact are estimated: `dgcnn` (SR-ARAP shape, then the trained
     /// network on it) or `physics` (the finger's FEM model read backwards from the markers, the
     /// episode's tendon pulls, the hand's pose and time: the dented shape, the loads and the
     /// force on every finger, in the report and as arrows and a plottable topic in the result).
     #[arg(long, value_enum, default_value = "dgcnn")]
-    contact: ContactMethod,
+    pub(crate) contact: ContactMethod,
     /// dgcnn: the trained contact model (`NAME.safetensors` with its card `NAME.json`)
-    /// [default: models/contact-two-finger.safetensors].
+    /// [default: the shipped models/contact-two-finger.safetensors].
     #[arg(long, value_name = "M.safetensors")]
-    model: Option<PathBuf>,
+    pub(crate) model: Option<PathBuf>,
     /// physics: the hand's material (TOML or JSON, as `moe-touch calibrate` writes it; default:
     /// the nominal silicone).
     #[arg(long, value_name = "M.toml")]
@@ -49,6 +45,72 @@ pub(crate) struct RunArgs {
     /// physics: the estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`).
     #[arg(long, value_name = "C.toml")]
     physics_config: Option<PathBuf>,
+}
+
+impl EstimatorArgs {
+    /// Refuses an option of the method not chosen: the shared ones and the command's own
+    /// (`dgcnn_only`, `physics_only`: whether each was given, and its flag).
+    pub(crate) fn check(
+        &self,
+        dgcnn_only: &[(bool, &str)],
+        physics_only: &[(bool, &str)],
+    ) -> Result<()> {
+        match self.contact {
+            ContactMethod::Dgcnn => {
+                let shared = [
+                    (self.material.is_some(), "--material"),
+                    (self.physics_config.is_some(), "--physics-config"),
+                ];
+                if let Some((_, flag)) = shared.iter().chain(physics_only).find(|(g, _)| *g) {
+                    bail!("{flag} is for --contact physics");
+                }
+            }
+            ContactMethod::Physics => {
+                let shared = [(self.model.is_some(), "--model")];
+                if let Some((_, flag)) = shared.iter().chain(dgcnn_only).find(|(g, _)| *g) {
+                    bail!(
+                        "{flag} is for --contact dgcnn (SR-ARAP and the network); the physics \
+                         estimator makes the shape itself and has no network"
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The physics estimator's stages for `hand` from `--material` and `--physics-config`,
+    /// and its name for the result (with the material file's name).
+    pub(crate) fn physics_stages(
+        &self,
+        hand: &HandModel,
+    ) -> Result<(PhysicsShapeStage, PhysicsContactStage, String)> {
+        let (material, material_name) = super::load_material(self.material.as_deref())?;
+        let (config, _) = super::load_physics_config(self.physics_config.as_deref())?;
+        let estimator =
+            PhysicsEstimator::new(hand, &material, &config).context("the physics estimator")?;
+        let (shape, contact) = estimator.stages();
+        let name = match material_name.as_str() {
+            "nominal" => "physics (nominal material)".to_owned(),
+            _ => format!(
+                "physics (material {})",
+                Path::new(&material_name)
+                    .file_name()
+                    .map_or(material_name.clone(), |n| n.to_string_lossy().into_owned())
+            ),
+        };
+        Ok((shape, contact, name))
+    }
+}
+
+/// Arguments of `moe-touch run`.
+#[derive(Debug, Args)]
+pub(crate) struct RunArgs {
+    /// Episode to read (MCAP, as `moe-touch sim --out EP.mcap` records it). An episode cut
+    /// short runs up to its last complete frame, and the cut is reported.
+    #[arg(long, value_name = "EP.mcap")]
+    episode: PathBuf,
+    #[command(flatten)]
+    estimator: EstimatorArgs,
     /// physics: length of a force arrow in the result file per newton, metres [default: 0.2,
     /// a 50 mN press draws a 10 mm arrow].
     #[arg(long, value_name = "M_PER_N")]
@@ -85,30 +147,6 @@ pub(crate) struct RunArgs {
     json: bool,
 }
 
-/// The physics estimator of `hand` as a pipeline's shape and contact stages, from the
-/// `--material` and `--physics-config` files; also the name of the estimator for the result.
-pub(crate) fn physics_stages(
-    hand: &HandModel,
-    material: Option<&Path>,
-    config: Option<&Path>,
-) -> Result<(PhysicsShapeStage, PhysicsContactStage, String)> {
-    let (material, material_name) = super::load_material(material)?;
-    let (config, _) = super::load_physics_config(config)?;
-    let estimator =
-        PhysicsEstimator::new(hand, &material, &config).context("the physics estimator")?;
-    let (shape, contact) = estimator.stages();
-    let name = match material_name.as_str() {
-        "nominal" => "physics (nominal material)".to_owned(),
-        _ => format!(
-            "physics (material {})",
-            Path::new(&material_name)
-                .file_name()
-                .map_or(material_name.clone(), |n| n.to_string_lossy().into_owned())
-        ),
-    };
-    Ok((shape, contact, name))
-}
-
 /// Checks a force arrow scale.
 pub(crate) fn check_force_scale(scale: f64) -> Result<f64> {
     if !(scale.is_finite() && scale > 0.0) {
@@ -118,33 +156,13 @@ pub(crate) fn check_force_scale(scale: f64) -> Result<f64> {
 }
 
 pub(crate) fn run(args: RunArgs) -> Result<()> {
-    match args.contact {
-        ContactMethod::Dgcnn => {
-            for (given, flag) in [
-                (args.material.is_some(), "--material"),
-                (args.physics_config.is_some(), "--physics-config"),
-                (args.force_scale.is_some(), "--force-scale"),
-            ] {
-                if given {
-                    bail!("{flag} is for --contact physics");
-                }
-            }
-        }
-        ContactMethod::Physics => {
-            for (given, flag) in [
-                (args.model.is_some(), "--model"),
-                (args.iterations.is_some(), "--iterations"),
-                (args.warm_start, "--warm-start"),
-            ] {
-                if given {
-                    bail!(
-                        "{flag} is for --contact dgcnn (SR-ARAP and the network); the physics \
-                         estimator makes the shape itself and has no network"
-                    );
-                }
-            }
-        }
-    }
+    args.estimator.check(
+        &[
+            (args.iterations.is_some(), "--iterations"),
+            (args.warm_start, "--warm-start"),
+        ],
+        &[(args.force_scale.is_some(), "--force-scale")],
+    )?;
     let force_scale = check_force_scale(args.force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N))?;
     let config: DetectorConfig = match &args.config {
         Some(path) => moe_io::read_config(path)?,
@@ -164,9 +182,10 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
     let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
         .with_context(|| format!("the camera of {}", args.episode.display()))?;
-    match args.contact {
+    match args.estimator.contact {
         ContactMethod::Dgcnn => {
             let model_path = args
+                .estimator
                 .model
                 .clone()
                 .unwrap_or_else(|| PathBuf::from(DEFAULT_MODEL));
@@ -187,11 +206,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             finish(&args, pipeline, None, &episode, cut, &model_name, None)
         }
         ContactMethod::Physics => {
-            let (shape, contact, name) = physics_stages(
-                &hand,
-                args.material.as_deref(),
-                args.physics_config.as_deref(),
-            )?;
+            let (shape, contact, name) = args.estimator.physics_stages(&hand)?;
             let stage = contact.clone();
             let pipeline = Pipeline::new(hand, detector, shape, contact, PHYSICS_THRESHOLD)?;
             finish(
