@@ -184,16 +184,27 @@ pub(crate) fn run(args: &ObservabilityEvalArgs) -> Result<()> {
         frames: 1,
     };
     one.validate()?;
-    let many = BoundOptions {
-        frames: args.frames as usize,
+    let held_frames = args.frames as usize;
+    BoundOptions {
+        frames: held_frames,
         ..one.clone()
-    };
+    }
+    .validate()?;
     let mut layouts = Vec::new();
     let mut summaries = Vec::new();
     for layout in MarkerLayoutPreset::ALL {
         let single = layout_bounds(layout, &one)?;
         summaries.push(single.summary(1));
-        summaries.push(layout_bounds(layout, &many)?.summary(many.frames));
+        let held = LayoutBounds {
+            layout,
+            finger: single.finger.clone(),
+            bounds: single
+                .bounds
+                .iter()
+                .map(|b| b.over_frames(args.frames as usize))
+                .collect(),
+        };
+        summaries.push(held.summary(held_frames));
         eprintln!("eval observability: {layout} done");
         layouts.push(single);
     }
@@ -555,6 +566,16 @@ mod tests {
                 // ill-conditioned next to the clamped base.
                 let ratio = x1 / x5;
                 assert!((ratio / 5f64.sqrt() - 1.0).abs() < 1e-4, "{ratio}");
+            }
+            // What the study reports for five frames, scaled without solving again.
+            let scaled = a.over_frames(5);
+            assert_eq!(scaled.vertex, b.vertex);
+            for (s5, x5) in [
+                (scaled.along_m, b.along_m),
+                (scaled.around_m, b.around_m),
+                (scaled.force_sd_n, b.force_sd_n),
+            ] {
+                assert!((s5 / x5 - 1.0).abs() < 1e-4, "{s5} vs {x5}");
             }
         }
         // More markers around the finger: two rows locate a press around it better.

@@ -24,6 +24,10 @@ pub struct PhysicsObservation<'a> {
     pub time_secs: Option<Real>,
 }
 
+/// The contact probability at or above which a vertex is in contact: where the logistic of the
+/// likelihood-ratio statistic crosses one half, at the detection threshold itself.
+pub const CONTACT_THRESHOLD: Real = 0.5;
+
 /// A load the estimator found, hand frame.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ContactLoad {

@@ -56,7 +56,8 @@ pub use calibration::{CalibrationFrame, CalibrationOptions, CalibrationReport, c
 pub use config::{HandMaterial, HandSignature, PhysicsConfig};
 pub use error::PhysicsError;
 pub use estimator::{
-    ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator, PhysicsObservation,
+    CONTACT_THRESHOLD, ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator,
+    PhysicsObservation,
 };
 pub use observability::{
     BOUND_REGIONS, BoundOptions, PlaceBound, RegionBound, Spread, quantile, region_bounds,

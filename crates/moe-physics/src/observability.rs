@@ -78,6 +78,22 @@ pub struct PlaceBound {
     pub force_sd_n: Real,
 }
 
+impl PlaceBound {
+    /// The bound over `frames` independent frames of the same held press: their Fisher
+    /// information adds up, so every standard deviation shrinks by √frames (what
+    /// [`BoundOptions::frames`] gives, without solving again).
+    #[must_use]
+    pub fn over_frames(&self, frames: usize) -> Self {
+        let k = (frames.max(1) as Real).sqrt();
+        Self {
+            along_m: self.along_m / k,
+            around_m: self.around_m / k,
+            force_sd_n: self.force_sd_n / k,
+            ..self.clone()
+        }
+    }
+}
+
 impl PhysicsEstimator {
     /// The Cramér–Rao bound of a press at every place of finger `finger` that can move: the
     /// model linearised at the finger's static shape under `pulls` and gravity, every marker of

@@ -518,7 +518,7 @@ pub fn evaluate_physics(
         })?;
         times.push(start.elapsed().as_secs_f64() * 1e3);
         failed += est.fingers.iter().filter(|f| f.error.is_some()).count() as u64;
-        let physics_labels = labels_at(&est.contact.fingers, 0.5);
+        let physics_labels = labels_at(&est.contact.fingers, moe_physics::CONTACT_THRESHOLD);
         physics.add(&frame.shape, &frame.contact, &physics_labels)?;
         physics_bcd += bcd_of(&est.shape, &frame.shape)?;
         for f in 0..hand.num_fingers() {
@@ -682,7 +682,7 @@ pub fn evaluate_plates_physics(
                 physics.add(
                     &frame.shape,
                     &frame.contact,
-                    &labels_at(&est.contact.fingers, 0.5),
+                    &labels_at(&est.contact.fingers, moe_physics::CONTACT_THRESHOLD),
                 )?;
                 if let Some(d) = dgcnn {
                     let p = d.estimate_map(&ContactInput::of_frame(frame, &est.shape))?;

@@ -652,7 +652,7 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
              metres; 0,0,0,0;0,0,0,0 for a two-finger hand at rest)"
         );
     };
-    let threshold = check_threshold(args.threshold.unwrap_or(0.5))?;
+    let threshold = check_threshold(args.threshold.unwrap_or(moe_physics::CONTACT_THRESHOLD))?;
     let hand = super::load_hand(hand_spec)?;
     let keypoints = read_keypoints(kp_path, &hand)?;
     let pulls = hand_tendon_pulls(pulls_text, &hand)?;

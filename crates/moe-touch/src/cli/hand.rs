@@ -312,8 +312,8 @@ fn finger_bound(
 /// `bound_around_mm`, `bound_force_sd_n` (0 on the vertices fixed to the palm, which no press
 /// moves; infinite bounds written as [`MAP_CAP_MM`] mm, or as many newtons), `movable` (1 or
 /// 0) and `marker` (1 on marker vertices), and colours: the along bound on a log ramp from
-/// 0.5 mm (dark blue) to 50 mm and beyond (yellow), as `cargo xtask eval observability`'s
-/// figure, markers black, fixed vertices grey.
+/// 0.5 mm (dark blue) to 50 mm and beyond (yellow) (a fixed range, unlike `cargo xtask eval
+/// observability`'s figure, whose range follows the data), markers black, fixed vertices grey.
 fn bound_map(mesh: &TriMesh, markers: &[u32], bounds: &[PlaceBound]) -> moe_io::PlyData {
     let n = mesh.num_vertices();
     let cap = |v: Real| {

@@ -23,7 +23,7 @@ use super::ContactMethod;
 pub(crate) const DEFAULT_MODEL: &str = "models/contact-two-finger.safetensors";
 
 /// The contact threshold of the physics estimator's probabilities.
-pub(crate) const PHYSICS_THRESHOLD: f64 = 0.5;
+pub(crate) const PHYSICS_THRESHOLD: f64 = moe_physics::CONTACT_THRESHOLD;
 
 /// How the shape and the contact are estimated: the options `run` and `demo` share.
 #[derive(Debug, Args)]
