@@ -1183,7 +1183,11 @@ impl FingerInverse {
         lin.r.clear();
         // One press in a stream is remembered; two, or none, are not.
         self.place_memory = match posteriors.pop() {
-            Some(p) if posteriors.is_empty() && !p.is_empty() => Some(p),
+            Some(p)
+                if self.config.place_memory_m > 0.0 && posteriors.is_empty() && !p.is_empty() =>
+            {
+                Some(p)
+            }
             _ => None,
         };
         self.tracked = Some(Tracked {
@@ -1327,8 +1331,9 @@ impl FingerInverse {
     }
 
     /// Posterior standard deviations of load `k`'s place along the finger's axis and around
-    /// it: every candidate weighted by its area and the likelihood of its best single load for
-    /// the residual the other loads leave.
+    /// it: every candidate weighted by its prior (its area, or the remembered place's
+    /// [`Self::propagate`]) and the likelihood of its best single load for the residual the
+    /// other loads leave; also the place ([`Self::local_place`]) and the normalised posterior.
     fn location_spread(
         &self,
         lin: &Linear,

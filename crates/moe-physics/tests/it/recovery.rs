@@ -192,8 +192,9 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
         place_memory_m: 0.003,
         ..PhysicsConfig::default()
     };
-    // The places of 8 frames 50 ms apart; the scatter: mean distance from their mean.
-    let places = |config: &PhysicsConfig| {
+    // The places of 8 frames `spacing` seconds apart; the scatter: mean distance from their
+    // mean.
+    let places_every = |config: &PhysicsConfig, spacing: Real| {
         let mut est = estimator(config);
         let mut rng = moe_geom::SeededRng::new(7);
         let mut out = Vec::new();
@@ -204,7 +205,7 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
                     keypoints: &kp,
                     tendon_pull_m: &pulls,
                     world_from_hand: &pose,
-                    time_secs: Some(0.05 * k as Real),
+                    time_secs: Some(spacing * k as Real),
                 })
                 .unwrap();
             if let Some(l) = e.loads.iter().find(|l| l.finger == 0) {
@@ -218,6 +219,7 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
             p.iter().map(|q| q.coords).sum::<moe_geom::Vector3>() / p.len() as Real;
         p.iter().map(|q| (q.coords - mean).norm()).sum::<Real>() / p.len() as Real
     };
+    let places = |config: &PhysicsConfig| places_every(config, 0.05);
     let (without, with) = (places(&PhysicsConfig::default()), places(&memory));
     assert!(
         without.len() >= 6 && with.len() >= 6,
@@ -231,9 +233,12 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
     );
     assert!(s1 < s0, "memory: {s1} m, none: {s0} m");
 
-    // A lone observation (no time) has no stream: memory changes nothing.
-    let lone = |config: &PhysicsConfig| observe(&mut estimator(config), &keypoints, &pulls).loads;
-    assert_eq!(lone(&memory), lone(&PhysicsConfig::default()));
+    // Frames further apart than the stream's horizon are no stream: memory changes nothing.
+    let apart = 2.0 * PhysicsConfig::default().stream_horizon_secs;
+    assert_eq!(
+        places_every(&memory, apart),
+        places_every(&PhysicsConfig::default(), apart)
+    );
     // After a stream, reset makes the next estimate a fresh estimator's, bit for bit.
     let mut est = estimator(&memory);
     let mut rng = moe_geom::SeededRng::new(3);
