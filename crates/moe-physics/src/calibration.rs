@@ -80,17 +80,21 @@ struct Problem<'a> {
     fingers: Vec<FingerInverse>,
     streams: &'a [Vec<CalibrationFrame>],
     initial: HandMaterial,
+    /// Whether β is fitted (else the initial material's is kept).
+    fit_damping: bool,
     /// Gravity in the world frame, m/s².
     gravity: Vector3,
     evaluations: usize,
 }
 
 impl Problem<'_> {
-    /// Material at `(log E, log β)`.
+    /// Material at `(log E, log β)` (β the initial material's when it is not fitted).
     fn material(&self, p: &[Real; 2]) -> HandMaterial {
         let mut m = self.initial.clone();
         m.material.youngs_modulus_pa = p[0].exp();
-        m.material.rayleigh_stiffness = p[1].exp();
+        if self.fit_damping {
+            m.material.rayleigh_stiffness = p[1].exp();
+        }
         m
     }
 
@@ -171,6 +175,7 @@ pub fn calibrate(
         fingers,
         streams,
         initial: initial.clone(),
+        fit_damping: options.fit_damping,
         gravity: Vector3::from(config.gravity_m_s2),
         evaluations: 0,
     };
@@ -206,9 +211,6 @@ pub fn calibrate(
         Real::INFINITY
     };
     let mut material = problem.material(&best);
-    if !options.fit_damping {
-        material.material.rayleigh_stiffness = initial.material.rayleigh_stiffness;
-    }
     material.hand = Some(crate::config::HandSignature::of(hand));
     Ok(CalibrationReport {
         material,
