@@ -499,8 +499,7 @@ pub(crate) fn golden_physics() -> Result<serde_json::Value> {
         o.remove("physics_ms_median");
         o.remove("physics_ms_p90");
     }
-    // The loads frame by frame, from a fresh estimator over the same streams.
-    estimator.reset();
+    // The loads frame by frame, the estimator reset at each trajectory as above.
     let mut per_frame = Vec::with_capacity(frames.len());
     let mut previous = None;
     for sf in &frames {

@@ -73,6 +73,11 @@ fn calibration_recovers_a_stiffer_hand_within_five_percent() {
         "fitted E {e} Pa for a hand of 125 kPa"
     );
     assert!(report.rms_fitted_m < report.rms_initial_m);
+    // Not fitted, the damping is the initial material's, exactly.
+    assert_eq!(
+        report.material.material.rayleigh_stiffness,
+        HandMaterial::default().material.rayleigh_stiffness
+    );
 }
 
 #[test]
