@@ -346,6 +346,7 @@ fn physics_rows(
         moe_touch::physics_eval::Comparison {
             dgcnn: Some(dgcnn),
             shape: &shape,
+            forget_between_frames: false,
         },
     )?;
     let plates = if args.trials > 0 {

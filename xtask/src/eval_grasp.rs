@@ -33,6 +33,10 @@ pub(crate) struct GraspEvalArgs {
     /// Seed of the camera noise.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// The pipeline's contact estimation: `physics` (the default, as `moe-touch run`) or
+    /// `dgcnn` (the paper's: SR-ARAP and the contact model).
+    #[arg(long, value_enum, default_value = "physics")]
+    contact: GraspMethod,
     /// Fit the plane to the simulator's own contacts instead of the pipeline's (the upper bound
     /// a perfect contact estimator reaches).
     #[arg(long, conflicts_with = "true_labels")]
@@ -94,10 +98,21 @@ fn write_trial(dir: &Path, trial: &GraspTrial) -> Result<()> {
     Ok(())
 }
 
+/// The pipeline's contact estimation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum GraspMethod {
+    /// The physics estimator.
+    Physics,
+    /// SR-ARAP and the DGCNN.
+    Dgcnn,
+}
+
 /// Where the plane's points come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Source {
-    /// The pipeline's contacts.
+    /// The pipeline's contacts with the physics estimator.
+    Physics,
+    /// The pipeline's contacts with SR-ARAP and the DGCNN.
     Pipeline,
     /// The simulator's labels on the pipeline's shape.
     TrueLabels,
@@ -108,6 +123,7 @@ enum Source {
 impl Source {
     fn name(self) -> &'static str {
         match self {
+            Self::Physics => "physics",
             Self::Pipeline => "pipeline",
             Self::TrueLabels => "true-labels",
             Self::TrueContacts => "true-contacts",
@@ -130,13 +146,23 @@ fn evaluate(
     options.ransac.validate().context("--plane-threshold")?;
     let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
     let estimator = load_contact_model(&workspace_root().join(model), &hand)?;
-    let threshold = threshold.unwrap_or_else(|| estimator.threshold());
+    if source == Source::Physics && threshold.is_some() {
+        anyhow::bail!("--threshold is for --contact dgcnn");
+    }
+    let threshold = match source {
+        Source::Physics => moe_physics::CONTACT_THRESHOLD,
+        _ => threshold.unwrap_or_else(|| estimator.threshold()),
+    };
     let mut rows = Vec::new();
     for (incline, paper_with, paper_without) in INCLINES {
         let t = std::time::Instant::now();
         let results: Vec<GraspTrial> = (0..trials)
             .map(|k| {
                 let contacts = match source {
+                    Source::Physics => GraspContacts::Physics {
+                        material: moe_physics::HandMaterial::default(),
+                        config: moe_physics::PhysicsConfig::default(),
+                    },
                     Source::Pipeline => GraspContacts::Pipeline {
                         contact: &estimator,
                         threshold,
@@ -274,7 +300,10 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     } else if args.true_labels {
         Source::TrueLabels
     } else {
-        Source::Pipeline
+        match args.contact {
+            GraspMethod::Physics => Source::Physics,
+            GraspMethod::Dgcnn => Source::Pipeline,
+        }
     };
     let mut options = GraspOptions {
         refinements: usize::try_from(args.refinements)?,

@@ -31,7 +31,7 @@ use moe_touch::patting::{
 };
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::{Pipeline, TouchError};
+use moe_touch::{PhysicsPipeline, Pipeline, TouchError};
 use serde::Serialize;
 use serde_json::{Value, json};
 
@@ -160,9 +160,13 @@ struct PairReport {
     pats: usize,
     dgcnn: ContactResult,
     knn_all: ContactResult,
+    /// The physics estimator (the pipeline's default), each pat from rest.
+    physics: ContactResult,
     truth: ContactResult,
     /// Table 3 from the DGCNN's contacts (`None` when it estimated none).
     surfaces_estimated: Option<SceneReport>,
+    /// Table 3 from the physics estimator's contacts (`None` when it estimated none).
+    surfaces_physics: Option<SceneReport>,
     /// Table 3 from the simulator's contacts.
     surfaces_true: SceneReport,
 }
@@ -186,12 +190,20 @@ fn spread(values: impl Iterator<Item = Option<Real>>) -> Option<Spread> {
 /// The methods of Table 3, in report order.
 const METHODS: [&str; 4] = ["gp_prior", "gp_sphere", "nonprob", "prior"];
 
-fn method_spread(pairs: &[PairReport], estimated: bool, method: &str) -> Option<Spread> {
+/// Which contacts a surface of Table 3 was made from.
+#[derive(Debug, Clone, Copy)]
+enum SurfaceSource {
+    Dgcnn,
+    Physics,
+    True,
+}
+
+fn method_spread(pairs: &[PairReport], source: SurfaceSource, method: &str) -> Option<Spread> {
     spread(pairs.iter().map(|p| {
-        let report = if estimated {
-            p.surfaces_estimated.as_ref()
-        } else {
-            Some(&p.surfaces_true)
+        let report = match source {
+            SurfaceSource::Dgcnn => p.surfaces_estimated.as_ref(),
+            SurfaceSource::Physics => p.surfaces_physics.as_ref(),
+            SurfaceSource::True => Some(&p.surfaces_true),
         };
         report
             .and_then(|r| r.method(method))
@@ -204,19 +216,26 @@ fn summary(pairs: &[PairReport]) -> Value {
     let table2 = json!({
         "dgcnn_ucd_mm": spread(pairs.iter().map(|p| p.dgcnn.ucd_mm)),
         "knn_all_ucd_mm": spread(pairs.iter().map(|p| p.knn_all.ucd_mm)),
+        "physics_ucd_mm": spread(pairs.iter().map(|p| p.physics.ucd_mm)),
+        "physics_pats_without_contact": pairs.iter().map(|p| p.physics.pats_without_contact).sum::<usize>(),
         "true_contacts_ucd_mm": spread(pairs.iter().map(|p| p.truth.ucd_mm)),
         "dgcnn_pats_without_contact": pairs.iter().map(|p| p.dgcnn.pats_without_contact).sum::<usize>(),
         "knn_all_pats_without_contact": pairs.iter().map(|p| p.knn_all.pats_without_contact).sum::<usize>(),
         "pats": pairs.iter().map(|p| p.pats).sum::<usize>(),
     });
-    let table3 = |estimated: bool| -> Value {
+    let table3 = |source: SurfaceSource| -> Value {
         METHODS
             .iter()
-            .map(|m| ((*m).to_owned(), json!(method_spread(pairs, estimated, m))))
+            .map(|m| ((*m).to_owned(), json!(method_spread(pairs, source, m))))
             .collect::<serde_json::Map<String, Value>>()
             .into()
     };
-    json!({ "table2": table2, "table3_estimated": table3(true), "table3_true_contacts": table3(false) })
+    json!({
+        "table2": table2,
+        "table3_estimated": table3(SurfaceSource::Dgcnn),
+        "table3_physics": table3(SurfaceSource::Physics),
+        "table3_true_contacts": table3(SurfaceSource::True),
+    })
 }
 
 fn reconstruct_options(size: Size) -> ReconstructOptions {
@@ -292,6 +311,16 @@ fn evaluate_pair(
     let threshold = dgcnn.threshold();
     let dgcnn_contacts = contacts_with(hand, &episode, dgcnn, threshold)?;
     let knn_contacts = contacts_with(hand, &episode, knn, 0.5)?;
+    let physics_contacts = {
+        let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
+        let mut pipeline = PhysicsPipeline::physics(
+            hand.clone(),
+            detector,
+            &moe_physics::HandMaterial::default(),
+            &moe_physics::PhysicsConfig::default(),
+        )?;
+        estimate_pat_contacts(&mut pipeline, &episode)?
+    };
     let true_contacts = true_pat_contacts(&episode);
     let prior_level = match size {
         Size::Full => 5,
@@ -315,6 +344,10 @@ fn evaluate_pair(
     put(
         "contacts_knn_all",
         &PlyData::from_points(&knn_contacts.points_in_world),
+    )?;
+    put(
+        "contacts_physics",
+        &PlyData::from_points(&physics_contacts.points_in_world),
     )?;
     put(
         "contacts_true",
@@ -356,6 +389,7 @@ fn evaluate_pair(
             Ok(Some(report))
         };
     let surfaces_estimated = surfaces(&dgcnn_contacts, "estimated", args.estimated_noise_floor)?;
+    let surfaces_physics = surfaces(&physics_contacts, "physics", args.estimated_noise_floor)?;
     let surfaces_true = surfaces(&true_contacts, "true_contacts", 0.0)?
         .context("the simulated pats touched nothing")?;
     eprintln!(
@@ -369,8 +403,10 @@ fn evaluate_pair(
         pats,
         dgcnn: contact_result(&dgcnn_contacts, &episode)?,
         knn_all: contact_result(&knn_contacts, &episode)?,
+        physics: contact_result(&physics_contacts, &episode)?,
         truth: contact_result(&true_contacts, &episode)?,
         surfaces_estimated,
+        surfaces_physics,
         surfaces_true,
     })
 }
@@ -467,15 +503,21 @@ fn print_tables(v: &Value) {
             fmt(&t2["knn_all_ucd_mm"]),
             t2["knn_all_pats_without_contact"]
         );
+        println!(
+            "    physics    {}  ({} pats without contact)",
+            fmt(&t2["physics_ucd_mm"]),
+            t2["physics_pats_without_contact"]
+        );
         println!("    true contacts {}", fmt(&t2["true_contacts_ucd_mm"]));
         println!(
-            "  Table 3, surface to the true surface (UCD mm): from DGCNN contacts | from true contacts | paper"
+            "  Table 3, surface to the true surface (UCD mm): from DGCNN contacts | from physics contacts | from true contacts | paper"
         );
         for (i, m) in METHODS.iter().enumerate() {
             let p = paper_t3.map_or("—".to_owned(), |p| format!("{:.2}", p[i]));
             println!(
-                "    {m:<10} {}   {}   {p}",
+                "    {m:<10} {}   {}   {}   {p}",
                 fmt(&s["table3_estimated"][m]),
+                fmt(&s["table3_physics"][m]),
                 fmt(&s["table3_true_contacts"][m])
             );
         }

@@ -78,6 +78,10 @@ pub(crate) struct PhysicsEvalArgs {
     /// (with `--model`) the DGCNN on its shapes; UCD predicted → true per region. 0 skips it.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u64).range(0..=100))]
     plates: u64,
+    /// Every frame on its own (the estimator reset before each frame): Table 1 without memory
+    /// across frames.
+    #[arg(long)]
+    no_memory: bool,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
@@ -282,6 +286,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
         Comparison {
             dgcnn: dgcnn.as_ref(),
             shape: &shape,
+            forget_between_frames: args.no_memory,
         },
     )?;
     let plates = if args.plates > 0 {
@@ -465,6 +470,24 @@ pub(crate) fn table(e: &PhysicsEvaluation) -> String {
             "summed magnitudes (an old data set)"
         }
     );
+    let t = &e.stream;
+    let _ = writeln!(
+        s,
+        "presses (runs of contact frames of a finger): {}; detected in their first frame: {} \
+         ({:.1} %), after {:.2} frames on average; held frames after detection dropped: {} of {} \
+         ({:.1} %, {} presses flicker); releases still reported: {} of {} ({:.1} %)",
+        t.presses,
+        t.onset_detected,
+        100.0 * t.onset_detected as Real / t.presses.max(1) as Real,
+        t.onset_delay_frames_mean,
+        t.held_frames_dropped,
+        t.held_frames,
+        100.0 * t.held_frames_dropped as Real / t.held_frames.max(1) as Real,
+        t.presses_with_flicker,
+        t.release_false_alarms,
+        t.releases,
+        100.0 * t.release_false_alarms as Real / t.releases.max(1) as Real,
+    );
     s
 }
 
@@ -474,15 +497,27 @@ pub(crate) fn table(e: &PhysicsEvaluation) -> String {
 /// loads (finger, vertex, force) and every finger's statistic.
 pub(crate) fn golden_physics() -> Result<serde_json::Value> {
     let root = crate::ci::workspace_root();
+    let config: PhysicsConfig =
+        moe_io::read_config(&root.join("fixtures/physics/exact-markers.toml"))?;
+    golden_physics_with(&config)
+}
+
+/// Golden physics stage with the default settings (those of the pipeline, for detected
+/// markers) on the same frames.
+pub(crate) fn golden_physics_default() -> Result<serde_json::Value> {
+    golden_physics_with(&PhysicsConfig::default())
+}
+
+/// The golden content of the physics estimator with `config` on the held-out frames.
+fn golden_physics_with(config: &PhysicsConfig) -> Result<serde_json::Value> {
+    let root = crate::ci::workspace_root();
     let Streams { hand, frames, .. } = dataset_streams(
         &root.join(crate::eval_contact::HELDOUT_DIR),
         None,
         None,
         None,
     )?;
-    let config: PhysicsConfig =
-        moe_io::read_config(&root.join("fixtures/physics/exact-markers.toml"))?;
-    let mut estimator = PhysicsEstimator::new(&hand, &HandMaterial::default(), &config)?;
+    let mut estimator = PhysicsEstimator::new(&hand, &HandMaterial::default(), config)?;
     let shape = ShapeConfig::default();
     let eval = evaluate_physics(
         &hand,
@@ -492,6 +527,7 @@ pub(crate) fn golden_physics() -> Result<serde_json::Value> {
         Comparison {
             dgcnn: None,
             shape: &shape,
+            forget_between_frames: false,
         },
     )?;
     let mut value = serde_json::to_value(&eval)?;

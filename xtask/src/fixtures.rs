@@ -64,6 +64,11 @@ const FIXTURES: &[Fixture] = &[
         tolerance: 1e-4,
     },
     Fixture {
+        path: "fixtures/golden/physics_default_heldout_small.json",
+        generate: crate::eval_physics::golden_physics_default,
+        tolerance: 1e-4,
+    },
+    Fixture {
         path: "fixtures/golden/eval_patting_small.json",
         generate: crate::eval_patting::patting_fixture,
         tolerance: 1e-3,

@@ -150,6 +150,19 @@ pub struct PhysicsConfig {
     /// default) forgets: each observation is placed on its own. Measured in the README: it
     /// helps markers with independent noise, not markers detected in camera frames.
     pub place_memory_m: Real,
+    /// Memory of whether a finger is pressed across a stream, seconds: the time over which a
+    /// press's belief fades to even odds. With it, a finger pressed in the previous
+    /// observation keeps a prior belief of being pressed (`exp(−Δt/τ)` of it), so a held press
+    /// whose evidence dips below the threshold for a frame is still reported (no flicker),
+    /// while a free finger's prior stays at even odds (onsets are found as without memory).
+    /// 0 (the default) decides each observation on its own. Measured in the README.
+    pub press_hold_secs: Real,
+    /// A marker that the best fit leaves more than this many `marker_sigma_m` from its
+    /// observation is taken for a misidentified one (a blob assigned to the wrong marker, the
+    /// rest of a marker hidden by the object) and left out of the frame's fit, which is then
+    /// searched again; one per observation. 0 turns it off. Default 8 (2.4 mm with the default
+    /// noise; measured in the README).
+    pub outlier_sigma: Real,
     /// Most Gauss–Newton iterations (search, loaded solve, re-linearisation) per frame.
     /// Default 4.
     pub gauss_newton_iterations: usize,
@@ -193,6 +206,8 @@ impl Default for PhysicsConfig {
             contact_radius_m: 0.006,
             place_radius_m: 0.0,
             place_memory_m: 0.0,
+            press_hold_secs: 0.0,
+            outlier_sigma: 8.0,
             gauss_newton_iterations: 4,
             force_tolerance: 0.02,
             min_markers: 3,
@@ -240,6 +255,8 @@ impl PhysicsConfig {
             ("contact_lag_gain", self.contact_lag_gain),
             ("place_radius_m", self.place_radius_m),
             ("place_memory_m", self.place_memory_m),
+            ("press_hold_secs", self.press_hold_secs),
+            ("outlier_sigma", self.outlier_sigma),
             ("force_tolerance", self.force_tolerance),
         ] {
             if !(v.is_finite() && v >= 0.0) {

@@ -3,6 +3,7 @@
 use moe_geom::{
     ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3, WorldFromHand,
 };
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::config::{HandMaterial, PhysicsConfig};
@@ -167,6 +168,9 @@ pub(crate) fn check_observation(
     Ok(())
 }
 
+/// One finger's observed markers (finger frame) and its estimate.
+type FingerResult = (Vec<Option<Point3>>, Result<FingerEstimate, PhysicsError>);
+
 /// The physics estimator of a hand: per finger, the loads that explain its markers through its
 /// FEM model, and the shape they produce.
 #[derive(Debug)]
@@ -260,22 +264,37 @@ impl PhysicsEstimator {
         let world_from_hand: Iso3 = *obs.world_from_hand.iso();
         let gravity_in_hand =
             world_from_hand.inverse_transform_vector(&Vector3::from(self.config.gravity_m_s2));
-        for (f, hf) in self.hand.fingers().iter().enumerate() {
+        // The fingers are independent: each is estimated on its own thread (the results are
+        // those of a sequential loop, bit for bit), then gathered in finger order.
+        let hand = &self.hand;
+        let results: Vec<FingerResult> = self
+            .fingers
+            .par_iter_mut()
+            .enumerate()
+            .map(|(f, inverse)| {
+                let hf = &hand.fingers()[f];
+                let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
+                let finger_from_hand = hand_from_finger.inverse();
+                let markers: Vec<Option<Point3>> = keypoints.fingers[f]
+                    .iter()
+                    .map(|m| m.map(|p| finger_from_hand * p))
+                    .collect();
+                let fobs = FingerObservation {
+                    markers: &markers,
+                    gravity: finger_from_hand * gravity_in_hand,
+                    world_from_finger: world_from_hand * hand_from_finger,
+                    pulls: &pulls[f],
+                    time_secs: obs.time_secs,
+                };
+                let est = inverse.estimate(&fobs);
+                (markers, est)
+            })
+            .collect();
+        for (f, (markers, result)) in results.into_iter().enumerate() {
+            let hf = &self.hand.fingers()[f];
             let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
-            let finger_from_hand = hand_from_finger.inverse();
-            let markers: Vec<Option<Point3>> = keypoints.fingers[f]
-                .iter()
-                .map(|m| m.map(|p| finger_from_hand * p))
-                .collect();
-            let fobs = FingerObservation {
-                markers: &markers,
-                gravity: finger_from_hand * gravity_in_hand,
-                world_from_finger: world_from_hand * hand_from_finger,
-                pulls: &pulls[f],
-                time_secs: obs.time_secs,
-            };
             let nv = hf.model.mesh().num_vertices();
-            match self.fingers[f].estimate(&fobs) {
+            match result {
                 Ok(est) => self.push_finger(&mut out, f, &hand_from_finger, hf, est),
                 Err(e) => {
                     out.shape.fingers.push(self.hand.rest_vertices_in_hand(f));

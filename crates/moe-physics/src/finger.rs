@@ -220,6 +220,9 @@ pub(crate) struct FingerInverse {
     place_memory: Option<Vec<Real>>,
     /// This observation's prior over the candidates (normalised), when memory applies.
     place_prior: Option<Vec<Real>>,
+    /// The previous observation's time and the belief then that the finger was pressed, for
+    /// `press_hold_secs`.
+    press_belief: Option<(Real, Real)>,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -344,6 +347,7 @@ impl FingerInverse {
             previous_residual: None,
             place_memory: None,
             place_prior: None,
+            press_belief: None,
         })
     }
 
@@ -384,6 +388,25 @@ impl FingerInverse {
         self.previous_residual = None;
         self.place_memory = None;
         self.place_prior = None;
+        self.press_belief = None;
+    }
+
+    /// The log-odds, before this observation's evidence, that the finger is pressed: even odds
+    /// without memory or at a stream's first observation. In a stream with `press_hold_secs`
+    /// τ, a press believed with probability `p` at the previous observation persists over `Δt`
+    /// with probability `a = exp(−Δt/τ)` and is otherwise as likely as not, and a free finger
+    /// may be pressed at any observation as likely as not (onsets are not delayed):
+    /// `p·(a + (1 − a)/2) + (1 − p)/2 = 1/2 + p·a/2`.
+    fn press_prior_logit(&self, obs: &FingerObservation<'_>, stream: bool) -> Real {
+        let tau = self.config.press_hold_secs;
+        match (self.press_belief, obs.time_secs) {
+            (Some((t0, p)), Some(t)) if tau > 0.0 && stream && t > t0 => {
+                let a = (-(t - t0) / tau).exp();
+                let prior = (0.5 + 0.5 * p * a).min(1.0 - 1e-12);
+                (prior / (1.0 - prior)).ln()
+            }
+            _ => 0.0,
+        }
     }
 
     /// The prior over the candidates of a press in this observation from the previous one's
@@ -629,6 +652,26 @@ impl FingerInverse {
             .zip(&self.markers)
             .filter_map(|(m, &v)| m.map(|p| (p - self.mech.surface_position(x, v)).norm_squared()))
             .sum()
+    }
+
+    /// The marker (slot) that nodes `x` leave furthest from its observation, when that is more
+    /// than `outlier_sigma` standard deviations and a marker can be spared (`observed` above
+    /// the fewest the estimator works with).
+    fn outlier(&self, x: &[Point3], markers: &[Option<Point3>], observed: usize) -> Option<usize> {
+        let limit = self.config.outlier_sigma * self.config.marker_sigma_m;
+        if limit.is_nan() || limit <= 0.0 || observed <= self.config.min_markers {
+            return None;
+        }
+        markers
+            .iter()
+            .zip(&self.markers)
+            .enumerate()
+            .filter_map(|(slot, (m, &v))| {
+                m.map(|p| (slot, (p - self.mech.surface_position(x, v)).norm()))
+            })
+            .filter(|&(_, d)| d > limit)
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(slot, _)| slot)
     }
 
     /// The linear model about nodes `x` where `loads` act.
@@ -1067,9 +1110,19 @@ impl FingerInverse {
             observed_markers: observed,
             solves,
         };
-        // Nothing to explain: no load can pass the test.
-        if chi0 / sigma2 < self.config.detection_chi2 {
+        // The belief that the finger is pressed, before this observation's evidence (even odds
+        // without memory); the evidence is the statistic against the detection threshold.
+        let prior_logit = self.press_prior_logit(obs, free.dynamic);
+        let threshold = self.config.detection_chi2;
+        let belief =
+            move |statistic: Real| logistic(prior_logit + (statistic - threshold) / EVIDENCE_SCALE);
+        let remember = |this: &mut Self, p: Real| {
+            this.press_belief = obs.time_secs.map(|t| (t, p));
+        };
+        // Nothing to explain: no load can pass the test (χ² of no load bounds the statistic).
+        if belief(chi0 / sigma2) < 0.5 {
             self.tracked = None;
+            remember(self, belief(chi0 / sigma2));
             return Ok(free_estimate(self, solves));
         }
         // The loads act on the static model: the markers are moved by the free finger's lag
@@ -1128,19 +1181,54 @@ impl FingerInverse {
                 lin = other_lin;
             }
         }
+        // A marker the best fit leaves far off — a blob taken for the wrong marker; no load of
+        // the model moves one marker millimetres away from where its neighbours put it — is
+        // left out, and the loads are searched again from the free shape without it.
+        let (chi0, observed, n_obs, state, lin) =
+            match self.outlier(&state.x, &static_markers, observed) {
+                Some(worst) => {
+                    let mut kept = static_markers.clone();
+                    kept[worst] = None;
+                    let chi0 = self.marker_residual_sq(&x_static, &kept);
+                    let fresh = Solved {
+                        x: x_static.clone(),
+                        loads: Vec::new(),
+                        chi: chi0,
+                    };
+                    let kobs = FingerObservation {
+                        markers: &kept,
+                        ..*obs
+                    };
+                    let (state, lin) = self.search_loads(&kobs, fresh, &mut solves)?;
+                    (chi0, observed - 1, n_obs - 3.0, state, lin)
+                }
+                None => (chi0, observed, n_obs, state, lin),
+            };
+        let mut lin = lin;
         // A second load that no longer pays its way is dropped by the test above; a pair
         // carried from the previous frame is kept while each load carries the minimum force.
         let statistic = (chi0 - state.chi) / sigma2;
         let total_force: Real = state.loads.iter().map(|l| l.1.norm()).sum();
-        let pressed =
-            statistic >= self.config.detection_chi2 && total_force >= self.config.min_force_n;
+        let pressed_probability = belief(statistic);
+        // The force floor guards onsets against tiny fits; a press held from the previous
+        // observation (memory) is followed down to any force.
+        let floor = if prior_logit > 0.0 {
+            0.0
+        } else {
+            self.config.min_force_n
+        };
+        let pressed = pressed_probability >= 0.5 && total_force > 0.0 && total_force >= floor;
         if !pressed {
             self.tracked = None;
+            remember(self, pressed_probability);
             let mut e = free_estimate(self, solves);
             e.statistic = statistic;
+            e.free_rms_m = (chi0 / n_obs).sqrt();
+            e.fit_rms_m = e.free_rms_m;
+            e.observed_markers = observed;
             return Ok(e);
         }
-        let pressed_probability = logistic((statistic - self.config.detection_chi2) / 4.0);
+        remember(self, pressed_probability);
         let nv = self.rest_surface.len();
         let mut probability = vec![0.0; nv];
         let mut vertex_force = vec![Vector3::zeros(); nv];
@@ -1453,6 +1541,11 @@ fn pair_residual(r_sq: Real, g11: Real, g22: Real, g12: Real, h1: Real, h2: Real
     }
     single(g11, h1).min(single(g22, h2)).max(0.0)
 }
+
+/// Units of χ² per unit of log-odds of the evidence for a press: the statistic's excess over
+/// the detection threshold, tempered (a χ² difference `Δ` is a likelihood ratio of `e^{Δ/2}`
+/// for an exact model; the model error makes it a weaker one).
+const EVIDENCE_SCALE: Real = 4.0;
 
 fn logistic(t: Real) -> Real {
     1.0 / (1.0 + (-t).exp())

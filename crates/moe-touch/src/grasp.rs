@@ -26,7 +26,7 @@
 use moe_geom::math::UnitQuat;
 use moe_geom::{
     ContactEstimator, ContactPoint, HandModel, HandShape, Point3, RansacConfig, Real, SeededRng,
-    Vector3, fit_plane_ransac,
+    ShapeEstimator, Vector3, fit_plane_ransac,
 };
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
 use moe_tendon_sim::{Scene, SimFrame, run_saving};
@@ -35,7 +35,7 @@ use serde::Serialize;
 use crate::TouchError;
 use crate::episode::{EpisodeRecorder, saved_frame_at};
 use crate::perception::{DetectorConfig, MarkerDetector};
-use crate::pipeline::Pipeline;
+use crate::pipeline::{PhysicsPipeline, Pipeline};
 use moe_arap::ShapeConfig;
 
 /// Settings of a grasp trial.
@@ -293,6 +293,8 @@ fn outcome(
 }
 
 /// Where a trial's contacts come from.
+// One value per trial: the physics settings' size is of no consequence.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum GraspContacts<C> {
     /// The pipeline on the wrist camera's frames, with this contact estimator and threshold.
@@ -309,6 +311,14 @@ pub enum GraspContacts<C> {
     SimulatorLabelsOnEstimatedShape {
         /// The pipeline's contact stage (needed to run it; its probabilities are not used).
         contact: C,
+    },
+    /// The pipeline on the wrist camera's frames with the physics estimator as its shape and
+    /// contact stages (the default of `moe-touch run`).
+    Physics {
+        /// The hand's material.
+        material: moe_physics::HandMaterial,
+        /// The estimator's settings.
+        config: moe_physics::PhysicsConfig,
     },
     /// The simulator's own contact vertices and shapes (the upper bound a perfect estimator
     /// reaches).
@@ -471,6 +481,87 @@ fn fingertip_plane(
     }
 }
 
+/// A press's hold as the wrist camera sees it: the frames to estimate and what the plane fit
+/// needs from each estimate.
+struct HoldView<'a> {
+    hand: &'a HandModel,
+    rest: &'a HandShape,
+    distal: &'a [usize],
+    scene: &'a Scene,
+    hold: &'a [(usize, &'a SimFrame)],
+    camera_seed: u64,
+}
+
+impl HoldView<'_> {
+    /// The hold's camera and a marker detector for it.
+    fn camera(&self) -> Result<(EpisodeRecorder, MarkerDetector), TouchError> {
+        let recorder = EpisodeRecorder::new(self.scene, "grasp", self.camera_seed)?;
+        let detector =
+            MarkerDetector::for_episode(recorder.info(), self.hand, DetectorConfig::default())?;
+        Ok((recorder, detector))
+    }
+
+    /// Runs `pipeline` on every hold frame (each from a fresh stream, as the paper estimates
+    /// each frame), appending each frame's finger states to `shapes` and its contact points
+    /// (world frame) to `plane_points`: the pipeline's own, or with `labels_only` the
+    /// simulator's contact vertices placed on the estimated shape.
+    fn estimate<S: ShapeEstimator, C: ContactEstimator>(
+        &self,
+        pipeline: &mut Pipeline<S, C>,
+        recorder: &EpisodeRecorder,
+        labels_only: bool,
+        shapes: &mut Vec<Vec<FingerState>>,
+        plane_points: &mut Vec<ContactPoint>,
+    ) -> Result<(), TouchError> {
+        let (hand, rest, distal) = (self.hand, self.rest, self.distal);
+        for (k, f) in self.hold {
+            let episode_frame = recorder.frame(self.scene, f, *k as u64)?;
+            pipeline.reset();
+            let estimate = pipeline.process_episode_frame(&episode_frame)?;
+            let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
+            shapes.push(
+                (0..hand.num_fingers())
+                    .map(|finger| {
+                        // Shape and rest compared in the hand frame (a rigid move
+                        // keeps distances).
+                        let at = estimate
+                            .shape
+                            .fingers
+                            .get(finger)
+                            .map_or(&[][..], Vec::as_slice);
+                        FingerState {
+                            at: at.iter().map(to_world).collect(),
+                            displacement: largest_displacement(at, &rest.fingers[finger]),
+                            tip_seen: estimate
+                                .keypoints
+                                .fingers
+                                .get(finger)
+                                .and_then(|m| m.get(distal[finger]))
+                                .is_some_and(Option::is_some),
+                        }
+                    })
+                    .collect(),
+            );
+            if labels_only {
+                plane_points.extend(labelled_points(
+                    f,
+                    |finger| {
+                        estimate
+                            .shape
+                            .fingers
+                            .get(finger)
+                            .map_or(&[], Vec::as_slice)
+                    },
+                    to_world,
+                ));
+            } else {
+                plane_points.extend_from_slice(&estimate.contacts_in_world);
+            }
+        }
+        Ok(())
+    }
+}
+
 /// What every press of one trial shares: the hand and its rest shape, the contact source, the
 /// plate, the aim point, the camera's seed and the options.
 struct Presses<'a, C> {
@@ -546,68 +637,55 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
                 |p| *p,
             ));
         }
-        let (contact, threshold, labels_only) = match contacts {
-            GraspContacts::Pipeline { contact, threshold } => (Some(contact), *threshold, false),
-            GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => {
-                (Some(contact), 1.0, true)
-            }
-            GraspContacts::Simulator => (None, 1.0, false),
+        let hold_view = HoldView {
+            hand,
+            rest,
+            distal,
+            scene: &scene,
+            hold: &hold,
+            camera_seed,
         };
-        match contact {
-            Some(contact) => {
-                let recorder = EpisodeRecorder::new(&scene, "grasp", camera_seed)?;
-                let detector =
-                    MarkerDetector::for_episode(recorder.info(), hand, DetectorConfig::default())?;
+        match contacts {
+            GraspContacts::Pipeline { contact, threshold } => {
+                let (recorder, detector) = hold_view.camera()?;
                 let shape =
                     crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
                 let mut pipeline =
-                    Pipeline::new((*hand).clone(), detector, shape, contact, threshold)?;
-                for (k, f) in &hold {
-                    let episode_frame = recorder.frame(&scene, f, *k as u64)?;
-                    pipeline.reset();
-                    let estimate = pipeline.process_episode_frame(&episode_frame)?;
-                    let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
-                    shapes.push(
-                        (0..hand.num_fingers())
-                            .map(|finger| {
-                                // Shape and rest compared in the hand frame (a rigid move
-                                // keeps distances).
-                                let at = estimate
-                                    .shape
-                                    .fingers
-                                    .get(finger)
-                                    .map_or(&[][..], Vec::as_slice);
-                                FingerState {
-                                    at: at.iter().map(to_world).collect(),
-                                    displacement: largest_displacement(at, &rest.fingers[finger]),
-                                    tip_seen: estimate
-                                        .keypoints
-                                        .fingers
-                                        .get(finger)
-                                        .and_then(|m| m.get(distal[finger]))
-                                        .is_some_and(Option::is_some),
-                                }
-                            })
-                            .collect(),
-                    );
-                    if labels_only {
-                        plane_points.extend(labelled_points(
-                            f,
-                            |finger| {
-                                estimate
-                                    .shape
-                                    .fingers
-                                    .get(finger)
-                                    .map_or(&[], Vec::as_slice)
-                            },
-                            to_world,
-                        ));
-                    } else {
-                        plane_points.extend_from_slice(&estimate.contacts_in_world);
-                    }
-                }
+                    Pipeline::new((*hand).clone(), detector, shape, contact, *threshold)?;
+                hold_view.estimate(
+                    &mut pipeline,
+                    &recorder,
+                    false,
+                    &mut shapes,
+                    &mut plane_points,
+                )?;
             }
-            None => {
+            GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => {
+                let (recorder, detector) = hold_view.camera()?;
+                let shape =
+                    crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
+                let mut pipeline = Pipeline::new((*hand).clone(), detector, shape, contact, 1.0)?;
+                hold_view.estimate(
+                    &mut pipeline,
+                    &recorder,
+                    true,
+                    &mut shapes,
+                    &mut plane_points,
+                )?;
+            }
+            GraspContacts::Physics { material, config } => {
+                let (recorder, detector) = hold_view.camera()?;
+                let mut pipeline =
+                    PhysicsPipeline::physics((*hand).clone(), detector, material, config)?;
+                hold_view.estimate(
+                    &mut pipeline,
+                    &recorder,
+                    false,
+                    &mut shapes,
+                    &mut plane_points,
+                )?;
+            }
+            GraspContacts::Simulator => {
                 plane_points.clone_from(&true_points);
                 shapes.extend(hold.iter().map(|(_, f)| simulated_hold_shape(f, rest)));
             }

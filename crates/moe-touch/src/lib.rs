@@ -9,6 +9,8 @@
 pub mod contact_eval;
 /// Sharded, resumable, deterministic data set generation.
 pub mod datagen;
+/// Drawing on images: text, labels that do not overlap, meshes coloured by a value.
+pub mod draw;
 /// Recording simulated episodes (rendered camera frames with ground truth).
 pub mod episode;
 /// The crate's error type.
@@ -30,4 +32,6 @@ pub mod pipeline;
 pub mod run;
 
 pub use error::TouchError;
-pub use pipeline::{FrameEstimate, Pipeline, RgbdFrame, StageTimings, StreamEvent};
+pub use pipeline::{
+    FrameEstimate, PhysicsPipeline, Pipeline, RgbdFrame, StageTimings, StreamEvent,
+};

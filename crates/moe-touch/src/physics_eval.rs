@@ -245,6 +245,8 @@ pub struct PhysicsEvaluation {
     pub sr_arap_shape_bcd_mm: Real,
     /// The force table.
     pub forces: ForceTable,
+    /// Onset, hold (flicker) and release of the presses through the streams.
+    pub stream: StreamTable,
     /// Median time of the physics estimator per frame, ms.
     pub physics_ms_median: Real,
     /// 90th percentile of that time, ms.
@@ -257,6 +259,8 @@ pub struct PhysicsEvaluation {
 /// One pressed or unpressed finger-frame's outcome.
 #[derive(Debug, Clone, Copy)]
 struct FingerOutcome {
+    /// The trajectory of the frame.
+    trajectory: u64,
     pressed: bool,
     truth_n: Real,
     detected: bool,
@@ -302,6 +306,7 @@ fn finger_outcome(
         force_error_n = (net.norm() - truth_n).abs();
     }
     FingerOutcome {
+        trajectory: frame.frame.trajectory_id,
         pressed,
         truth_n,
         detected,
@@ -323,6 +328,70 @@ fn median(mut v: Vec<Real>) -> Real {
     } else {
         0.5 * (v[n / 2 - 1] + v[n / 2])
     }
+}
+
+/// How the physics estimator follows presses through a stream: per finger, a press is a run of
+/// consecutive frames of one trajectory labelled in contact.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct StreamTable {
+    /// Presses (runs of contact frames of one finger).
+    pub presses: u64,
+    /// Presses detected in their first frame.
+    pub onset_detected: u64,
+    /// Frames of a press after its first detection.
+    pub held_frames: u64,
+    /// Of those, frames where the press was not reported (a flicker: reported, then lost while
+    /// still pressed).
+    pub held_frames_dropped: u64,
+    /// Presses whose detection flickered at least once.
+    pub presses_with_flicker: u64,
+    /// Presses followed by a contact-free frame of the same trajectory (a release).
+    pub releases: u64,
+    /// Of those, releases whose first free frame still reported a press.
+    pub release_false_alarms: u64,
+    /// Mean frames from a press's first frame to its first detection, over detected presses.
+    pub onset_delay_frames_mean: Real,
+}
+
+/// The stream table of the outcomes (per finger, frames in trajectory order).
+fn stream_table(outcomes: &[FingerOutcome], fingers: usize) -> StreamTable {
+    let mut t = StreamTable::default();
+    let mut delays = Vec::new();
+    for f in 0..fingers {
+        let seq: Vec<&FingerOutcome> = outcomes.iter().skip(f).step_by(fingers).collect();
+        let mut k = 0;
+        while k < seq.len() {
+            if !seq[k].pressed {
+                k += 1;
+                continue;
+            }
+            let start = k;
+            while k < seq.len() && seq[k].pressed && seq[k].trajectory == seq[start].trajectory {
+                k += 1;
+            }
+            let run = &seq[start..k];
+            t.presses += 1;
+            t.onset_detected += u64::from(run[0].detected);
+            if let Some(first) = run.iter().position(|o| o.detected) {
+                delays.push(first as Real);
+                let after = &run[first + 1..];
+                let dropped = after.iter().filter(|o| !o.detected).count() as u64;
+                t.held_frames += after.len() as u64;
+                t.held_frames_dropped += dropped;
+                t.presses_with_flicker += u64::from(dropped > 0);
+            }
+            if k < seq.len() && seq[k].trajectory == seq[start].trajectory && !seq[k].pressed {
+                t.releases += 1;
+                t.release_false_alarms += u64::from(seq[k].detected);
+            }
+        }
+    }
+    t.onset_delay_frames_mean = if delays.is_empty() {
+        Real::NAN
+    } else {
+        delays.iter().sum::<Real>() / delays.len() as Real
+    };
+    t
 }
 
 /// The force table of the outcomes.
@@ -466,6 +535,10 @@ pub struct Comparison<'a> {
     pub dgcnn: Option<&'a DgcnnEstimator>,
     /// SR-ARAP options of the paper's chain.
     pub shape: &'a ShapeConfig,
+    /// Every frame on its own: the physics estimator is reset before each frame (no stream:
+    /// the free finger starts from rest, nothing is carried over), the ablation of memory
+    /// across frames.
+    pub forget_between_frames: bool,
 }
 
 /// Evaluates `estimator` on `frames` (whole trajectories, in order) with markers from `source`,
@@ -507,6 +580,8 @@ pub fn evaluate_physics(
             estimator.reset();
             trajectories += 1;
             previous = Some(frame.trajectory_id);
+        } else if comparison.forget_between_frames {
+            estimator.reset();
         }
         let markers = source.markers(k, frame)?;
         let start = Instant::now();
@@ -573,6 +648,7 @@ pub fn evaluate_physics(
             Real::NAN
         },
         forces: force_table(&outcomes, net),
+        stream: stream_table(&outcomes, hand.num_fingers()),
         physics_ms_median: median(sorted.clone()),
         physics_ms_p90: sorted[(sorted.len() * 9 / 10).min(sorted.len() - 1)],
         failed_fingers: failed,
@@ -704,4 +780,56 @@ pub fn evaluate_plates_physics(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(trajectory: u64, pressed: bool, detected: bool) -> FingerOutcome {
+        FingerOutcome {
+            trajectory,
+            pressed,
+            truth_n: if pressed { 0.1 } else { 0.0 },
+            detected,
+            location_m: Real::NAN,
+            along_m: Real::NAN,
+            force_error_n: Real::NAN,
+        }
+    }
+
+    #[test]
+    fn the_stream_table_counts_onsets_flicker_and_releases_per_finger_and_trajectory() {
+        // Finger 0: a press missed at onset, then held with one drop, released cleanly; a press
+        // that runs to the end of trajectory 0 and one that starts trajectory 1 (two presses,
+        // not one), released with a false alarm. Finger 1: never pressed, one false alarm.
+        let f0 = [
+            (0, false, false),
+            (0, true, false),
+            (0, true, true),
+            (0, true, false),
+            (0, true, true),
+            (0, false, false),
+            (0, true, true),
+            (1, true, true),
+            (1, true, true),
+            (1, false, true),
+        ];
+        let mut outcomes = Vec::new();
+        for (k, &(t, p, d)) in f0.iter().enumerate() {
+            outcomes.push(outcome(t, p, d));
+            outcomes.push(outcome(t, false, k == 3));
+        }
+        let s = stream_table(&outcomes, 2);
+        assert_eq!(s.presses, 3);
+        assert_eq!(s.onset_detected, 2);
+        // Held after first detection: 2 (first press) + 0 + 1.
+        assert_eq!(s.held_frames, 3);
+        assert_eq!(s.held_frames_dropped, 1);
+        assert_eq!(s.presses_with_flicker, 1);
+        // The first and the third press are released inside their trajectory.
+        assert_eq!(s.releases, 2);
+        assert_eq!(s.release_false_alarms, 1);
+        assert!((s.onset_delay_frames_mean - 1.0 / 3.0).abs() < 1e-12);
+    }
 }

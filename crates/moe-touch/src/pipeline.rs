@@ -109,6 +109,45 @@ pub fn check_contact_threshold(threshold: Real) -> Result<(), TouchError> {
     }
 }
 
+/// The pipeline on the physics estimator (the default of `moe-touch run` and `demo`): one
+/// estimate per frame serves as its shape and contact stages.
+pub type PhysicsPipeline =
+    Pipeline<moe_physics::PhysicsShapeStage, moe_physics::PhysicsContactStage>;
+
+impl PhysicsPipeline {
+    /// The physics estimator of `hand` with `material` and `config` behind `detector`, contact
+    /// points where its probability reaches [`moe_physics::CONTACT_THRESHOLD`]. Its memory
+    /// across frames (the free finger simulated through the stream, warm starts, and the
+    /// settings' place memory) lasts while frames are timed and close enough
+    /// ([`Pipeline::with_memory_horizon`]); [`Pipeline::reset`] forgets it.
+    ///
+    /// # Errors
+    /// [`TouchError::Physics`] for an invalid material or settings, a material fitted to
+    /// another hand, or a finger the FEM cannot mesh.
+    pub fn physics(
+        hand: HandModel,
+        detector: MarkerDetector,
+        material: &moe_physics::HandMaterial,
+        config: &moe_physics::PhysicsConfig,
+    ) -> Result<Self, TouchError> {
+        let estimator = moe_physics::PhysicsEstimator::new(&hand, material, config)?;
+        let (shape, contact) = estimator.stages();
+        Self::new(
+            hand,
+            detector,
+            shape,
+            contact,
+            moe_physics::CONTACT_THRESHOLD,
+        )
+    }
+
+    /// The physics estimator's full estimate of the last frame (loads with their places,
+    /// forces and uncertainties, per-finger reports), when there is one.
+    pub fn last_physics_estimate(&self) -> Option<moe_physics::PhysicsEstimate> {
+        self.contact.last_estimate()
+    }
+}
+
 /// The stages, and the state a stream of frames needs (marker tracks, the shape estimator's
 /// warm start, whatever the contact estimator carries); see the module documentation.
 #[derive(Debug)]
@@ -199,6 +238,11 @@ where
         &self.detector
     }
 
+    /// The contact stage.
+    pub fn contact_estimator(&self) -> &C {
+        &self.contact
+    }
+
     /// The contact threshold.
     pub fn threshold(&self) -> Real {
         self.threshold
@@ -264,14 +308,14 @@ where
         &mut self,
         frame: &moe_io::EpisodeFrame,
     ) -> Result<FrameEstimate, TouchError> {
-        self.process_observation(
+        self.process_timed(
             RgbdFrame {
                 color_rgb8: &frame.color_rgb8,
                 depth_m: &frame.depth_m,
             },
             WorldFromHand::new(frame.world_from_hand),
             Some(&frame.tendon_pull_m),
-            Some(1e-9 * frame.time_ns as f64),
+            1e-9 * frame.time_ns as f64,
         )
     }
 
@@ -302,6 +346,25 @@ where
         tendon_pull_m: Option<&[Vec<f64>]>,
     ) -> Result<FrameEstimate, TouchError> {
         self.process_observation(frame, world_from_hand, tendon_pull_m, None)
+    }
+
+    /// Runs every stage on one frame taken at `time_secs` (seconds on any clock that only
+    /// moves forward, such as the camera's timestamps): the stream's memory (marker tracks,
+    /// the physics estimator's simulation of the free finger) carries over from the previous
+    /// frame when it is at most the memory's horizon earlier, and is forgotten after a longer
+    /// gap, as [`FrameEstimate::stream`] reports. This is the call for a live stream.
+    ///
+    /// # Errors
+    /// [`TouchError::StreamOutOfOrder`] for a time not after the previous frame's (nothing
+    /// changes), and as [`Pipeline::process_with_pulls`].
+    pub fn process_timed(
+        &mut self,
+        frame: RgbdFrame<'_>,
+        world_from_hand: WorldFromHand,
+        tendon_pull_m: Option<&[Vec<f64>]>,
+        time_secs: f64,
+    ) -> Result<FrameEstimate, TouchError> {
+        self.process_observation(frame, world_from_hand, tendon_pull_m, Some(time_secs))
     }
 
     /// [`Pipeline::process_with_pulls`], with the frame's time in seconds where the caller has

@@ -12,6 +12,7 @@ use moe_geom::{ContactEstimator, HandModel, Point3, ShapeEstimator};
 use moe_physics::PhysicsContactStage;
 use moe_touch::Pipeline;
 use moe_touch::contact_eval::contact_ply;
+use moe_touch::draw::{OrthoView, ShadedMesh, arrow, render_meshes, text};
 use moe_touch::perception::overlay::draw_keypoints;
 use moe_touch::perception::score::check_hand;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
@@ -72,15 +73,8 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
             demo(&args, &hand, &episode, pipeline, None, &model_name)
         }
         ContactMethod::Physics => {
-            let (shape, contact, name) = args.estimator.physics_stages(&hand)?;
-            let stage = contact.clone();
-            let pipeline = Pipeline::new(
-                hand.clone(),
-                detector,
-                shape,
-                contact,
-                super::run::PHYSICS_THRESHOLD,
-            )?;
+            let (pipeline, stage, name) =
+                args.estimator.physics_pipeline(hand.clone(), detector)?;
             demo(&args, &hand, &episode, pipeline, Some(&stage), &name)
         }
     }
@@ -130,32 +124,15 @@ fn demo<S: ShapeEstimator, C: ContactEstimator>(
             ));
         }
     }
-    let hand_from_world = source.world_from_hand.inverse();
-    let contacts_in_hand: Vec<Point3> = frame
-        .contacts_in_world
-        .iter()
-        .map(|p| hand_from_world * p)
-        .collect();
-    let keypoints = moe_geom::HandKeypoints {
-        fingers: frame.markers_in_hand.clone(),
-    };
-    let img = draw_keypoints(
+    let png = figure(
+        hand,
         &intrinsics,
         hand_from_camera,
-        &frame.color_rgb8,
-        &keypoints,
-        &contacts_in_hand,
+        frame,
+        source,
+        &report.per_frame[best],
+        best,
     )?;
-    // Twice the size, pixel for pixel, so that a small camera image is legible.
-    let img = image::imageops::resize(
-        &img,
-        2 * img.width(),
-        2 * img.height(),
-        image::imageops::FilterType::Nearest,
-    );
-    let mut png = Vec::new();
-    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
-        .context("encoding the figure")?;
     let report_text = serde_json::to_string_pretty(&report)?;
     let mut info = run_info(&episode.info, model_name, threshold);
     info.force_arrow_m_per_n = physics.map(|_| DEFAULT_FORCE_ARROW_M_PER_N);
@@ -170,6 +147,176 @@ fn demo<S: ShapeEstimator, C: ContactEstimator>(
     moe_io::write_atomic(&args.out.join("figure.png"), &png)?;
     print_table(&report, best, &args.out);
     Ok(())
+}
+
+/// The demo's figure: the camera frame with the markers found (labels that do not overlap) and
+/// the contact points; the estimated finger meshes coloured by contact probability with the
+/// estimated force arrows; the true meshes coloured by the simulator's contact.
+fn figure(
+    hand: &HandModel,
+    intrinsics: &moe_tendon_sim::camera::CameraIntrinsics,
+    hand_from_camera: moe_geom::HandFromCamera,
+    frame: &moe_io::RunFrame,
+    source: &moe_io::EpisodeFrame,
+    record: &moe_touch::run::FrameReport,
+    index: usize,
+) -> Result<Vec<u8>> {
+    const PANEL_W: u32 = 320;
+    const HEADER: u32 = 28;
+    let white = image::Rgb([255, 255, 255]);
+    let ink = image::Rgb([20, 20, 20]);
+    // The camera image twice the size, pixel for pixel, drawn on at that size so that the
+    // labels stay legible.
+    let small = image::RgbImage::from_raw(
+        intrinsics.width,
+        intrinsics.height,
+        frame.color_rgb8.clone(),
+    )
+    .context("the frame's colour image does not have the camera's size")?;
+    let big = image::imageops::resize(
+        &small,
+        2 * small.width(),
+        2 * small.height(),
+        image::imageops::FilterType::Nearest,
+    );
+    let scaled = moe_tendon_sim::camera::CameraIntrinsics {
+        width: big.width(),
+        height: big.height(),
+        fx: 2.0 * intrinsics.fx,
+        fy: 2.0 * intrinsics.fy,
+        cx: 2.0 * intrinsics.cx + 0.5,
+        cy: 2.0 * intrinsics.cy + 0.5,
+    };
+    let hand_from_world = source.world_from_hand.inverse();
+    let contacts_in_hand: Vec<Point3> = frame
+        .contacts_in_world
+        .iter()
+        .map(|p| hand_from_world * p)
+        .collect();
+    let keypoints = moe_geom::HandKeypoints {
+        fingers: frame.markers_in_hand.clone(),
+    };
+    let camera = draw_keypoints(
+        &scaled,
+        hand_from_camera,
+        big.as_raw(),
+        &keypoints,
+        &contacts_in_hand,
+    )?;
+
+    // The meshes, seen from the side the fingers bend to (hand x right, z up), turned 25°.
+    let view_from_hand = moe_geom::nalgebra::Rotation3::from_matrix_unchecked(
+        moe_geom::nalgebra::Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0),
+    ) * moe_geom::nalgebra::Rotation3::from_axis_angle(
+        &moe_geom::Vector3::z_axis(),
+        25f64.to_radians(),
+    );
+    let height = camera.height();
+    let truth_labels: Option<Vec<Vec<f64>>> = frame.truth.as_ref().map(|t| {
+        t.vertices_in_hand
+            .iter()
+            .zip(&t.contact_vertices)
+            .map(|(v, c)| {
+                let mut l = vec![0.0; v.len()];
+                for &i in c {
+                    l[i as usize] = 1.0;
+                }
+                l
+            })
+            .collect()
+    });
+    let all = frame.vertices_in_hand.iter().flatten().chain(
+        frame
+            .truth
+            .iter()
+            .flat_map(|t| t.vertices_in_hand.iter().flatten()),
+    );
+    let view = OrthoView::fitting(view_from_hand, all, PANEL_W, height - 2 * HEADER, 12.0);
+    let background = image::Rgb([250, 250, 250]);
+    let mut estimate = render_meshes(
+        &view,
+        &meshes(hand, &frame.vertices_in_hand, &frame.contact_probability),
+        background,
+    );
+    for load in record.loads.iter().flatten() {
+        // The force the world exerts, drawn as an arrow ending where it acts.
+        let tip = view.project(&load.location_m);
+        let tail = view.project(&(load.location_m - load.force_n * DEFAULT_FORCE_ARROW_M_PER_N));
+        arrow(
+            &mut estimate,
+            (tail.0, tail.1),
+            (tip.0, tip.1),
+            8.0,
+            image::Rgb([30, 60, 200]),
+        );
+    }
+    let truth = match (&frame.truth, &truth_labels) {
+        (Some(t), Some(labels)) => render_meshes(
+            &view,
+            &meshes(hand, &t.vertices_in_hand, labels),
+            background,
+        ),
+        _ => image::RgbImage::from_pixel(view.width, view.height, background),
+    };
+
+    let width = camera.width() + 2 * PANEL_W;
+    let mut canvas = image::RgbImage::from_pixel(width, height + HEADER, white);
+    image::imageops::replace(&mut canvas, &camera, 0, i64::from(HEADER));
+    let x_est = i64::from(camera.width());
+    let x_truth = x_est + i64::from(PANEL_W);
+    image::imageops::replace(&mut canvas, &estimate, x_est, i64::from(2 * HEADER));
+    image::imageops::replace(&mut canvas, &truth, x_truth, i64::from(2 * HEADER));
+    let t = 1e-9 * frame.time_ns as f64;
+    text(
+        &mut canvas,
+        8.0,
+        9.0,
+        &format!("camera, frame {index} ({t:.2} s)"),
+        ink,
+    );
+    text(
+        &mut canvas,
+        x_est as f64 + 8.0,
+        9.0,
+        "estimate: p(contact), force",
+        ink,
+    );
+    text(
+        &mut canvas,
+        x_truth as f64 + 8.0,
+        9.0,
+        "truth: simulator contact",
+        ink,
+    );
+    for (f, force) in record.finger_forces.iter().flatten().enumerate() {
+        text(
+            &mut canvas,
+            x_est as f64 + 8.0,
+            f64::from(HEADER) + 4.0 + 14.0 * f as f64,
+            &format!("finger {f}: {:.3} n", force.magnitude_n),
+            ink,
+        );
+    }
+    let mut png = Vec::new();
+    canvas
+        .write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+        .context("encoding the figure")?;
+    Ok(png)
+}
+
+/// The fingers of `hand` in `shapes`, coloured by `values`.
+fn meshes<'a>(
+    hand: &'a HandModel,
+    shapes: &'a [Vec<Point3>],
+    values: &'a [Vec<f64>],
+) -> Vec<ShadedMesh<'a>> {
+    (0..hand.num_fingers())
+        .map(|f| ShadedMesh {
+            vertices: &shapes[f],
+            faces: hand.fingers()[f].model.mesh().faces(),
+            value: &values[f],
+        })
+        .collect()
 }
 
 fn print_table(r: &RunReport, best: usize, out: &Path) {

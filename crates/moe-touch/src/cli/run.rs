@@ -9,7 +9,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use moe_arap::ShapeConfig;
 use moe_geom::{ContactEstimator, HandModel, ShapeEstimator};
-use moe_physics::{PhysicsContactStage, PhysicsEstimator, PhysicsShapeStage};
+use moe_physics::PhysicsContactStage;
+use moe_touch::PhysicsPipeline;
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
 use moe_touch::perception::score::check_hand;
@@ -22,17 +23,15 @@ use super::ContactMethod;
 /// The shipped contact model, the default of `--model`.
 pub(crate) const DEFAULT_MODEL: &str = "models/contact-two-finger.safetensors";
 
-/// The contact threshold of the physics estimator's probabilities.
-pub(crate) const PHYSICS_THRESHOLD: f64 = moe_physics::CONTACT_THRESHOLD;
-
 /// How the shape and the contact are estimated: the options `run` and `demo` share.
 #[derive(Debug, Args)]
 pub(crate) struct EstimatorArgs {
-    /// How the shape and the contact are estimated: `dgcnn` (SR-ARAP shape, then the trained
-    /// network on it) or `physics` (the finger's FEM model read backwards from the markers, the
-    /// episode's tendon pulls, the hand's pose and time: the dented shape, the loads and the
-    /// force on every finger, in the report and as arrows and a plottable topic in the result).
-    #[arg(long, value_enum, default_value = "dgcnn")]
+    /// How the shape and the contact are estimated: `physics` (the default: the finger's FEM
+    /// model read backwards from the markers, the episode's tendon pulls, the hand's pose and
+    /// time: the dented shape, the loads and the force on every finger, in the report and as
+    /// arrows and a plottable topic in the result) or `dgcnn` (the paper's pipeline: SR-ARAP
+    /// shape, then the trained network on it).
+    #[arg(long, value_enum, default_value = "physics")]
     pub(crate) contact: ContactMethod,
     /// dgcnn: the trained contact model (`NAME.safetensors` with its card `NAME.json`)
     /// [default: the shipped models/contact-two-finger.safetensors].
@@ -78,17 +77,19 @@ impl EstimatorArgs {
         Ok(())
     }
 
-    /// The physics estimator's stages for `hand` from `--material` and `--physics-config`,
-    /// and its name for the result (with the material file's name).
-    pub(crate) fn physics_stages(
+    /// The physics pipeline for `hand` behind `detector` from `--material` and
+    /// `--physics-config`, a handle on its contact stage (for the loads of each frame), and its
+    /// name for the result (with the material file's name).
+    pub(crate) fn physics_pipeline(
         &self,
-        hand: &HandModel,
-    ) -> Result<(PhysicsShapeStage, PhysicsContactStage, String)> {
+        hand: HandModel,
+        detector: moe_touch::perception::MarkerDetector,
+    ) -> Result<(PhysicsPipeline, PhysicsContactStage, String)> {
         let (material, material_name) = super::load_material(self.material.as_deref())?;
         let (config, _) = super::load_physics_config(self.physics_config.as_deref())?;
-        let estimator =
-            PhysicsEstimator::new(hand, &material, &config).context("the physics estimator")?;
-        let (shape, contact) = estimator.stages();
+        let pipeline = PhysicsPipeline::physics(hand, detector, &material, &config)
+            .context("the physics estimator")?;
+        let stage = pipeline.contact_estimator().clone();
         let name = match material_name.as_str() {
             "nominal" => "physics (nominal material)".to_owned(),
             _ => format!(
@@ -98,7 +99,7 @@ impl EstimatorArgs {
                     .map_or(material_name.clone(), |n| n.to_string_lossy().into_owned())
             ),
         };
-        Ok((shape, contact, name))
+        Ok((pipeline, stage, name))
     }
 }
 
@@ -206,9 +207,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             finish(&args, pipeline, None, &episode, cut, &model_name, None)
         }
         ContactMethod::Physics => {
-            let (shape, contact, name) = args.estimator.physics_stages(&hand)?;
-            let stage = contact.clone();
-            let pipeline = Pipeline::new(hand, detector, shape, contact, PHYSICS_THRESHOLD)?;
+            let (pipeline, stage, name) = args.estimator.physics_pipeline(hand, detector)?;
             finish(
                 &args,
                 pipeline,

@@ -6,6 +6,7 @@ use moe_tendon_sim::camera::CameraIntrinsics;
 
 use super::{ClusterFate, MarkerDetection, MarkerDetector};
 use crate::TouchError;
+use crate::draw::{cross, line, place_labels, put, ring, text, text_size};
 
 /// Colour of a found marker's ring and label.
 const FOUND: Rgb<u8> = Rgb([40, 255, 60]);
@@ -13,21 +14,10 @@ const FOUND: Rgb<u8> = Rgb([40, 255, 60]);
 const REJECTED: Rgb<u8> = Rgb([255, 220, 0]);
 /// Colour of a contact point.
 const CONTACT: Rgb<u8> = Rgb([255, 30, 200]);
-
-/// 3 × 5 pixel glyphs of `0`–`9` and `.`, one row per entry, bit 2 on the left.
-const GLYPHS: [[u8; 5]; 11] = [
-    [0b111, 0b101, 0b101, 0b101, 0b111],
-    [0b010, 0b110, 0b010, 0b010, 0b111],
-    [0b111, 0b001, 0b111, 0b100, 0b111],
-    [0b111, 0b001, 0b111, 0b001, 0b111],
-    [0b101, 0b101, 0b111, 0b001, 0b001],
-    [0b111, 0b100, 0b111, 0b001, 0b111],
-    [0b111, 0b100, 0b111, 0b101, 0b111],
-    [0b111, 0b001, 0b010, 0b010, 0b010],
-    [0b111, 0b101, 0b111, 0b101, 0b111],
-    [0b111, 0b101, 0b111, 0b001, 0b111],
-    [0b000, 0b000, 0b000, 0b000, 0b010],
-];
+/// Colour of the line from a marker to a label placed away from it.
+const LEADER: Rgb<u8> = Rgb([20, 150, 40]);
+/// Radius of a found marker's ring, pixels.
+const RING_PX: Real = 7.0;
 
 /// The colour image (`color_rgb8`, the detector's size) with every found marker ringed and
 /// labelled `finger.marker`, and every rejected cluster crossed.
@@ -87,66 +77,45 @@ pub fn draw_keypoints(
             }
         }
     }
+    let mut anchors = Vec::new();
+    let mut labels = Vec::new();
     for (f, markers) in keypoints.fingers.iter().enumerate() {
         for (m, p) in markers.iter().enumerate() {
             let Some(p) = p else { continue };
             let Some((u, v)) = k.project(&camera_from_hand.transform_point(p)) else {
                 continue;
             };
-            ring(&mut img, u, v, 7.0, FOUND);
-            text(&mut img, u + 9.0, v - 5.0, &format!("{f}.{m}"), FOUND);
+            anchors.push((u, v));
+            labels.push(format!("{f}.{m}"));
         }
     }
-    Ok(img)
-}
-
-fn put(img: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
-    if x >= 0 && y >= 0 && x < i64::from(img.width()) && y < i64::from(img.height()) {
-        img.put_pixel(x as u32, y as u32, c);
-    }
-}
-
-fn ring(img: &mut RgbImage, u: Real, v: Real, r: Real, c: Rgb<u8>) {
-    let steps = (2.0 * std::f64::consts::PI * r * 2.0).ceil() as usize;
-    for s in 0..steps {
-        let a = s as Real / steps as Real * std::f64::consts::TAU;
-        for dr in [0.0, 1.0] {
-            put(
-                img,
-                (u + (r + dr) * a.cos()).round() as i64,
-                (v + (r + dr) * a.sin()).round() as i64,
-                c,
+    // Labels where they overlap neither each other nor a marker, joined to their marker by a
+    // thin line when pushed away from it.
+    let sizes: Vec<(i64, i64)> = labels.iter().map(|l| text_size(l)).collect();
+    let corners = place_labels(
+        &anchors,
+        &sizes,
+        RING_PX,
+        i64::from(k.width),
+        i64::from(k.height),
+    );
+    for (((u, v), label), ((x0, y0), (w, h))) in
+        anchors.iter().zip(&labels).zip(corners.iter().zip(&sizes))
+    {
+        ring(&mut img, *u, *v, RING_PX, FOUND);
+        let centre = ((x0 + w / 2) as Real, (y0 + h / 2) as Real);
+        let d = (centre.0 - u).hypot(centre.1 - v);
+        if d > RING_PX + 12.0 + (w.max(h) / 2) as Real {
+            let s = (RING_PX + 1.0) / d;
+            line(
+                &mut img,
+                (u + s * (centre.0 - u), v + s * (centre.1 - v)),
+                centre,
+                1,
+                LEADER,
             );
         }
+        text(&mut img, *x0 as Real, *y0 as Real, label, FOUND);
     }
-}
-
-fn cross(img: &mut RgbImage, u: Real, v: Real, half: i64, c: Rgb<u8>) {
-    let (x, y) = (u.round() as i64, v.round() as i64);
-    for d in -half..=half {
-        put(img, x + d, y + d, c);
-        put(img, x + d, y - d, c);
-    }
-}
-
-/// Digits and dots at 2× scale, top-left corner at `(u, v)`.
-fn text(img: &mut RgbImage, u: Real, v: Real, s: &str, c: Rgb<u8>) {
-    let (x0, y0) = (u.round() as i64, v.round() as i64);
-    for (n, ch) in s.chars().enumerate() {
-        let glyph = match ch {
-            '0'..='9' => GLYPHS[ch as usize - '0' as usize],
-            '.' => GLYPHS[10],
-            _ => continue,
-        };
-        let gx = x0 + 8 * n as i64;
-        for (row, bits) in glyph.iter().enumerate() {
-            for col in 0..3 {
-                if bits & (0b100 >> col) != 0 {
-                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                        put(img, gx + 2 * col + dx, y0 + 2 * row as i64 + dy, c);
-                    }
-                }
-            }
-        }
-    }
+    Ok(img)
 }

@@ -494,7 +494,7 @@ fn run_with_physics_reports_forces_and_draws_them_as_arrows_and_a_plot() {
             "--iterations is for --contact dgcnn",
         ),
         (
-            vec!["--material", path(&bad)],
+            vec!["--contact", "dgcnn", "--material", path(&bad)],
             "--material is for --contact physics",
         ),
         (

@@ -5,7 +5,7 @@ use moe_geom::{ContactInput, FingerParams, HandModel, HandPreset, WorldFromHand}
 use moe_touch::contact_eval::study_shape_estimator;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::{FrameEstimate, Pipeline, RgbdFrame, StreamEvent, TouchError};
+use moe_touch::{FrameEstimate, PhysicsPipeline, Pipeline, RgbdFrame, StreamEvent, TouchError};
 
 use crate::common::fixtures;
 
@@ -98,7 +98,9 @@ fn same_estimate(a: &FrameEstimate, b: &FrameEstimate) {
 fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
     let hand = hand();
     let episode = episode();
-    let make = || {
+    // The paper's chain, whose stages carry marker tracks (and a warm start when asked), and
+    // the physics pipeline, which carries the free finger's simulation through the stream.
+    stream_contract(&episode, || {
         Pipeline::new(
             hand.clone(),
             detector(&hand, &episode),
@@ -107,7 +109,28 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
             CHAIN_THRESHOLD,
         )
         .unwrap()
-    };
+    });
+    stream_contract(&episode, || physics_pipeline(&hand, &episode));
+}
+
+/// The physics pipeline with the default material and settings.
+fn physics_pipeline(hand: &HandModel, episode: &moe_io::Episode) -> PhysicsPipeline {
+    PhysicsPipeline::physics(
+        hand.clone(),
+        detector(hand, episode),
+        &moe_physics::HandMaterial::default(),
+        &moe_physics::PhysicsConfig::default(),
+    )
+    .unwrap()
+}
+
+/// Out-of-order frames are refused and change nothing; a gap beyond the memory's horizon and
+/// `reset()` each start a stream whose estimate is a fresh pipeline's, bit for bit.
+fn stream_contract<S, C>(episode: &moe_io::Episode, make: impl Fn() -> Pipeline<S, C>)
+where
+    S: moe_geom::ShapeEstimator + std::fmt::Debug,
+    C: moe_geom::ContactEstimator + std::fmt::Debug,
+{
     let f = &episode.frames;
     let mut p = make();
     assert_eq!(
@@ -157,12 +180,13 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
     same_estimate(&again, &make().process_episode_frame(&f[4]).unwrap());
     // Frames without a time carry the stream over and say so.
     let untimed = p
-        .process(
+        .process_with_pulls(
             RgbdFrame {
                 color_rgb8: &f[5].color_rgb8,
                 depth_m: &f[5].depth_m,
             },
             WorldFromHand::new(f[5].world_from_hand),
+            Some(&f[5].tendon_pull_m),
         )
         .unwrap();
     assert_eq!(untimed.stream, StreamEvent::Untimed);
@@ -170,6 +194,35 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
         let err = make().with_memory_horizon(bad).unwrap_err();
         assert!(matches!(err, TouchError::InvalidParameter { .. }), "{err}");
     }
+}
+
+#[test]
+fn the_physics_pipeline_reports_a_held_press_in_every_frame_after_its_onset() {
+    // The committed episode: the plate presses the tip of finger 0 in frames 2–4 (0.4–0.8 s).
+    let hand = hand();
+    let episode = episode();
+    let mut p = physics_pipeline(&hand, &episode);
+    let mut onset = None;
+    let mut held = 0;
+    for (k, frame) in episode.frames.iter().enumerate() {
+        let est = p.process_episode_frame(frame).unwrap();
+        let pressed = !frame.contact_vertices[0].is_empty();
+        let on_finger = |f: usize| est.contacts_in_hand.iter().any(|c| c.finger == f);
+        if pressed && onset.is_none() && on_finger(0) {
+            onset = Some(k);
+        }
+        if pressed && onset.is_some_and(|o| k > o) {
+            // No flicker: every later frame of the press reports it, on the pressed finger, with
+            // a force, and nothing on the free finger.
+            assert!(on_finger(0), "frame {k}: the held press was dropped");
+            assert!(!on_finger(1), "frame {k}: contact on the free finger");
+            let e = p.last_physics_estimate().unwrap();
+            assert!(e.loads.iter().any(|l| l.finger == 0 && l.magnitude_n > 0.0));
+            held += 1;
+        }
+    }
+    assert_eq!(onset, Some(2), "the press is found in its first frame");
+    assert_eq!(held, 2);
 }
 
 #[test]
@@ -243,6 +296,8 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
             "run".to_owned(),
             "--episode".into(),
             episode.display().to_string(),
+            "--contact".into(),
+            "dgcnn".into(),
             "--model".into(),
             model.display().to_string(),
             "--out".into(),
@@ -282,6 +337,8 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
         "run",
         "--episode",
         cut.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
         "--model",
         model.to_str().unwrap(),
         "--out",
@@ -303,6 +360,8 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
         "run",
         "--episode",
         episode.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
         "--model",
         model.to_str().unwrap(),
         "--hand",
@@ -325,6 +384,8 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
         "run",
         "--episode",
         repeated.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
         "--model",
         model.to_str().unwrap(),
         "--out",
@@ -397,12 +458,29 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
         "shape BCD",
         "contact BCD",
         "frames per second",
+        "estimated force",
     ] {
         assert!(table.contains(row), "{row} missing from\n{table}");
     }
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["frames"], 7);
+    // The default is the physics estimator: the press on finger 0 is found with a force, in
+    // the report per finger and per frame.
+    let fingers = report["forces"]["fingers"].as_array().unwrap();
+    assert_eq!(fingers.len(), 2);
+    assert!(
+        fingers[0]["max_magnitude_n"].as_f64().unwrap() > 0.0,
+        "{report}"
+    );
+    let c = &report["contact"];
+    assert!(
+        c["contact_frames"].as_u64().unwrap() - c["misses"].as_u64().unwrap() >= 2,
+        "{c}"
+    );
+    for frame in report["per_frame"].as_array().unwrap() {
+        assert_eq!(frame["finger_forces"].as_array().unwrap().len(), 2);
+    }
     let names: Vec<String> = std::fs::read_dir(&out)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -433,6 +511,8 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
         "demo",
         "--out",
         refused.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
         "--physics-config",
         settings.to_str().unwrap(),
     ]);
