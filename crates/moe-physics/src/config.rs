@@ -134,13 +134,13 @@ pub struct PhysicsConfig {
     /// validation trajectories 4 mm gave contact BCD 5.38 mm and F1 0.327, 6 mm 4.89 mm and
     /// 0.366, 8 mm 4.67 mm and 0.309.
     pub contact_radius_m: Real,
-    /// How a load's place is reported. 0 (the default): the centre vertex of its best patch.
-    /// Positive: the posterior mean of the place over the candidates within this radius of that
-    /// vertex, on its side of the surface (each candidate weighted by its area and the
-    /// likelihood of its best single load), which is not tied to the rest mesh's vertices; it
-    /// also centres the contact region. Metres. With markers of 0.2 mm noise, 0.008 placed
-    /// 0.2–0.5 N presses 0.9 mm closer than the vertex (README, "Where a load is placed, and
-    /// memory across frames").
+    /// How a load's place is reported: the posterior mean of the place over the candidates
+    /// within this radius of its best patch's centre vertex, on its side of the surface (each
+    /// candidate weighted by its area and the likelihood of its best single load), which is not
+    /// tied to the rest mesh's vertices; it also centres the contact region. 0: the centre
+    /// vertex itself. Metres; default 0.008, chosen on validation trajectories (markers
+    /// detected in rendered frames: contact BCD 9.66 → 9.47 mm; with 0.2 mm noise, 0.2–0.5 N
+    /// presses placed 0.9 mm closer; README, "Memory across frames, and the default").
     pub place_radius_m: Real,
     /// Memory of a press's place across a stream: how far a press may move on the rest
     /// surface between two observations (the standard deviation of a Gaussian step), metres.
@@ -157,6 +157,14 @@ pub struct PhysicsConfig {
     /// while a free finger's prior stays at even odds (onsets are found as without memory).
     /// 0 (the default) decides each observation on its own. Measured in the README.
     pub press_hold_secs: Real,
+    /// How much more likely a press is near a marker the camera has lost — seen earlier in the
+    /// stream, hidden now (most often by the object pressing there): places within
+    /// `hidden_marker_radius_m` of a lost marker get `1 +` this times the prior of the others.
+    /// 0 leaves the prior uniform over the surface. Measured in the README.
+    pub hidden_marker_prior: Real,
+    /// Reach of a hidden marker's evidence on the rest surface (a Gaussian's standard
+    /// deviation), metres. Default 0.008.
+    pub hidden_marker_radius_m: Real,
     /// A marker that the best fit leaves more than this many `marker_sigma_m` from its
     /// observation is taken for a misidentified one (a blob assigned to the wrong marker, the
     /// rest of a marker hidden by the object) and left out of the frame's fit, which is then
@@ -204,9 +212,11 @@ impl Default for PhysicsConfig {
             min_load_separation_m: 0.015,
             patch_radius_m: 0.004,
             contact_radius_m: 0.006,
-            place_radius_m: 0.0,
+            place_radius_m: 0.008,
             place_memory_m: 0.0,
             press_hold_secs: 0.0,
+            hidden_marker_prior: 0.0,
+            hidden_marker_radius_m: 0.008,
             outlier_sigma: 8.0,
             gauss_newton_iterations: 4,
             force_tolerance: 0.02,
@@ -237,6 +247,7 @@ impl PhysicsConfig {
             ("static_tolerance_m", self.static_tolerance_m),
             ("marker_sigma_m", self.marker_sigma_m),
             ("patch_radius_m", self.patch_radius_m),
+            ("hidden_marker_radius_m", self.hidden_marker_radius_m),
             ("contact_radius_m", self.contact_radius_m),
             ("max_force_n", self.max_force_n),
         ] {
@@ -257,6 +268,7 @@ impl PhysicsConfig {
             ("place_memory_m", self.place_memory_m),
             ("press_hold_secs", self.press_hold_secs),
             ("outlier_sigma", self.outlier_sigma),
+            ("hidden_marker_prior", self.hidden_marker_prior),
             ("force_tolerance", self.force_tolerance),
         ] {
             if !(v.is_finite() && v >= 0.0) {

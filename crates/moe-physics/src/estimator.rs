@@ -36,9 +36,9 @@ pub struct ContactLoad {
     pub finger: usize,
     /// The vertex at the centre of the loaded patch.
     pub vertex: u32,
-    /// The load's place on the rest surface, hand frame, metres: the patch's centre vertex, or
-    /// with [`PhysicsConfig::place_radius_m`] the posterior mean of the place (an average of
-    /// nearby surface points, so slightly under a curved surface).
+    /// The load's place on the rest surface, hand frame, metres: the posterior mean of the
+    /// place within [`PhysicsConfig::place_radius_m`] (an average of nearby surface points, so
+    /// slightly under a curved surface), or the patch's centre vertex with a radius of 0.
     pub location_rest: Point3,
     /// The same point on the estimated (loaded) surface, hand frame, metres.
     pub location: Point3,

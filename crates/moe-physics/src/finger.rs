@@ -67,8 +67,8 @@ fn commands_of(pulls: &[Real]) -> Vec<TendonCommand> {
 pub(crate) struct FingerLoad {
     /// The patch's centre vertex.
     pub(crate) vertex: u32,
-    /// The place: rest-surface vertices and weights summing to one (the centre vertex alone
-    /// unless `place_radius_m` asks for the posterior mean).
+    /// The place: rest-surface vertices and weights summing to one (the posterior mean within
+    /// `place_radius_m`; the centre vertex alone with a radius of 0).
     pub(crate) place: Vec<(u32, Real)>,
     /// The patch.
     pub(crate) patch: Vec<(u32, Real)>,
@@ -223,6 +223,8 @@ pub(crate) struct FingerInverse {
     /// The previous observation's time and the belief then that the finger was pressed, for
     /// `press_hold_secs`.
     press_belief: Option<(Real, Real)>,
+    /// Per marker slot: seen in an observation of this stream (for `hidden_marker_prior`).
+    seen_in_stream: Vec<bool>,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -348,6 +350,7 @@ impl FingerInverse {
             place_memory: None,
             place_prior: None,
             press_belief: None,
+            seen_in_stream: Vec::new(),
         })
     }
 
@@ -389,6 +392,7 @@ impl FingerInverse {
         self.place_memory = None;
         self.place_prior = None;
         self.press_belief = None;
+        self.seen_in_stream.clear();
     }
 
     /// The log-odds, before this observation's evidence, that the finger is pressed: even odds
@@ -406,6 +410,47 @@ impl FingerInverse {
                 (prior / (1.0 - prior)).ln()
             }
             _ => 0.0,
+        }
+    }
+
+    /// The place prior `prior` (area-weighted when `None`) with the evidence of markers `lost`
+    /// (per slot: seen earlier in the stream, hidden now): a marker the camera loses is most
+    /// often hidden by the object pressing the finger there, so places within
+    /// `hidden_marker_radius_m` of a lost marker are made `1 + hidden_marker_prior` times as
+    /// likely (a Gaussian falloff). Unchanged without lost markers or with
+    /// `hidden_marker_prior = 0`.
+    fn with_hidden_markers(&self, prior: Option<Vec<Real>>, lost: &[bool]) -> Option<Vec<Real>> {
+        let k = self.config.hidden_marker_prior;
+        let hidden: Vec<Point3> = lost
+            .iter()
+            .zip(&self.markers)
+            .filter(|(l, _)| **l)
+            .map(|(_, &v)| self.rest_surface[v as usize])
+            .collect();
+        if k <= 0.0 || hidden.is_empty() {
+            return prior;
+        }
+        let s2 = 2.0 * self.config.hidden_marker_radius_m.powi(2);
+        let mut out: Vec<Real> = (0..self.candidates.len())
+            .map(|c| {
+                let p = self.rest_surface[self.candidates[c] as usize];
+                let near: Real = hidden
+                    .iter()
+                    .map(|h| (-(p - h).norm_squared() / s2).exp())
+                    .fold(0.0, Real::max);
+                let base = match &prior {
+                    Some(prior) => prior[c],
+                    None => self.area[self.candidates[c] as usize],
+                };
+                base * (1.0 + k * near)
+            })
+            .collect();
+        let total: Real = out.iter().sum();
+        if total.is_finite() && total > 0.0 {
+            out.iter_mut().for_each(|w| *w /= total);
+            Some(out)
+        } else {
+            prior
         }
     }
 
@@ -1091,10 +1136,24 @@ impl FingerInverse {
         };
         // The place's prior: the previous press, while the stream goes on.
         let memory = self.place_memory.take();
-        self.place_prior = match memory {
+        let remembered = match memory {
             Some(m) if free.dynamic && self.config.place_memory_m > 0.0 => Some(self.propagate(&m)),
             _ => None,
         };
+        // Markers seen earlier in the stream and hidden now: the marker history's evidence.
+        if !free.dynamic || self.seen_in_stream.len() != obs.markers.len() {
+            self.seen_in_stream = vec![false; obs.markers.len()];
+        }
+        let lost: Vec<bool> = obs
+            .markers
+            .iter()
+            .zip(&self.seen_in_stream)
+            .map(|(m, &seen)| m.is_none() && seen)
+            .collect();
+        for (seen, m) in self.seen_in_stream.iter_mut().zip(obs.markers) {
+            *seen |= m.is_some();
+        }
+        self.place_prior = self.with_hidden_markers(remembered, &lost);
         let lag_corrected = self.contact_lag_corrected(obs, &free.x);
         let markers: Vec<Option<Point3>> = lag_corrected.unwrap_or_else(|| obs.markers.to_vec());
         let chi0 = self.marker_residual_sq(&free.x, &markers);

@@ -157,7 +157,7 @@ fn the_posterior_place_is_off_the_mesh_vertices_and_near_the_press() {
         assert_eq!(e.loads.len(), 1, "{:?}", e.loads);
         e.loads[0].clone()
     };
-    // By default the place is the centre vertex of the best patch.
+    // With no radius the place is the centre vertex of the best patch.
     let at_vertex = place_of(0.0);
     assert_eq!(at_vertex.location_rest, rest[at_vertex.vertex as usize]);
     // The posterior mean: within the radius of that vertex, off it, and as close to the
@@ -363,4 +363,99 @@ fn a_misidentified_marker_is_left_out_instead_of_read_as_a_press() {
     let rest = hand.fingers()[0].model.mesh().vertices();
     let miss = (rest[loads[0].vertex as usize] - rest[v as usize]).norm();
     assert!(miss < 0.0046, "{:.2} mm from the press", miss * 1e3);
+}
+
+/// Lost markers as evidence of where the press is: in a stream that saw every marker of a
+/// free finger, a light press at the two most distal markers that hides them from then on
+/// (seen through noise) is placed nearer the press with `hidden_marker_prior`; markers hidden
+/// from the start are no evidence (a lone observation is the same with and without the prior,
+/// bit for bit), and neither is a stream where every marker stays seen.
+#[test]
+fn lost_markers_draw_the_place_toward_them_and_markers_never_seen_do_not() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let rest = hand.fingers()[0].model.mesh().vertices();
+    let markers = hand.fingers()[0].model.marker_vertices();
+    let pose = moe_geom::WorldFromHand::identity();
+    // The two most distal markers, and a press between them (where an object pressing the
+    // finger hides them from the camera).
+    let distal: Vec<usize> = {
+        let mut order: Vec<usize> = (0..markers.len()).collect();
+        order.sort_by(|&i, &j| {
+            rest[markers[j] as usize]
+                .z
+                .total_cmp(&rest[markers[i] as usize].z)
+        });
+        order[..2].to_vec()
+    };
+    let between = Point3::from(
+        (rest[markers[distal[0]] as usize].coords + rest[markers[distal[1]] as usize].coords) / 2.0,
+    );
+    let v = vertex_near(&hand, 0, between);
+    let free = simulate(&hand, &pulls, &[]);
+    let pressed = simulate(&hand, &pulls, &[press(&hand, v, 0.05)]);
+    let prior = PhysicsConfig {
+        hidden_marker_prior: 20.0,
+        ..PhysicsConfig::default()
+    };
+    let hide = |kp: &moe_geom::HandKeypoints| {
+        let mut kp = kp.clone();
+        for &m in &distal {
+            kp.fingers[0][m] = None;
+        }
+        kp
+    };
+    // A stream: the free finger, then six noisy frames of the press; the place's mean distance
+    // from the press over the frames that report it.
+    let mut rng = moe_geom::SeededRng::new(5);
+    let frames: Vec<moe_geom::HandKeypoints> =
+        (0..6).map(|_| pressed.with_noise(3e-4, &mut rng)).collect();
+    let mean_miss = |config: &PhysicsConfig, hidden: bool| {
+        let mut est = estimator(config);
+        let (mut total, mut n) = (0.0, 0);
+        for (k, kp) in std::iter::once(&free).chain(&frames).enumerate() {
+            let kp = if hidden && k > 0 {
+                hide(kp)
+            } else {
+                kp.clone()
+            };
+            let e = est
+                .estimate(&PhysicsObservation {
+                    keypoints: &kp,
+                    tendon_pull_m: &pulls,
+                    world_from_hand: &pose,
+                    time_secs: Some(0.05 * k as Real),
+                })
+                .unwrap();
+            for l in e.loads.iter().filter(|l| l.finger == 0) {
+                total += (l.location_rest - rest[v as usize]).norm();
+                n += 1;
+            }
+        }
+        assert!(n >= 4, "{n} of 6 frames found the press");
+        total / n as Real
+    };
+    let (without, with) = (
+        mean_miss(&PhysicsConfig::default(), true),
+        mean_miss(&prior, true),
+    );
+    eprintln!(
+        "place to the press: {:.2} mm without the prior, {:.2} mm with it",
+        without * 1e3,
+        with * 1e3
+    );
+    assert!(
+        with < without,
+        "{with} m with the prior, {without} m without"
+    );
+    // Every marker seen throughout: the prior has nothing to say.
+    assert_eq!(
+        mean_miss(&PhysicsConfig::default(), false),
+        mean_miss(&prior, false)
+    );
+    // Hidden from the start (a lone observation): no evidence.
+    let lone = hide(&frames[0]);
+    let a = observe(&mut estimator(&PhysicsConfig::default()), &lone, &pulls);
+    let b = observe(&mut estimator(&prior), &lone, &pulls);
+    assert_eq!(a.loads, b.loads);
 }
