@@ -140,7 +140,7 @@ pub struct PhysicsConfig {
     /// tied to the rest mesh's vertices; it also centres the contact region. 0: the centre
     /// vertex itself. Metres; default 0.008, chosen on validation trajectories (markers
     /// detected in rendered frames: contact BCD 9.66 → 9.47 mm; with 0.2 mm noise, 0.2–0.5 N
-    /// presses placed 0.9 mm closer; README, "Memory across frames, and the default").
+    /// presses placed 0.9 mm closer; README, "The default, and memory across frames").
     pub place_radius_m: Real,
     /// Memory of a press's place across a stream: how far a press may move on the rest
     /// surface between two observations (the standard deviation of a Gaussian step), metres.

@@ -492,47 +492,25 @@ mod tests {
             .iter()
             .map(|p| p + Vector3::new(0.0, 0.0, 0.5))
             .collect();
-        let faces = [[0u32, 1, 2]];
         let view = OrthoView::fitting(Rotation3::identity(), far.iter(), 64, 64, 4.0);
-        let img = render_meshes(
-            &view,
-            &[
-                ShadedMesh {
-                    vertices: &far,
-                    faces: &faces,
-                    value: &[0.0; 3],
-                },
-                ShadedMesh {
-                    vertices: &near,
-                    faces: &faces,
-                    value: &[1.0; 3],
-                },
-            ],
-            Rgb([0, 0, 0]),
-        );
-        // The centre shows the near (red) triangle, facing the viewer: shade 1.
-        let centre = img.get_pixel(32, 36).0;
+        fn mesh<'a>(vertices: &'a [Point3], value: &'a [Real]) -> ShadedMesh<'a> {
+            ShadedMesh {
+                vertices,
+                faces: &[[0, 1, 2]],
+                value,
+            }
+        }
+        let (blue, red_value) = ([0.0; 3], [1.0; 3]);
+        // Drawn far first, then near first: the near (red) triangle shows at the centre either
+        // way, facing the viewer (shade 1), and a corner stays background.
         let red = heat(1.0).map(|v| (255.0 * v).round() as u8);
-        assert_eq!(centre, red);
-        // A corner stays background.
-        assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0]);
-        // The same scene drawn far-last still shows the near triangle.
-        let img2 = render_meshes(
-            &view,
-            &[
-                ShadedMesh {
-                    vertices: &near,
-                    faces: &faces,
-                    value: &[1.0; 3],
-                },
-                ShadedMesh {
-                    vertices: &far,
-                    faces: &faces,
-                    value: &[0.0; 3],
-                },
-            ],
-            Rgb([0, 0, 0]),
-        );
-        assert_eq!(img2.get_pixel(32, 36).0, red);
+        for order in [
+            [mesh(&far, &blue), mesh(&near, &red_value)],
+            [mesh(&near, &red_value), mesh(&far, &blue)],
+        ] {
+            let img = render_meshes(&view, &order, Rgb([0, 0, 0]));
+            assert_eq!(img.get_pixel(32, 36).0, red);
+            assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0]);
+        }
     }
 }

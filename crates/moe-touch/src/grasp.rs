@@ -501,6 +501,21 @@ impl HoldView<'_> {
         Ok((recorder, detector))
     }
 
+    /// [`HoldView::estimate`] with the paper's pipeline: SR-ARAP and `contact` at `threshold`.
+    fn chain<C: ContactEstimator>(
+        &self,
+        contact: C,
+        threshold: Real,
+        labels_only: bool,
+        shapes: &mut Vec<Vec<FingerState>>,
+        plane_points: &mut Vec<ContactPoint>,
+    ) -> Result<(), TouchError> {
+        let (recorder, detector) = self.camera()?;
+        let shape = crate::contact_eval::study_shape_estimator(self.hand, &ShapeConfig::default())?;
+        let mut pipeline = Pipeline::new(self.hand.clone(), detector, shape, contact, threshold)?;
+        self.estimate(&mut pipeline, &recorder, labels_only, shapes, plane_points)
+    }
+
     /// Runs `pipeline` on every hold frame (each from a fresh stream, as the paper estimates
     /// each frame), appending each frame's finger states to `shapes` and its contact points
     /// (world frame) to `plane_points`: the pipeline's own, or with `labels_only` the
@@ -647,31 +662,10 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
         };
         match contacts {
             GraspContacts::Pipeline { contact, threshold } => {
-                let (recorder, detector) = hold_view.camera()?;
-                let shape =
-                    crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
-                let mut pipeline =
-                    Pipeline::new((*hand).clone(), detector, shape, contact, *threshold)?;
-                hold_view.estimate(
-                    &mut pipeline,
-                    &recorder,
-                    false,
-                    &mut shapes,
-                    &mut plane_points,
-                )?;
+                hold_view.chain(contact, *threshold, false, &mut shapes, &mut plane_points)?;
             }
             GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => {
-                let (recorder, detector) = hold_view.camera()?;
-                let shape =
-                    crate::contact_eval::study_shape_estimator(hand, &ShapeConfig::default())?;
-                let mut pipeline = Pipeline::new((*hand).clone(), detector, shape, contact, 1.0)?;
-                hold_view.estimate(
-                    &mut pipeline,
-                    &recorder,
-                    true,
-                    &mut shapes,
-                    &mut plane_points,
-                )?;
+                hold_view.chain(contact, 1.0, true, &mut shapes, &mut plane_points)?;
             }
             GraspContacts::Physics { material, config } => {
                 let (recorder, detector) = hold_view.camera()?;
