@@ -481,6 +481,28 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
     for frame in report["per_frame"].as_array().unwrap() {
         assert_eq!(frame["finger_forces"].as_array().unwrap().len(), 2);
     }
+    // With the evidence of the markers the plate hides (the settings for an object between
+    // the camera and the finger): every contact frame found, no false alarm, placed within
+    // 3 mm (contact BCD).
+    let occluding = dir.join("occluding");
+    crate::common::run_ok(&[
+        "demo",
+        "--out",
+        occluding.to_str().unwrap(),
+        "--physics-config",
+        fixtures()
+            .join("physics/occluding-contact.toml")
+            .to_str()
+            .unwrap(),
+    ]);
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(occluding.join("report.json")).unwrap(),
+    )
+    .unwrap();
+    let c = &report["contact"];
+    assert_eq!(c["misses"], 0, "{c}");
+    assert_eq!(c["false_alarms"], 0, "{c}");
+    assert!(c["bcd_mm"].as_f64().unwrap() <= 3.0, "{c}");
     let names: Vec<String> = std::fs::read_dir(&out)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
