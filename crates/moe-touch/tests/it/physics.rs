@@ -484,6 +484,14 @@ fn run_with_physics_reports_forces_and_draws_them_as_arrows_and_a_plot() {
     let model = fixtures().join("../models/contact-two-finger.safetensors");
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[material]\npoisson_ratio = 0.7\n").unwrap();
+    // A material fitted to a hand of three fingers.
+    let other_hand = dir.join("other-hand.toml");
+    std::fs::write(
+        &other_hand,
+        "[hand]\nvertices_per_finger = [1024, 1024, 1024]\nmarkers_per_finger = [7, 7, 7]\n\
+         tendons_per_finger = [4, 4, 4]\n",
+    )
+    .unwrap();
     for (extra, needle) in [
         (
             vec!["--contact", "physics", "--model", path(&model)],
@@ -504,6 +512,10 @@ fn run_with_physics_reports_forces_and_draws_them_as_arrows_and_a_plot() {
         (
             vec!["--contact", "physics", "--force-scale", "0"],
             "--force-scale",
+        ),
+        (
+            vec!["--material", path(&other_hand)],
+            "calibrate on this hand",
         ),
     ] {
         let mut args = vec!["run", "--episode", path(&ep), "--out", path(&never)];

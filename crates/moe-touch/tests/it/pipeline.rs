@@ -495,10 +495,9 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
             .to_str()
             .unwrap(),
     ]);
-    let report: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(occluding.join("report.json")).unwrap(),
-    )
-    .unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(occluding.join("report.json")).unwrap())
+            .unwrap();
     let c = &report["contact"];
     assert_eq!(c["misses"], 0, "{c}");
     assert_eq!(c["false_alarms"], 0, "{c}");
