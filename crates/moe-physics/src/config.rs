@@ -194,6 +194,10 @@ pub struct PhysicsConfig {
     /// turns the simulation off (the markers are then compared with the static free shape).
     /// Default 0.01.
     pub dynamic_step_secs: Real,
+    /// Most steps of that simulation between two observations: frames further apart take
+    /// longer steps (backward Euler is stable at any step), so a sparse stream costs what a
+    /// dense one does. Default 5 (frames up to 50 ms apart keep 10 ms steps).
+    pub max_dynamic_steps: usize,
 }
 
 impl Default for PhysicsConfig {
@@ -224,6 +228,7 @@ impl Default for PhysicsConfig {
             gravity_m_s2: [0.0, 0.0, -9.81],
             stream_horizon_secs: 0.2,
             dynamic_step_secs: 0.01,
+            max_dynamic_steps: 5,
             contact_lag_gain: 0.0,
         }
     }
@@ -287,6 +292,13 @@ impl PhysicsConfig {
                 "max_loads_per_finger",
                 self.max_loads_per_finger as Real,
                 "must be in 1..=4",
+            );
+        }
+        if !(1..=1000).contains(&self.max_dynamic_steps) {
+            return bad(
+                "max_dynamic_steps",
+                self.max_dynamic_steps as Real,
+                "must be in 1..=1000",
             );
         }
         if !(1..=50).contains(&self.gauss_newton_iterations) {

@@ -68,16 +68,15 @@ fn bench_physics_pipeline(c: &mut Criterion) {
         .expect("the committed episode reads");
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
     let physics = || {
-        let estimator = moe_physics::PhysicsEstimator::new(
-            &hand,
+        let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
+            .expect("detector");
+        moe_touch::PhysicsPipeline::physics(
+            hand.clone(),
+            detector,
             &moe_physics::HandMaterial::default(),
             &moe_physics::PhysicsConfig::default(),
         )
-        .expect("physics estimator");
-        let (shape, contact) = estimator.stages();
-        let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
-            .expect("detector");
-        Pipeline::new(hand.clone(), detector, shape, contact, 0.5).expect("pipeline")
+        .expect("pipeline")
     };
     let mut frame = episode.frames[3].clone();
     let mut lone = physics();
