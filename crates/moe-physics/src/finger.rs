@@ -570,7 +570,9 @@ impl FingerInverse {
             _ => return None,
         };
         let span = t - d.time_secs;
-        let n = ((span / self.config.dynamic_step_secs - 1e-9).ceil().max(1.0) as usize)
+        let n = ((span / self.config.dynamic_step_secs - 1e-9)
+            .ceil()
+            .max(1.0) as usize)
             .min(self.config.max_dynamic_steps);
         let h = span / n as Real;
         let ctx = self.ctx();
