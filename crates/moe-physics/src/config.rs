@@ -195,8 +195,11 @@ pub struct PhysicsConfig {
     /// Default 0.01.
     pub dynamic_step_secs: Real,
     /// Most steps of that simulation between two observations: frames further apart take
-    /// longer steps (backward Euler is stable at any step), so a sparse stream costs what a
-    /// dense one does. Default 5 (frames up to 50 ms apart keep 10 ms steps).
+    /// longer steps (backward Euler is stable at any step). Default 25, more than a stream's
+    /// horizon needs (every step stays `dynamic_step_secs`). Lower it to trade accuracy for
+    /// speed on sparse streams: with 5, the demo's frames 0.2 s apart cost half as much with
+    /// the same contacts, but the committed held-out frames (exact markers, further apart than
+    /// 50 ms) lose accuracy (contact BCD 1.75 → 3.71 mm on 12 frames).
     pub max_dynamic_steps: usize,
 }
 
@@ -228,7 +231,7 @@ impl Default for PhysicsConfig {
             gravity_m_s2: [0.0, 0.0, -9.81],
             stream_horizon_secs: 0.2,
             dynamic_step_secs: 0.01,
-            max_dynamic_steps: 5,
+            max_dynamic_steps: 25,
             contact_lag_gain: 0.0,
         }
     }
