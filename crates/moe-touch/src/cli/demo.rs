@@ -21,6 +21,9 @@ use moe_touch::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunReport, run_episode_with, r
 
 use super::ContactMethod;
 
+/// The physics settings of the demo's episode (relative to the workspace).
+const OCCLUDING_SETTINGS: &str = "fixtures/physics/occluding-contact.toml";
+
 /// The workspace this binary was built from (where the example episode and the model are).
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -40,8 +43,14 @@ pub(crate) struct DemoArgs {
     estimator: super::run::EstimatorArgs,
 }
 
-pub(crate) fn run(args: DemoArgs) -> Result<()> {
+pub(crate) fn run(mut args: DemoArgs) -> Result<()> {
     args.estimator.check(&[], &[])?;
+    // The committed episode's plate stands between the camera and the pressed tip: the physics
+    // estimator runs with the settings for an occluding object unless told otherwise.
+    if args.episode.is_none() {
+        args.estimator
+            .or_physics_config(workspace().join(OCCLUDING_SETTINGS));
+    }
     let episode_path = args
         .episode
         .clone()
@@ -145,7 +154,7 @@ fn demo<S: ShapeEstimator, C: ContactEstimator>(
         moe_io::write_ply(&args.out.join(name), ply)?;
     }
     moe_io::write_atomic(&args.out.join("figure.png"), &png)?;
-    print_table(&report, best, &args.out);
+    print_table(&report, best, &args.out, &args.estimator);
     Ok(())
 }
 
@@ -319,9 +328,21 @@ fn meshes<'a>(
         .collect()
 }
 
-fn print_table(r: &RunReport, best: usize, out: &Path) {
+fn print_table(r: &RunReport, best: usize, out: &Path, estimator: &super::run::EstimatorArgs) {
     let opt = |v: Option<f64>, unit: &str| v.map_or("—".to_owned(), |v| format!("{v:.2} {unit}"));
     super::outln!("MOE-Touch demo: plate pressing the tip of finger 0, seen by the wrist camera");
+    let settings = match (estimator.contact, estimator.physics_config()) {
+        (ContactMethod::Dgcnn, _) => {
+            "the paper's pipeline: SR-ARAP and the contact model".to_owned()
+        }
+        (ContactMethod::Physics, None) => "the physics estimator, default settings".to_owned(),
+        (ContactMethod::Physics, Some(p)) if p.ends_with(OCCLUDING_SETTINGS) => format!(
+            "the physics estimator with {OCCLUDING_SETTINGS} (the plate hides the pressed tip's \
+             markers; --physics-config FILE for others)"
+        ),
+        (ContactMethod::Physics, Some(p)) => format!("the physics estimator with {}", p.display()),
+    };
+    super::outln!("  contact estimation          {settings}");
     super::outln!("  frames                      {}", r.frames);
     if let Some(m) = &r.markers {
         super::outln!(

@@ -77,6 +77,18 @@ impl EstimatorArgs {
         Ok(())
     }
 
+    /// `--physics-config` when none was given (physics only).
+    pub(crate) fn or_physics_config(&mut self, path: PathBuf) {
+        if self.contact == ContactMethod::Physics && self.physics_config.is_none() {
+            self.physics_config = Some(path);
+        }
+    }
+
+    /// The settings file of the physics estimator, when one is used.
+    pub(crate) fn physics_config(&self) -> Option<&Path> {
+        self.physics_config.as_deref()
+    }
+
     /// The physics pipeline for `hand` behind `detector` from `--material` and
     /// `--physics-config`, a handle on its contact stage (for the loads of each frame), and its
     /// name for the result (with the material file's name).

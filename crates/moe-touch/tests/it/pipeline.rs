@@ -465,8 +465,10 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["frames"], 7);
-    // The default is the physics estimator: the press on finger 0 is found with a force, in
-    // the report per finger and per frame.
+    // The physics estimator with the settings for an occluding object (the plate hides the
+    // pressed tip's markers): every contact frame found, no false alarm, placed within 3 mm
+    // (contact BCD), with a force per finger in the report and per frame.
+    assert!(table.contains("occluding-contact.toml"), "{table}");
     let fingers = report["forces"]["fingers"].as_array().unwrap();
     assert_eq!(fingers.len(), 2);
     assert!(
@@ -474,34 +476,32 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
         "{report}"
     );
     let c = &report["contact"];
+    assert_eq!(c["misses"], 0, "{c}");
+    assert_eq!(c["false_alarms"], 0, "{c}");
+    assert!(c["bcd_mm"].as_f64().unwrap() <= 3.0, "{c}");
+    for frame in report["per_frame"].as_array().unwrap() {
+        assert_eq!(frame["finger_forces"].as_array().unwrap().len(), 2);
+    }
+    // The pipeline's default settings (an empty settings file) still find the press on the
+    // right finger, and the table names what they ran with.
+    let defaults = dir.join("defaults.toml");
+    std::fs::write(&defaults, "").unwrap();
+    let plain = dir.join("plain");
+    let o = crate::common::run_ok(&[
+        "demo",
+        "--out",
+        plain.to_str().unwrap(),
+        "--physics-config",
+        defaults.to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("defaults.toml"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(plain.join("report.json")).unwrap()).unwrap();
+    let c = &report["contact"];
     assert!(
         c["contact_frames"].as_u64().unwrap() - c["misses"].as_u64().unwrap() >= 2,
         "{c}"
     );
-    for frame in report["per_frame"].as_array().unwrap() {
-        assert_eq!(frame["finger_forces"].as_array().unwrap().len(), 2);
-    }
-    // With the evidence of the markers the plate hides (the settings for an object between
-    // the camera and the finger): every contact frame found, no false alarm, placed within
-    // 3 mm (contact BCD).
-    let occluding = dir.join("occluding");
-    crate::common::run_ok(&[
-        "demo",
-        "--out",
-        occluding.to_str().unwrap(),
-        "--physics-config",
-        fixtures()
-            .join("physics/occluding-contact.toml")
-            .to_str()
-            .unwrap(),
-    ]);
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(occluding.join("report.json")).unwrap())
-            .unwrap();
-    let c = &report["contact"];
-    assert_eq!(c["misses"], 0, "{c}");
-    assert_eq!(c["false_alarms"], 0, "{c}");
-    assert!(c["bcd_mm"].as_f64().unwrap() <= 3.0, "{c}");
     let names: Vec<String> = std::fs::read_dir(&out)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
