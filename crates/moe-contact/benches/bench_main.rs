@@ -11,8 +11,8 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_contact::candle_core::{DType, Device};
 use moe_contact::{
-    DgcnnConfig, DgcnnEstimator, FeatureFrame, InputFeature, KnnIndex, ModelCard, ModelWeights,
-    PointSet, StageTimings, TrainConfig, Trainer, TrainingSets,
+    DgcnnConfig, DgcnnEstimator, FeatureFrame, ForwardTimings, InputFeature, KnnIndex, ModelCard,
+    ModelWeights, PointSet, TrainConfig, Trainer, TrainingSets,
 };
 use moe_geom::{
     ContactInput, FingerParams, HandModel, HandPreset, HandShape, LabelledFrame, Vector3,
@@ -69,16 +69,16 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn print_split(name: &str, est: &DgcnnEstimator, shape: &HandShape) {
-    let runs: Vec<StageTimings> = (0..30)
+    let runs: Vec<ForwardTimings> = (0..30)
         .map(|_| est.estimate_shapes(&[shape]).expect("estimate").1)
         .collect();
-    let ms = |f: fn(&StageTimings) -> f64| median(runs.iter().map(f).collect()) * 1e3;
+    let ms = |f: fn(&ForwardTimings) -> f64| median(runs.iter().map(f).collect()) * 1e3;
     eprintln!(
         "{name}: median split kNN {:.2} ms, EdgeConv {:.2} ms, head {:.2} ms, total {:.2} ms",
         ms(|t| t.knn_s),
         ms(|t| t.edgeconv_s),
         ms(|t| t.head_s),
-        ms(StageTimings::total_s)
+        ms(ForwardTimings::total_s)
     );
 }
 

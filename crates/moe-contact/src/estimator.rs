@@ -9,7 +9,7 @@ use moe_geom::{
 use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
 use crate::deformation::DeformationFeatures;
 use crate::error::ContactError;
-use crate::network::{Dgcnn, Mode, StageTimings, contact_probability};
+use crate::network::{Dgcnn, ForwardTimings, Mode, contact_probability};
 
 /// Where one point set's rows come from: its fingers in order, and its length.
 #[derive(Debug, Clone)]
@@ -485,7 +485,7 @@ impl DgcnnEstimator {
     pub fn estimate_shapes(
         &self,
         shapes: &[&HandShape],
-    ) -> Result<(Vec<ContactMap>, StageTimings), ContactError> {
+    ) -> Result<(Vec<ContactMap>, ForwardTimings), ContactError> {
         let inputs: Vec<ContactInput<'_>> = shapes.iter().map(|s| ContactInput::shape(s)).collect();
         self.estimate_inputs(&inputs)
     }
@@ -499,9 +499,9 @@ impl DgcnnEstimator {
     pub fn estimate_inputs(
         &self,
         inputs: &[ContactInput<'_>],
-    ) -> Result<(Vec<ContactMap>, StageTimings), ContactError> {
+    ) -> Result<(Vec<ContactMap>, ForwardTimings), ContactError> {
         if inputs.is_empty() {
-            return Ok((Vec::new(), StageTimings::default()));
+            return Ok((Vec::new(), ForwardTimings::default()));
         }
         for input in inputs {
             self.features.check_shape(input.shape)?;
@@ -513,7 +513,7 @@ impl DgcnnEstimator {
                 fingers: i.shape.fingers.iter().map(|f| vec![0.0; f.len()]).collect(),
             })
             .collect();
-        let mut timings = StageTimings::default();
+        let mut timings = ForwardTimings::default();
         let channels = self.net.in_channels();
         // Point sets of equal length go through the network together.
         let plans_all = &self.features.plans;

@@ -58,7 +58,7 @@ pub use estimator::{DgcnnEstimator, FeatureBuilder};
 pub use knn::{KnnIndex, KnnMatch};
 pub use metrics::{ContactMetrics, ContactReport};
 pub use network::{
-    Dgcnn, ForwardOutput, Mode, StageTimings, contact_probability, tensor_names, tensor_shapes,
+    Dgcnn, ForwardOutput, ForwardTimings, Mode, contact_probability, tensor_names, tensor_shapes,
 };
 pub use train::{
     Checkpoint, Confusion, Evaluation, OptimizerConfig, THRESHOLDS, TrainConfig, Trainer,

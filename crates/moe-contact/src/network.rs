@@ -43,7 +43,7 @@ pub fn tensor_shapes(config: &DgcnnConfig, in_channels: usize) -> Vec<(String, V
 
 /// Wall time of each stage of one forward pass, seconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StageTimings {
+pub struct ForwardTimings {
     /// The three kNN searches.
     pub knn_s: f64,
     /// The three EdgeConv products and reductions.
@@ -52,7 +52,7 @@ pub struct StageTimings {
     pub head_s: f64,
 }
 
-impl StageTimings {
+impl ForwardTimings {
     /// Sum of the stages.
     pub fn total_s(&self) -> f64 {
         self.knn_s + self.edgeconv_s + self.head_s
@@ -68,7 +68,7 @@ pub struct ForwardOutput {
     /// flattened row-major.
     pub neighbours: [Vec<u32>; 3],
     /// Wall time per stage.
-    pub timings: StageTimings,
+    pub timings: ForwardTimings,
 }
 
 /// Whether a forward pass trains (dropout on, drawn from a seeded generator) or evaluates.
@@ -320,7 +320,7 @@ impl Dgcnn {
             .contiguous()?;
         let n = x.dim(1)?;
         let k = self.config.k;
-        let mut timings = StageTimings::default();
+        let mut timings = ForwardTimings::default();
         let mut features = Vec::with_capacity(3);
         let mut neighbours: [Vec<u32>; 3] = Default::default();
         let mut h = x;

@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use moe_contact::candle_core::{DType, Tensor};
 use moe_contact::{
-    Aggregation, DeviceKind, Dgcnn, DgcnnEstimator, InputFeature, Mode, ModelCard, StageTimings,
+    Aggregation, DeviceKind, Dgcnn, DgcnnEstimator, ForwardTimings, InputFeature, Mode, ModelCard,
     contact_probability, open_device,
 };
 use moe_geom::{
@@ -174,7 +174,7 @@ struct TimingsMs {
 }
 
 impl TimingsMs {
-    fn new(t: StageTimings, total_s: f64) -> Self {
+    fn new(t: ForwardTimings, total_s: f64) -> Self {
         Self {
             knn: t.knn_s * 1e3,
             edgeconv: t.edgeconv_s * 1e3,
