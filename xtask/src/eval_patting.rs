@@ -19,7 +19,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use moe_arap::ShapeConfig;
 use moe_contact::KnnIndex;
-use moe_geom::{ContactEstimator, FingerParams, HandModel, HandPreset, Real};
+use moe_geom::{ContactEstimator, FingerParams, HandModel, HandPreset, Real, ShapeEstimator};
 use moe_gpis::bench_scene::{BenchScene, SceneKind, SceneReport, Spread, evaluate_scene_with};
 use moe_gpis::{HyperBounds, ReconstructOptions};
 use moe_io::{DatasetReader, PlyData, SplitFractions};
@@ -278,17 +278,27 @@ fn knn_index(path: Option<&Path>, hand: &HandModel) -> Result<KnnIndex> {
     Ok(index)
 }
 
-/// The pipeline's contacts on every pat with `contact` as the contact stage.
+/// The contacts on every pat of the pipeline `build` makes around the episode's detector.
+fn pat_contacts<S: ShapeEstimator, C: ContactEstimator>(
+    hand: &HandModel,
+    episode: &PattingEpisode,
+    build: impl FnOnce(MarkerDetector) -> Result<Pipeline<S, C>, TouchError>,
+) -> Result<PatContacts, TouchError> {
+    let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
+    estimate_pat_contacts(&mut build(detector)?, episode)
+}
+
+/// The paper's pipeline's contacts on every pat: SR-ARAP and `contact` at `threshold`.
 fn contacts_with<C: ContactEstimator>(
     hand: &HandModel,
     episode: &PattingEpisode,
     contact: C,
     threshold: Real,
 ) -> Result<PatContacts, TouchError> {
-    let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
-    let shape = study_shape_estimator(hand, &ShapeConfig::default())?;
-    let mut pipeline = Pipeline::new(hand.clone(), detector, shape, contact, threshold)?;
-    estimate_pat_contacts(&mut pipeline, episode)
+    pat_contacts(hand, episode, |detector| {
+        let shape = study_shape_estimator(hand, &ShapeConfig::default())?;
+        Pipeline::new(hand.clone(), detector, shape, contact, threshold)
+    })
 }
 
 /// Everything about one pair; with `write`, its files go to that directory.
@@ -311,16 +321,14 @@ fn evaluate_pair(
     let threshold = dgcnn.threshold();
     let dgcnn_contacts = contacts_with(hand, &episode, dgcnn, threshold)?;
     let knn_contacts = contacts_with(hand, &episode, knn, 0.5)?;
-    let physics_contacts = {
-        let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
-        let mut pipeline = PhysicsPipeline::physics(
+    let physics_contacts = pat_contacts(hand, &episode, |detector| {
+        PhysicsPipeline::physics(
             hand.clone(),
             detector,
             &moe_physics::HandMaterial::default(),
             &moe_physics::PhysicsConfig::default(),
-        )?;
-        estimate_pat_contacts(&mut pipeline, &episode)?
-    };
+        )
+    })?;
     let true_contacts = true_pat_contacts(&episode);
     let prior_level = match size {
         Size::Full => 5,

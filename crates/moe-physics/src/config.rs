@@ -238,6 +238,13 @@ impl Default for PhysicsConfig {
 }
 
 impl PhysicsConfig {
+    /// How far apart two observations may be and still be one stream, seconds:
+    /// [`Self::stream_horizon_secs`] with a microsecond's slack for clocks in floating point.
+    /// Further apart, the estimator starts the stream again.
+    pub fn stream_reach_secs(&self) -> Real {
+        self.stream_horizon_secs + 1e-6
+    }
+
     /// Checks every setting.
     ///
     /// # Errors

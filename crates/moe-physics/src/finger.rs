@@ -562,7 +562,7 @@ impl FingerInverse {
         let mut d = match self.dynamic.take() {
             Some(d)
                 if t > d.time_secs
-                    && t - d.time_secs <= self.config.stream_horizon_secs + HORIZON_SLACK_SECS
+                    && t - d.time_secs <= self.config.stream_reach_secs()
                     && d.pulls.len() == obs.pulls.len() =>
             {
                 d
@@ -645,11 +645,7 @@ impl FingerInverse {
         let gain = self.config.contact_lag_gain;
         let (t, (t0, r0)) = (obs.time_secs?, previous?);
         let dt = t - t0;
-        if !(gain > 0.0
-            && self.beta > 0.0
-            && dt > 0.0
-            && dt <= self.config.stream_horizon_secs + HORIZON_SLACK_SECS)
-        {
+        if !(gain > 0.0 && self.beta > 0.0 && dt > 0.0 && dt <= self.config.stream_reach_secs()) {
             return None;
         }
         let a = (-dt / self.beta).exp();
@@ -1179,7 +1175,8 @@ impl FingerInverse {
         let remember = |this: &mut Self, p: Real| {
             this.press_belief = obs.time_secs.map(|t| (t, p));
         };
-        // Nothing to explain: no load can pass the test (χ² of no load bounds the statistic).
+        // Nothing to explain: no load can pass the test (χ² of no load bounds the statistic; the
+        // belief remembered is that bound's, below even odds).
         if belief(chi0 / sigma2) < 0.5 {
             self.tracked = None;
             remember(self, belief(chi0 / sigma2));
@@ -1569,8 +1566,6 @@ impl FingerInverse {
     }
 }
 
-/// Round-off allowed on the stream horizon (times from nanosecond timestamps), seconds.
-const HORIZON_SLACK_SECS: Real = 1e-6;
 /// A search from the previous frame's loads that leaves more than this fraction of the free
 /// residual unexplained is repeated from the free shape.
 const RESTART_FRACTION: Real = 0.1;

@@ -1,5 +1,5 @@
 //! Drawing on RGB images: pixels, rings, lines, a small bitmap font, labels placed so that they
-//! do not overlap, and finger meshes rendered with a z-buffer and coloured by a per-vertex value
+//! do not overlap, and finger meshes rendered with a z-buffer and coloured by contact probability
 //! (the figures of `moe-touch demo` and the perception overlays).
 
 use image::{Rgb, RgbImage};
@@ -275,32 +275,16 @@ pub fn place_labels(
     corners
 }
 
-/// Colour of a value in [0, 1] (outside: clamped; NaN: 0): light blue-grey through orange to
-/// red, as the contact PLYs colour probability.
-pub fn heat(value: Real) -> [Real; 3] {
-    let t = if value.is_nan() {
-        0.0
-    } else {
-        value.clamp(0.0, 1.0)
-    };
-    let (a, b, c) = ([0.72, 0.76, 0.84], [0.98, 0.62, 0.16], [0.86, 0.10, 0.10]);
-    let mix = |p: [Real; 3], q: [Real; 3], s: Real| [0, 1, 2].map(|i| p[i] + s * (q[i] - p[i]));
-    if t < 0.5 {
-        mix(a, b, 2.0 * t)
-    } else {
-        mix(b, c, 2.0 * t - 1.0)
-    }
-}
-
-/// A mesh to render: its vertices, faces and one value in [0, 1] per vertex (its colour).
+/// A mesh to render: its vertices, faces and a contact probability per vertex (its colour,
+/// blue 0 to red 1 as in the result files, [`moe_io::probability_colour`]).
 #[derive(Debug, Clone, Copy)]
 pub struct ShadedMesh<'a> {
     /// Vertices, any common frame.
     pub vertices: &'a [Point3],
     /// Triangles.
     pub faces: &'a [[u32; 3]],
-    /// Per-vertex value, coloured by [`heat`].
-    pub value: &'a [Real],
+    /// Per-vertex contact probability.
+    pub probability: &'a [Real],
 }
 
 /// An orthographic view: a rotation into view coordinates (x right, y up, z toward the
@@ -368,7 +352,7 @@ impl OrthoView {
 }
 
 /// Renders `meshes` on a `background` panel with a z-buffer, each triangle shaded by its facing
-/// the viewer and coloured by its vertices' values (interpolated).
+/// the viewer and coloured by its vertices' contact probabilities (interpolated).
 pub fn render_meshes(view: &OrthoView, meshes: &[ShadedMesh<'_>], background: Rgb<u8>) -> RgbImage {
     let (w, h) = (view.width as usize, view.height as usize);
     let mut img = RgbImage::from_pixel(view.width, view.height, background);
@@ -391,7 +375,10 @@ pub fn render_meshes(view: &OrthoView, meshes: &[ShadedMesh<'_>], background: Rg
                 continue;
             };
             let shade = 0.35 + 0.65 * n.z.abs();
-            let colours = [a, b, c].map(|i| heat(mesh.value.get(i).copied().unwrap_or(0.0)));
+            let colours = [a, b, c].map(|i| {
+                moe_io::probability_colour(mesh.probability.get(i).copied().unwrap_or(0.0))
+                    .map(|c| Real::from(c) / 255.0)
+            });
             let [(xa, ya, za), (xb, yb, zb), (xc, yc, zc)] = [a, b, c].map(|i| projected[i]);
             let area = (xb - xa) * (yc - ya) - (xc - xa) * (yb - ya);
             if area.is_nan() || area.abs() <= 1e-12 {
@@ -497,13 +484,13 @@ mod tests {
             ShadedMesh {
                 vertices,
                 faces: &[[0, 1, 2]],
-                value,
+                probability: value,
             }
         }
         let (blue, red_value) = ([0.0; 3], [1.0; 3]);
         // Drawn far first, then near first: the near (red) triangle shows at the centre either
         // way, facing the viewer (shade 1), and a corner stays background.
-        let red = heat(1.0).map(|v| (255.0 * v).round() as u8);
+        let red = moe_io::probability_colour(1.0);
         for order in [
             [mesh(&far, &blue), mesh(&near, &red_value)],
             [mesh(&near, &red_value), mesh(&far, &blue)],

@@ -117,9 +117,11 @@ pub type PhysicsPipeline =
 impl PhysicsPipeline {
     /// The physics estimator of `hand` with `material` and `config` behind `detector`, contact
     /// points where its probability reaches [`moe_physics::CONTACT_THRESHOLD`]. Its memory
-    /// across frames (the free finger simulated through the stream, warm starts, and the
-    /// settings' place memory) lasts while frames are timed and close enough
-    /// ([`Pipeline::with_memory_horizon`]); [`Pipeline::reset`] forgets it.
+    /// across frames (the free finger simulated through the stream, warm starts, and whatever
+    /// memory the settings turn on) lasts while frames are timed and no further apart than the
+    /// estimator's stream reaches ([`moe_physics::PhysicsConfig::stream_reach_secs`], the
+    /// pipeline's memory horizon, so that a frame's [`StreamEvent`] says when it was
+    /// forgotten); [`Pipeline::reset`] forgets it.
     ///
     /// # Errors
     /// [`TouchError::Physics`] for an invalid material or settings, a material fitted to
@@ -138,7 +140,8 @@ impl PhysicsPipeline {
             shape,
             contact,
             moe_physics::CONTACT_THRESHOLD,
-        )
+        )?
+        .with_memory_horizon(config.stream_reach_secs())
     }
 
     /// The physics estimator's full estimate of the last frame (loads with their places,

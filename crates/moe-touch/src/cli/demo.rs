@@ -256,7 +256,7 @@ fn figure(
             (tail.0, tail.1),
             (tip.0, tip.1),
             8.0,
-            image::Rgb([30, 60, 200]),
+            image::Rgb([10, 10, 10]),
         );
     }
     let truth = match (&frame.truth, &truth_labels) {
@@ -323,7 +323,7 @@ fn meshes<'a>(
         .map(|f| ShadedMesh {
             vertices: &shapes[f],
             faces: hand.fingers()[f].model.mesh().faces(),
-            value: &values[f],
+            probability: &values[f],
         })
         .collect()
 }

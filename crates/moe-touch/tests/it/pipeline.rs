@@ -111,6 +111,26 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
         .unwrap()
     });
     stream_contract(&episode, || physics_pipeline(&hand, &episode));
+    // The physics pipeline's horizon is its estimator's stream: a gap the estimator does not
+    // bridge (0.5 s against its 0.2 s) is reported as a restart, and the frame is a fresh
+    // pipeline's.
+    let f = &episode.frames;
+    let mut p = physics_pipeline(&hand, &episode);
+    p.process_episode_frame(&f[1]).unwrap();
+    let mut late = f[2].clone();
+    late.time_ns = f[1].time_ns + 500_000_000;
+    let after_gap = p.process_episode_frame(&late).unwrap();
+    assert!(
+        matches!(after_gap.stream, StreamEvent::Restarted { gap_secs } if (gap_secs - 0.5).abs() < 1e-9),
+        "{:?}",
+        after_gap.stream
+    );
+    same_estimate(
+        &after_gap,
+        &physics_pipeline(&hand, &episode)
+            .process_episode_frame(&late)
+            .unwrap(),
+    );
 }
 
 /// The physics pipeline with the default material and settings.
