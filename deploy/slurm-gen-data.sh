@@ -27,7 +27,7 @@ set -euo pipefail
 : "${MOE_MACHINES:=${SLURM_ARRAY_TASK_COUNT:?submit with --array=1-N or set MOE_MACHINES}}"
 
 export RAYON_NUM_THREADS="${SLURM_CPUS_PER_TASK:-1}"
-cargo run --release -p xtask -- gen-data \
+cargo run --release -p moe-touch-cli -- gen-data \
   --out "$MOE_DATA_DIR" \
   --trajectories "$MOE_TRAJECTORIES" \
   --seed "$MOE_SEED" \

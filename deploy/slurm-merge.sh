@@ -16,7 +16,7 @@ set -euo pipefail
 : "${MOE_PER_SHARD:=32}"
 : "${MOE_MACHINES:?set MOE_MACHINES to the array size}"
 
-cargo run --release -p xtask -- gen-data \
+cargo run --release -p moe-touch-cli -- gen-data \
   --out "$MOE_DATA_DIR" \
   --trajectories "$MOE_TRAJECTORIES" \
   --seed "$MOE_SEED" \

@@ -1,22 +1,13 @@
-//! Project automation, run as `cargo xtask <command>`: thin commands over library code.
+//! Project automation, run as `cargo xtask <command>`: the checks CI runs and the golden
+//! fixtures; `gen-data`, `train`, `eval` and `heldout-shard` are the `moe-touch` tool's commands
+//! of the same names (`moe_touch_cli`), reachable here too.
 
+use std::ffi::OsString;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
 mod ci;
-mod eval;
-mod eval_contact;
-mod eval_grasp;
-mod eval_labels;
-mod eval_markers;
-mod eval_observability;
-mod eval_patting;
-mod eval_physics;
-mod figure;
-mod fixtures;
-mod gen_data;
-mod train;
 
 #[derive(Debug, Parser)]
 #[command(name = "xtask", about = "MOE-Touch project automation")]
@@ -27,99 +18,60 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run every check, cheapest first: fmt, clippy, tests, docs, golden fixtures, cargo-deny.
+    /// Run every check, cheapest first: fmt, clippy, tests (golden fixtures among them), docs,
+    /// cargo-deny.
     Ci(ci::CiArgs),
-    /// Run an evaluation benchmark (`surface`: GPIS reconstruction on head and arm scenes).
-    Eval(eval::EvalArgs),
-    /// Generate a labelled training set with the tendon FEM simulator (sharded, resumable).
-    GenData(gen_data::GenDataArgs),
-    /// Train the contact network on a generated data set (checkpoints every epoch, resumable).
-    Train(train::TrainArgs),
     /// Check the golden fixtures against freshly computed results, or rewrite them.
-    Fixtures(fixtures::FixturesArgs),
-    /// Write a small data set of held-out frames (the golden regression's input).
-    HeldoutShard(eval_contact::HeldoutArgs),
+    Fixtures(FixturesArgs),
+    /// `moe-touch gen-data`, `train`, `eval` or `heldout-shard` with the same arguments.
+    #[command(external_subcommand)]
+    Tool(Vec<OsString>),
 }
+
+/// Arguments of `cargo xtask fixtures`.
+#[derive(Debug, clap::Args)]
+struct FixturesArgs {
+    /// Recompute every golden fixture and fail on any difference.
+    #[arg(long, conflicts_with = "update", required_unless_present = "update")]
+    check: bool,
+    /// Recompute every golden fixture and overwrite the committed files.
+    #[arg(long)]
+    update: bool,
+}
+
+/// The tool's commands that `cargo xtask` forwards.
+const FORWARDED: [&str; 4] = ["gen-data", "train", "eval", "heldout-shard"];
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Ci(args) => ci::run(&args),
-        Command::Eval(args) => eval::run(&args),
-        Command::GenData(args) => gen_data::run(&args),
-        Command::Fixtures(args) => fixtures::run(&args),
-        Command::Train(args) => train::run(&args),
-        Command::HeldoutShard(args) => eval_contact::write_heldout(&args),
+        Command::Fixtures(args) => moe_touch_cli::golden::run(if args.update {
+            moe_touch_cli::golden::Mode::Update
+        } else {
+            moe_touch_cli::golden::Mode::Check
+        }),
+        Command::Tool(args) => {
+            let known = args
+                .first()
+                .and_then(|a| a.to_str())
+                .is_some_and(|a| FORWARDED.contains(&a));
+            if !known {
+                eprintln!(
+                    "xtask: error: unknown command {:?} (ci, fixtures, or one of the tool's {})",
+                    args.first().cloned().unwrap_or_default(),
+                    FORWARDED.join(", ")
+                );
+                return ExitCode::FAILURE;
+            }
+            return moe_touch_cli::main_with(std::iter::once("moe-touch".into()).chain(args));
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("xtask: error: {}", moe_touch::error::one_line(err.as_ref()));
             ExitCode::FAILURE
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Options that size a run are refused outside their range when they are parsed, before any
-    /// data is loaded.
-    #[test]
-    fn sizing_options_are_bounded_when_parsed() {
-        let parse = |args: &[&str]| Cli::try_parse_from(["xtask"].iter().chain(args));
-        let train = ["train", "--data", "d", "--out", "o"];
-        let with = |extra: &[&'static str]| {
-            let mut v: Vec<&str> = train.to_vec();
-            v.extend_from_slice(extra);
-            v
-        };
-        assert!(parse(&with(&["--epochs", "10000", "--batch-size", "4096"])).is_ok());
-        assert!(parse(&with(&["--k", "256", "--edge-widths", "1,8192,3"])).is_ok());
-        for bad in [
-            &["--epochs", "0"][..],
-            &["--epochs", "10001"],
-            &["--batch-size", "0"],
-            &["--batch-size", "4097"],
-            &["--max-frames", "0"],
-            &["--k", "0"],
-            &["--k", "257"],
-            &["--edge-widths", "64,0,256"],
-            &["--head-widths", "512,8193"],
-            &["--lr-step-epochs", "0"],
-        ] {
-            let err = parse(&with(bad)).unwrap_err();
-            assert_eq!(
-                err.kind(),
-                clap::error::ErrorKind::ValueValidation,
-                "{bad:?}"
-            );
-        }
-        let heldout = |extra: &[&'static str]| {
-            let mut v = vec!["heldout-shard", "--data", "d"];
-            v.extend_from_slice(extra);
-            parse(&v)
-        };
-        assert!(heldout(&["--trajectories", "1", "--frames", "1"]).is_ok());
-        for (bad, arg) in [
-            (
-                &["--trajectories", "0"][..],
-                "--trajectories <TRAJECTORIES>",
-            ),
-            (&["--frames", "0"], "--frames <FRAMES>"),
-        ] {
-            let err = heldout(bad).unwrap_err();
-            assert_eq!(
-                err.kind(),
-                clap::error::ErrorKind::ValueValidation,
-                "{bad:?}"
-            );
-            assert_eq!(
-                err.get(clap::error::ContextKind::InvalidArg),
-                Some(&clap::error::ContextValue::String(arg.into())),
-                "{bad:?}: {err}"
-            );
         }
     }
 }

@@ -7,7 +7,7 @@
 //! two opposite corners) and a boundary edge in three. With `c_e` cells per edge, the energy
 //! `Σ_i Σ_{e∈cell(i)} w_e ‖e′ − R_i e‖²` has the normal equations
 //! `Σ_{e∋k} (c_e w_e / 2)(p′_k − p′_l) = Σ_{e∋k} (w_e / 2)(Σ_{i∈cells(e)} R_i)(p_k − p_l)`,
-//! which for spokes (`c_e = 2`) is DESIGN.md's global step.
+//! which for spokes (`c_e = 2`) is docs/design.md's global step.
 
 use moe_geom::{Point3, Real, Topology, TriMesh, Vector3, cotan_weights};
 

@@ -15,7 +15,7 @@
 //!
 //! minimised over `p′` with fixed and handle vertices on their targets. `α = 0` is plain ARAP
 //! (Sorkine & Alexa); `α > 0` is SR-ARAP (Levi & Gotsman), which penalises rotation changes
-//! between neighbours and gives smooth bends. The default convention is DESIGN.md's, i.e. that of
+//! between neighbours and gives smooth bends. The default convention is docs/design.md's, i.e. that of
 //! Open3D's "Smoothed" ARAP used by the paper's authors:
 //!
 //! * the deformed mesh starts as the rest mesh (handles are not pre-placed);

@@ -101,11 +101,37 @@ pub struct MultiShapeEstimator {
 }
 
 impl MultiShapeEstimator {
-    /// Builds and factorises one solver per finger (base vertices fixed at rest).
+    /// Builds and factorises one solver per finger (base vertices fixed at rest) and attaches
+    /// every marker to its nearest rest vertex, so that the first frame may be strongly bent or
+    /// miss markers: the estimator a one-shot estimation and a live stream both want.
+    ///
+    /// ```
+    /// use moe_arap::{MultiShapeEstimator, ShapeConfig};
+    /// use moe_geom::{FingerParams, HandModel, HandPreset};
+    ///
+    /// let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default())?;
+    /// let mut arap = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default())?;
+    /// // The markers where the camera saw them (here: at rest), in the hand frame.
+    /// let estimate = arap.estimate(&hand.rest_keypoints())?;
+    /// assert_eq!(estimate.shape.fingers.len(), 2);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     ///
     /// # Errors
     /// Invalid options, or a finger mesh the solver rejects.
     pub fn new(hand: HandModel, options: ShapeConfig) -> Result<Self, ArapError> {
+        let rest = hand.rest_keypoints();
+        let mut estimator = Self::unattached(hand, options)?;
+        estimator.assign_handles(&rest)?;
+        Ok(estimator)
+    }
+
+    /// As [`MultiShapeEstimator::new`], but a marker is attached to the vertex nearest to where
+    /// it is first observed (the frame it is first seen in must then be close to rest).
+    ///
+    /// # Errors
+    /// Invalid options, or a finger mesh the solver rejects.
+    pub fn unattached(hand: HandModel, options: ShapeConfig) -> Result<Self, ArapError> {
         let config = ArapConfig {
             energy: options.energy,
             alpha: options.alpha,

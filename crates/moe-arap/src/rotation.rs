@@ -1,7 +1,7 @@
 //! Best-fitting rotations for the local step.
 //!
 //! The local step needs, for a 3 × 3 matrix `S = UΣVᵀ`, the rotation that maximises `tr(R S)`:
-//! `R = V·diag(1, 1, det(VUᵀ))·Uᵀ` (DESIGN.md). When `det S > 0` this is the orthogonal polar factor
+//! `R = V·diag(1, 1, det(VUᵀ))·Uᵀ` (docs/design.md). When `det S > 0` this is the orthogonal polar factor
 //! of `Sᵀ` (`Sᵀ = V Uᵀ · U Σ Uᵀ`), which the scaled Newton iteration `X ← (ζX + ζ⁻¹X⁻ᵀ)/2`
 //! (Higham 1986) reaches in a handful of steps of a few dozen flops each — much cheaper than a
 //! full SVD, and the result is the same rotation to rounding. Cells whose matrix is

@@ -15,7 +15,7 @@ pub enum ContactError {
         message: String,
     },
     /// A tensor the network needs is not in the weights. Export every tensor named in the
-    /// model-file section of the design notes (`edge1.theta`, ..., `head.2.bias`).
+    /// model-file section of docs/design.md (`edge1.theta`, ..., `head.2.bias`).
     #[error("weights have no tensor '{name}'")]
     MissingTensor {
         /// The missing tensor's name.
@@ -121,6 +121,24 @@ pub enum ContactError {
         hand_vertices: Vec<usize>,
         /// What would fit (per-finger models: fingers of the trained finger's size).
         rule: &'static str,
+    },
+    /// The model was trained on another finger than the one it is asked to run on (the card's
+    /// finger digests do not include this rest mesh's).
+    #[error(
+        "the model was trained on the finger(s) of '{card_hand}' (rest-mesh digest {card_digests:?}); \
+         finger {finger} is another mesh (digest {digest}). A model learns one finger's geometry: \
+         generate data for this finger (`moe-touch gen-data --params` with its finger \
+         parameters) and train a model on it (`moe-touch train`)"
+    )]
+    FingerMismatch {
+        /// The card's hand name.
+        card_hand: String,
+        /// The card's finger digests.
+        card_digests: Vec<String>,
+        /// The finger that does not fit.
+        finger: usize,
+        /// Its rest mesh's digest.
+        digest: String,
     },
     /// A batch has no items, or items of different sizes where one size is needed.
     #[error("invalid batch: {message}")]

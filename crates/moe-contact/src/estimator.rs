@@ -3,10 +3,12 @@
 
 use candle_core::{DType, Device, Tensor};
 use moe_geom::{
-    ContactEstimate, ContactEstimator, ContactInput, ContactMap, HandModel, HandShape, Iso3, Point3,
+    ContactEstimate, ContactEstimator, ContactInput, ContactMap, HandModel, HandShape, Iso3,
+    Point3, TriMesh,
 };
 
-use crate::config::{FeatureFrame, InputFeature, InputSpec, ModelCard, PointSet};
+use crate::card::{CardHand, ModelCard};
+use crate::config::{FeatureFrame, InputFeature, InputSpec, PointSet};
 use crate::deformation::DeformationFeatures;
 use crate::error::ContactError;
 use crate::network::{Dgcnn, ForwardTimings, Mode, contact_probability};
@@ -121,6 +123,40 @@ impl FeatureBuilder {
                 Vec::new()
             },
             tendon_directions: tendon_directions(hand, spec)?,
+        })
+    }
+
+    /// Features of `spec` for one finger alone, given by its rest mesh in its own frame: what a
+    /// per-finger model needs, without a hand model (no markers, base or tendons). The finger's
+    /// shapes are then one-finger [`HandShape`]s in that frame.
+    ///
+    /// # Errors
+    /// An invalid spec, or one whose features take tendon pulls (they need the hand's tendons).
+    pub fn for_finger(spec: &InputSpec, rest: &TriMesh) -> Result<Self, ContactError> {
+        spec.validate()?;
+        if spec.features.contains(&InputFeature::TendonPull) {
+            return Err(ContactError::InvalidConfig {
+                field: "input.features",
+                message: "tendon-pull needs the hand's tendon routes: build the estimator for a \
+                          hand (DgcnnEstimator::new)"
+                    .into(),
+            });
+        }
+        let len = rest.num_vertices();
+        Ok(Self {
+            spec: spec.clone(),
+            finger_from_hand: vec![Iso3::identity()],
+            rest_in_hand: vec![rest.vertices().to_vec()],
+            plans: vec![SetPlan {
+                fingers: vec![0],
+                len,
+            }],
+            deformation: if spec.features.contains(&InputFeature::Deformation) {
+                vec![DeformationFeatures::new(rest)]
+            } else {
+                Vec::new()
+            },
+            tendon_directions: vec![Vec::new()],
         })
     }
 
@@ -415,7 +451,118 @@ impl DgcnnEstimator {
                 });
             }
         }
+        if let Some(trained) = &card.hand {
+            let meshes: Vec<&TriMesh> = hand.fingers().iter().map(|f| f.model.mesh()).collect();
+            check_finger_digests(trained, &meshes)?;
+        }
         let features = FeatureBuilder::new(spec, hand)?;
+        Self::with_features(net, card, features)
+    }
+
+    /// An estimator for one finger given by its rest mesh alone (finger frame, metres): no hand
+    /// model, markers or base needed. The card must be a per-finger model with finger-frame
+    /// features that do not take tendon pulls; when it records its finger's digest, `rest` must be that finger.
+    /// Shapes are one-finger [`HandShape`]s in the finger frame; [`DgcnnEstimator::finger_map`]
+    /// takes the deformed vertices directly.
+    ///
+    /// # Errors
+    /// As [`DgcnnEstimator::new`]; [`ContactError::FingerMismatch`] for another finger's mesh,
+    /// [`ContactError::InvalidConfig`] for a whole-hand model or one that takes tendon pulls.
+    pub fn for_finger(net: Dgcnn, card: ModelCard, rest: &TriMesh) -> Result<Self, ContactError> {
+        card.validate()?;
+        let input = &card.architecture.input;
+        if input.point_set != PointSet::PerFinger || input.frame != FeatureFrame::Finger {
+            return Err(ContactError::InvalidConfig {
+                field: "architecture.input",
+                message: "a whole-hand model, or one with hand-frame features, runs on the hand \
+                          it was trained on: build it with DgcnnEstimator::new"
+                    .into(),
+            });
+        }
+        if let Some(trained) = &card.hand {
+            if trained.finger_digests.is_empty()
+                && !trained.finger_num_vertices.contains(&rest.num_vertices())
+            {
+                return Err(ContactError::HandMismatch {
+                    card_hand: trained.name.clone(),
+                    card_vertices: trained.finger_num_vertices.clone(),
+                    hand_vertices: vec![rest.num_vertices()],
+                    rule: " (a per-finger model runs on fingers of the trained size)",
+                });
+            }
+            check_finger_digests(trained, &[rest])?;
+        }
+        let features = FeatureBuilder::for_finger(&card.architecture.input, rest)?;
+        Self::with_features(net, card, features)
+    }
+
+    /// [`DgcnnEstimator::for_finger`] from the bytes of a model file and its card, in f32 on
+    /// the CPU.
+    ///
+    /// ```
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// use moe_contact::{DgcnnConfig, DgcnnEstimator, FeatureFrame, ModelCard, ModelWeights, PointSet};
+    /// use moe_geom::shapes::icosphere;
+    ///
+    /// // A seeded, untrained per-finger network stands in for a trained model's files here.
+    /// let mut card = ModelCard::new(DgcnnConfig { k: 8, ..DgcnnConfig::default() });
+    /// card.architecture.input.point_set = PointSet::PerFinger;
+    /// card.architecture.input.frame = FeatureFrame::Finger;
+    /// let channels = card.architecture.input.channels();
+    /// let weights = ModelWeights::seeded(&card.architecture, channels, 7)?.to_bytes()?;
+    /// let finger = icosphere(2, 0.01); // the finger's rest mesh, metres
+    /// let model = DgcnnEstimator::finger_from_bytes(&weights, &card.to_json()?, &finger)?;
+    /// let p = model.finger_map(finger.vertices())?; // the deformed vertices
+    /// assert_eq!(p.len(), finger.num_vertices());
+    /// # Ok(())
+    /// # }
+    /// ```
+    ///
+    /// # Errors
+    /// Malformed weights or card, and as [`DgcnnEstimator::for_finger`].
+    pub fn finger_from_bytes(
+        weights: &[u8],
+        card_json: &str,
+        rest: &TriMesh,
+    ) -> Result<Self, ContactError> {
+        let card = ModelCard::from_json(card_json)?;
+        let net = Dgcnn::from_safetensors(weights, Some(&card), DType::F32, &Device::Cpu)?;
+        Self::for_finger(net, card, rest)
+    }
+
+    /// [`DgcnnEstimator::new`] from the bytes of a model file and its card, in f32 on the CPU.
+    ///
+    /// # Errors
+    /// Malformed weights or card, and as [`DgcnnEstimator::new`].
+    pub fn from_bytes(
+        weights: &[u8],
+        card_json: &str,
+        hand: &HandModel,
+    ) -> Result<Self, ContactError> {
+        let card = ModelCard::from_json(card_json)?;
+        let net = Dgcnn::from_safetensors(weights, Some(&card), DType::F32, &Device::Cpu)?;
+        Self::new(net, card, hand)
+    }
+
+    /// Contact probability of every vertex of the finger of an estimator built with
+    /// [`DgcnnEstimator::for_finger`], from its deformed vertices (finger frame).
+    ///
+    /// # Errors
+    /// Vertices that do not fit the finger, or a failing tensor operation.
+    pub fn finger_map(&self, deformed: &[Point3]) -> Result<Vec<f64>, ContactError> {
+        let shape = HandShape {
+            fingers: vec![deformed.to_vec()],
+        };
+        let mut map = self.estimate_map(&ContactInput::shape(&shape))?;
+        Ok(map.fingers.swap_remove(0))
+    }
+
+    /// The estimator once its features are built: checks the point sets against `k`.
+    fn with_features(
+        net: Dgcnn,
+        card: ModelCard,
+        features: FeatureBuilder,
+    ) -> Result<Self, ContactError> {
         let k = net.config().k;
         if let Some((set, p)) = features.plans.iter().enumerate().find(|(_, p)| p.len < k) {
             return Err(ContactError::TooFewPoints {
@@ -567,6 +714,25 @@ impl DgcnnEstimator {
         }
         Ok((maps, timings))
     }
+}
+
+/// Every finger mesh must be one of the card's trained fingers, when the card records them.
+fn check_finger_digests(trained: &CardHand, meshes: &[&TriMesh]) -> Result<(), ContactError> {
+    if trained.finger_digests.is_empty() {
+        return Ok(());
+    }
+    for (finger, mesh) in meshes.iter().enumerate() {
+        let digest = mesh.digest();
+        if !trained.finger_digests.contains(&digest) {
+            return Err(ContactError::FingerMismatch {
+                card_hand: trained.name.clone(),
+                card_digests: trained.finger_digests.clone(),
+                finger,
+                digest,
+            });
+        }
+    }
+    Ok(())
 }
 
 impl ContactEstimator for DgcnnEstimator {

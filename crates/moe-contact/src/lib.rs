@@ -19,7 +19,9 @@
 //! does no file IO; files are read and written by the caller. It depends on `moe-geom` for
 //! the vocabulary types and on nothing else of this workspace.
 
-/// The architecture, input features and the model card.
+/// The model card: what the weights are, which finger they fit, how they were made.
+pub mod card;
+/// The architecture and its input features.
 pub mod config;
 /// Local deformation measures (an input feature).
 mod deformation;
@@ -48,9 +50,11 @@ pub mod weights;
 pub use candle_core;
 pub use candle_nn;
 
+pub use card::{
+    CardDataSource, CardDataset, CardHand, CardMetrics, CardTraining, EpochRecord, ModelCard,
+};
 pub use config::{
-    Aggregation, CardHand, DgcnnConfig, FeatureFrame, InputFeature, InputSpec, ModelCard,
-    Normalisation, PointSet,
+    Aggregation, DgcnnConfig, FeatureFrame, InputFeature, InputSpec, Normalisation, PointSet,
 };
 pub use device::{DeviceKind, open_device};
 pub use error::ContactError;

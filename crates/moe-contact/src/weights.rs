@@ -10,7 +10,8 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
 use safetensors::tensor::Dtype;
 
-use crate::config::{DgcnnConfig, ModelCard};
+use crate::card::ModelCard;
+use crate::config::DgcnnConfig;
 use crate::error::ContactError;
 use crate::network::{Dgcnn, tensor_names, tensor_shapes};
 use crate::tensor_file::{self, Entry};

@@ -1,6 +1,6 @@
 //! Nearest-neighbour queries over point sets and Chamfer distances.
 //!
-//! Convention (DESIGN.md): mean Euclidean (not squared) nearest-neighbour distance.
+//! Convention (docs/design.md): mean Euclidean (not squared) nearest-neighbour distance.
 //! `UCD(A→B)` averages, over every point of `A`, the distance to its nearest point of `B`;
 //! `BCD(A, B) = (UCD(A→B) + UCD(B→A)) / 2`. Values are in the points' units (metres); reports
 //! convert to millimetres.

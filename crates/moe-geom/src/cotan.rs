@@ -1,6 +1,6 @@
 //! Cotangent edge weights and the cotangent Laplacian.
 //!
-//! The convention (DESIGN.md, and Open3D's ARAP): for an edge `ij`,
+//! The convention (docs/design.md, and Open3D's ARAP): for an edge `ij`,
 //!
 //! ```text
 //! w_ij = max(0, mean over the triangles t ∋ ij of cot(θ_t)),

@@ -6,6 +6,8 @@
 
 /// Procedural heads and arms.
 pub mod bodies;
+/// The pinhole camera: intrinsics and projection.
+pub mod camera;
 /// k-d tree queries and Chamfer distances.
 pub mod chamfer;
 /// Cotangent edge weights and the cotangent Laplacian.
@@ -37,6 +39,7 @@ pub mod transform;
 /// nalgebra, re-exported so that users name the same version.
 pub use nalgebra;
 
+pub use camera::CameraIntrinsics;
 pub use chamfer::{Neighbor, PointIndex, bcd, ucd};
 pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;

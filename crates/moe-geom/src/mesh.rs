@@ -117,6 +117,38 @@ impl TriMesh {
         &self.faces
     }
 
+    /// A digest that identifies the mesh: 64-bit FNV-1a over the vertex count, the face count,
+    /// every coordinate in nanometres (metres × 10⁹, rounded; vertex order, x y z) and every
+    /// face index, as 16 hex digits. Meshes equal to the nanometre (same order) have equal
+    /// digests; a vertex moved by more, a reordered vertex or a changed face changes it. A contact model's card records its finger's digest,
+    /// so that the model is not run on another finger by mistake.
+    pub fn digest(&self) -> String {
+        const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+        const PRIME: u64 = 0x0000_0100_0000_01b3;
+        let mut h = OFFSET;
+        let mut eat = |bytes: &[u8]| {
+            for &b in bytes {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(PRIME);
+            }
+        };
+        eat(&(self.vertices.len() as u64).to_le_bytes());
+        eat(&(self.faces.len() as u64).to_le_bytes());
+        for p in &self.vertices {
+            for c in [p.x, p.y, p.z] {
+                // Rounded to the nanometre, so that the last bits of another platform's
+                // trigonometry do not change it (and -0 is +0).
+                eat(&((c * 1e9).round() as i64).to_le_bytes());
+            }
+        }
+        for f in &self.faces {
+            for i in f {
+                eat(&i.to_le_bytes());
+            }
+        }
+        format!("{h:016x}")
+    }
+
     /// Number of vertices.
     pub fn num_vertices(&self) -> usize {
         self.vertices.len()
@@ -436,6 +468,35 @@ pub(crate) mod tests {
         ];
         let f = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
         TriMesh::new(v, f).unwrap()
+    }
+
+    #[test]
+    fn the_digest_tells_meshes_apart() {
+        let t = tetrahedron();
+        assert_eq!(t.digest(), tetrahedron().digest());
+        assert_eq!(t.digest().len(), 16);
+        let mut moved = t.vertices().to_vec();
+        moved[2].x += 1e-8;
+        let moved = TriMesh::new(moved, t.faces().to_vec()).unwrap();
+        assert_ne!(moved.digest(), t.digest());
+        let mut faces = t.faces().to_vec();
+        faces.swap(0, 1);
+        let reordered = TriMesh::new(t.vertices().to_vec(), faces).unwrap();
+        assert_ne!(reordered.digest(), t.digest());
+        // Below a nanometre (another platform's last bits) the digest holds.
+        let mut jittered = t.vertices().to_vec();
+        jittered[1].y += 1e-13;
+        let jittered = TriMesh::new(jittered, t.faces().to_vec()).unwrap();
+        assert_eq!(jittered.digest(), t.digest());
+        // -0 is +0.
+        let mut signed = t.vertices().to_vec();
+        for p in &mut signed {
+            p.x = if p.x == 0.0 { -0.0 } else { p.x };
+        }
+        assert_eq!(
+            TriMesh::new(signed, t.faces().to_vec()).unwrap().digest(),
+            t.digest()
+        );
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //!
 //! `Transform<To, From>` maps coordinates expressed in frame `From` to frame `To`, so
 //! `world_from_hand * hand_from_finger` is a `Transform<World, Finger>` and composing in the
-//! wrong order does not compile. Frames (DESIGN.md): `world`; `hand` (palm, z from the palm toward
+//! wrong order does not compile. Frames (docs/design.md): `world`; `hand` (palm, z from the palm toward
 //! the fingertips); `finger` (base at the origin, z along the finger); `camera` (OpenCV: x right,
 //! y down, z forward).
 

@@ -24,7 +24,7 @@
 //!
 //! # Method decisions
 //!
-//! - **The prior is the mean** (DESIGN.md): the task prior enters as the signed distance of a
+//! - **The prior is the mean** (docs/design.md): the task prior enters as the signed distance of a
 //!   watertight prior mesh ([`MeshSdfMean`], parry3d BVH with pseudo-normal inside tests), not
 //!   as 125k pretraining grid points; conditioning on the contacts is then one exact solve. The
 //!   sphere (fitted by L-BFGS from the centroid / mean-radius start, Eqs. 5–7) and a constant are
@@ -45,8 +45,8 @@
 //!   surface, and the same marching tetrahedra mesh it (the crate's marching cubes can leave
 //!   cracks), so the result is closed too; an unconverged solve is reported, not meshed. It is
 //!   not the default: it costs seconds (the crate's solve grows ~8× per octree level) and does
-//!   not beat marching tetrahedra on the head benchmark (the figures are in the repository
-//!   README's "Validation").
+//!   not beat marching tetrahedra on the head benchmark (the figures are in
+//!   docs/results.md).
 //! - **Fast grid queries**: the RBF residual is separable over the axes, so its value at all
 //!   `64³` nodes is one matrix product; the expensive prior SDF is evaluated exactly only in a
 //!   certified narrow band around the zero level set, giving the same mesh as a dense evaluation
@@ -57,7 +57,7 @@
 //!   pose prior by default) of the prior ([`parts::register_prior`], [`PosePrior`]).
 //!
 //! The benchmark of [`bench_scene`] (procedural heads and 2:20:1 arms, patting contacts, UCD to
-//! the ground truth) is run by `cargo xtask eval surface`.
+//! the ground truth) is run by `moe-touch eval surface`.
 //!
 //! Architecture invariant: depends only on `moe-geom`, faer, parry3d-f64, poisson_reconstruction,
 //! rayon and serde. No file IO: observations, meshes and grids come in and go out as values.

@@ -7,7 +7,7 @@
 //!
 //! Three implementations sit behind [`MeanFunction`]: a constant, a sphere fitted to the contacts
 //! (App. E.0.1–E.0.2, Eqs. 5–8), and the signed distance to a watertight prior mesh (the task
-//! prior of §6.1; DESIGN.md: the prior's SDF is the mean, instead of pretraining on a dense grid).
+//! prior of §6.1; docs/design.md: the prior's SDF is the mean, instead of pretraining on a dense grid).
 
 use moe_geom::math::{from_parry, to_parry};
 use moe_geom::{Matrix3, Point3, Real, TriMesh, Vector3};

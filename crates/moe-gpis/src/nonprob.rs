@@ -5,7 +5,7 @@
 //! their mean. The smoothing is the explicit normalised cotangent filter
 //! `v_i ← v_i + λ (Σ_j w_ij v_j / Σ_j w_ij − v_i)` applied to every vertex for a number of
 //! iterations (as mesh-processing libraries' Laplacian filters do), with the cotangent weights
-//! of the prior mesh (clamped at 0, DESIGN.md's convention; uniform weights for a vertex whose
+//! of the prior mesh (clamped at 0, docs/design.md's convention; uniform weights for a vertex whose
 //! weights all vanish).
 
 use moe_geom::{CotanLaplacian, Point3, PointIndex, Real, Topology, TriMesh, Vector3};

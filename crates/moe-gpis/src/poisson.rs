@@ -29,8 +29,7 @@
 //! Cost: the crate's right-hand side and coarse-level corrections visit, for every node of every
 //! level, all cells of the other levels within its reach (hash lookups of empty cells take most
 //! of the time), so the solve grows about 8× per level of depth whatever the number of samples.
-//! Its time and accuracy on the head benchmark at each depth are in the repository README
-//! ("Validation"). The conjugate-gradient iterations cost little but matter: at depth 4, 5 iterations gave a 20 mm
+//! Its time and accuracy on the head benchmark at each depth are in docs/results.md. The conjugate-gradient iterations cost little but matter: at depth 4, 5 iterations gave a 20 mm
 //! UCD and 20–100 converge; at depth 5, 20 did not converge on the sphere test and 50 does —
 //! hence the default of 50. Screening multiplies the time by about 5 and did not improve the
 //! sphere test, so it is off by default.

@@ -9,7 +9,10 @@ use crate::error::IoError;
 pub const MEMORY: &str = "<memory>";
 
 /// Reads a whole file.
-pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
+///
+/// # Errors
+/// [`IoError::Io`] naming the file.
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
     std::fs::read(path).map_err(|e| IoError::io(path, e))
 }
 

@@ -89,7 +89,7 @@ pub use episode::{
     parse_episode, parse_episode_prefix, read_episode, write_episode,
 };
 pub use error::IoError;
-pub use files::MEMORY;
+pub use files::{MEMORY, read_bytes};
 pub use hand_config::{FingerConfig, HandConfig, TendonConfig, load_hand_config};
 pub use mesh_io::{read_mesh, write_mesh};
 pub use model::{ModelFiles, read_model_files, write_model_files};

@@ -285,6 +285,17 @@ pub(crate) fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyData, IoError> {
     };
     let empty = Vec::new();
     let vertices = ply.payload.get("vertex").unwrap_or(&empty);
+    let (has_colors, scalar_names) = check_vertex_def(path, vertex_def)?;
+    let mut data = read_vertices(path, vertices, has_colors, &scalar_names)?;
+    if let Some(face_list) = ply.payload.get("face") {
+        data.faces = read_faces(path, face_list, data.points.len())?;
+    }
+    Ok(data)
+}
+
+/// Checks the `vertex` element's header: scalar `x`, `y`, `z` and all or none of the colours;
+/// returns whether it has colours and the names of its other scalar properties.
+fn check_vertex_def(path: &Path, vertex_def: &ElementDef) -> Result<(bool, Vec<String>), IoError> {
     let scalar_def = |name: &str| {
         matches!(
             vertex_def.properties.get(name).map(|d| &d.data_type),
@@ -317,7 +328,17 @@ pub(crate) fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyData, IoError> {
         .filter(|n| !["x", "y", "z"].contains(&n.as_str()))
         .filter(|n| !(has_colors && COLOR_NAMES.contains(&n.as_str())))
         .collect();
+    Ok((has_colors, scalar_names))
+}
 
+/// Reads every vertex's point, colour (when `has_colors`) and the scalars `scalar_names`;
+/// the result has no faces.
+fn read_vertices(
+    path: &Path,
+    vertices: &[DefaultElement],
+    has_colors: bool,
+    scalar_names: &[String],
+) -> Result<PlyData, IoError> {
     let mut points = Vec::with_capacity(vertices.len());
     let mut colors = has_colors.then(|| Vec::with_capacity(vertices.len()));
     let mut scalars: Vec<(String, Vec<f32>)> = scalar_names
@@ -379,50 +400,55 @@ pub(crate) fn parse_ply(bytes: &[u8], path: &Path) -> Result<PlyData, IoError> {
             }
         }
     }
-
-    let mut faces = Vec::new();
-    if let Some(face_list) = ply.payload.get("face") {
-        let n = points.len();
-        for (f, e) in face_list.iter().enumerate() {
-            let Some(list) = e.get("vertex_indices").or_else(|| e.get("vertex_index")) else {
-                return Err(IoError::invalid(
-                    path,
-                    format!("face {f}"),
-                    "has no 'vertex_indices' list",
-                ));
-            };
-            let Some(ids) = list.to_u32_list() else {
-                return Err(IoError::invalid(
-                    path,
-                    format!("face {f}"),
-                    "'vertex_indices' must be a list of non-negative integers",
-                ));
-            };
-            if ids.len() < 3 {
-                return Err(IoError::invalid(
-                    path,
-                    format!("face {f}"),
-                    format!("has {} vertices; a face needs at least 3", ids.len()),
-                ));
-            }
-            if let Some(&k) = ids.iter().find(|&&k| k as usize >= n) {
-                return Err(IoError::invalid(
-                    path,
-                    format!("face {f}"),
-                    format!("vertex index {k} out of range ({n} vertices)"),
-                ));
-            }
-            for k in 1..ids.len() - 1 {
-                faces.push([ids[0], ids[k], ids[k + 1]]);
-            }
-        }
-    }
     Ok(PlyData {
         points,
-        faces,
+        faces: Vec::new(),
         colors,
         scalars,
     })
+}
+
+/// Reads the `face` element's index lists over `n` vertices, fan-triangulated.
+fn read_faces(
+    path: &Path,
+    face_list: &[DefaultElement],
+    n: usize,
+) -> Result<Vec<[u32; 3]>, IoError> {
+    let mut faces = Vec::new();
+    for (f, e) in face_list.iter().enumerate() {
+        let Some(list) = e.get("vertex_indices").or_else(|| e.get("vertex_index")) else {
+            return Err(IoError::invalid(
+                path,
+                format!("face {f}"),
+                "has no 'vertex_indices' list",
+            ));
+        };
+        let Some(ids) = list.to_u32_list() else {
+            return Err(IoError::invalid(
+                path,
+                format!("face {f}"),
+                "'vertex_indices' must be a list of non-negative integers",
+            ));
+        };
+        if ids.len() < 3 {
+            return Err(IoError::invalid(
+                path,
+                format!("face {f}"),
+                format!("has {} vertices; a face needs at least 3", ids.len()),
+            ));
+        }
+        if let Some(&k) = ids.iter().find(|&&k| k as usize >= n) {
+            return Err(IoError::invalid(
+                path,
+                format!("face {f}"),
+                format!("vertex index {k} out of range ({n} vertices)"),
+            ));
+        }
+        for k in 1..ids.len() - 1 {
+            faces.push([ids[0], ids[k], ids[k + 1]]);
+        }
+    }
+    Ok(faces)
 }
 
 fn scalar_f64(p: &Property) -> Option<f64> {

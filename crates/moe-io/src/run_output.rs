@@ -315,15 +315,58 @@ impl<W: Write + Seek> RunWriter<W> {
         Ok(self.writer.into_inner())
     }
 
+    /// The messages of one frame, one per topic of [`RUN_TOPICS`] (`None`: not written).
     fn encode(&self, frame: &RunFrame) -> Result<Vec<Option<Vec<u8>>>, IoError> {
-        let path = self.path.as_path();
         let info = &self.info.episode;
         let t = frame.time_ns;
         let cam = &info.camera;
+        self.check_frame(frame)?;
+        let transforms = self.transforms(frame);
+        let markers = markers_update(frame);
+        let mesh = self.mesh_update(frame);
+        let contacts = scene_update(vec![spheres_entity(
+            t,
+            "world",
+            "contacts".into(),
+            &frame.contacts_in_world,
+            0.002,
+            [1.0, 0.1, 0.1, 1.0],
+        )]);
+        let [forces, finger_forces] = self
+            .force_messages(frame)?
+            .map_or([None, None], |m| m.map(Some));
+        let [truth_mesh, truth_contacts, obstacles] = match &frame.truth {
+            Some(tr) => self.truth_messages(frame, tr).map(Some),
+            None => [None, None, None],
+        };
+        Ok(vec![
+            Some(encode(&color_image(t, cam, &frame.color_rgb8))),
+            Some(encode(&camera_calibration(t, cam))),
+            Some(encode(&fg::FrameTransforms { transforms })),
+            Some(markers),
+            Some(mesh),
+            Some(contacts),
+            forces,
+            finger_forces,
+            truth_mesh,
+            truth_contacts,
+            obstacles,
+        ])
+    }
+
+    /// The error for `frame`, which does not fit the run: `message` says why.
+    fn refuse(&self, frame: &RunFrame, message: String) -> IoError {
+        let t = frame.time_ns;
+        IoError::invalid(&self.path, format!("run frame at {t} ns"), message)
+    }
+
+    /// Checks the frame's image, list and vertex sizes against the episode info.
+    fn check_frame(&self, frame: &RunFrame) -> Result<(), IoError> {
+        let info = &self.info.episode;
+        let cam = &info.camera;
         let fingers = info.finger_faces.len();
         let pixels = cam.width as usize * cam.height as usize;
-        let item = format!("run frame at {t} ns");
-        let refuse = |message: String| Err(IoError::invalid(path, item.clone(), message));
+        let refuse = |message: String| Err(self.refuse(frame, message));
         if frame.color_rgb8.len() != 3 * pixels {
             return refuse(format!(
                 "{} colour bytes for a camera of {pixels} pixels",
@@ -367,6 +410,13 @@ impl<W: Write + Seek> RunWriter<W> {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// The frame's transforms: `world→hand`, `hand→camera` and `hand→finger_i`.
+    fn transforms(&self, frame: &RunFrame) -> Vec<fg::FrameTransform> {
+        let info = &self.info.episode;
+        let t = frame.time_ns;
         let mut transforms = vec![
             fg_transform(t, "world", "hand", &frame.world_from_hand),
             fg_transform(t, "hand", "camera", &info.hand_from_camera),
@@ -374,30 +424,13 @@ impl<W: Write + Seek> RunWriter<W> {
         for (i, iso) in info.hand_from_finger.iter().enumerate() {
             transforms.push(fg_transform(t, "hand", &format!("finger_{i}"), iso));
         }
-        let update = |entities: Vec<fg::SceneEntity>| {
-            encode(&fg::SceneUpdate {
-                deletions: vec![],
-                entities,
-            })
-        };
-        let markers = update(
-            frame
-                .markers_in_hand
-                .iter()
-                .enumerate()
-                .map(|(f, ms)| {
-                    let seen: Vec<Point3> = ms.iter().flatten().copied().collect();
-                    spheres_entity(
-                        t,
-                        "hand",
-                        format!("markers_{f}"),
-                        &seen,
-                        0.004,
-                        [0.1, 1.0, 0.2, 1.0],
-                    )
-                })
-                .collect(),
-        );
+        transforms
+    }
+
+    /// The `/estimate/mesh` update: every estimated finger mesh coloured by contact probability.
+    fn mesh_update(&self, frame: &RunFrame) -> Vec<u8> {
+        let info = &self.info.episode;
+        let t = frame.time_ns;
         let rgba = |c: [u8; 3]| {
             fg_color([
                 f64::from(c[0]) / 255.0,
@@ -407,8 +440,8 @@ impl<W: Write + Seek> RunWriter<W> {
             ])
             .expect("some")
         };
-        let mesh = update(
-            (0..fingers)
+        scene_update(
+            (0..info.finger_faces.len())
                 .map(|f| {
                     let colors = frame.contact_probability[f]
                         .iter()
@@ -424,83 +457,100 @@ impl<W: Write + Seek> RunWriter<W> {
                     )
                 })
                 .collect(),
-        );
-        let contacts = update(vec![spheres_entity(
-            t,
-            "world",
-            "contacts".into(),
-            &frame.contacts_in_world,
-            0.002,
-            [1.0, 0.1, 0.1, 1.0],
-        )]);
-        let (forces, finger_forces) = match (&frame.forces, self.info.force_arrow_m_per_n) {
-            (None, None) => (None, None),
-            (Some(_), None) => {
-                return refuse(
-                    "carries forces, but the run info has no force_arrow_m_per_n".to_owned(),
-                );
-            }
-            (None, Some(_)) => {
-                return refuse(
-                    "carries no forces in a run with forces (force_arrow_m_per_n)".to_owned(),
-                );
-            }
+        )
+    }
+
+    /// The `/estimate/forces` and `/estimate/finger_force` messages (`None` in a run without
+    /// forces); refuses forces that do not fit the run info or the hand.
+    fn force_messages(&self, frame: &RunFrame) -> Result<Option<[Vec<u8>; 2]>, IoError> {
+        let t = frame.time_ns;
+        let fingers = self.info.episode.finger_faces.len();
+        match (&frame.forces, self.info.force_arrow_m_per_n) {
+            (None, None) => Ok(None),
+            (Some(_), None) => Err(self.refuse(
+                frame,
+                "carries forces, but the run info has no force_arrow_m_per_n".to_owned(),
+            )),
+            (None, Some(_)) => Err(self.refuse(
+                frame,
+                "carries no forces in a run with forces (force_arrow_m_per_n)".to_owned(),
+            )),
             (Some(fo), Some(scale)) => {
                 if let Err(message) = check_forces(fo, fingers) {
-                    return refuse(message);
+                    return Err(self.refuse(frame, message));
                 }
-                (
-                    Some(update(vec![arrows_entity(t, &fo.loads, scale)])),
-                    Some(finger_forces_message(t, fo, path)?),
-                )
+                Ok(Some([
+                    scene_update(vec![arrows_entity(t, &fo.loads, scale)]),
+                    finger_forces_message(t, fo, &self.path)?,
+                ]))
             }
-        };
-        let (truth_mesh, truth_contacts, obstacles) = match &frame.truth {
-            None => (None, None, None),
-            Some(tr) => {
-                let mut entities = Vec::with_capacity(fingers);
-                let mut points = Vec::new();
-                for f in 0..fingers {
-                    for &v in &tr.contact_vertices[f] {
-                        points.push(frame.world_from_hand * tr.vertices_in_hand[f][v as usize]);
-                    }
-                    entities.push(contact_mesh_entity(
-                        t,
-                        format!("true_finger_{f}"),
-                        &tr.vertices_in_hand[f],
-                        &info.finger_faces[f],
-                        &tr.contact_vertices[f],
-                    ));
-                }
-                let obstacles = obstacle_entities(t, &tr.obstacles);
-                (
-                    Some(update(entities)),
-                    Some(update(vec![spheres_entity(
-                        t,
-                        "world",
-                        "true_contacts".into(),
-                        &points,
-                        0.002,
-                        [1.0, 0.85, 0.0, 1.0],
-                    )])),
-                    Some(update(obstacles)),
-                )
-            }
-        };
-        Ok(vec![
-            Some(encode(&color_image(t, cam, &frame.color_rgb8))),
-            Some(encode(&camera_calibration(t, cam))),
-            Some(encode(&fg::FrameTransforms { transforms })),
-            Some(markers),
-            Some(mesh),
-            Some(contacts),
-            forces,
-            finger_forces,
-            truth_mesh,
-            truth_contacts,
-            obstacles,
-        ])
+        }
     }
+
+    /// The `/truth/mesh`, `/truth/contacts` and `/obstacles` updates of the ground truth `tr`.
+    fn truth_messages(&self, frame: &RunFrame, tr: &RunTruth) -> [Vec<u8>; 3] {
+        let info = &self.info.episode;
+        let t = frame.time_ns;
+        let fingers = info.finger_faces.len();
+        let mut entities = Vec::with_capacity(fingers);
+        let mut points = Vec::new();
+        for f in 0..fingers {
+            for &v in &tr.contact_vertices[f] {
+                points.push(frame.world_from_hand * tr.vertices_in_hand[f][v as usize]);
+            }
+            entities.push(contact_mesh_entity(
+                t,
+                format!("true_finger_{f}"),
+                &tr.vertices_in_hand[f],
+                &info.finger_faces[f],
+                &tr.contact_vertices[f],
+            ));
+        }
+        let obstacles = obstacle_entities(t, &tr.obstacles);
+        [
+            scene_update(entities),
+            scene_update(vec![spheres_entity(
+                t,
+                "world",
+                "true_contacts".into(),
+                &points,
+                0.002,
+                [1.0, 0.85, 0.0, 1.0],
+            )]),
+            scene_update(obstacles),
+        ]
+    }
+}
+
+/// A `SceneUpdate` of `entities` (no deletions), encoded.
+fn scene_update(entities: Vec<fg::SceneEntity>) -> Vec<u8> {
+    encode(&fg::SceneUpdate {
+        deletions: vec![],
+        entities,
+    })
+}
+
+/// The `/estimate/markers` update: every finger's detected markers, hand frame.
+fn markers_update(frame: &RunFrame) -> Vec<u8> {
+    let t = frame.time_ns;
+    scene_update(
+        frame
+            .markers_in_hand
+            .iter()
+            .enumerate()
+            .map(|(f, ms)| {
+                let seen: Vec<Point3> = ms.iter().flatten().copied().collect();
+                spheres_entity(
+                    t,
+                    "hand",
+                    format!("markers_{f}"),
+                    &seen,
+                    0.004,
+                    [0.1, 1.0, 0.2, 1.0],
+                )
+            })
+            .collect(),
+    )
 }
 
 /// Checks a frame's forces against the hand; the message says what does not fit.

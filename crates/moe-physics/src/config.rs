@@ -119,7 +119,7 @@ pub struct PhysicsConfig {
     pub friction: Real,
     /// Most loads per finger. Default 1: a finger pressed in two places is representable
     /// (2), but with a model that is not the hand's own mesh a pair of loads often explains a
-    /// single press's markers better than the press itself (measured in the README), so the
+    /// single press's markers better than the press itself (measured in docs/results.md), so the
     /// second load is opt-in.
     pub max_loads_per_finger: usize,
     /// A second load is kept when it lowers χ² by at least this much. Default 25.
@@ -140,14 +140,14 @@ pub struct PhysicsConfig {
     /// tied to the rest mesh's vertices; it also centres the contact region. 0: the centre
     /// vertex itself. Metres; default 0.008, chosen on validation trajectories (markers
     /// detected in rendered frames: contact BCD 9.66 → 9.47 mm; with 0.2 mm noise, 0.2–0.5 N
-    /// presses placed 0.9 mm closer; README, "The default, and memory across frames").
+    /// presses placed 0.9 mm closer; docs/results.md).
     pub place_radius_m: Real,
     /// Memory of a press's place across a stream: how far a press may move on the rest
     /// surface between two observations (the standard deviation of a Gaussian step), metres.
     /// While a finger stays pressed, the previous observation's posterior over the place,
     /// spread by this step, is the prior of the next one's search and posterior (with a small
     /// chance of a press anywhere), so a held press's place averages the frames' noise. 0 (the
-    /// default) forgets: each observation is placed on its own. Measured in the README: it
+    /// default) forgets: each observation is placed on its own. Measured in docs/results.md: it
     /// helps markers with independent noise, not markers detected in camera frames.
     pub place_memory_m: Real,
     /// Memory of whether a finger is pressed across a stream, seconds: the time over which a
@@ -155,12 +155,12 @@ pub struct PhysicsConfig {
     /// observation keeps a prior belief of being pressed (`exp(−Δt/τ)` of it), so a held press
     /// whose evidence dips below the threshold for a frame is still reported (no flicker),
     /// while a free finger's prior stays at even odds (onsets are found as without memory).
-    /// 0 (the default) decides each observation on its own. Measured in the README.
+    /// 0 (the default) decides each observation on its own. Measured in docs/results.md.
     pub press_hold_secs: Real,
     /// How much more likely a press is near a marker the camera has lost — seen earlier in the
     /// stream, hidden now (most often by the object pressing there): places within
     /// `hidden_marker_radius_m` of a lost marker get `1 +` this times the prior of the others.
-    /// 0 leaves the prior uniform over the surface. Measured in the README.
+    /// 0 leaves the prior uniform over the surface. Measured in docs/results.md.
     pub hidden_marker_prior: Real,
     /// Reach of a hidden marker's evidence on the rest surface (a Gaussian's standard
     /// deviation), metres. Default 0.008.
@@ -169,7 +169,7 @@ pub struct PhysicsConfig {
     /// observation is taken for a misidentified one (a blob assigned to the wrong marker, the
     /// rest of a marker hidden by the object) and left out of the frame's fit, which is then
     /// searched again; one per observation. 0 turns it off. Default 8 (2.4 mm with the default
-    /// noise; measured in the README).
+    /// noise; measured in docs/results.md).
     pub outlier_sigma: Real,
     /// Most Gauss–Newton iterations (search, loaded solve, re-linearisation) per frame.
     /// Default 4.
@@ -188,7 +188,7 @@ pub struct PhysicsConfig {
     /// How much of the contact response's lag is taken out of the markers in a stream (0: none,
     /// 1: all, as a first-order lag with the body's damping time). Taking it out triples the
     /// markers' noise (the lag is inverted from two frames), so the default is 0; with exact
-    /// markers 1 is better (measured in the README).
+    /// markers 1 is better (measured in docs/results.md).
     pub contact_lag_gain: Real,
     /// Largest time step of the free finger's simulation between observations, seconds; 0
     /// turns the simulation off (the markers are then compared with the static free shape).

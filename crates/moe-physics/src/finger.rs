@@ -251,6 +251,35 @@ struct FreeReference {
     dynamic: bool,
 }
 
+/// The no-load hypothesis a fit is tested against.
+struct Baseline {
+    /// ‖m − m(x)‖² of the free shape over the observed coordinates.
+    chi0: Real,
+    /// Markers used.
+    observed: usize,
+    /// Observed coordinates (three per marker used).
+    n_obs: Real,
+}
+
+/// Where the loads are searched from: the static free shape and the markers moved onto it.
+struct StaticStart {
+    /// Node positions of the static free shape.
+    x: Vec<Point3>,
+    /// The markers as the static model sees them.
+    markers: Vec<Option<Point3>>,
+}
+
+/// The loads of a press, described for the estimate.
+struct PressedLoads {
+    loads: Vec<FingerLoad>,
+    /// Per surface vertex: the probability that it is in contact.
+    probability: Vec<Real>,
+    /// Per surface vertex: the force the loads put on it.
+    vertex_force: Vec<Vector3>,
+    /// Per load: the normalised posterior over the candidates (empty when undefined).
+    posteriors: Vec<Vec<Real>>,
+}
+
 impl FingerInverse {
     /// Builds finger `index`'s model.
     pub(crate) fn new(
@@ -1114,57 +1143,22 @@ impl FingerInverse {
         result
     }
 
+    /// Estimates the loads and shape from an observation with enough markers (`observed`).
     fn estimate_observed(
         &mut self,
         obs: &FingerObservation<'_>,
         observed: usize,
     ) -> Result<FingerEstimate, PhysicsError> {
         let sigma2 = self.config.marker_sigma_m.powi(2);
-        let n_obs = (3 * observed) as Real;
         let mut solves = 0;
-        // The free reference: the simulated free finger in a stream, else the static one.
-        let free = match self.advance_dynamic(obs, &mut solves) {
-            Some(x) => FreeReference { x, dynamic: true },
-            None => {
-                let x = self.static_free(obs, &mut solves)?;
-                self.start_dynamic(obs, &x);
-                FreeReference { x, dynamic: false }
-            }
-        };
-        // The place's prior: the previous press, while the stream goes on.
-        let memory = self.place_memory.take();
-        let remembered = match memory {
-            Some(m) if free.dynamic && self.config.place_memory_m > 0.0 => Some(self.propagate(&m)),
-            _ => None,
-        };
-        // Markers seen earlier in the stream and hidden now: the marker history's evidence.
-        if !free.dynamic || self.seen_in_stream.len() != obs.markers.len() {
-            self.seen_in_stream = vec![false; obs.markers.len()];
-        }
-        let lost: Vec<bool> = obs
-            .markers
-            .iter()
-            .zip(&self.seen_in_stream)
-            .map(|(m, &seen)| m.is_none() && seen)
-            .collect();
-        for (seen, m) in self.seen_in_stream.iter_mut().zip(obs.markers) {
-            *seen |= m.is_some();
-        }
-        self.place_prior = self.with_hidden_markers(remembered, &lost);
+        let free = self.free_reference(obs, &mut solves)?;
+        self.update_place_prior(obs, free.dynamic);
         let lag_corrected = self.contact_lag_corrected(obs, &free.x);
         let markers: Vec<Option<Point3>> = lag_corrected.unwrap_or_else(|| obs.markers.to_vec());
-        let chi0 = self.marker_residual_sq(&free.x, &markers);
-        let free_estimate = |this: &Self, solves: usize| FingerEstimate {
-            loads: Vec::new(),
-            surface: this.surface_of(&free.x),
-            probability: vec![0.0; this.rest_surface.len()],
-            vertex_force: vec![Vector3::zeros(); this.rest_surface.len()],
-            pressed_probability: 0.0,
-            statistic: 0.0,
-            free_rms_m: (chi0 / n_obs).sqrt(),
-            fit_rms_m: (chi0 / n_obs).sqrt(),
-            observed_markers: observed,
-            solves,
+        let base = Baseline {
+            chi0: self.marker_residual_sq(&free.x, &markers),
+            observed,
+            n_obs: (3 * observed) as Real,
         };
         // The belief that the finger is pressed, before this observation's evidence (even odds
         // without memory); the evidence is the statistic against the detection threshold.
@@ -1177,94 +1171,27 @@ impl FingerInverse {
         };
         // Nothing to explain: no load can pass the test (χ² of no load bounds the statistic; the
         // belief remembered is that bound's, below even odds).
-        if belief(chi0 / sigma2) < 0.5 {
+        if belief(base.chi0 / sigma2) < 0.5 {
             self.tracked = None;
-            remember(self, belief(chi0 / sigma2));
-            return Ok(free_estimate(self, solves));
+            remember(self, belief(base.chi0 / sigma2));
+            return Ok(self.free_estimate(&free.x, &base, 0.0, solves));
         }
-        // The loads act on the static model: the markers are moved by the free finger's lag
-        // (static minus simulated), and the static free shape is the start.
-        let (x_static, static_markers) = if free.dynamic {
-            let x_static = self.static_free(obs, &mut solves)?;
-            let moved = markers
-                .iter()
-                .zip(&self.markers)
-                .map(|(m, &v)| {
-                    m.map(|p| {
-                        p + (self.mech.surface_position(&x_static, v)
-                            - self.mech.surface_position(&free.x, v))
-                    })
-                })
-                .collect();
-            (x_static, moved)
-        } else {
-            (free.x.clone(), markers)
-        };
+        let start = self.static_start(obs, &free, markers, &mut solves)?;
         let sobs = FingerObservation {
-            markers: &static_markers,
+            markers: &start.markers,
             ..*obs
         };
-        let mut state = Solved {
-            x: x_static.clone(),
-            loads: Vec::new(),
-            chi: chi0,
-        };
-        // A held press: start from the previous frame's loads when they explain the markers
-        // better than none.
-        let fresh = state.clone();
-        let mut from_tracked = false;
-        if let Some(tracked) = self.tracked.take() {
-            let mut x = tracked.x;
-            if let Ok(it) = self.solve(&mut x, &sobs, &tracked.loads, "") {
-                solves += it;
-                let chi = self.marker_residual_sq(&x, &static_markers);
-                if chi < chi0 {
-                    state = Solved {
-                        x,
-                        loads: tracked.loads,
-                        chi,
-                    };
-                    from_tracked = true;
-                }
-            }
-        }
-        let (mut state, mut lin) = self.search_loads(&sobs, state, &mut solves)?;
-        // The previous frame's loads can hold the search in a place the press has left: when
-        // they leave a tenth of the residual unexplained, search from the free shape too.
-        if from_tracked && state.chi > RESTART_FRACTION * chi0 {
-            let (other, other_lin) = self.search_loads(&sobs, fresh, &mut solves)?;
-            if other.chi < state.chi {
-                state = other;
-                lin = other_lin;
-            }
-        }
+        let (state, lin) = self.search_held_press(&sobs, &start.x, base.chi0, &mut solves)?;
         // A marker the best fit leaves far off — a blob taken for the wrong marker; no load of
         // the model moves one marker millimetres away from where its neighbours put it — is
         // left out, and the loads are searched again from the free shape without it.
-        let (chi0, observed, n_obs, state, lin) =
-            match self.outlier(&state.x, &static_markers, observed) {
-                Some(worst) => {
-                    let mut kept = static_markers.clone();
-                    kept[worst] = None;
-                    let chi0 = self.marker_residual_sq(&x_static, &kept);
-                    let fresh = Solved {
-                        x: x_static.clone(),
-                        loads: Vec::new(),
-                        chi: chi0,
-                    };
-                    let kobs = FingerObservation {
-                        markers: &kept,
-                        ..*obs
-                    };
-                    let (state, lin) = self.search_loads(&kobs, fresh, &mut solves)?;
-                    (chi0, observed - 1, n_obs - 3.0, state, lin)
-                }
-                None => (chi0, observed, n_obs, state, lin),
-            };
-        let mut lin = lin;
+        let (base, state, lin) = match self.outlier(&state.x, &start.markers, observed) {
+            Some(worst) => self.search_without_marker(obs, &start, worst, &base, &mut solves)?,
+            None => (base, state, lin),
+        };
         // A second load that no longer pays its way is dropped by the test above; a pair
         // carried from the previous frame is kept while each load carries the minimum force.
-        let statistic = (chi0 - state.chi) / sigma2;
+        let statistic = (base.chi0 - state.chi) / sigma2;
         let total_force: Real = state.loads.iter().map(|l| l.1.norm()).sum();
         let pressed_probability = belief(statistic);
         // The force floor guards onsets against tiny fits; a press held from the previous
@@ -1278,14 +1205,209 @@ impl FingerInverse {
         if !pressed {
             self.tracked = None;
             remember(self, pressed_probability);
-            let mut e = free_estimate(self, solves);
-            e.statistic = statistic;
-            e.free_rms_m = (chi0 / n_obs).sqrt();
-            e.fit_rms_m = e.free_rms_m;
-            e.observed_markers = observed;
-            return Ok(e);
+            return Ok(self.free_estimate(&free.x, &base, statistic, solves));
         }
         remember(self, pressed_probability);
+        let PressedLoads {
+            loads,
+            probability,
+            vertex_force,
+            posteriors,
+        } = self.describe_loads(&lin, &state, pressed_probability);
+        self.remember_press(posteriors, &state);
+        let surface = self.estimated_surface(&free, &state.x, &start.x);
+        Ok(FingerEstimate {
+            loads,
+            surface,
+            probability,
+            vertex_force,
+            pressed_probability,
+            statistic,
+            free_rms_m: (base.chi0 / base.n_obs).sqrt(),
+            fit_rms_m: (state.chi / base.n_obs).sqrt(),
+            observed_markers: base.observed,
+            solves,
+        })
+    }
+
+    /// The free reference: the simulated free finger in a stream, else the static one.
+    fn free_reference(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        solves: &mut usize,
+    ) -> Result<FreeReference, PhysicsError> {
+        Ok(match self.advance_dynamic(obs, solves) {
+            Some(x) => FreeReference { x, dynamic: true },
+            None => {
+                let x = self.static_free(obs, solves)?;
+                self.start_dynamic(obs, &x);
+                FreeReference { x, dynamic: false }
+            }
+        })
+    }
+
+    /// Sets this observation's place prior from the remembered press and the hidden markers.
+    fn update_place_prior(&mut self, obs: &FingerObservation<'_>, dynamic: bool) {
+        // The place's prior: the previous press, while the stream goes on.
+        let memory = self.place_memory.take();
+        let remembered = match memory {
+            Some(m) if dynamic && self.config.place_memory_m > 0.0 => Some(self.propagate(&m)),
+            _ => None,
+        };
+        // Markers seen earlier in the stream and hidden now: the marker history's evidence.
+        if !dynamic || self.seen_in_stream.len() != obs.markers.len() {
+            self.seen_in_stream = vec![false; obs.markers.len()];
+        }
+        let lost: Vec<bool> = obs
+            .markers
+            .iter()
+            .zip(&self.seen_in_stream)
+            .map(|(m, &seen)| m.is_none() && seen)
+            .collect();
+        for (seen, m) in self.seen_in_stream.iter_mut().zip(obs.markers) {
+            *seen |= m.is_some();
+        }
+        self.place_prior = self.with_hidden_markers(remembered, &lost);
+    }
+
+    /// The estimate of an unpressed finger: the free shape, no loads, `statistic` as given.
+    fn free_estimate(
+        &self,
+        x_free: &[Point3],
+        base: &Baseline,
+        statistic: Real,
+        solves: usize,
+    ) -> FingerEstimate {
+        let rms = (base.chi0 / base.n_obs).sqrt();
+        FingerEstimate {
+            loads: Vec::new(),
+            surface: self.surface_of(x_free),
+            probability: vec![0.0; self.rest_surface.len()],
+            vertex_force: vec![Vector3::zeros(); self.rest_surface.len()],
+            pressed_probability: 0.0,
+            statistic,
+            free_rms_m: rms,
+            fit_rms_m: rms,
+            observed_markers: base.observed,
+            solves,
+        }
+    }
+
+    /// The static free shape and the markers the loads are fitted to on it.
+    fn static_start(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        free: &FreeReference,
+        markers: Vec<Option<Point3>>,
+        solves: &mut usize,
+    ) -> Result<StaticStart, PhysicsError> {
+        // The loads act on the static model: the markers are moved by the free finger's lag
+        // (static minus simulated), and the static free shape is the start.
+        if free.dynamic {
+            let x = self.static_free(obs, solves)?;
+            let moved = markers
+                .iter()
+                .zip(&self.markers)
+                .map(|(m, &v)| {
+                    m.map(|p| {
+                        p + (self.mech.surface_position(&x, v)
+                            - self.mech.surface_position(&free.x, v))
+                    })
+                })
+                .collect();
+            Ok(StaticStart { x, markers: moved })
+        } else {
+            Ok(StaticStart {
+                x: free.x.clone(),
+                markers,
+            })
+        }
+    }
+
+    /// Searches the loads of `sobs` from the previous frame's press (when it helps) and, if
+    /// that leaves too much of `chi0` unexplained, again from the static free shape `x_static`.
+    fn search_held_press(
+        &mut self,
+        sobs: &FingerObservation<'_>,
+        x_static: &[Point3],
+        chi0: Real,
+        solves: &mut usize,
+    ) -> Result<(Solved, Linear), PhysicsError> {
+        let mut state = Solved {
+            x: x_static.to_vec(),
+            loads: Vec::new(),
+            chi: chi0,
+        };
+        // A held press: start from the previous frame's loads when they explain the markers
+        // better than none.
+        let fresh = state.clone();
+        let mut from_tracked = false;
+        if let Some(tracked) = self.tracked.take() {
+            let mut x = tracked.x;
+            if let Ok(it) = self.solve(&mut x, sobs, &tracked.loads, "") {
+                *solves += it;
+                let chi = self.marker_residual_sq(&x, sobs.markers);
+                if chi < chi0 {
+                    state = Solved {
+                        x,
+                        loads: tracked.loads,
+                        chi,
+                    };
+                    from_tracked = true;
+                }
+            }
+        }
+        let (mut state, mut lin) = self.search_loads(sobs, state, solves)?;
+        // The previous frame's loads can hold the search in a place the press has left: when
+        // they leave a tenth of the residual unexplained, search from the free shape too.
+        if from_tracked && state.chi > RESTART_FRACTION * chi0 {
+            let (other, other_lin) = self.search_loads(sobs, fresh, solves)?;
+            if other.chi < state.chi {
+                state = other;
+                lin = other_lin;
+            }
+        }
+        Ok((state, lin))
+    }
+
+    /// Searches the loads again from the static free shape with marker slot `worst` left out;
+    /// returns the baseline without it, the fit and its linear model.
+    fn search_without_marker(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        start: &StaticStart,
+        worst: usize,
+        base: &Baseline,
+        solves: &mut usize,
+    ) -> Result<(Baseline, Solved, Linear), PhysicsError> {
+        let mut kept = start.markers.clone();
+        kept[worst] = None;
+        let chi0 = self.marker_residual_sq(&start.x, &kept);
+        let fresh = Solved {
+            x: start.x.clone(),
+            loads: Vec::new(),
+            chi: chi0,
+        };
+        let kobs = FingerObservation {
+            markers: &kept,
+            ..*obs
+        };
+        let (state, lin) = self.search_loads(&kobs, fresh, solves)?;
+        let base = Baseline {
+            chi0,
+            observed: base.observed - 1,
+            n_obs: base.n_obs - 3.0,
+        };
+        Ok((base, state, lin))
+    }
+
+    /// The found loads as outputs, with the contact region, vertex forces and place posteriors.
+    fn describe_loads(
+        &self,
+        lin: &Linear,
+        state: &Solved,
+        pressed_probability: Real,
+    ) -> PressedLoads {
         let nv = self.rest_surface.len();
         let mut probability = vec![0.0; nv];
         let mut vertex_force = vec![Vector3::zeros(); nv];
@@ -1294,11 +1416,11 @@ impl FingerInverse {
             forces: state.loads.iter().map(|l| l.1).collect(),
             residual_sq: state.chi,
         };
-        let force_sd = self.force_spread(&lin, &fit);
-        let mut loads_out = Vec::with_capacity(state.loads.len());
+        let force_sd = self.force_spread(lin, &fit);
+        let mut loads = Vec::with_capacity(state.loads.len());
         let mut posteriors = Vec::with_capacity(state.loads.len());
         for (k, &(c, f)) in state.loads.iter().enumerate() {
-            let (location_sd_m, place, posterior) = self.location_spread(&lin, &fit, k);
+            let (location_sd_m, place, posterior) = self.location_spread(lin, &fit, k);
             posteriors.push(posterior);
             for &(u, s) in &self.patches[c] {
                 vertex_force[u as usize] += f * s;
@@ -1316,7 +1438,7 @@ impl FingerInverse {
                     probability[u] = pressed_probability;
                 }
             }
-            loads_out.push(FingerLoad {
+            loads.push(FingerLoad {
                 vertex: self.candidates[c],
                 place,
                 patch: self.patches[c].clone(),
@@ -1325,7 +1447,16 @@ impl FingerInverse {
                 location_sd_m,
             });
         }
-        lin.r.clear();
+        PressedLoads {
+            loads,
+            probability,
+            vertex_force,
+            posteriors,
+        }
+    }
+
+    /// Remembers the press for the next observation: its place (one load only) and its loads.
+    fn remember_press(&mut self, mut posteriors: Vec<Vec<Real>>, state: &Solved) {
         // One press in a stream is remembered; two, or none, are not.
         self.place_memory = match posteriors.pop() {
             Some(p)
@@ -1339,31 +1470,28 @@ impl FingerInverse {
             x: state.x.clone(),
             loads: state.loads.clone(),
         });
+    }
+
+    /// The estimated surface from the loaded static nodes `x_loaded`.
+    fn estimated_surface(
+        &self,
+        free: &FreeReference,
+        x_loaded: &[Point3],
+        x_static: &[Point3],
+    ) -> Vec<Point3> {
         // The estimated shape: the free finger (simulated, in a stream) moved by what the loads
         // do to the static one.
-        let surface = if free.dynamic {
+        if free.dynamic {
             let x: Vec<Point3> = free
                 .x
                 .iter()
-                .zip(state.x.iter().zip(&x_static))
+                .zip(x_loaded.iter().zip(x_static))
                 .map(|(f, (l, s))| f + (l - s))
                 .collect();
             self.surface_of(&x)
         } else {
-            self.surface_of(&state.x)
-        };
-        Ok(FingerEstimate {
-            loads: loads_out,
-            surface,
-            probability,
-            vertex_force,
-            pressed_probability,
-            statistic,
-            free_rms_m: (chi0 / n_obs).sqrt(),
-            fit_rms_m: (state.chi / n_obs).sqrt(),
-            observed_markers: observed,
-            solves,
-        })
+            self.surface_of(x_loaded)
+        }
     }
 
     /// The Cramér–Rao bound of a press at every candidate place, linearised at the static free

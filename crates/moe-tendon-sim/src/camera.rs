@@ -27,87 +27,7 @@ use moe_geom::transform::{Transform, frame};
 use moe_geom::{GeomError, Iso3, Point3, Real, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// Pinhole intrinsics in pixels (no distortion).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CameraIntrinsics {
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Focal length along x, pixels.
-    pub fx: Real,
-    /// Focal length along y, pixels.
-    pub fy: Real,
-    /// Principal point x, pixels.
-    pub cx: Real,
-    /// Principal point y, pixels.
-    pub cy: Real,
-}
-
-impl Default for CameraIntrinsics {
-    /// 640 × 480 with a 380-pixel focal length (≈ 80° horizontal field of view), like a
-    /// short-range RealSense (D405-class) at that resolution: wide enough to see the markers
-    /// near the finger bases from a wrist mount.
-    fn default() -> Self {
-        Self {
-            width: 640,
-            height: 480,
-            fx: 380.0,
-            fy: 380.0,
-            cx: 319.5,
-            cy: 239.5,
-        }
-    }
-}
-
-impl CameraIntrinsics {
-    /// Checks the intrinsics.
-    ///
-    /// # Errors
-    /// [`GeomError::InvalidParameter`] for a zero or huge image size or a non-positive focal
-    /// length.
-    pub fn validate(&self) -> Result<(), GeomError> {
-        for (name, v) in [("camera width", self.width), ("camera height", self.height)] {
-            if !(1..=8192).contains(&v) {
-                return Err(GeomError::InvalidParameter {
-                    name,
-                    value: Real::from(v),
-                    reason: "must be in 1..=8192 pixels",
-                });
-            }
-        }
-        for (name, v) in [("camera fx", self.fx), ("camera fy", self.fy)] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(GeomError::InvalidParameter {
-                    name,
-                    value: v,
-                    reason: "must be positive",
-                });
-            }
-        }
-        for (name, v) in [("camera cx", self.cx), ("camera cy", self.cy)] {
-            if !v.is_finite() {
-                return Err(GeomError::InvalidParameter {
-                    name,
-                    value: v,
-                    reason: "must be finite",
-                });
-            }
-        }
-        Ok(())
-    }
-
-    /// Pixel coordinates of a point in the camera frame, `None` behind the camera.
-    pub fn project(&self, p_in_camera: &Point3) -> Option<(Real, Real)> {
-        (p_in_camera.z > 0.0).then(|| {
-            (
-                self.fx * p_in_camera.x / p_in_camera.z + self.cx,
-                self.fy * p_in_camera.y / p_in_camera.z + self.cy,
-            )
-        })
-    }
-}
+pub use moe_geom::CameraIntrinsics;
 
 /// Sensor noise; see the module documentation for the model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -245,6 +165,10 @@ impl RenderItem<'_> {
 
 /// Colour of painted markers.
 pub const MARKER_RED: [u8; 3] = [220, 25, 25];
+/// Colour of the silicone fingers in recorded episodes.
+pub const FINGER_ALBEDO: [u8; 3] = [215, 210, 200];
+/// Colour of obstacles in recorded episodes.
+pub const OBSTACLE_ALBEDO: [u8; 3] = [90, 120, 170];
 /// Colour where nothing is hit.
 pub const BACKGROUND: [u8; 3] = [30, 30, 30];
 

@@ -19,7 +19,7 @@
 //!    conforming split), keeping the tetrahedra whose centroid is inside the closed surface
 //!    (parry's oriented-mesh inside test) and the largest node-connected component. The grid's
 //!    lowest layer lies on the base plane, so base nodes sit exactly at z = 0 (how closely the
-//!    tets fill the surface at the default resolution: repository README, "Validation").
+//!    tets fill the surface at the default resolution: docs/results.md).
 //! 2. **Embedding** ([`mechanics::Embedding`]): each surface vertex is mapped to its containing tet, or
 //!    (≈ 45 % of the vertices of a voxel mesh) to the nearest tet with *unclamped*
 //!    barycentric weights, so `x_s = Σ_k w_k x_{n_k}` reproduces the rest surface exactly and

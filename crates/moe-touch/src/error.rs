@@ -1,4 +1,4 @@
-//! The error type of the `moe-touch` library.
+//! The error type of the `moe-touch` runtime library.
 
 use moe_io::IoError;
 
@@ -9,62 +9,6 @@ pub enum TouchError {
     /// Reading or writing a file failed (the error names the file).
     #[error(transparent)]
     Io(#[from] IoError),
-    /// A generation plan is inconsistent (zero trajectories, a machine index out of range, a
-    /// malformed `--shard` split, ...).
-    #[error("invalid generation plan: {reason}")]
-    InvalidPlan {
-        /// What is wrong.
-        reason: String,
-    },
-    /// A directory given as a data set holds none (no settings file).
-    #[error("{}: holds no data set (no {file})", dir.display())]
-    NotADataset {
-        /// The directory.
-        dir: std::path::PathBuf,
-        /// The file that is missing.
-        file: &'static str,
-    },
-    /// A data set directory was generated with other settings than the ones given (seed,
-    /// trajectories, shard size, layout or randomisation).
-    #[error(
-        "{}: holds a data set generated with other settings (seed, trajectories, shard size, \
-         layout or randomisation); use another directory",
-        dir.display()
-    )]
-    SettingsMismatch {
-        /// The directory.
-        dir: std::path::PathBuf,
-    },
-    /// Shards of a data set are missing when its card is written.
-    #[error("{}: {} of {total} shards are missing: {missing:?}", dir.display(), missing.len())]
-    MissingShards {
-        /// The directory.
-        dir: std::path::PathBuf,
-        /// Indices of the missing shards.
-        missing: Vec<u64>,
-        /// Number of shards of the data set.
-        total: u64,
-    },
-    /// A shard's trajectories produced no frames.
-    #[error("shard {shard} produced no frames")]
-    EmptyShard {
-        /// Index of the shard.
-        shard: u64,
-    },
-    /// Every draw of one trajectory failed to simulate.
-    #[error("trajectory {trajectory}: {draws} draws failed; the last: {source}")]
-    Trajectory {
-        /// The trajectory id.
-        trajectory: u64,
-        /// How many draws were tried.
-        draws: u64,
-        /// The simulator's error of the last draw (it names the step and element).
-        #[source]
-        source: moe_tendon_sim::SimError,
-    },
-    /// A simulation failed (the error names the step, finger and element).
-    #[error(transparent)]
-    Simulation(#[from] moe_tendon_sim::SimError),
     /// Shape estimation failed.
     #[error(transparent)]
     Shape(#[from] moe_arap::ArapError),
@@ -86,6 +30,7 @@ pub enum TouchError {
     ContactEstimation(Box<dyn std::error::Error + Send + Sync>),
     /// The physics estimator refused its input or failed.
     #[error(transparent)]
+    #[cfg(feature = "physics")]
     Physics(#[from] moe_physics::PhysicsError),
     /// A geometric input is malformed.
     #[error(transparent)]
@@ -123,12 +68,6 @@ pub enum TouchError {
         /// What is wrong.
         reason: &'static str,
     },
-    /// An evaluation's inputs do not fit together.
-    #[error("evaluation: {reason}")]
-    InvalidEvaluation {
-        /// What is wrong.
-        reason: String,
-    },
     /// A frame of a stream is not after the previous one (out of order, or a repeated time).
     #[error(
         "frame time {time_secs} s is not after the previous frame's {previous_secs} s: a stream's \
@@ -163,26 +102,23 @@ pub fn one_line(err: &(dyn std::error::Error + 'static)) -> String {
 mod tests {
     use super::*;
 
+    #[derive(Debug, thiserror::Error)]
+    #[error("reading frame 3: {0}")]
+    struct Outer(#[source] TouchError);
+
     #[test]
     fn one_line_names_each_cause_once() {
-        let err = TouchError::Trajectory {
-            trajectory: 13,
-            draws: 4,
-            source: moe_tendon_sim::SimError::NonFinite {
-                step: 7,
-                finger: 0,
-                node: 3,
-            },
+        let inner = TouchError::InvalidParameter {
+            name: "contact threshold",
+            value: 2.0,
+            reason: "must be in [0, 1]",
         };
-        let line = one_line(&err);
-        assert_eq!(line.matches("step 7").count(), 1, "{line}");
-        assert!(line.starts_with("trajectory 13: 4 draws failed"), "{line}");
-        let wrapped = anyhow::Error::new(err).context("generating shard 2");
-        let line = one_line(wrapped.as_ref());
-        assert!(
-            line.starts_with("generating shard 2: trajectory 13"),
-            "{line}"
+        // The outer message already includes the inner one: it is not repeated.
+        let line = one_line(&Outer(inner));
+        assert_eq!(
+            line,
+            "reading frame 3: contact threshold = 2: must be in [0, 1]"
         );
-        assert_eq!(line.matches("step 7").count(), 1, "{line}");
+        assert_eq!(line.matches("threshold").count(), 1, "{line}");
     }
 }

@@ -1,37 +1,36 @@
-//! The MOE-Touch pipeline: ties shape estimation, contact estimation and the applications
-//! together, and hosts the `moe-touch` command-line tool (`src/main.rs`).
+//! The MOE-Touch runtime: what a robot links to feel contact from a soft hand's deformation.
 //!
-//! Architecture invariant: the pipeline is library code that takes and returns in-memory values
-//! (file access goes through `moe-io`); the binary only parses arguments, reads and writes files,
-//! and reports.
+//! - [`Pipeline`]: one wrist RGB-D frame (and the tendon pulls) in, the hand's markers, its
+//!   deformed shape, contact per vertex and contact points in the world out, with per-stage
+//!   timings; frames of a stream carry memory ([`StreamEvent`]).
+//!   `PhysicsPipeline::physics` (feature `physics`) builds the default pipeline of the
+//!   `moe-touch` tool (contact from physics, no model); [`Pipeline::new`] takes any shape and
+//!   contact estimator, such as SR-ARAP and a trained network
+//!   ([`pipeline::load_contact_model`]).
+//!
+//! # Features
+//! - `physics`: the physics estimator's pipeline (`PhysicsPipeline`). It simulates the fingers
+//!   with the FEM model of `moe-tendon-sim`, which is therefore in the dependency tree only
+//!   with this feature.
+//! - `cuda`: the contact network on a CUDA device.
+//! - [`perception`]: red markers in an RGB-D frame to tracked keypoints per finger.
+//! - [`filter`]: temporal filters on keypoints and contact maps.
+//!
+//! Architecture invariant: library code that takes and returns in-memory values (file access
+//! goes through `moe-io`); no simulator (without `physics`), no command-line parsing, no image
+//! codecs in the dependency tree. The experiments that score the pipeline live in `moe-lab`, the `moe-touch`
+//! binary in `moe-touch-cli`.
 
-/// The simulation study of contact estimation (paper Tables 1–2).
-pub mod contact_eval;
-/// Sharded, resumable, deterministic data set generation.
-pub mod datagen;
-/// Drawing on images: text, labels that do not overlap, meshes coloured by a value.
-pub mod draw;
-/// Recording simulated episodes (rendered camera frames with ground truth).
-pub mod episode;
 /// The crate's error type.
 pub mod error;
 /// Temporal filters: a Kalman filter on the keypoints, smoothing of the contact map.
 pub mod filter;
-/// Grasping paper on an unknown incline: press, fit the plane, reorient, press again.
-pub mod grasp;
-/// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
-pub mod patting;
 /// Marker perception: wrist RGB-D frames to tracked keypoints per finger.
 pub mod perception;
-/// Contact from physics evaluated as tactile sensors are specified (detection, location and
-/// force by the finger's true force), beside the paper's metrics.
-pub mod physics_eval;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.
 pub mod pipeline;
-/// Running the pipeline over a recorded episode, with figures against its ground truth.
-pub mod run;
 
 pub use error::TouchError;
-pub use pipeline::{
-    FrameEstimate, PhysicsPipeline, Pipeline, RgbdFrame, StageTimings, StreamEvent,
-};
+#[cfg(feature = "physics")]
+pub use pipeline::PhysicsPipeline;
+pub use pipeline::{FrameEstimate, Pipeline, RgbdFrame, StageTimings, StreamEvent};

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use moe_contact::{DgcnnEstimator, ModelCard};
+use moe_contact::DgcnnEstimator;
 use moe_geom::{
     ContactEstimator, ContactInput, ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape,
     Real, ShapeEstimator, ShapeInput, Vector3, WorldFromHand,
@@ -110,10 +110,13 @@ pub fn check_contact_threshold(threshold: Real) -> Result<(), TouchError> {
 }
 
 /// The pipeline on the physics estimator (the default of `moe-touch run` and `demo`): one
-/// estimate per frame serves as its shape and contact stages.
+/// estimate per frame serves as its shape and contact stages. Needs the `physics` feature (the
+/// estimator simulates the finger with the FEM model of `moe-tendon-sim`).
+#[cfg(feature = "physics")]
 pub type PhysicsPipeline =
     Pipeline<moe_physics::PhysicsShapeStage, moe_physics::PhysicsContactStage>;
 
+#[cfg(feature = "physics")]
 impl PhysicsPipeline {
     /// The physics estimator of `hand` with `material` and `config` behind `detector`, contact
     /// points where its probability reaches [`moe_physics::CONTACT_THRESHOLD`]. Its memory
@@ -219,7 +222,7 @@ where
     }
 
     /// Filters the detected keypoints over time before the shape stage (off by default: see
-    /// the README's measurement).
+    /// docs/results.md).
     pub fn with_keypoint_filter(mut self, filter: KeypointFilter) -> Self {
         self.keypoint_filter = Some(filter);
         self
@@ -459,15 +462,8 @@ where
 /// another hand.
 pub fn load_contact_model(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator, TouchError> {
     let files = moe_io::read_model_files(path)?;
-    let text = files.card.ok_or_else(|| TouchError::MissingModelCard {
+    let card = files.card.ok_or_else(|| TouchError::MissingModelCard {
         path: files.card_path.clone(),
     })?;
-    let card = ModelCard::from_json(&text)?;
-    let net = moe_contact::Dgcnn::from_safetensors(
-        &files.weights,
-        Some(&card),
-        moe_contact::candle_core::DType::F32,
-        &moe_contact::candle_core::Device::Cpu,
-    )?;
-    Ok(DgcnnEstimator::new(net, card, hand)?)
+    Ok(DgcnnEstimator::from_bytes(&files.weights, &card, hand)?)
 }

@@ -65,7 +65,7 @@ fn a_finger_with_every_marker_missing_stays_at_its_start_shape() {
     let tip = 30f64.to_radians();
     let mut kp = bent_keypoints(&hand, tip, &[]);
     // From rest: finger 1 fully occluded stays at rest, finger 0 is solved.
-    let mut est = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap();
+    let mut est = MultiShapeEstimator::unattached(hand.clone(), ShapeConfig::default()).unwrap();
     kp.fingers[1] = vec![None; 7];
     let out = est.estimate(&kp).unwrap();
     assert!(out.reports[1].all_markers_missing && !out.reports[0].all_markers_missing);

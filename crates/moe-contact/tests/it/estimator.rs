@@ -230,6 +230,8 @@ fn a_card_s_hand_decides_which_hands_the_model_runs_on() {
                 .iter()
                 .map(|f| f.model.mesh().num_vertices())
                 .collect(),
+            // A card written before digests were recorded: vertex counts are checked.
+            finger_digests: Vec::new(),
         });
         let net = ModelWeights::seeded(&config, c, 31)
             .unwrap()
@@ -249,6 +251,80 @@ fn a_card_s_hand_decides_which_hands_the_model_runs_on() {
         );
         assert!(err.to_string().contains("two-finger"), "{err}");
     }
+}
+
+/// A card that records its finger's rest-mesh digest runs on that finger — in a hand, or alone
+/// from its mesh without markers — and refuses another finger of the same vertex count, saying
+/// how to get a model for it.
+#[test]
+fn a_card_with_finger_digests_refuses_another_finger_of_the_same_size() {
+    let params = FingerParams {
+        vertex_budget: 200,
+        ..FingerParams::default()
+    };
+    let two = HandModel::preset(HandPreset::TwoFinger, &params).unwrap();
+    let rest = two.fingers()[0].model.mesh();
+    // The same finger 1 % larger: the same vertex count and ids, another geometry.
+    let grown: Vec<moe_geom::Point3> = rest.vertices().iter().map(|p| p * 1.01).collect();
+    let other = &moe_geom::TriMesh::new(grown, rest.faces().to_vec()).unwrap();
+    let longer = HandModel::new(
+        two.fingers()
+            .iter()
+            .map(|f| moe_geom::HandFinger {
+                model: moe_geom::FingerModel::from_parts(
+                    other.clone(),
+                    f.model.marker_vertices().to_vec(),
+                    f.model.base_vertices().to_vec(),
+                    f.model.tendon_routes().to_vec(),
+                )
+                .unwrap(),
+                ..f.clone()
+            })
+            .collect(),
+    )
+    .unwrap();
+    assert_ne!(rest.digest(), other.digest());
+
+    let mut config = small_config(Default::default());
+    config.input.point_set = PointSet::PerFinger;
+    config.input.frame = moe_contact::FeatureFrame::Finger;
+    let c = config.input.channels();
+    let mut card = ModelCard::new(config.clone());
+    card.hand = Some(moe_contact::CardHand::of("two-finger", &two));
+    let weights = ModelWeights::seeded(&config, c, 31)
+        .unwrap()
+        .to_bytes()
+        .unwrap();
+    let json = card.to_json().unwrap();
+
+    assert!(DgcnnEstimator::from_bytes(&weights, &json, &two).is_ok());
+    let err = DgcnnEstimator::from_bytes(&weights, &json, &longer).unwrap_err();
+    assert!(
+        matches!(err, ContactError::FingerMismatch { finger: 0, .. }),
+        "{err}"
+    );
+
+    // One finger from its mesh alone: the same probabilities as in the hand (finger-frame
+    // features).
+    let alone = DgcnnEstimator::finger_from_bytes(&weights, &json, rest).unwrap();
+    let p = alone.finger_map(rest.vertices()).unwrap();
+    let in_hand = DgcnnEstimator::from_bytes(&weights, &json, &two).unwrap();
+    let shape = HandShape {
+        fingers: (0..2).map(|f| two.rest_vertices_in_hand(f)).collect(),
+    };
+    let map = in_hand
+        .estimate_map(&moe_geom::ContactInput::shape(&shape))
+        .unwrap();
+    for (a, b) in p.iter().zip(&map.fingers[0]) {
+        assert!((a - b).abs() < 1e-5, "{a} vs {b}");
+    }
+    let err = DgcnnEstimator::finger_from_bytes(&weights, &json, other).unwrap_err();
+    let text = err.to_string();
+    assert!(matches!(err, ContactError::FingerMismatch { .. }), "{text}");
+    assert!(
+        text.contains("moe-touch train") && text.contains(&other.digest()),
+        "{text}"
+    );
 }
 
 /// The deformation channels are zero on the rest hand, the same for every finger of a pressed

@@ -149,6 +149,9 @@ fn bytes_of<T: Copy, const N: usize>(
     values.flat_map(to_le).collect()
 }
 
+/// A tensor to serialise: name, element type, shape and little-endian bytes.
+type Tensor = (&'static str, Dtype, Vec<usize>, Vec<u8>);
+
 /// Serialises frames into shard bytes.
 ///
 /// # Errors
@@ -158,6 +161,31 @@ pub fn shard_bytes(
     layout: &DatasetLayout,
     frames: &[DatasetFrame],
 ) -> Result<Vec<u8>, IoError> {
+    let with_forces = check_frames(path, layout, frames)?;
+    let mut tensors = frame_tensors(layout, frames);
+    if with_forces {
+        tensors.push((
+            FINGER_FORCE,
+            Dtype::F32,
+            vec![frames.len(), layout.finger_num_vertices.len(), 3],
+            bytes_of(
+                frames
+                    .iter()
+                    .flat_map(|f| f.finger_force_n.iter().flatten().flatten().copied()),
+                f32::to_le_bytes,
+            ),
+        ));
+    }
+    serialize_tensors(path, layout, &tensors)
+}
+
+/// Checks that there are frames, that each fits the layout and that all or none carry finger
+/// forces; returns whether they do.
+fn check_frames(
+    path: &Path,
+    layout: &DatasetLayout,
+    frames: &[DatasetFrame],
+) -> Result<bool, IoError> {
     if frames.is_empty() {
         return Err(IoError::invalid(
             path,
@@ -179,14 +207,18 @@ pub fn shard_bytes(
             ));
         }
     }
+    Ok(with_forces)
+}
+
+/// The frames' fixed tensors (all but the finger forces), stacked frame by frame.
+fn frame_tensors(layout: &DatasetLayout, frames: &[DatasetFrame]) -> Vec<Tensor> {
     let n = frames.len();
-    let (v, m, t, p) = (
-        layout.total_vertices(),
+    let (m, t, p) = (
         layout.total_markers(),
         layout.total_tendons(),
         layout.object_param_len,
     );
-    let mut tensors: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
+    let mut tensors: Vec<Tensor> = vec![
         (
             "trajectory_id",
             Dtype::U64,
@@ -199,48 +231,9 @@ pub fn shard_bytes(
             vec![n],
             bytes_of(frames.iter().map(|f| f.frame_index), u32::to_le_bytes),
         ),
-        (
-            "vertices",
-            Dtype::F32,
-            vec![n, v, 3],
-            bytes_of(
-                frames
-                    .iter()
-                    .flat_map(|f| f.vertices.iter().flatten().copied()),
-                f32::to_le_bytes,
-            ),
-        ),
-        (
-            "contact",
-            Dtype::U8,
-            vec![n, v],
-            frames
-                .iter()
-                .flat_map(|f| f.contact.iter().copied())
-                .collect(),
-        ),
-        (
-            "contact_force_n",
-            Dtype::F32,
-            vec![n, v],
-            bytes_of(
-                frames
-                    .iter()
-                    .flat_map(|f| f.contact_force_n.iter().copied()),
-                f32::to_le_bytes,
-            ),
-        ),
-        (
-            "obstacle_distance_m",
-            Dtype::F32,
-            vec![n, v],
-            bytes_of(
-                frames
-                    .iter()
-                    .flat_map(|f| f.obstacle_distance_m.iter().copied()),
-                f32::to_le_bytes,
-            ),
-        ),
+    ];
+    tensors.extend(vertex_tensors(layout, frames));
+    tensors.extend([
         (
             "markers",
             Dtype::F32,
@@ -285,20 +278,65 @@ pub fn shard_bytes(
                 f32::to_le_bytes,
             ),
         ),
-    ];
-    if with_forces {
-        tensors.push((
-            FINGER_FORCE,
+    ]);
+    tensors
+}
+
+/// The frames' per-vertex tensors: vertices, contact labels, forces and obstacle distances.
+fn vertex_tensors(layout: &DatasetLayout, frames: &[DatasetFrame]) -> [Tensor; 4] {
+    let (n, v) = (frames.len(), layout.total_vertices());
+    [
+        (
+            "vertices",
             Dtype::F32,
-            vec![n, layout.finger_num_vertices.len(), 3],
+            vec![n, v, 3],
             bytes_of(
                 frames
                     .iter()
-                    .flat_map(|f| f.finger_force_n.iter().flatten().flatten().copied()),
+                    .flat_map(|f| f.vertices.iter().flatten().copied()),
                 f32::to_le_bytes,
             ),
-        ));
-    }
+        ),
+        (
+            "contact",
+            Dtype::U8,
+            vec![n, v],
+            frames
+                .iter()
+                .flat_map(|f| f.contact.iter().copied())
+                .collect(),
+        ),
+        (
+            "contact_force_n",
+            Dtype::F32,
+            vec![n, v],
+            bytes_of(
+                frames
+                    .iter()
+                    .flat_map(|f| f.contact_force_n.iter().copied()),
+                f32::to_le_bytes,
+            ),
+        ),
+        (
+            "obstacle_distance_m",
+            Dtype::F32,
+            vec![n, v],
+            bytes_of(
+                frames
+                    .iter()
+                    .flat_map(|f| f.obstacle_distance_m.iter().copied()),
+                f32::to_le_bytes,
+            ),
+        ),
+    ]
+}
+
+/// Serialises the tensors with the layout as metadata.
+fn serialize_tensors(
+    path: &Path,
+    layout: &DatasetLayout,
+    tensors: &[Tensor],
+) -> Result<Vec<u8>, IoError> {
     let views = tensors
         .iter()
         .map(|(name, dtype, shape, data)| {

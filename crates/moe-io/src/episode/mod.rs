@@ -25,7 +25,7 @@
 //! sees them (a corrupt length would otherwise make it reserve that much memory — the fuzz
 //! tests found one in a damaged zstd chunk), and a panic in the MCAP or protobuf decoders
 //! becomes [`IoError::ParserPanic`](crate::IoError::ParserPanic). Compression shrinks a frame about threefold (the
-//! noisy depth image compresses least; sizes in the repository README, "Performance"). Unchunked, uncompressed files (as
+//! noisy depth image compresses least; sizes in the docs/results.md). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
 mod foxglove;
@@ -63,6 +63,48 @@ pub struct CameraInfo {
     pub cx: f64,
     /// Principal point y, pixels.
     pub cy: f64,
+}
+
+impl From<moe_geom::CameraIntrinsics> for CameraInfo {
+    fn from(k: moe_geom::CameraIntrinsics) -> Self {
+        let moe_geom::CameraIntrinsics {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+        } = k;
+        Self {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+        }
+    }
+}
+
+impl From<CameraInfo> for moe_geom::CameraIntrinsics {
+    fn from(c: CameraInfo) -> Self {
+        let CameraInfo {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+        } = c;
+        Self {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+        }
+    }
 }
 
 /// What stays fixed over an episode.

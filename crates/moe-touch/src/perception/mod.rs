@@ -31,15 +31,13 @@
 
 mod assign;
 mod centre;
-pub mod overlay;
-pub mod score;
 mod segment;
 mod track;
 
 use linfa::traits::Transformer;
 use linfa_clustering::{Dbscan, DbscanParamsError};
+use moe_geom::CameraIntrinsics;
 use moe_geom::{HandFromCamera, HandKeypoints, HandModel, Point3, Real};
-use moe_tendon_sim::camera::CameraIntrinsics;
 use serde::{Deserialize, Serialize};
 
 pub use centre::CentreMethod;
@@ -305,7 +303,7 @@ impl MarkerDetector {
         config: DetectorConfig,
     ) -> Result<Self, TouchError> {
         Self::new(
-            score::episode_intrinsics(info),
+            info.camera.into(),
             moe_geom::Transform::new(info.hand_from_camera),
             hand,
             config,
@@ -372,17 +370,8 @@ impl MarkerDetector {
         if seg.cell_points.is_empty() {
             return Ok(Vec::new());
         }
-        let flat: Vec<Real> = seg
-            .cell_points
-            .iter()
-            .flat_map(|p| [p.x, p.y, p.z])
-            .collect();
-        let obs =
-            ndarray::ArrayView2::from_shape((seg.cell_points.len(), 3), &flat).map_err(|e| {
-                TouchError::InvalidEvaluation {
-                    reason: format!("cell array: {e}"),
-                }
-            })?;
+        let rows: Vec<[Real; 3]> = seg.cell_points.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let obs = ndarray::ArrayView2::from(rows.as_slice());
         let labels = Dbscan::params(self.config.dbscan_min_points)
             .tolerance(self.config.dbscan_eps_m)
             .transform(&obs)

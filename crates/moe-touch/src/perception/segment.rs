@@ -2,8 +2,8 @@
 
 use std::collections::HashMap;
 
+use moe_geom::CameraIntrinsics;
 use moe_geom::{Point3, Real};
-use moe_tendon_sim::camera::CameraIntrinsics;
 
 use super::DetectorConfig;
 
@@ -180,8 +180,8 @@ mod tests {
             assert!(test.is_marker(c[0], c[1], c[2]), "{c:?}");
         }
         for c in [
-            crate::episode::FINGER_ALBEDO,
-            crate::episode::OBSTACLE_ALBEDO,
+            moe_tendon_sim::camera::FINGER_ALBEDO,
+            moe_tendon_sim::camera::OBSTACLE_ALBEDO,
             moe_tendon_sim::camera::BACKGROUND,
             [0, 0, 0],
             [255, 255, 255],

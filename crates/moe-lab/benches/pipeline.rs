@@ -1,0 +1,111 @@
+//! The whole per-frame pipeline on the committed example episode: markers → SR-ARAP → the
+//! shipped DGCNN → contact points in the world; and markers → the physics estimator (dented
+//! shape, loads) → contact points.
+//!
+//! `cargo bench -p moe-lab --bench pipeline`
+
+use std::hint::black_box;
+use std::path::Path;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
+use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::pipeline::load_contact_model;
+use moe_touch::{Pipeline, RgbdFrame};
+
+fn pipeline(
+    hand: &HandModel,
+    episode: &moe_io::Episode,
+    options: ShapeConfig,
+) -> Pipeline<MultiShapeEstimator, moe_contact::DgcnnEstimator> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
+        .expect("the shipped model loads");
+    let threshold = model.threshold();
+    let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())
+        .expect("detector");
+    let shape = MultiShapeEstimator::new(hand.clone(), options.clone()).expect("SR-ARAP");
+    Pipeline::new(hand.clone(), detector, shape, model, threshold).expect("pipeline")
+}
+
+fn bench_pipeline(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let episode = moe_io::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+        .expect("the committed episode reads");
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    // The frame with the plate pressed in.
+    let frame = &episode.frames[3];
+    let input = RgbdFrame {
+        color_rgb8: &frame.color_rgb8,
+        depth_m: &frame.depth_m,
+    };
+    let pose = WorldFromHand::new(frame.world_from_hand);
+    let mut from_rest = pipeline(&hand, &episode, ShapeConfig::default());
+    c.bench_function(
+        "pipeline/two-finger frame, SR-ARAP 50 iterations from rest",
+        |b| b.iter(|| black_box(from_rest.process(black_box(input), pose).expect("runs"))),
+    );
+    let tracked_options = ShapeConfig {
+        iterations: 10,
+        warm_start: true,
+        ..ShapeConfig::default()
+    };
+    let mut tracked = pipeline(&hand, &episode, tracked_options);
+    tracked.process(input, pose).expect("runs");
+    c.bench_function(
+        "pipeline/two-finger frame, tracked (10 iterations, warm start)",
+        |b| b.iter(|| black_box(tracked.process(black_box(input), pose).expect("runs"))),
+    );
+}
+
+/// The pipeline with the physics estimator's stages (nominal material, default settings) on
+/// the pressed frame: a lone frame (the pipeline reset before each), and the frame held in a
+/// stream (each iteration 50 ms after the previous one).
+fn bench_physics_pipeline(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let episode = moe_io::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+        .expect("the committed episode reads");
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    let physics = || {
+        let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
+            .expect("detector");
+        moe_touch::PhysicsPipeline::physics(
+            hand.clone(),
+            detector,
+            &moe_physics::HandMaterial::default(),
+            &moe_physics::PhysicsConfig::default(),
+        )
+        .expect("pipeline")
+    };
+    let mut frame = episode.frames[3].clone();
+    let mut lone = physics();
+    c.bench_function("pipeline/two-finger frame, physics from rest", |b| {
+        b.iter(|| {
+            lone.reset();
+            black_box(lone.process_episode_frame(black_box(&frame)).expect("runs"))
+        })
+    });
+    let mut stream = physics();
+    stream.process_episode_frame(&frame).expect("runs");
+    c.bench_function(
+        "pipeline/two-finger frame, physics tracked (50 ms frames)",
+        |b| {
+            b.iter(|| {
+                frame.time_ns += 50_000_000;
+                black_box(
+                    stream
+                        .process_episode_frame(black_box(&frame))
+                        .expect("runs"),
+                )
+            })
+        },
+    );
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30);
+    targets = bench_pipeline, bench_physics_pipeline
+}
+criterion_main!(benches);

@@ -1,0 +1,37 @@
+//! The MOE-Touch laboratory: what reproduces the paper and makes data, as library code.
+//!
+//! - [`datagen`]: sharded, resumable, deterministic data set generation with the tendon FEM
+//!   simulator; [`episode`]: recording simulated episodes (rendered wrist-camera frames with
+//!   their ground truth).
+//! - The studies: [`contact_eval`] (paper Tables 1–2 and the plate experiments),
+//!   [`physics_eval`] (contact from physics scored as tactile sensors are specified),
+//!   [`markers`] (marker perception against the ground truth), [`patting`] and [`grasp`] (the
+//!   applications), [`run`] (the pipeline over a recorded episode, scored where the episode has
+//!   ground truth), [`training`] (a contact model from data sets: [`training::TrainingRun`]).
+//!
+//! Architecture invariant: the runtime (`moe-touch`) never depends on this crate; this crate
+//! may use the simulator. Nothing here parses command lines or prints.
+
+/// The simulation study of contact estimation (paper Tables 1–2).
+pub mod contact_eval;
+/// Sharded, resumable, deterministic data set generation.
+pub mod datagen;
+/// Recording simulated episodes (rendered camera frames with ground truth).
+pub mod episode;
+/// The crate's error type.
+pub mod error;
+/// Grasping paper on an unknown incline: press, fit the plane, reorient, press again.
+pub mod grasp;
+/// Marker perception scored against an episode's ground truth.
+pub mod markers;
+/// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
+pub mod patting;
+/// Contact from physics evaluated as tactile sensors are specified (detection, location and
+/// force by the finger's true force), beside the paper's metrics.
+pub mod physics_eval;
+/// Running the pipeline over a recorded episode, scored against its ground truth.
+pub mod run;
+/// Training a contact model on generated data sets.
+pub mod training;
+
+pub use error::LabError;

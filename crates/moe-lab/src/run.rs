@@ -1,0 +1,444 @@
+//! Running the pipeline over a recorded episode: the result frames (for the Foxglove file) and
+//! the figures against the ground truth where the episode has it.
+
+use moe_contact::{ContactMetrics, ContactReport};
+use moe_geom::{ContactEstimator, HandShape, Point3, Real, ShapeEstimator, Vector3, bcd};
+use moe_io::{EpisodeFrame, EpisodeInfo, RunForces, RunFrame, RunLoad, RunTruth};
+use moe_physics::{ContactLoad, PhysicsContactStage, PhysicsEstimate};
+use serde::Serialize;
+
+use crate::LabError;
+use crate::markers::{MarkerReport, MarkerScore, has_ground_truth, visible_markers};
+use moe_touch::{Pipeline, StageTimings, StreamEvent};
+
+/// One frame of a run report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameReport {
+    /// Frame time, nanoseconds.
+    pub time_ns: u64,
+    /// Markers found.
+    pub markers_found: usize,
+    /// Fingers none of whose markers were found.
+    pub fingers_without_markers: Vec<usize>,
+    /// Estimated contact points.
+    pub contact_points: usize,
+    /// Shape BCD against the true surface, mm (frames with ground truth).
+    pub shape_bcd_mm: Option<Real>,
+    /// True contact vertices (frames with ground truth).
+    pub true_contact_vertices: Option<usize>,
+    /// Stage timings, milliseconds.
+    pub timings: StageTimings,
+    /// Where the frame stands in the stream (a gap beyond the memory horizon restarts it).
+    pub stream: StreamEvent,
+    /// Per finger, the estimated force on it (contact estimators that estimate force).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub finger_forces: Option<Vec<FingerForceRecord>>,
+    /// The loads the physics estimator found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loads: Option<Vec<LoadRecord>>,
+}
+
+/// The estimated force on one finger in one frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FingerForceRecord {
+    /// The net force the world exerts on the finger, hand frame, newtons.
+    pub force_n: Vector3,
+    /// Its magnitude, newtons.
+    pub magnitude_n: Real,
+    /// Probability that the finger is pressed (the physics estimator).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pressed_probability: Option<Real>,
+    /// Loads found on the finger (the physics estimator).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loads: Option<usize>,
+    /// Why the physics estimator has no estimate for the finger in this frame (too few
+    /// markers, a static solve that did not converge): its force is then zero.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// One load the physics estimator found, hand frame, SI units (as `moe-touch contact --method
+/// physics` writes it to `loads.json` and `moe-touch run` to its report).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoadRecord {
+    /// Finger index.
+    pub finger: usize,
+    /// The vertex at the centre of the loaded patch.
+    pub vertex: u32,
+    /// The patch's centre on the rest surface, hand frame, metres.
+    pub location_rest_m: Point3,
+    /// The same point on the estimated (dented) surface, hand frame, metres.
+    pub location_m: Point3,
+    /// The force the world exerts on the finger, hand frame, newtons.
+    pub force_n: Vector3,
+    /// Its magnitude, newtons.
+    pub magnitude_n: Real,
+    /// Standard deviation of the magnitude, newtons.
+    pub magnitude_sd_n: Real,
+    /// Posterior standard deviation of the place along the finger's axis, metres (`null` where
+    /// the estimator gives none, as for a finger's second load).
+    pub location_sd_along_m: Option<Real>,
+    /// The same around the finger's axis, metres.
+    pub location_sd_around_m: Option<Real>,
+}
+
+impl From<&ContactLoad> for LoadRecord {
+    fn from(l: &ContactLoad) -> Self {
+        let finite = |x: Real| x.is_finite().then_some(x);
+        Self {
+            finger: l.finger,
+            vertex: l.vertex,
+            location_rest_m: l.location_rest,
+            location_m: l.location,
+            force_n: l.force_n,
+            magnitude_n: l.magnitude_n,
+            magnitude_sd_n: l.magnitude_sd_n,
+            location_sd_along_m: finite(l.location_sd_m[0]),
+            location_sd_around_m: finite(l.location_sd_m[1]),
+        }
+    }
+}
+
+/// Per finger, the estimated forces of a physics estimate: net force, pressed probability,
+/// loads and failure.
+pub fn finger_force_records(e: &PhysicsEstimate) -> Vec<FingerForceRecord> {
+    e.finger_forces_n()
+        .into_iter()
+        .zip(&e.fingers)
+        .enumerate()
+        .map(|(f, (force_n, r))| FingerForceRecord {
+            force_n,
+            magnitude_n: force_n.norm(),
+            pressed_probability: Some(r.pressed_probability),
+            loads: Some(e.loads.iter().filter(|l| l.finger == f).count()),
+            error: r.error.clone(),
+        })
+        .collect()
+}
+
+/// The estimated forces of a run, per finger over its frames.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForceSummary {
+    /// Per finger.
+    pub fingers: Vec<FingerForceSummary>,
+}
+
+/// The estimated force on one finger over a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FingerForceSummary {
+    /// Frames with a non-zero estimated force on the finger.
+    pub frames_with_force: usize,
+    /// The largest estimated magnitude, newtons.
+    pub max_magnitude_n: Real,
+    /// The frame of the largest magnitude (its time, nanoseconds).
+    pub max_time_ns: Option<u64>,
+    /// Frames in which the estimator had no estimate for the finger.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub failed_frames: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
+impl ForceSummary {
+    fn of(per_frame: &[FrameReport]) -> Option<Self> {
+        let mut fingers: Vec<FingerForceSummary> = Vec::new();
+        for frame in per_frame {
+            let forces = frame.finger_forces.as_ref()?;
+            if fingers.is_empty() {
+                fingers = vec![
+                    FingerForceSummary {
+                        frames_with_force: 0,
+                        max_magnitude_n: 0.0,
+                        max_time_ns: None,
+                        failed_frames: 0,
+                    };
+                    forces.len()
+                ];
+            }
+            for (s, f) in fingers.iter_mut().zip(forces) {
+                if f.magnitude_n > 0.0 {
+                    s.frames_with_force += 1;
+                }
+                if f.magnitude_n > s.max_magnitude_n {
+                    s.max_magnitude_n = f.magnitude_n;
+                    s.max_time_ns = Some(frame.time_ns);
+                }
+                s.failed_frames += usize::from(f.error.is_some());
+            }
+        }
+        (!fingers.is_empty()).then_some(Self { fingers })
+    }
+}
+
+/// Mean, median and largest time of one stage over a run, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TimingSummary {
+    /// Mean.
+    pub mean_ms: Real,
+    /// Median.
+    pub median_ms: Real,
+    /// Largest.
+    pub max_ms: Real,
+}
+
+impl TimingSummary {
+    fn of(mut values: Vec<Real>) -> Self {
+        if values.is_empty() {
+            return Self {
+                mean_ms: 0.0,
+                median_ms: 0.0,
+                max_ms: 0.0,
+            };
+        }
+        values.sort_by(Real::total_cmp);
+        Self {
+            mean_ms: values.iter().sum::<Real>() / values.len() as Real,
+            median_ms: values[values.len() / 2],
+            max_ms: values[values.len() - 1],
+        }
+    }
+}
+
+/// The figures of a whole run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunReport {
+    /// Frames processed.
+    pub frames: usize,
+    /// Why the episode ended early, if it was cut short (the frames before the cut ran).
+    pub truncated: Option<String>,
+    /// Marker detection against the visible true markers (episodes with ground truth).
+    pub markers: Option<MarkerReport>,
+    /// Mean shape BCD against the true surfaces, mm.
+    pub shape_bcd_mm: Option<Real>,
+    /// Contact estimation against the true contacts (BCD/UCD, misses, false alarms, F1).
+    pub contact: Option<ContactReport>,
+    /// Per stage over the frames.
+    pub markers_ms: TimingSummary,
+    /// Shape estimation.
+    pub shape_ms: TimingSummary,
+    /// Contact estimation.
+    pub contact_ms: TimingSummary,
+    /// The whole frame.
+    pub total_ms: TimingSummary,
+    /// Frames per second from the mean frame time.
+    pub frames_per_second: Real,
+    /// The estimated forces per finger over the run (contact estimators that estimate force).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forces: Option<ForceSummary>,
+    /// Every frame.
+    pub per_frame: Vec<FrameReport>,
+}
+
+/// Runs `pipeline` over `frames` of an episode (`info`) in order, from a fresh stream, and
+/// returns the result frames and the report (`truncated`: why the episode's frames stop early,
+/// if they do).
+///
+/// # Errors
+/// A stage's failure on a frame, or ground truth that does not fit the hand.
+pub fn run_episode<S, C>(
+    pipeline: &mut Pipeline<S, C>,
+    info: &EpisodeInfo,
+    frames: &[EpisodeFrame],
+    truncated: Option<String>,
+) -> Result<(Vec<RunFrame>, RunReport), LabError>
+where
+    S: ShapeEstimator,
+    C: ContactEstimator,
+{
+    run_episode_with(pipeline, info, frames, truncated, None)
+}
+
+/// [`run_episode`] with the physics estimator's contact stage `physics` (a handle on the
+/// pipeline's own, from [`moe_physics::PhysicsEstimator::stages`]): every frame then carries
+/// the loads it found and the force on every finger, in the report and in the result frames.
+/// A contact estimator that estimates per-vertex force without being the physics estimator
+/// gives each finger's force (the sum over its vertices) without loads.
+///
+/// # Errors
+/// As [`run_episode`].
+pub fn run_episode_with<S, C>(
+    pipeline: &mut Pipeline<S, C>,
+    info: &EpisodeInfo,
+    frames: &[EpisodeFrame],
+    truncated: Option<String>,
+    physics: Option<&PhysicsContactStage>,
+) -> Result<(Vec<RunFrame>, RunReport), LabError>
+where
+    S: ShapeEstimator,
+    C: ContactEstimator,
+{
+    crate::markers::check_hand(pipeline.hand(), info)?;
+    pipeline.reset();
+    let truth = frames.iter().all(|f| has_ground_truth(info, f)) && !frames.is_empty();
+    let mut score = MarkerScore::default();
+    let mut contact = ContactMetrics::default();
+    let mut bcd_sum = 0.0;
+    let mut out = Vec::with_capacity(frames.len());
+    let mut per_frame = Vec::with_capacity(frames.len());
+    for frame in frames {
+        let est = pipeline.process_episode_frame(frame)?;
+        let mut shape_bcd_mm = None;
+        let mut true_contact_vertices = None;
+        let run_truth = if truth {
+            let visible = visible_markers(info, frame)?;
+            score.add(&est.keypoints, &frame.markers_in_hand, &visible)?;
+            let true_shape = HandShape {
+                fingers: frame.finger_vertices_in_hand.clone(),
+            };
+            let a: Vec<_> = est.shape.fingers.iter().flatten().copied().collect();
+            let b: Vec<_> = true_shape.fingers.iter().flatten().copied().collect();
+            let d = bcd(&a, &b)?;
+            bcd_sum += d;
+            shape_bcd_mm = Some(1e3 * d);
+            let labels = |ids: &[Vec<u32>]| -> Vec<Vec<bool>> {
+                ids.iter()
+                    .zip(&info.finger_num_vertices)
+                    .map(|(ids, &n)| {
+                        let mut l = vec![false; n];
+                        for &i in ids {
+                            if let Some(x) = l.get_mut(i as usize) {
+                                *x = true;
+                            }
+                        }
+                        l
+                    })
+                    .collect()
+            };
+            let true_labels = labels(&frame.contact_vertices);
+            let predicted = est.contact.vertices_above(pipeline.threshold());
+            contact.add(&true_shape, &true_labels, &labels(&predicted))?;
+            true_contact_vertices = Some(frame.contact_vertices.iter().map(Vec::len).sum());
+            Some(RunTruth {
+                vertices_in_hand: frame.finger_vertices_in_hand.clone(),
+                contact_vertices: frame.contact_vertices.clone(),
+                obstacles: frame.obstacles.clone(),
+            })
+        } else {
+            None
+        };
+        let (finger_forces, loads) = frame_forces(&est, physics, frame.time_ns)?;
+        let forces = finger_forces.as_ref().map(|fingers| RunForces {
+            finger_force_n: fingers.iter().map(|f| f.force_n).collect(),
+            pressed_probability: fingers
+                .iter()
+                .map(|f| f.pressed_probability)
+                .collect::<Option<Vec<_>>>(),
+            loads: loads
+                .iter()
+                .flatten()
+                .map(|l| RunLoad {
+                    finger: l.finger,
+                    location_in_hand: l.location_m,
+                    force_n: l.force_n,
+                })
+                .collect(),
+        });
+        per_frame.push(FrameReport {
+            time_ns: frame.time_ns,
+            markers_found: est.markers.found,
+            fingers_without_markers: est.fingers_without_markers.clone(),
+            contact_points: est.contacts_in_world.len(),
+            shape_bcd_mm,
+            true_contact_vertices,
+            timings: est.timings,
+            stream: est.stream,
+            finger_forces,
+            loads,
+        });
+        out.push(RunFrame {
+            time_ns: frame.time_ns,
+            color_rgb8: frame.color_rgb8.clone(),
+            world_from_hand: frame.world_from_hand,
+            markers_in_hand: est.keypoints.fingers,
+            vertices_in_hand: est.shape.fingers,
+            contact_probability: est.contact.fingers,
+            contacts_in_world: est.contacts_in_world.iter().map(|c| c.point).collect(),
+            truth: run_truth,
+            forces,
+        });
+    }
+    let stage = |f: fn(&StageTimings) -> Real| {
+        TimingSummary::of(per_frame.iter().map(|r| f(&r.timings)).collect())
+    };
+    let total_ms = stage(|t| t.total_ms);
+    let report = RunReport {
+        frames: frames.len(),
+        truncated,
+        markers: truth.then(|| score.report()),
+        shape_bcd_mm: truth.then(|| 1e3 * bcd_sum / frames.len() as Real),
+        contact: truth.then(|| contact.report()),
+        markers_ms: stage(|t| t.markers_ms),
+        shape_ms: stage(|t| t.shape_ms),
+        contact_ms: stage(|t| t.contact_ms),
+        frames_per_second: if total_ms.mean_ms > 0.0 {
+            1e3 / total_ms.mean_ms
+        } else {
+            0.0
+        },
+        total_ms,
+        forces: ForceSummary::of(&per_frame),
+        per_frame,
+    };
+    Ok((out, report))
+}
+
+/// A frame's forces: from the physics estimator's estimate of the frame where there is one
+/// (per finger and its loads), else from the contact estimator's per-vertex forces (per finger
+/// only), else none.
+#[allow(clippy::type_complexity)]
+fn frame_forces(
+    est: &moe_touch::FrameEstimate,
+    physics: Option<&PhysicsContactStage>,
+    time_ns: u64,
+) -> Result<(Option<Vec<FingerForceRecord>>, Option<Vec<LoadRecord>>), LabError> {
+    if let Some(stage) = physics {
+        let e = stage
+            .last_estimate()
+            .filter(|e| e.shape == est.shape)
+            .ok_or_else(|| LabError::InvalidEvaluation {
+                reason: format!(
+                    "frame at {time_ns} ns: the physics contact stage holds no estimate of the \
+                     frame (is it the pipeline's own?)"
+                ),
+            })?;
+        return Ok((
+            Some(finger_force_records(&e)),
+            Some(e.loads.iter().map(LoadRecord::from).collect()),
+        ));
+    }
+    Ok((
+        est.vertex_force_n.as_ref().map(|fingers| {
+            fingers
+                .iter()
+                .map(|v| {
+                    let force_n: Vector3 = v.iter().sum();
+                    FingerForceRecord {
+                        force_n,
+                        magnitude_n: force_n.norm(),
+                        pressed_probability: None,
+                        loads: None,
+                        error: None,
+                    }
+                })
+                .collect()
+        }),
+        None,
+    ))
+}
+
+/// The run file's fixed information for an episode and a model (a run without forces; set
+/// [`moe_io::RunInfo::force_arrow_m_per_n`] for one with).
+pub fn run_info(info: &EpisodeInfo, model: &str, threshold: Real) -> moe_io::RunInfo {
+    moe_io::RunInfo {
+        model: model.to_owned(),
+        threshold,
+        episode: info.clone(),
+        force_arrow_m_per_n: None,
+    }
+}
+
+/// The default length of a force arrow in a result file: 0.2 m per newton (a 50 mN press draws
+/// a 10 mm arrow).
+pub const DEFAULT_FORCE_ARROW_M_PER_N: Real = 0.2;

@@ -1,0 +1,365 @@
+//! `moe-touch run`: the whole pipeline over every frame of an episode; a result MCAP for
+//! Foxglove (input image, detected markers, estimated meshes coloured by contact probability,
+//! contact points in the world, with the physics estimator the loads as arrows and the force on
+//! every finger, and the ground truth beside them) and a report.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
+use moe_geom::{ContactEstimator, HandModel, ShapeEstimator};
+use moe_lab::markers::check_hand;
+use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunReport, run_episode_with, run_info};
+use moe_physics::PhysicsContactStage;
+use moe_touch::PhysicsPipeline;
+use moe_touch::Pipeline;
+use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::pipeline::load_contact_model;
+
+use super::ContactMethod;
+
+/// The shipped contact model, the default of `--model`.
+pub(crate) const DEFAULT_MODEL: &str = "models/contact-two-finger.safetensors";
+
+/// How the shape and the contact are estimated: the options `run` and `demo` share.
+#[derive(Debug, Args)]
+pub(crate) struct EstimatorArgs {
+    /// How the shape and the contact are estimated: `physics` (the default: the finger's FEM
+    /// model read backwards from the markers, the episode's tendon pulls, the hand's pose and
+    /// time: the dented shape, the loads and the force on every finger, in the report and as
+    /// arrows and a plottable topic in the result) or `dgcnn` (the paper's pipeline: SR-ARAP
+    /// shape, then the trained network on it).
+    #[arg(long, value_enum, default_value = "physics")]
+    pub(crate) contact: ContactMethod,
+    /// dgcnn: the trained contact model (`NAME.safetensors` with its card `NAME.json`)
+    /// [default: the shipped models/contact-two-finger.safetensors].
+    #[arg(long, value_name = "M.safetensors")]
+    pub(crate) model: Option<PathBuf>,
+    /// physics: the hand's material (TOML or JSON, as `moe-touch calibrate` writes it; default:
+    /// the nominal silicone).
+    #[arg(long, value_name = "M.toml")]
+    material: Option<PathBuf>,
+    /// physics: the estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`).
+    #[arg(long, value_name = "C.toml")]
+    physics_config: Option<PathBuf>,
+}
+
+impl EstimatorArgs {
+    /// Refuses an option of the method not chosen: the shared ones and the command's own
+    /// (`dgcnn_only`, `physics_only`: whether each was given, and its flag).
+    pub(crate) fn check(
+        &self,
+        dgcnn_only: &[(bool, &str)],
+        physics_only: &[(bool, &str)],
+    ) -> Result<()> {
+        match self.contact {
+            ContactMethod::Dgcnn => {
+                let shared = [
+                    (self.material.is_some(), "--material"),
+                    (self.physics_config.is_some(), "--physics-config"),
+                ];
+                if let Some((_, flag)) = shared.iter().chain(physics_only).find(|(g, _)| *g) {
+                    bail!("{flag} is for --contact physics");
+                }
+            }
+            ContactMethod::Physics => {
+                let shared = [(self.model.is_some(), "--model")];
+                if let Some((_, flag)) = shared.iter().chain(dgcnn_only).find(|(g, _)| *g) {
+                    bail!(
+                        "{flag} is for --contact dgcnn (SR-ARAP and the network); the physics \
+                         estimator makes the shape itself and has no network"
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `--physics-config` when none was given (physics only).
+    pub(crate) fn or_physics_config(&mut self, path: PathBuf) {
+        if self.contact == ContactMethod::Physics && self.physics_config.is_none() {
+            self.physics_config = Some(path);
+        }
+    }
+
+    /// The settings file of the physics estimator, when one is used.
+    pub(crate) fn physics_config(&self) -> Option<&Path> {
+        self.physics_config.as_deref()
+    }
+
+    /// The physics pipeline for `hand` behind `detector` from `--material` and
+    /// `--physics-config`, a handle on its contact stage (for the loads of each frame), and its
+    /// name for the result (with the material file's name).
+    pub(crate) fn physics_pipeline(
+        &self,
+        hand: HandModel,
+        detector: moe_touch::perception::MarkerDetector,
+    ) -> Result<(PhysicsPipeline, PhysicsContactStage, String)> {
+        let (material, material_name) = super::load_material(self.material.as_deref())?;
+        let (config, _) = super::load_physics_config(self.physics_config.as_deref())?;
+        let pipeline = PhysicsPipeline::physics(hand, detector, &material, &config)
+            .context("the physics estimator")?;
+        let stage = pipeline.contact_estimator().clone();
+        let name = match material_name.as_str() {
+            "nominal" => "physics (nominal material)".to_owned(),
+            _ => format!(
+                "physics (material {})",
+                Path::new(&material_name)
+                    .file_name()
+                    .map_or(material_name.clone(), |n| n.to_string_lossy().into_owned())
+            ),
+        };
+        Ok((pipeline, stage, name))
+    }
+}
+
+/// Arguments of `moe-touch run`.
+#[derive(Debug, Args)]
+pub(crate) struct RunArgs {
+    /// Episode to read (MCAP, as `moe-touch sim --out EP.mcap` records it). An episode cut
+    /// short runs up to its last complete frame, and the cut is reported.
+    #[arg(long, value_name = "EP.mcap")]
+    episode: PathBuf,
+    #[command(flatten)]
+    estimator: EstimatorArgs,
+    /// physics: length of a force arrow in the result file per newton, metres [default: 0.2,
+    /// a 50 mN press draws a 10 mm arrow].
+    #[arg(long, value_name = "M_PER_N")]
+    force_scale: Option<f64>,
+    /// Result file (MCAP; open it in Foxglove with fixtures/foxglove/run_layout.json).
+    #[arg(long, value_name = "RESULT.mcap")]
+    out: PathBuf,
+    /// Also write the report (per-frame and overall figures) as JSON here.
+    #[arg(long, value_name = "R.json")]
+    report: Option<PathBuf>,
+    /// The hand: a preset (two-finger, three-finger, five-finger) or a hand config file; it
+    /// must be the episode's hand and the model's.
+    #[arg(long, value_name = "PRESET|CONFIG", default_value = "two-finger")]
+    hand: String,
+    /// Marker-detector parameters (TOML or JSON `DetectorConfig`).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// dgcnn: SR-ARAP iterations per frame [default: 50].
+    #[arg(long)]
+    iterations: Option<usize>,
+    /// dgcnn: start each frame's shape from the previous one (tracking; the paper starts from
+    /// rest).
+    #[arg(long)]
+    warm_start: bool,
+    /// Filter the keypoints over time with a constant-velocity Kalman filter per marker
+    /// (default noise levels of `KalmanConfig`).
+    #[arg(long)]
+    kalman: bool,
+    /// Smooth the contact map over time with this weight on the new frame, in (0, 1].
+    #[arg(long, value_name = "ALPHA")]
+    smooth_contact: Option<f64>,
+    /// Print the report (without the per-frame list) as one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Checks a force arrow scale.
+pub(crate) fn check_force_scale(scale: f64) -> Result<f64> {
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("--force-scale {scale} must be a positive number of metres per newton");
+    }
+    Ok(scale)
+}
+
+pub(crate) fn run(args: RunArgs) -> Result<()> {
+    args.estimator.check(
+        &[
+            (args.iterations.is_some(), "--iterations"),
+            (args.warm_start, "--warm-start"),
+        ],
+        &[(args.force_scale.is_some(), "--force-scale")],
+    )?;
+    let force_scale = check_force_scale(args.force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N))?;
+    let config: DetectorConfig = match &args.config {
+        Some(path) => moe_io::read_config(path)?,
+        None => DetectorConfig::default(),
+    };
+    let bytes = std::fs::read(&args.episode)
+        .with_context(|| format!("reading {}", args.episode.display()))?;
+    let (episode, cut) = moe_io::parse_episode_prefix(&args.episode, &bytes);
+    let Some(episode) = episode else {
+        return Err(match cut {
+            Some(err) => err.into(),
+            None => anyhow::anyhow!("{}: holds no episode", args.episode.display()),
+        });
+    };
+    let hand = super::load_hand(&args.hand)?;
+    check_hand(&hand, &episode.info)
+        .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
+    let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
+        .with_context(|| format!("the camera of {}", args.episode.display()))?;
+    match args.estimator.contact {
+        ContactMethod::Dgcnn => {
+            let model_path = args
+                .estimator
+                .model
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(DEFAULT_MODEL));
+            let model = load_contact_model(&model_path, &hand).with_context(|| {
+                format!("model {} on hand '{}'", model_path.display(), args.hand)
+            })?;
+            let threshold = model.threshold();
+            let options = ShapeConfig {
+                iterations: args.iterations.unwrap_or(ShapeConfig::default().iterations),
+                warm_start: args.warm_start,
+                ..ShapeConfig::default()
+            };
+            let shape = MultiShapeEstimator::new(hand.clone(), options.clone())?;
+            let pipeline = Pipeline::new(hand, detector, shape, model, threshold)?;
+            let model_name = model_path
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+            finish(&args, pipeline, None, &episode, cut, &model_name, None)
+        }
+        ContactMethod::Physics => {
+            let (pipeline, stage, name) = args.estimator.physics_pipeline(hand, detector)?;
+            finish(
+                &args,
+                pipeline,
+                Some(&stage),
+                &episode,
+                cut,
+                &name,
+                Some(force_scale),
+            )
+        }
+    }
+}
+
+/// Runs the pipeline over the episode, writes the result and the report, prints the summary.
+fn finish<S: ShapeEstimator, C: ContactEstimator>(
+    args: &RunArgs,
+    mut pipeline: Pipeline<S, C>,
+    physics: Option<&PhysicsContactStage>,
+    episode: &moe_io::Episode,
+    cut: Option<moe_io::IoError>,
+    model_name: &str,
+    force_scale: Option<f64>,
+) -> Result<()> {
+    if args.kalman {
+        pipeline = pipeline.with_keypoint_filter(KeypointFilter::new(KalmanConfig::default())?);
+    }
+    if let Some(alpha) = args.smooth_contact {
+        pipeline = pipeline.with_contact_smoothing(ContactSmoother::new(alpha)?);
+    }
+    let truncated = cut.map(|err| {
+        eprintln!(
+            "warning: {err}; running the {} complete frames before the cut",
+            episode.frames.len()
+        );
+        err.to_string()
+    });
+    let (frames, report) = run_episode_with(
+        &mut pipeline,
+        &episode.info,
+        &episode.frames,
+        truncated,
+        physics,
+    )
+    .with_context(|| format!("episode {}", args.episode.display()))?;
+    let mut info = run_info(&episode.info, model_name, pipeline.threshold());
+    info.force_arrow_m_per_n = force_scale;
+    // The report is built before anything is written; the result file is written whole.
+    let report_text = serde_json::to_string_pretty(&report)?;
+    moe_io::write_run(&args.out, &info, &frames)?;
+    if let Some(path) = &args.report {
+        moe_io::write_atomic(path, report_text.as_bytes())?;
+    }
+    if args.json {
+        let mut value = serde_json::to_value(&report)?;
+        if let Some(obj) = value.as_object_mut() {
+            obj.remove("per_frame");
+            obj.insert("out".into(), args.out.display().to_string().into());
+        }
+        return super::print_json(&value);
+    }
+    print_summary(&report, &args.out);
+    Ok(())
+}
+
+pub(crate) fn print_summary(r: &RunReport, out: &Path) {
+    super::outln!(
+        "{} frames{}: {:.1} frames/s (per frame: markers {:.2} ms, shape {:.2} ms, contact {:.2} ms, total {:.2} ms median); wrote {}",
+        r.frames,
+        if r.truncated.is_some() {
+            " (episode cut short)"
+        } else {
+            ""
+        },
+        r.frames_per_second,
+        r.markers_ms.median_ms,
+        r.shape_ms.median_ms,
+        r.contact_ms.median_ms,
+        r.total_ms.median_ms,
+        out.display()
+    );
+    if let (Some(m), Some(bcd), Some(c)) = (&r.markers, r.shape_bcd_mm, &r.contact) {
+        super::outln!(
+            "against the ground truth: markers {:.1} % of {} visible found (error {:.2} mm mean); shape BCD {:.3} mm; contact BCD {:.1} mm, UCD {:.1} mm, F1 {:.3}, {} of {} contact frames missed, {} false alarms",
+            100.0 * m.detection_rate,
+            m.visible,
+            m.mean_error_mm,
+            bcd,
+            c.bcd_mm,
+            c.ucd_mm,
+            c.f1,
+            c.misses,
+            c.contact_frames,
+            c.false_alarms
+        );
+    }
+    print_forces(r);
+}
+
+/// The estimated force on every finger, frame by frame (runs whose estimator estimates force).
+pub(crate) fn print_forces(r: &RunReport) {
+    let Some(summary) = &r.forces else { return };
+    super::outln!("estimated force on each finger (N, hand frame x, y, z; loads found):");
+    for (k, frame) in r.per_frame.iter().enumerate() {
+        let Some(fingers) = &frame.finger_forces else {
+            continue;
+        };
+        let cells: Vec<String> = fingers
+            .iter()
+            .enumerate()
+            .map(|(f, x)| {
+                let loads = x
+                    .loads
+                    .map_or(String::new(), |n| format!(", {}", super::count(n, "load")));
+                let failed = if x.error.is_some() {
+                    ", no estimate"
+                } else {
+                    ""
+                };
+                format!(
+                    "finger {f} {:.3} ({:+.3}, {:+.3}, {:+.3}{loads}{failed})",
+                    x.magnitude_n, x.force_n.x, x.force_n.y, x.force_n.z
+                )
+            })
+            .collect();
+        super::outln!(
+            "  frame {k:>3} {:>8.3} s  {}",
+            1e-9 * frame.time_ns as f64,
+            cells.join("   ")
+        );
+    }
+    let cells: Vec<String> = summary
+        .fingers
+        .iter()
+        .enumerate()
+        .map(|(f, s)| {
+            format!(
+                "finger {f} up to {:.3} N ({} of {} frames with force)",
+                s.max_magnitude_n, s.frames_with_force, r.frames
+            )
+        })
+        .collect();
+    super::outln!("  {}", cells.join("; "));
+}

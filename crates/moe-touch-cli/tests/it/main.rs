@@ -1,0 +1,14 @@
+//! Integration tests of the `moe-touch` binary: one module per subcommand.
+
+mod arap;
+mod common;
+mod contact;
+mod episode;
+mod hand;
+mod markers;
+mod models;
+mod physics;
+mod pipeline;
+mod plane;
+mod sim;
+mod surface;

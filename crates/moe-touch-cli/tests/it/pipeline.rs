@@ -1,0 +1,695 @@
+//! The per-frame pipeline on the committed episode with the shipped model.
+
+use moe_arap::MultiShapeEstimator;
+use moe_arap::ShapeConfig;
+use moe_geom::{ContactInput, FingerParams, HandModel, HandPreset, WorldFromHand};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::pipeline::load_contact_model;
+use moe_touch::{FrameEstimate, PhysicsPipeline, Pipeline, RgbdFrame, StreamEvent, TouchError};
+
+use crate::common::fixtures;
+
+fn hand() -> HandModel {
+    HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap()
+}
+
+fn episode() -> moe_io::Episode {
+    moe_io::read_episode(&fixtures().join("episodes/plate_tip_front_small.mcap")).unwrap()
+}
+
+fn detector(hand: &HandModel, episode: &moe_io::Episode) -> MarkerDetector {
+    MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default()).unwrap()
+}
+
+/// The threshold at which the pipeline-equality test turns probabilities into contact points.
+const CHAIN_THRESHOLD: f64 = 0.4;
+
+fn model_path() -> std::path::PathBuf {
+    fixtures().join("../models/contact-two-finger.safetensors")
+}
+
+#[test]
+fn the_pipeline_equals_the_stages_run_one_by_one() {
+    let hand = hand();
+    let episode = episode();
+    let model = load_contact_model(&model_path(), &hand).unwrap();
+    // Below the card's threshold, so that the frame chain is checked on contact points whatever
+    // the shipped model finds at its own (the equality of the maps does not depend on it).
+    let threshold = CHAIN_THRESHOLD.min(model.threshold());
+    let options = ShapeConfig::default();
+    let mut pipeline = Pipeline::new(
+        hand.clone(),
+        detector(&hand, &episode),
+        MultiShapeEstimator::new(hand.clone(), options.clone()).unwrap(),
+        load_contact_model(&model_path(), &hand).unwrap(),
+        threshold,
+    )
+    .unwrap();
+    let mut d = detector(&hand, &episode);
+    let mut arap = MultiShapeEstimator::new(hand.clone(), options.clone()).unwrap();
+    let mut contact_frames = 0;
+    for frame in &episode.frames {
+        let pose = WorldFromHand::new(frame.world_from_hand);
+        let est = pipeline
+            .process(
+                RgbdFrame {
+                    color_rgb8: &frame.color_rgb8,
+                    depth_m: &frame.depth_m,
+                },
+                pose,
+            )
+            .unwrap();
+        let det = d.detect(&frame.color_rgb8, &frame.depth_m).unwrap();
+        let shape = arap.estimate(&det.keypoints).unwrap().shape;
+        let map = model
+            .estimate_map(&ContactInput::shape(&shape).with_keypoints(&det.keypoints))
+            .unwrap();
+        assert_eq!(est.keypoints, det.keypoints);
+        assert_eq!(est.shape, shape);
+        assert_eq!(est.contact, map);
+        let points = map.contacts_above(threshold, &shape).unwrap();
+        assert_eq!(est.contacts_in_hand, points);
+        assert_eq!(est.contacts_in_world.len(), points.len());
+        for (w, h) in est.contacts_in_world.iter().zip(&points) {
+            assert!((w.point - frame.world_from_hand * h.point).norm() < 1e-12);
+            assert_eq!((w.finger, w.vertex), (h.finger, h.vertex));
+        }
+        contact_frames += usize::from(!points.is_empty());
+        let t = est.timings;
+        assert!(t.total_ms >= t.markers_ms + t.shape_ms + t.contact_ms - 1e-9);
+        assert!(est.fingers_without_markers.is_empty());
+    }
+    assert!(
+        contact_frames > 0,
+        "the plate presses the tip: some vertex is above {threshold}"
+    );
+}
+
+/// What a frame's estimate says apart from its wall times.
+fn same_estimate(a: &FrameEstimate, b: &FrameEstimate) {
+    assert_eq!(a.keypoints, b.keypoints);
+    assert_eq!(a.shape, b.shape);
+    assert_eq!(a.contact, b.contact);
+    assert_eq!(a.contacts_in_hand, b.contacts_in_hand);
+    assert_eq!(a.contacts_in_world, b.contacts_in_world);
+}
+
+#[test]
+fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
+    let hand = hand();
+    let episode = episode();
+    // The paper's chain, whose stages carry marker tracks (and a warm start when asked), and
+    // the physics pipeline, which carries the free finger's simulation through the stream.
+    stream_contract(&episode, || {
+        Pipeline::new(
+            hand.clone(),
+            detector(&hand, &episode),
+            MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
+            load_contact_model(&model_path(), &hand).unwrap(),
+            CHAIN_THRESHOLD,
+        )
+        .unwrap()
+    });
+    stream_contract(&episode, || physics_pipeline(&hand, &episode));
+    // The physics pipeline's horizon is its estimator's stream: a gap the estimator does not
+    // bridge (0.5 s against its 0.2 s) is reported as a restart, and the frame is a fresh
+    // pipeline's.
+    let f = &episode.frames;
+    let mut p = physics_pipeline(&hand, &episode);
+    p.process_episode_frame(&f[1]).unwrap();
+    let mut late = f[2].clone();
+    late.time_ns = f[1].time_ns + 500_000_000;
+    let after_gap = p.process_episode_frame(&late).unwrap();
+    assert!(
+        matches!(after_gap.stream, StreamEvent::Restarted { gap_secs } if (gap_secs - 0.5).abs() < 1e-9),
+        "{:?}",
+        after_gap.stream
+    );
+    same_estimate(
+        &after_gap,
+        &physics_pipeline(&hand, &episode)
+            .process_episode_frame(&late)
+            .unwrap(),
+    );
+}
+
+/// The physics pipeline with the default material and settings.
+fn physics_pipeline(hand: &HandModel, episode: &moe_io::Episode) -> PhysicsPipeline {
+    PhysicsPipeline::physics(
+        hand.clone(),
+        detector(hand, episode),
+        &moe_physics::HandMaterial::default(),
+        &moe_physics::PhysicsConfig::default(),
+    )
+    .unwrap()
+}
+
+/// Out-of-order frames are refused and change nothing; a gap beyond the memory's horizon and
+/// `reset()` each start a stream whose estimate is a fresh pipeline's, bit for bit.
+fn stream_contract<S, C>(episode: &moe_io::Episode, make: impl Fn() -> Pipeline<S, C>)
+where
+    S: moe_geom::ShapeEstimator + std::fmt::Debug,
+    C: moe_geom::ContactEstimator + std::fmt::Debug,
+{
+    let f = &episode.frames;
+    let mut p = make();
+    assert_eq!(
+        p.process_episode_frame(&f[0]).unwrap().stream,
+        StreamEvent::Started
+    );
+    let gap = match p.process_episode_frame(&f[1]).unwrap().stream {
+        StreamEvent::Continued { gap_secs } => gap_secs,
+        other => panic!("{other:?}"),
+    };
+    assert!((gap - 0.2).abs() < 1e-9, "{gap}");
+    // A repeated time and a time back in the stream are refused, naming both times.
+    for k in [1, 0] {
+        let err = p.process_episode_frame(&f[k]).unwrap_err();
+        assert!(
+            matches!(err, TouchError::StreamOutOfOrder { time_secs, previous_secs }
+                if time_secs == 1e-9 * f[k].time_ns as f64 && previous_secs == 0.2),
+            "{err}"
+        );
+        assert!(
+            err.to_string()
+                .contains("not after the previous frame's 0.2 s"),
+            "{err}"
+        );
+    }
+    // The refused frames changed nothing: the next frame is an undisturbed stream's.
+    let mut undisturbed = make();
+    undisturbed.process_episode_frame(&f[0]).unwrap();
+    undisturbed.process_episode_frame(&f[1]).unwrap();
+    same_estimate(
+        &p.process_episode_frame(&f[2]).unwrap(),
+        &undisturbed.process_episode_frame(&f[2]).unwrap(),
+    );
+    // A gap beyond the horizon: the stream restarts, and says so, as a fresh pipeline.
+    let mut late = f[3].clone();
+    late.time_ns += 5_000_000_000;
+    let after_gap = p.process_episode_frame(&late).unwrap();
+    match after_gap.stream {
+        StreamEvent::Restarted { gap_secs } => assert!((gap_secs - 5.2).abs() < 1e-9),
+        other => panic!("{other:?}"),
+    }
+    same_estimate(&after_gap, &make().process_episode_frame(&late).unwrap());
+    // reset: the next frame starts a stream, whatever its time, as in a fresh pipeline.
+    p.reset();
+    let again = p.process_episode_frame(&f[4]).unwrap();
+    assert_eq!(again.stream, StreamEvent::Started);
+    same_estimate(&again, &make().process_episode_frame(&f[4]).unwrap());
+    // Frames without a time carry the stream over and say so.
+    let untimed = p
+        .process_with_pulls(
+            RgbdFrame {
+                color_rgb8: &f[5].color_rgb8,
+                depth_m: &f[5].depth_m,
+            },
+            WorldFromHand::new(f[5].world_from_hand),
+            Some(&f[5].tendon_pull_m),
+        )
+        .unwrap();
+    assert_eq!(untimed.stream, StreamEvent::Untimed);
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let err = make().with_memory_horizon(bad).unwrap_err();
+        assert!(matches!(err, TouchError::InvalidParameter { .. }), "{err}");
+    }
+}
+
+#[test]
+fn the_physics_pipeline_reports_a_held_press_in_every_frame_after_its_onset() {
+    // The committed episode: the plate presses the tip of finger 0 in frames 2–4 (0.4–0.8 s).
+    let hand = hand();
+    let episode = episode();
+    let mut p = physics_pipeline(&hand, &episode);
+    let mut onset = None;
+    let mut held = 0;
+    for (k, frame) in episode.frames.iter().enumerate() {
+        let est = p.process_episode_frame(frame).unwrap();
+        let pressed = !frame.contact_vertices[0].is_empty();
+        let on_finger = |f: usize| est.contacts_in_hand.iter().any(|c| c.finger == f);
+        if pressed && onset.is_none() && on_finger(0) {
+            onset = Some(k);
+        }
+        if pressed && onset.is_some_and(|o| k > o) {
+            // No flicker: every later frame of the press reports it, on the pressed finger, with
+            // a force, and nothing on the free finger.
+            assert!(on_finger(0), "frame {k}: the held press was dropped");
+            assert!(!on_finger(1), "frame {k}: contact on the free finger");
+            let e = p.last_physics_estimate().unwrap();
+            assert!(e.loads.iter().any(|l| l.finger == 0 && l.magnitude_n > 0.0));
+            held += 1;
+        }
+    }
+    assert_eq!(onset, Some(2), "the press is found in its first frame");
+    assert_eq!(held, 2);
+}
+
+#[test]
+fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
+    let hand = hand();
+    let episode = episode();
+    let model = load_contact_model(&model_path(), &hand).unwrap();
+    let threshold = model.threshold();
+    let mut pipeline = Pipeline::new(
+        hand.clone(),
+        detector(&hand, &episode),
+        MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
+        model,
+        threshold,
+    )
+    .unwrap();
+    let width = episode.info.camera.width as usize;
+    for (k, frame) in episode.frames.iter().enumerate() {
+        // Frames 2–4: no depth on the right half of the image, where finger 0 is.
+        let mut depth = frame.depth_m.clone();
+        if (2..5).contains(&k) {
+            for (i, d) in depth.iter_mut().enumerate() {
+                if i % width >= width / 2 {
+                    *d = 0.0;
+                }
+            }
+        }
+        let est = pipeline
+            .process(
+                RgbdFrame {
+                    color_rgb8: &frame.color_rgb8,
+                    depth_m: &depth,
+                },
+                WorldFromHand::new(frame.world_from_hand),
+            )
+            .unwrap();
+        if (2..5).contains(&k) {
+            assert_eq!(est.fingers_without_markers, vec![0], "frame {k}");
+            assert_eq!(
+                est.shape.fingers[0],
+                hand.rest_vertices_in_hand(0),
+                "frame {k}"
+            );
+        } else {
+            assert!(est.fingers_without_markers.is_empty(), "frame {k}");
+        }
+    }
+    // Images of the wrong size are an error, not a panic.
+    let err = pipeline
+        .process(
+            RgbdFrame {
+                color_rgb8: &[],
+                depth_m: &[],
+            },
+            WorldFromHand::identity(),
+        )
+        .unwrap_err();
+    assert!(matches!(err, TouchError::ImageSize { .. }), "{err}");
+}
+
+#[test]
+fn the_run_command_writes_a_deterministic_result_and_a_report() {
+    use crate::common::{assert_one_line_error, run, run_json, run_ok, scratch, stable};
+    let dir = scratch("run-cli");
+    let episode = fixtures().join("episodes/plate_tip_front_small.mcap");
+    let model = model_path();
+    let out = dir.join("result.mcap");
+    let report = dir.join("report.json");
+    let args = |out: &std::path::Path| {
+        vec![
+            "run".to_owned(),
+            "--episode".into(),
+            episode.display().to_string(),
+            "--contact".into(),
+            "dgcnn".into(),
+            "--model".into(),
+            model.display().to_string(),
+            "--out".into(),
+            out.display().to_string(),
+        ]
+    };
+    let mut a = args(&out);
+    a.extend([
+        "--report".into(),
+        report.display().to_string(),
+        "--json".into(),
+    ]);
+    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    let summary = run_json(&a);
+    insta::assert_json_snapshot!("run_summary", stable(summary.clone(), &dir));
+    assert_eq!(summary["frames"], 7);
+    assert!(summary["truncated"].is_null());
+    assert!(summary["shape_bcd_mm"].as_f64().unwrap() < 1.0, "{summary}");
+    assert_eq!(summary["contact"]["contact_frames"], 3);
+    let full: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(full["per_frame"].as_array().unwrap().len(), 7);
+    insta::assert_json_snapshot!("run_report", stable(full.clone(), &dir));
+    // Same episode and model, same bytes.
+    let again = dir.join("again.mcap");
+    let b = args(&again);
+    let b: Vec<&str> = b.iter().map(String::as_str).collect();
+    assert!(run(&b).status.success());
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&again).unwrap());
+
+    // An episode cut short runs its complete frames and says so.
+    let bytes = std::fs::read(&episode).unwrap();
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    let cut_out = dir.join("cut-result.mcap");
+    let o = run_ok(&[
+        "run",
+        "--episode",
+        cut.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        cut_out.to_str().unwrap(),
+        "--json",
+    ]);
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let frames = s["frames"].as_u64().unwrap();
+    assert!((1..7).contains(&frames), "{frames} frames");
+    assert!(
+        s["truncated"].as_str().unwrap().contains("complete frames"),
+        "{s}"
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("warning:"));
+
+    // Another hand than the episode's and the model's: one clear error, nothing written.
+    let wrong = dir.join("wrong.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        episode.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
+        "--model",
+        model.to_str().unwrap(),
+        "--hand",
+        "three-finger",
+        "--out",
+        wrong.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(err.contains("three-finger"), "{err}");
+    assert!(!wrong.exists());
+
+    // An episode that repeats a frame's time: one clear error naming it, nothing written.
+    let recorded = moe_io::read_episode(&episode).unwrap();
+    let mut frames = recorded.frames[..3].to_vec();
+    frames.push(recorded.frames[2].clone());
+    let repeated = dir.join("repeated.mcap");
+    moe_io::write_episode(&repeated, &recorded.info, &frames).unwrap();
+    let repeated_out = dir.join("repeated-result.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        repeated.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        repeated_out.to_str().unwrap(),
+    ]);
+    let err = assert_one_line_error(&o);
+    assert!(
+        err.contains("frame time 0.4 s is not after the previous frame's 0.4 s"),
+        "{err}"
+    );
+    assert!(!repeated_out.exists());
+}
+
+#[test]
+fn the_foxglove_layout_shows_only_topics_a_run_writes() {
+    let text = std::fs::read_to_string(fixtures().join("foxglove/run_layout.json")).unwrap();
+    let layout: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let panels = layout["configById"].as_object().unwrap();
+    assert!(panels.len() >= 3);
+    let mut named = 0;
+    for (id, config) in panels {
+        let mut topics: Vec<String> = config["topics"]
+            .as_object()
+            .map(|t| t.keys().cloned().collect())
+            .unwrap_or_default();
+        if let Some(t) = config["imageMode"]["imageTopic"].as_str() {
+            topics.push(t.to_owned());
+        }
+        // A plot's message paths: the topic, then the fields (`/topic.field[0].x`).
+        for path in config["paths"].as_array().into_iter().flatten() {
+            let value = path["value"].as_str().unwrap();
+            let (topic, fields) = value.split_once('.').unwrap();
+            if topic == "/estimate/finger_force" {
+                // The fields are those of the messages a run writes.
+                assert!(fields.starts_with("fingers["), "{id}: {value}");
+                let (_, field) = fields.split_once("].").unwrap();
+                let message = moe_io::FingerForceMessage {
+                    finger: 0,
+                    x_n: 0.0,
+                    y_n: 0.0,
+                    z_n: 0.0,
+                    magnitude_n: 0.0,
+                    pressed_probability: Some(0.0),
+                    loads: 0,
+                };
+                let written = serde_json::to_value(&message).unwrap();
+                assert!(written.get(field).is_some(), "{id}: {value}");
+            }
+            topics.push(topic.to_owned());
+        }
+        for t in topics {
+            assert!(moe_io::RUN_TOPICS.contains(&t.as_str()), "{id}: {t}");
+            named += 1;
+        }
+    }
+    assert!(named >= 12, "{named}");
+    assert!(panels.contains_key("Plot!force"));
+}
+
+#[test]
+fn the_demo_needs_no_arguments_and_writes_its_outputs() {
+    use crate::common::{run_ok, scratch};
+    let dir = scratch("demo");
+    let out = dir.join("demo");
+    let o = run_ok(&["demo", "--out", out.to_str().unwrap()]);
+    let table = String::from_utf8_lossy(&o.stdout);
+    for row in [
+        "frames",
+        "markers found",
+        "shape BCD",
+        "contact BCD",
+        "frames per second",
+        "estimated force",
+    ] {
+        assert!(table.contains(row), "{row} missing from\n{table}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["frames"], 7);
+    // The physics estimator with the settings for an occluding object (the plate hides the
+    // pressed tip's markers): every contact frame found, no false alarm, placed within 3 mm
+    // (contact BCD), with a force per finger in the report and per frame.
+    assert!(table.contains("occluding-contact.toml"), "{table}");
+    let fingers = report["forces"]["fingers"].as_array().unwrap();
+    assert_eq!(fingers.len(), 2);
+    assert!(
+        fingers[0]["max_magnitude_n"].as_f64().unwrap() > 0.0,
+        "{report}"
+    );
+    let c = &report["contact"];
+    assert_eq!(c["misses"], 0, "{c}");
+    assert_eq!(c["false_alarms"], 0, "{c}");
+    assert!(c["bcd_mm"].as_f64().unwrap() <= 3.0, "{c}");
+    for frame in report["per_frame"].as_array().unwrap() {
+        assert_eq!(frame["finger_forces"].as_array().unwrap().len(), 2);
+    }
+    // The pipeline's default settings (an empty settings file) still find the press on the
+    // right finger, and the table names what they ran with.
+    let defaults = dir.join("defaults.toml");
+    std::fs::write(&defaults, "").unwrap();
+    let plain = dir.join("plain");
+    let o = crate::common::run_ok(&[
+        "demo",
+        "--out",
+        plain.to_str().unwrap(),
+        "--physics-config",
+        defaults.to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("defaults.toml"));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(plain.join("report.json")).unwrap()).unwrap();
+    let c = &report["contact"];
+    assert!(
+        c["contact_frames"].as_u64().unwrap() - c["misses"].as_u64().unwrap() >= 2,
+        "{c}"
+    );
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    for want in ["result.mcap", "figure.png"] {
+        assert!(names.iter().any(|n| n == want), "{want} in {names:?}");
+    }
+    // Estimate and truth of both fingers of one frame.
+    assert_eq!(
+        names.iter().filter(|n| n.ends_with(".ply")).count(),
+        4,
+        "{names:?}"
+    );
+    let png = std::fs::read(out.join("figure.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let ply = names
+        .iter()
+        .find(|n| n.contains("estimate_finger_0"))
+        .unwrap();
+    let data = moe_io::read_ply(&out.join(ply)).unwrap();
+    assert_eq!(data.points.len(), 1024);
+    assert!(data.scalars.iter().any(|(n, _)| n == "contact_probability"));
+
+    // The physics estimator's options without it: one line, nothing written.
+    let settings = fixtures().join("physics/exact-markers.toml");
+    let refused = dir.join("refused");
+    let o = crate::common::run(&[
+        "demo",
+        "--out",
+        refused.to_str().unwrap(),
+        "--contact",
+        "dgcnn",
+        "--physics-config",
+        settings.to_str().unwrap(),
+    ]);
+    let err = crate::common::assert_one_line_error(&o);
+    assert!(
+        err.contains("--physics-config is for --contact physics"),
+        "{err}"
+    );
+    assert!(!refused.exists());
+}
+
+#[test]
+fn a_contact_threshold_outside_the_unit_interval_is_refused() {
+    let hand = hand();
+    let episode = episode();
+    for threshold in [-0.1, 1.5, f64::NAN] {
+        let err = Pipeline::new(
+            hand.clone(),
+            detector(&hand, &episode),
+            MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
+            load_contact_model(&model_path(), &hand).unwrap(),
+            threshold,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                err,
+                TouchError::InvalidParameter {
+                    name: "contact threshold",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+}
+
+/// Every model committed in `models/` loads with its card for the hand it was trained on, and
+/// on the hand at rest (which touches nothing) it reports probabilities in [0, 1] and no vertex
+/// over its card's threshold.
+#[test]
+fn every_committed_model_loads_and_finds_no_contact_at_rest() {
+    let hand = hand();
+    let dir = fixtures().join("../models");
+    let mut models: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "safetensors"))
+        .collect();
+    models.sort();
+    assert!(models.len() >= 2, "{models:?}");
+    let rest = moe_geom::HandShape::rest(&hand);
+    for path in &models {
+        let model = load_contact_model(path, &hand).unwrap();
+        let map = model.estimate_map(&ContactInput::shape(&rest)).unwrap();
+        let threshold = model.threshold();
+        for (f, finger) in map.fingers.iter().enumerate() {
+            for (v, &p) in finger.iter().enumerate() {
+                assert!(
+                    (0.0..=1.0).contains(&p),
+                    "{path:?} finger {f} vertex {v}: {p}"
+                );
+                assert!(
+                    p < threshold,
+                    "{path:?} finger {f} vertex {v}: {p} at rest (threshold {threshold})"
+                );
+            }
+        }
+    }
+}
+
+/// The grasp evaluation's `--true-labels` source places exactly the simulator's contact
+/// vertices, only where the pipeline's estimated shape has them: the same presses and the same
+/// number of points as the simulator's own contacts, a plane that differs from theirs, and both
+/// near the plate's normal.
+#[test]
+fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
+    use moe_lab::grasp::{GraspContacts, GraspOptions, run_grasp_trial};
+    let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default()).unwrap();
+    let model = load_contact_model(&model_path(), &hand).unwrap();
+    // One plane, through the contact points: the presses and points of both sources are then
+    // the same.
+    let options = GraspOptions {
+        refinements: 0,
+        fingertip_plane: false,
+        ..GraspOptions::default()
+    };
+    let truth = run_grasp_trial(
+        &hand,
+        GraspContacts::<moe_contact::DgcnnEstimator>::Simulator,
+        30.0,
+        1,
+        0,
+        &options,
+    )
+    .unwrap();
+    let labels = run_grasp_trial(
+        &hand,
+        GraspContacts::SimulatorLabelsOnEstimatedShape { contact: &model },
+        30.0,
+        1,
+        0,
+        &options,
+    )
+    .unwrap();
+    assert_eq!(labels.first_press, truth.first_press);
+    assert!(truth.fits[0].estimated_contacts > 0);
+    assert_eq!(
+        labels.fits[0].estimated_contacts,
+        truth.fits[0].estimated_contacts
+    );
+    // The same vertices in the same order; the simulator's own source fits its true points.
+    let ids = |points: &[moe_geom::ContactPoint]| -> Vec<(usize, u32)> {
+        points.iter().map(|c| (c.finger, c.vertex)).collect()
+    };
+    assert_eq!(ids(&labels.plane_points), ids(&truth.true_points));
+    assert_eq!(truth.plane_points, truth.true_points);
+    assert_eq!(labels.true_points, truth.true_points);
+    // Placed on the estimated shape: moved, but by no more than the shape's error (Table 1:
+    // at most 7 mm per vertex on held-out frames).
+    let moved: Vec<f64> = labels
+        .plane_points
+        .iter()
+        .zip(&labels.true_points)
+        .map(|(a, b)| (a.point - b.point).norm())
+        .collect();
+    assert!(moved.iter().any(|&d| d > 1e-4), "{moved:?}");
+    assert!(moved.iter().all(|&d| d < 0.01), "{moved:?}");
+    let (on_shape, exact) = (
+        labels.normal_error_deg.unwrap(),
+        truth.normal_error_deg.unwrap(),
+    );
+    assert!(exact < 5.0, "the simulator's contacts: {exact}°");
+    assert!(on_shape != exact, "the positions are the estimated shape's");
+    assert!(
+        on_shape < 15.0,
+        "labels on the estimated shape: {on_shape}°"
+    );
+}
