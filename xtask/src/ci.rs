@@ -68,6 +68,13 @@ pub(crate) fn run(args: &CiArgs) -> Result<()> {
     test.args(["test", "--workspace", "--locked"]);
     step("cargo test --workspace", test)?;
 
+    // The examples a newcomer runs first must keep running, not only compiling.
+    for (package, example) in [("moe-arap", "deform"), ("moe-contact", "own_finger")] {
+        let mut run = cargo();
+        run.args(["run", "--locked", "-p", package, "--example", example]);
+        step(&format!("example {package}/{example}"), run)?;
+    }
+
     let mut doc = cargo();
     doc.args(["doc", "--workspace", "--no-deps", "--locked"])
         .env("RUSTDOCFLAGS", "-D warnings");

@@ -1,6 +1,33 @@
 //! Smoothed as-rigid-as-possible (SR-ARAP) shape estimation of soft fingers from tracked keypoints
 //! (paper §4.2, App. B, App. C).
 //!
+//! # Example
+//!
+//! A hand's fingers from their markers ([`MultiShapeEstimator`]), or any mesh pulled by handles
+//! ([`ArapSolver`]; `cargo run -p moe-arap --example deform` runs a longer version):
+//!
+//! ```
+//! use moe_arap::{ArapConfig, ArapSolver, Start};
+//! use moe_geom::{Point3, Vector3, shapes::icosphere};
+//!
+//! let mesh = icosphere(2, 0.01); // any closed or open mesh, metres
+//! let lowest = |a: &&Point3, b: &&Point3| a.z.total_cmp(&b.z);
+//! let bottom = mesh.vertices().iter().min_by(lowest).unwrap().z;
+//! let base: Vec<u32> = (0..mesh.num_vertices() as u32)
+//!     .filter(|&v| mesh.vertices()[v as usize].z < bottom + 0.003)
+//!     .collect();
+//! let top = (0..mesh.num_vertices() as u32)
+//!     .max_by(|&a, &b| mesh.vertices()[a as usize].z.total_cmp(&mesh.vertices()[b as usize].z))
+//!     .unwrap();
+//! // Factorise once for these fixed vertices and this handle; then solve for any targets.
+//! let solver = ArapSolver::new(&mesh, &ArapConfig::default(), &base, &[top])?;
+//! let fixed: Vec<Point3> = base.iter().map(|&v| mesh.vertices()[v as usize]).collect();
+//! let target = mesh.vertices()[top as usize] + Vector3::new(0.004, 0.0, 0.0);
+//! let bent = solver.solve(&fixed, &[Some(target)], Start::Rest)?;
+//! assert!((bent.vertices[top as usize] - target).norm() < 1e-9);
+//! # Ok::<(), moe_arap::ArapError>(())
+//! ```
+//!
 //! # The energy
 //!
 //! For a rest mesh with vertices `p_i` and a deformed copy `p′_i`, every vertex `i` owns a cell of

@@ -14,6 +14,32 @@
 //! many frames at once. [`Trainer`] trains the network on labelled point sets in memory
 //! ([`TrainingSets`]), with checkpoints that resume to the same weights.
 //!
+//! # Example
+//!
+//! Contact on one finger from its rest mesh alone (no hand model or markers): a model's files
+//! as bytes, the finger's deformed vertices in, a probability per vertex out.
+//! `cargo run -p moe-contact --example own_finger` runs the shipped model this way.
+//!
+//! ```
+//! use moe_contact::{DgcnnConfig, DgcnnEstimator, FeatureFrame, ModelCard, ModelWeights, PointSet};
+//! use moe_geom::{FingerModel, FingerParams};
+//!
+//! // Stand-ins for `std::fs::read("NAME.safetensors")` and the card `NAME.json` of a model
+//! // trained for this finger: a small seeded per-finger network.
+//! let mut card = ModelCard::new(DgcnnConfig { k: 8, edge_widths: [8, 16, 32], head_widths: [16, 8], ..DgcnnConfig::default() });
+//! card.architecture.input.point_set = PointSet::PerFinger;
+//! card.architecture.input.frame = FeatureFrame::Finger;
+//! let channels = card.architecture.input.channels();
+//! let weights = ModelWeights::seeded(&card.architecture, channels, 1)?.to_bytes()?;
+//!
+//! let finger = FingerModel::from_params(&FingerParams { vertex_budget: 200, ..FingerParams::default() })?;
+//! let rest = finger.mesh(); // your finger's rest mesh (finger frame, metres)
+//! let model = DgcnnEstimator::finger_from_bytes(&weights, &card.to_json()?, rest)?;
+//! let p = model.finger_map(rest.vertices())?; // the deformed vertices, same order
+//! assert_eq!(p.len(), rest.num_vertices());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Architecture invariant: this is the only crate that depends on candle. It takes and returns
 //! in-memory values (shapes in the hand frame, model-file bytes, per-vertex probabilities) and
 //! does no file IO; files are read and written by the caller. It depends on `moe-geom` for
