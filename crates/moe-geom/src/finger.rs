@@ -591,6 +591,16 @@ impl FingerModel {
         })
     }
 
+    /// The marker indices from the most distal (farthest along the finger's axis, the finger
+    /// frame's z, from its base) to the most proximal; ties keep their index order. The one
+    /// definition of "the most distal marker".
+    pub fn distal_marker_order(&self) -> Vec<usize> {
+        let z: Vec<Real> = self.marker_positions().iter().map(|p| p.z).collect();
+        let mut order: Vec<usize> = (0..z.len()).collect();
+        order.sort_by(|&a, &b| z[b].total_cmp(&z[a]));
+        order
+    }
+
     /// The rest surface mesh, in the finger frame.
     pub fn mesh(&self) -> &TriMesh {
         &self.mesh

@@ -370,6 +370,14 @@ impl ContactMap {
     pub fn num_vertices(&self) -> usize {
         self.fingers.iter().map(Vec::len).sum()
     }
+    /// Per finger and vertex, whether its probability is at or above `threshold`: the
+    /// predicted labels the contact metrics score.
+    pub fn labels_at(&self, threshold: Real) -> Vec<Vec<bool>> {
+        self.fingers
+            .iter()
+            .map(|f| f.iter().map(|&p| p >= threshold).collect())
+            .collect()
+    }
 
     /// Per finger, the vertices whose probability is at least `threshold`, in increasing order.
     pub fn vertices_above(&self, threshold: Real) -> Vec<Vec<u32>> {

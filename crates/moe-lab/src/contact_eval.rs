@@ -215,12 +215,6 @@ pub fn marker_subset(keypoints: &HandKeypoints, keep: usize, rng: &mut SeededRng
     }
 }
 
-fn labels_above(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
-    map.iter()
-        .map(|f| f.iter().map(|&p| p >= threshold).collect())
-        .collect()
-}
-
 /// Perturbations of a frame's markers before SR-ARAP, of the kinds the perception stage makes:
 /// detection noise and markers that are hidden or missed. A training-time augmentation, so that
 /// a contact model learns from shapes like the ones it is given at run time.
@@ -254,18 +248,13 @@ impl Default for MarkerAugmentation {
     }
 }
 
-/// Each finger's marker indices from the most distal (farthest along the finger's axis, the
-/// finger frame's z, from its base) to the most proximal: the order in which
+/// Each finger's marker indices from the most distal to the most proximal
+/// ([`moe_geom::FingerModel::distal_marker_order`]): the order in which
 /// [`MarkerAugmentation::distal_occlusion_probability`] hides them.
 pub fn distal_marker_order(hand: &HandModel) -> Vec<Vec<usize>> {
     hand.fingers()
         .iter()
-        .map(|f| {
-            let z: Vec<Real> = f.model.marker_positions().iter().map(|p| p.z).collect();
-            let mut order: Vec<usize> = (0..z.len()).collect();
-            order.sort_by(|&a, &b| z[b].total_cmp(&z[a]));
-            order
-        })
+        .map(|f| f.model.distal_marker_order())
         .collect()
 }
 
@@ -401,6 +390,242 @@ pub fn with_estimated_shapes(
         .collect()
 }
 
+/// The shape estimates Table 1 scores, in its row order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ShapeMethod {
+    /// The rest shape (the error of not estimating).
+    Rest,
+    /// SR-ARAP from every marker.
+    Arap,
+    /// SR-ARAP from a subset of the markers.
+    ArapSubset,
+    /// The shape of `KNN[All]`'s nearest training frame.
+    KnnAll,
+    /// The shape of `KNN[Sub]`'s nearest training frame.
+    KnnSub,
+}
+
+/// The contact estimators Table 1 scores, in its row order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ContactMethod {
+    /// The network on the true shape.
+    DgcnnTrue,
+    /// The network on the SR-ARAP shape (what runs).
+    DgcnnArap,
+    /// The nearest training frame's labels, every training frame.
+    KnnAll,
+    /// The same from a seeded 10 % of them.
+    KnnSub,
+}
+
+impl ContactMethod {
+    const ALL: [Self; 4] = [Self::DgcnnTrue, Self::DgcnnArap, Self::KnnAll, Self::KnnSub];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::DgcnnTrue => "DGCNN (true shape)",
+            Self::DgcnnArap => "DGCNN (SR-ARAP)",
+            Self::KnnAll => "KNN[All]",
+            Self::KnnSub => "KNN[Sub]",
+        }
+    }
+}
+
+/// One value per method, looked up by the method.
+#[derive(Debug, Clone)]
+struct ByMethod<K, T, const N: usize> {
+    values: [T; N],
+    key: std::marker::PhantomData<K>,
+}
+
+impl<K, T: Default, const N: usize> Default for ByMethod<K, T, N> {
+    fn default() -> Self {
+        Self {
+            values: std::array::from_fn(|_| T::default()),
+            key: std::marker::PhantomData,
+        }
+    }
+}
+
+impl<T> std::ops::Index<ShapeMethod> for ByMethod<ShapeMethod, T, 5> {
+    type Output = T;
+    fn index(&self, m: ShapeMethod) -> &T {
+        &self.values[m as usize]
+    }
+}
+
+impl<T> std::ops::IndexMut<ShapeMethod> for ByMethod<ShapeMethod, T, 5> {
+    fn index_mut(&mut self, m: ShapeMethod) -> &mut T {
+        &mut self.values[m as usize]
+    }
+}
+
+impl<T> std::ops::Index<ContactMethod> for ByMethod<ContactMethod, T, 4> {
+    type Output = T;
+    fn index(&self, m: ContactMethod) -> &T {
+        &self.values[m as usize]
+    }
+}
+
+impl<T> std::ops::IndexMut<ContactMethod> for ByMethod<ContactMethod, T, 4> {
+    fn index_mut(&mut self, m: ContactMethod) -> &mut T {
+        &mut self.values[m as usize]
+    }
+}
+
+/// What Table 1 accumulates over its frames.
+#[derive(Debug, Default)]
+struct Table1Acc {
+    shapes: ByMethod<ShapeMethod, ShapeAcc, 5>,
+    /// Contact metrics against the frames' own labels, and against the other labels if given.
+    metrics: [ByMethod<ContactMethod, ContactMetrics, 4>; 2],
+    seconds: ByMethod<ContactMethod, Real, 4>,
+}
+
+/// Table 1's inputs that stay fixed over its frames.
+struct Table1Run<'a> {
+    hand: &'a HandModel,
+    rest: HandShape,
+    estimators: Estimators<'a>,
+    other: Option<TruthLabels<'a>>,
+    options: &'a ContactEvalOptions,
+    rng: SeededRng,
+}
+
+impl Table1Run<'_> {
+    /// Scores every method on frame `k`; its predictions when `keep`.
+    fn score_frame(
+        &self,
+        arap: &mut MultiShapeEstimator,
+        acc: &mut Table1Acc,
+        k: usize,
+        frame: &LabelledFrame,
+        keep: bool,
+    ) -> Result<Option<FramePrediction>, LabError> {
+        frame.shape.check_against(self.hand)?;
+        acc.shapes[ShapeMethod::Rest].add(&self.rest, &frame.shape, 0.0)?;
+        let t = Instant::now();
+        let arap_shape = arap.estimate(&frame.markers)?.shape;
+        acc.shapes[ShapeMethod::Arap].add(&arap_shape, &frame.shape, t.elapsed().as_secs_f64())?;
+        let subset = marker_subset(
+            &frame.markers,
+            self.options.subset_markers,
+            &mut self.rng.split(k as u64),
+        );
+        let t = Instant::now();
+        let subset_shape = arap.estimate(&subset)?.shape;
+        acc.shapes[ShapeMethod::ArapSubset].add(
+            &subset_shape,
+            &frame.shape,
+            t.elapsed().as_secs_f64(),
+        )?;
+
+        let dgcnn = self.estimators.dgcnn;
+        let threshold = dgcnn.threshold();
+        let mut predictions: ByMethod<ContactMethod, Vec<Vec<bool>>, 4> = ByMethod::default();
+        let t = Instant::now();
+        let on_true = dgcnn.estimate_map(&ContactInput::of_frame(frame, &frame.shape))?;
+        acc.seconds[ContactMethod::DgcnnTrue] += t.elapsed().as_secs_f64();
+        predictions[ContactMethod::DgcnnTrue] = on_true.labels_at(threshold);
+        let t = Instant::now();
+        let on_arap = dgcnn.estimate_map(&ContactInput::of_frame(frame, &arap_shape))?;
+        acc.seconds[ContactMethod::DgcnnArap] += t.elapsed().as_secs_f64();
+        predictions[ContactMethod::DgcnnArap] = on_arap.labels_at(threshold);
+        for (method, index, shape_method) in [
+            (
+                ContactMethod::KnnAll,
+                self.estimators.knn_all,
+                ShapeMethod::KnnAll,
+            ),
+            (
+                ContactMethod::KnnSub,
+                self.estimators.knn_sub,
+                ShapeMethod::KnnSub,
+            ),
+        ] {
+            let Some(index) = index else { continue };
+            let t = Instant::now();
+            let m = index.nearest(&frame.markers)?;
+            let map = index.contact_map(m);
+            let elapsed = t.elapsed().as_secs_f64();
+            acc.seconds[method] += elapsed;
+            predictions[method] = map.labels_at(0.5);
+            if let Some(shape) = index.shape_of(m.frame) {
+                acc.shapes[shape_method].add(&shape, &frame.shape, elapsed)?;
+            }
+        }
+        for method in ContactMethod::ALL {
+            let p = &predictions[method];
+            if p.is_empty() {
+                continue;
+            }
+            acc.metrics[0][method].add(&frame.shape, &frame.contact, p)?;
+            if let Some(o) = self.other {
+                acc.metrics[1][method].add(&frame.shape, &o.labels[k], p)?;
+            }
+        }
+        Ok(keep.then(|| FramePrediction {
+            frame: k,
+            arap_shape,
+            dgcnn_on_arap: on_arap.fingers,
+            knn_all: std::mem::take(&mut predictions[ContactMethod::KnnAll]),
+        }))
+    }
+
+    /// The table from the accumulators over `frames`.
+    fn table(&self, acc: &Table1Acc, frames: &[LabelledFrame], rule: &str) -> ContactTable {
+        let markers = self
+            .hand
+            .fingers()
+            .first()
+            .map_or(0, |f| f.model.marker_vertices().len());
+        let subset = self.options.subset_markers.min(markers);
+        let mut shape_rows = vec![
+            acc.shapes[ShapeMethod::Rest].row("rest", 0),
+            acc.shapes[ShapeMethod::Arap].row("SR-ARAP", markers),
+            acc.shapes[ShapeMethod::ArapSubset].row("SR-ARAP", subset),
+        ];
+        for (method, name) in [
+            (ShapeMethod::KnnAll, "KNN[All]"),
+            (ShapeMethod::KnnSub, "KNN[Sub]"),
+        ] {
+            if acc.shapes[method].frames > 0 {
+                shape_rows.push(acc.shapes[method].row(name, markers));
+            }
+        }
+        let n = frames.len() as Real;
+        let truths = [Some(rule), self.other.map(|o| o.rule)];
+        let mut contact = Vec::new();
+        for (metrics, label_rule) in acc.metrics.iter().zip(truths) {
+            let Some(label_rule) = label_rule else {
+                continue;
+            };
+            for method in ContactMethod::ALL {
+                let report = metrics[method].report();
+                if report.frames == 0 {
+                    continue;
+                }
+                contact.push(ContactRow {
+                    method: method.name().to_owned(),
+                    labels: label_rule.to_owned(),
+                    report,
+                    ms_per_frame: 1e3 * acc.seconds[method] / n,
+                });
+            }
+        }
+        let mut trajectories: Vec<u64> = frames.iter().map(|f| f.trajectory_id).collect();
+        trajectories.sort_unstable();
+        trajectories.dedup();
+        ContactTable {
+            frames: frames.len(),
+            trajectories: trajectories.len(),
+            threshold: self.estimators.dgcnn.threshold(),
+            shape: shape_rows,
+            contact,
+        }
+    }
+}
+
 /// Table 1 on `frames` (held-out frames of one hand), scored against the frames' own labels
 /// (`rule` names their rule) and, if given, against `other` labels of the same frames.
 /// `keep(k)` selects the frames whose predictions are returned for display.
@@ -435,131 +660,22 @@ pub fn evaluate_table1(
         });
     }
     let mut arap = MultiShapeEstimator::new(hand.clone(), options.shape.clone())?;
-    let rest = HandShape::rest(hand);
-    let threshold = estimators.dgcnn.threshold();
-    let rng = SeededRng::new(options.seed);
-    // Shape accumulators: rest, SR-ARAP all, SR-ARAP subset, KNN[All], KNN[Sub].
-    let mut shapes = [ShapeAcc::default(); 5];
-    // Contact methods: DGCNN true, DGCNN SR-ARAP, KNN[All], KNN[Sub]; per truth.
-    let truths = 1 + usize::from(other.is_some());
-    let mut metrics = vec![[ContactMetrics::default(); 4]; truths];
-    let mut seconds = [0.0; 4];
+    let run = Table1Run {
+        hand,
+        rest: HandShape::rest(hand),
+        estimators,
+        other,
+        options,
+        rng: SeededRng::new(options.seed),
+    };
+    let mut acc = Table1Acc::default();
     let mut kept = Vec::new();
-    let mut trajectories: Vec<u64> = frames.iter().map(|f| f.trajectory_id).collect();
-    trajectories.sort_unstable();
-    trajectories.dedup();
     for (k, frame) in frames.iter().enumerate() {
-        frame.shape.check_against(hand)?;
-        shapes[0].add(&rest, &frame.shape, 0.0)?;
-        let t = Instant::now();
-        let arap_shape = arap.estimate(&frame.markers)?.shape;
-        shapes[1].add(&arap_shape, &frame.shape, t.elapsed().as_secs_f64())?;
-        let subset = marker_subset(
-            &frame.markers,
-            options.subset_markers,
-            &mut rng.split(k as u64),
-        );
-        let t = Instant::now();
-        let subset_shape = arap.estimate(&subset)?.shape;
-        shapes[2].add(&subset_shape, &frame.shape, t.elapsed().as_secs_f64())?;
-
-        let mut predictions: [Vec<Vec<bool>>; 4] = Default::default();
-        let t = Instant::now();
-        let on_true = estimators
-            .dgcnn
-            .estimate_map(&ContactInput::of_frame(frame, &frame.shape))?;
-        seconds[0] += t.elapsed().as_secs_f64();
-        predictions[0] = labels_above(&on_true.fingers, threshold);
-        let t = Instant::now();
-        let on_arap = estimators
-            .dgcnn
-            .estimate_map(&ContactInput::of_frame(frame, &arap_shape))?;
-        seconds[1] += t.elapsed().as_secs_f64();
-        predictions[1] = labels_above(&on_arap.fingers, threshold);
-        for (slot, (index, acc)) in [
-            (2usize, (estimators.knn_all, 3usize)),
-            (3, (estimators.knn_sub, 4)),
-        ] {
-            let Some(index) = index else { continue };
-            let t = Instant::now();
-            let m = index.nearest(&frame.markers)?;
-            let map = index.contact_map(m);
-            let elapsed = t.elapsed().as_secs_f64();
-            seconds[slot] += elapsed;
-            predictions[slot] = labels_above(&map.fingers, 0.5);
-            if let Some(shape) = index.shape_of(m.frame) {
-                shapes[acc].add(&shape, &frame.shape, elapsed)?;
-            }
-        }
-        for (i, p) in predictions
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| !p.is_empty())
-        {
-            metrics[0][i].add(&frame.shape, &frame.contact, p)?;
-            if let Some(o) = other {
-                metrics[1][i].add(&frame.shape, &o.labels[k], p)?;
-            }
-        }
-        if keep(k) {
-            kept.push(FramePrediction {
-                frame: k,
-                arap_shape,
-                dgcnn_on_arap: on_arap.fingers,
-                knn_all: std::mem::take(&mut predictions[2]),
-            });
+        if let Some(p) = run.score_frame(&mut arap, &mut acc, k, frame, keep(k))? {
+            kept.push(p);
         }
     }
-    let markers = hand
-        .fingers()
-        .first()
-        .map_or(0, |f| f.model.marker_vertices().len());
-    let mut shape_rows = vec![
-        shapes[0].row("rest", 0),
-        shapes[1].row("SR-ARAP", markers),
-        shapes[2].row("SR-ARAP", options.subset_markers.min(markers)),
-    ];
-    for (acc, name) in [(&shapes[3], "KNN[All]"), (&shapes[4], "KNN[Sub]")] {
-        if acc.frames > 0 {
-            shape_rows.push(acc.row(name, markers));
-        }
-    }
-    let names = [
-        "DGCNN (true shape)",
-        "DGCNN (SR-ARAP)",
-        "KNN[All]",
-        "KNN[Sub]",
-    ];
-    let n = frames.len() as Real;
-    let mut contact = Vec::new();
-    for (t, per_method) in metrics.iter().enumerate() {
-        let label_rule = if t == 0 {
-            rule
-        } else {
-            other.map_or("", |o| o.rule)
-        };
-        for (i, m) in per_method.iter().enumerate() {
-            if m.report().frames == 0 {
-                continue;
-            }
-            contact.push(ContactRow {
-                method: names[i].to_owned(),
-                labels: label_rule.to_owned(),
-                report: m.report(),
-                ms_per_frame: 1e3 * seconds[i] / n,
-            });
-        }
-    }
-    Ok((
-        ContactTable {
-            frames: frames.len(),
-            trajectories: trajectories.len(),
-            threshold,
-            shape: shape_rows,
-            contact,
-        },
-        kept,
-    ))
+    Ok((run.table(&acc, frames, rule), kept))
 }
 
 /// A plate scene of Table 2.
@@ -598,6 +714,43 @@ pub struct PlateTrial {
 pub const PLATE_OFFSET_M: Real = 5e-4;
 /// Largest tilt of the plate in a trial, degrees (about a random axis).
 pub const PLATE_TILT_DEG: Real = 3.0;
+
+/// One trial of a plate scene: trial 0 as committed, the others perturbed.
+#[derive(Debug, Clone)]
+pub struct PlateTrialScene<'a> {
+    /// The scene.
+    pub scene: &'a PlateScene,
+    /// The trial, from 0.
+    pub trial: u64,
+    /// Its configuration ([`perturbed_plate`]).
+    pub config: SceneConfig,
+    /// The plate's offset, metres.
+    pub offset_m: [Real; 3],
+    /// The plate's tilt, degrees.
+    pub tilt_deg: Real,
+}
+
+/// Every trial of every plate scene, `trials` each, scene after scene: the one definition of
+/// the trials Table 2 runs (each scene's trials drawn from its own stream of `seed`).
+pub fn plate_trials(
+    scenes: &[PlateScene],
+    trials: u64,
+    seed: u64,
+) -> impl Iterator<Item = PlateTrialScene<'_>> {
+    scenes.iter().enumerate().flat_map(move |(s, scene)| {
+        (0..trials).map(move |trial| {
+            let (config, offset_m, tilt_deg) =
+                perturbed_plate(&scene.config, seed ^ (s as u64) << 32, trial);
+            PlateTrialScene {
+                scene,
+                trial,
+                config,
+                offset_m,
+                tilt_deg,
+            }
+        })
+    })
+}
 
 /// `config` with its obstacles moved by a seeded offset of up to [`PLATE_OFFSET_M`] per axis
 /// and tilted by up to [`PLATE_TILT_DEG`] about a random axis through their first keyframe;
@@ -680,35 +833,29 @@ pub fn evaluate_plates(
     let mut arap = MultiShapeEstimator::new(hand.clone(), shape.clone())?;
     let threshold = dgcnn.threshold();
     let mut out = Vec::new();
-    for (s, scene) in scenes.iter().enumerate() {
-        for trial in 0..trials {
-            let (config, offset_m, tilt_deg) =
-                perturbed_plate(&scene.config, seed ^ (s as u64) << 32, trial);
-            let frames = simulate_labelled(&config, hand)?;
+    for t in plate_trials(scenes, trials, seed) {
+        {
+            let frames = simulate_labelled(&t.config, hand)?;
             let (mut d, mut k) = (ContactMetrics::default(), ContactMetrics::default());
             let mut contact_frames = 0;
             for frame in frames.iter().filter(|f| f.contact_count() > 0) {
                 contact_frames += 1;
                 let estimated = arap.estimate(&frame.markers)?.shape;
                 let p = dgcnn.estimate_map(&ContactInput::of_frame(frame, &estimated))?;
-                d.add(
-                    &frame.shape,
-                    &frame.contact,
-                    &labels_above(&p.fingers, threshold),
-                )?;
+                d.add(&frame.shape, &frame.contact, &p.labels_at(threshold))?;
                 let m = knn_all.nearest(&frame.markers)?;
                 k.add(
                     &frame.shape,
                     &frame.contact,
-                    &labels_above(&knn_all.contact_map(m).fingers, 0.5),
+                    &knn_all.contact_map(m).labels_at(0.5),
                 )?;
             }
             out.push(PlateTrial {
-                scene: scene.name.clone(),
-                region: scene.region.clone(),
-                trial,
-                offset_m,
-                tilt_deg,
+                scene: t.scene.name.clone(),
+                region: t.scene.region.clone(),
+                trial: t.trial,
+                offset_m: t.offset_m,
+                tilt_deg: t.tilt_deg,
                 contact_frames,
                 dgcnn: d.report(),
                 knn_all: k.report(),

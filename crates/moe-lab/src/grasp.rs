@@ -69,9 +69,14 @@ pub struct GraspOptions {
     /// guarded move pressing on until more of the hand touches); at most
     /// [`GraspOptions::press_m`] disables it. The judged press keeps `press_m`. Default 16 mm.
     pub deeper_press_m: Real,
-    /// When at least three fingers are loaded, fit the plane through their tips (see
-    /// [`PlaneSource::LoadedFingertips`]) instead of through the contact points. Default true.
+    /// When at least [`GraspOptions::min_loaded_fingers`] fingers are loaded, fit the plane
+    /// through their tips (see [`PlaneSource::LoadedFingertips`]) instead of through the
+    /// contact points. Default true.
     pub fingertip_plane: bool,
+    /// Loaded fingers the fingertip plane needs (fewer, and a refining press goes
+    /// [`GraspOptions::deeper_press_m`] deep; fewer still there, and the plane goes through the
+    /// contact points). Default 3: three tips span a plane.
+    pub min_loaded_fingers: usize,
 }
 
 impl Default for GraspOptions {
@@ -87,6 +92,7 @@ impl Default for GraspOptions {
             deeper_press_m: 0.016,
             loaded_finger_m: 0.003,
             fingertip_plane: true,
+            min_loaded_fingers: 3,
         }
     }
 }
@@ -401,21 +407,12 @@ fn loaded_fingertips(
     (loaded, tips)
 }
 
-/// Per finger, the index of its most distal marker (the farthest along the hand's axis at
-/// rest).
+/// Per finger, the index of its most distal marker
+/// ([`moe_geom::FingerModel::distal_marker_order`]).
 fn distal_markers(hand: &HandModel) -> Vec<usize> {
     hand.fingers()
         .iter()
-        .enumerate()
-        .map(|(finger, f)| {
-            let rest = hand.rest_vertices_in_hand(finger);
-            f.model
-                .marker_vertices()
-                .iter()
-                .enumerate()
-                .max_by(|(_, a), (_, b)| rest[**a as usize].z.total_cmp(&rest[**b as usize].z))
-                .map_or(0, |(m, _)| m)
-        })
+        .map(|f| f.model.distal_marker_order().first().copied().unwrap_or(0))
         .collect()
 }
 
@@ -446,14 +443,15 @@ fn simulated_hold_shape(frame: &SimFrame, rest: &HandShape) -> Vec<FingerState> 
 /// The plane's normal from the loaded fingers (see [`PlaneSource`]), on `prior`'s side:
 /// through three or more seen tips by least squares; through two, the plane containing them
 /// whose normal is nearest `prior` (the hand's axis); with fewer, `prior`. `None` with fewer
-/// than three loaded fingers, or when the tips do not span a plane.
+/// than `min_loaded` loaded fingers, or when the tips do not span a plane.
 fn fingertip_plane(
     loaded: usize,
+    min_loaded: usize,
     tips: &[Point3],
     prior: &Vector3,
     ransac: &RansacConfig,
 ) -> Option<(PlaneSource, Vector3)> {
-    if loaded < 3 {
+    if loaded < min_loaded {
         return None;
     }
     match tips {
@@ -704,7 +702,13 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
         // Through the loaded fingertips when three or more are loaded, else (or when their tips do
         // not give a plane) RANSAC through the contact points.
         let through_tips = if options.fingertip_plane {
-            fingertip_plane(step.loaded_fingers.len(), &tips, &-axis, &options.ransac)
+            fingertip_plane(
+                step.loaded_fingers.len(),
+                options.min_loaded_fingers,
+                &tips,
+                &-axis,
+                &options.ransac,
+            )
         } else {
             None
         };
@@ -802,7 +806,7 @@ pub fn run_grasp_trial<C: ContactEstimator>(
         let next = if press < options.refinements {
             presses.observe(&rotation, options.press_m).map(|shallow| {
                 let turned = shallow.outcome.clone();
-                if shallow.step.loaded_fingers.len() >= 3
+                if shallow.step.loaded_fingers.len() >= options.min_loaded_fingers
                     || options.deeper_press_m <= options.press_m
                 {
                     return Some((turned, shallow));
@@ -912,6 +916,7 @@ mod tests {
         assert_eq!(loaded, [0, 1, 2]);
         let (source, n) = fingertip_plane(
             loaded.len(),
+            options.min_loaded_fingers,
             &tips,
             &-(turned * Vector3::z()),
             &options.ransac,
@@ -1098,28 +1103,28 @@ mod tests {
             Point3::new(-0.015, -0.026, 0.01),
         ];
         let plane_normal = (tips[1] - tips[0]).cross(&(tips[2] - tips[0])).normalize();
-        let (source, n) = fingertip_plane(3, &tips, &prior, &ransac).unwrap();
+        let (source, n) = fingertip_plane(3, 3, &tips, &prior, &ransac).unwrap();
         assert_eq!(source, PlaneSource::LoadedFingertips);
         assert!(n.dot(&prior) > 0.0);
         assert!(n.dot(&plane_normal).abs() > 1.0 - 1e-12, "{n}");
         // Two tips: the normal is perpendicular to their line, in the plane of the line's normal
         // and the prior, and tilted away from the prior only as far as the line demands.
         let two = [Point3::new(0.0, 0.0, 0.0), Point3::new(0.03, 0.0, 0.01)];
-        let (source, n) = fingertip_plane(3, &two, &prior, &ransac).unwrap();
+        let (source, n) = fingertip_plane(3, 3, &two, &prior, &ransac).unwrap();
         assert_eq!(source, PlaneSource::TwoFingertipsAndAxis);
         let line = (two[1] - two[0]).normalize();
         assert!(n.dot(&line).abs() < 1e-12);
         assert!(n.y.abs() < 1e-12);
         assert!((angle_deg(&n, &prior) - (0.01_f64 / 0.03).atan().to_degrees()).abs() < 1e-9);
-        assert!(fingertip_plane(2, &tips, &prior, &ransac).is_none());
+        assert!(fingertip_plane(2, 3, &tips, &prior, &ransac).is_none());
         for seen in [&tips[..1], &[]] {
-            let (source, n) = fingertip_plane(3, seen, &prior, &ransac).unwrap();
+            let (source, n) = fingertip_plane(3, 3, seen, &prior, &ransac).unwrap();
             assert_eq!(source, PlaneSource::LoadedFingersAxis);
             assert_eq!(n, prior);
         }
         // A non-finite tip gives no plane, never a non-finite normal.
         let nan = Point3::new(Real::NAN, 0.0, 0.0);
-        assert!(fingertip_plane(3, &[two[0], nan], &prior, &ransac).is_none());
-        assert!(fingertip_plane(3, &[tips[0], tips[1], nan], &prior, &ransac).is_none());
+        assert!(fingertip_plane(3, 3, &[two[0], nan], &prior, &ransac).is_none());
+        assert!(fingertip_plane(3, 3, &[tips[0], tips[1], nan], &prior, &ransac).is_none());
     }
 }

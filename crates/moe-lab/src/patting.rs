@@ -5,12 +5,15 @@
 //!
 //! [`simulate_patting`](crate::patting::simulate_patting) renders the pats as episode frames
 //! with their ground truth, [`estimate_pat_contacts`](crate::patting::estimate_pat_contacts)
-//! runs a pipeline over them, and [`true_pat_contacts`](crate::patting::true_pat_contacts)
+//! runs a pipeline over them ([`paper_pat_contacts`](crate::patting::paper_pat_contacts) and
+//! [`physics_pat_contacts`](crate::patting::physics_pat_contacts) build it), and
+//! [`true_pat_contacts`](crate::patting::true_pat_contacts)
 //! gives the simulator's own contact vertices (the upper bound a perfect estimator would
 //! reach).
 
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::bodies::{ArmParams, HeadParams};
-use moe_geom::{ContactEstimator, Iso3, Point3, Real, ShapeEstimator, TriMesh};
+use moe_geom::{ContactEstimator, HandModel, Iso3, Point3, Real, ShapeEstimator, TriMesh};
 use moe_gpis::bench_scene::SceneKind;
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
@@ -19,7 +22,9 @@ use serde::Serialize;
 
 use crate::LabError;
 use crate::episode::{EpisodeRecorder, saved_frame_at};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::Pipeline;
+use moe_touch::{PhysicsPipeline, TouchError};
 
 /// The number of poses of a body's patting scene.
 pub fn pats_of(body: SceneKind) -> usize {
@@ -151,6 +156,51 @@ where
             .extend(estimate.contacts_in_world.iter().map(|c| c.point));
     }
     Ok(out)
+}
+
+/// The contacts on every pat of the pipeline `build` makes around the episode's detector.
+///
+/// # Errors
+/// A detector for another hand than the episode's, and as [`estimate_pat_contacts`].
+pub fn pat_contacts<S: ShapeEstimator, C: ContactEstimator>(
+    hand: &HandModel,
+    episode: &PattingEpisode,
+    build: impl FnOnce(MarkerDetector) -> Result<Pipeline<S, C>, TouchError>,
+) -> Result<PatContacts, LabError> {
+    let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
+    estimate_pat_contacts(&mut build(detector)?, episode)
+}
+
+/// The paper's pipeline's contacts on every pat: SR-ARAP (default options) and `contact` at
+/// `threshold`.
+///
+/// # Errors
+/// As [`pat_contacts`].
+pub fn paper_pat_contacts<C: ContactEstimator>(
+    hand: &HandModel,
+    episode: &PattingEpisode,
+    contact: C,
+    threshold: Real,
+) -> Result<PatContacts, LabError> {
+    pat_contacts(hand, episode, |detector| {
+        let shape = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default())?;
+        Pipeline::new(hand.clone(), detector, shape, contact, threshold)
+    })
+}
+
+/// The physics pipeline's contacts on every pat, with `material` and `config`.
+///
+/// # Errors
+/// As [`pat_contacts`].
+pub fn physics_pat_contacts(
+    hand: &HandModel,
+    episode: &PattingEpisode,
+    material: &moe_physics::HandMaterial,
+    config: &moe_physics::PhysicsConfig,
+) -> Result<PatContacts, LabError> {
+    pat_contacts(hand, episode, |detector| {
+        PhysicsPipeline::physics(hand.clone(), detector, material, config)
+    })
 }
 
 /// The simulator's contact vertices of every pat, world frame: the contacts a perfect estimator

@@ -518,13 +518,6 @@ pub fn with_physics_shapes(
     Ok(out.into_iter().flatten().collect())
 }
 
-/// Per-vertex labels of probabilities at or above `threshold`.
-fn labels_at(map: &[Vec<Real>], threshold: Real) -> Vec<Vec<bool>> {
-    map.iter()
-        .map(|f| f.iter().map(|&p| p >= threshold).collect())
-        .collect()
-}
-
 /// What else is evaluated on the same frames besides the physics estimator.
 #[derive(Debug, Clone, Copy)]
 pub struct Comparison<'a> {
@@ -593,7 +586,7 @@ pub fn evaluate_physics(
         })?;
         times.push(start.elapsed().as_secs_f64() * 1e3);
         failed += est.fingers.iter().filter(|f| f.error.is_some()).count() as u64;
-        let physics_labels = labels_at(&est.contact.fingers, moe_physics::CONTACT_THRESHOLD);
+        let physics_labels = est.contact.labels_at(moe_physics::CONTACT_THRESHOLD);
         physics.add(&frame.shape, &frame.contact, &physics_labels)?;
         physics_bcd += bcd_of(&est.shape, &frame.shape)?;
         for f in 0..hand.num_fingers() {
@@ -602,7 +595,7 @@ pub fn evaluate_physics(
         if let (Some(dgcnn), Some(arap)) = (comparison.dgcnn, arap.as_mut()) {
             let input = ContactInput::of_frame(frame, &est.shape).with_keypoints(&markers);
             let p = dgcnn.estimate_map(&input)?;
-            let network_labels = labels_at(&p.fingers, dgcnn.threshold());
+            let network_labels = p.labels_at(dgcnn.threshold());
             on_physics.add(&frame.shape, &frame.contact, &network_labels)?;
             let together: Vec<Vec<bool>> = physics_labels
                 .iter()
@@ -625,7 +618,7 @@ pub fn evaluate_physics(
             on_arap.add(
                 &frame.shape,
                 &frame.contact,
-                &labels_at(&p.fingers, dgcnn.threshold()),
+                &p.labels_at(dgcnn.threshold()),
             )?;
         }
     }
@@ -734,11 +727,10 @@ pub fn evaluate_plates_physics(
     dgcnn: Option<&DgcnnEstimator>,
 ) -> Result<Vec<PhysicsPlateTrial>, LabError> {
     let mut out = Vec::new();
-    for (s, scene) in scenes.iter().enumerate() {
-        for trial in 0..trials {
-            let (config, _, _) =
-                crate::contact_eval::perturbed_plate(&scene.config, seed ^ (s as u64) << 32, trial);
-            let frames = simulate_stream(&config, hand, trial)?;
+    for t in crate::contact_eval::plate_trials(scenes, trials, seed) {
+        {
+            let (scene, trial) = (t.scene, t.trial);
+            let frames = simulate_stream(&t.config, hand, trial)?;
             estimator.reset();
             let (mut physics, mut on_physics) =
                 (ContactMetrics::default(), ContactMetrics::default());
@@ -758,15 +750,11 @@ pub fn evaluate_plates_physics(
                 physics.add(
                     &frame.shape,
                     &frame.contact,
-                    &labels_at(&est.contact.fingers, moe_physics::CONTACT_THRESHOLD),
+                    &est.contact.labels_at(moe_physics::CONTACT_THRESHOLD),
                 )?;
                 if let Some(d) = dgcnn {
                     let p = d.estimate_map(&ContactInput::of_frame(frame, &est.shape))?;
-                    on_physics.add(
-                        &frame.shape,
-                        &frame.contact,
-                        &labels_at(&p.fingers, d.threshold()),
-                    )?;
+                    on_physics.add(&frame.shape, &frame.contact, &p.labels_at(d.threshold()))?;
                 }
             }
             out.push(PhysicsPlateTrial {

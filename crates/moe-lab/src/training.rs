@@ -672,12 +672,10 @@ fn contact_report(
     }
     let mut metrics = ContactMetrics::default();
     for (frame, values) in frames.iter().zip(p.chunks_exact(per_frame.max(1))) {
-        let predicted: Vec<Vec<bool>> = builder
-            .per_finger(values)?
-            .into_iter()
-            .map(|f| f.into_iter().map(|v| v >= threshold).collect())
-            .collect();
-        metrics.add(&frame.shape, &frame.contact, &predicted)?;
+        let map = moe_geom::ContactMap {
+            fingers: builder.per_finger(values)?,
+        };
+        metrics.add(&frame.shape, &frame.contact, &map.labels_at(threshold))?;
     }
     Ok(metrics.report())
 }

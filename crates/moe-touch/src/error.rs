@@ -24,8 +24,9 @@ pub enum TouchError {
     /// Contact estimation failed.
     #[error(transparent)]
     Contact(#[from] moe_contact::ContactError),
-    /// The contact estimator of a pipeline failed: its own error, boxed (for the DGCNN and the
-    /// KNN baseline a [`moe_contact::ContactError`], which `downcast_ref` recovers).
+    /// The contact estimator of a pipeline failed: its own error, boxed. Errors of this
+    /// workspace's estimators do not come this way: the DGCNN's and the KNN baseline's are
+    /// [`TouchError::Contact`], the physics estimator's [`TouchError::Physics`].
     #[error("contact estimation: {0}")]
     ContactEstimation(Box<dyn std::error::Error + Send + Sync>),
     /// The physics estimator refused its input or failed.
@@ -81,6 +82,42 @@ pub enum TouchError {
     },
 }
 
+impl TouchError {
+    /// A pipeline's shape stage failed: SR-ARAP's error as [`TouchError::Shape`], the physics
+    /// estimator's as [`TouchError::Physics`], any other estimator's boxed
+    /// ([`TouchError::ShapeEstimation`]) — one path per failure whatever the stage's type.
+    pub fn from_shape_stage<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
+        let boxed: Box<dyn std::error::Error + Send + Sync> = Box::new(e);
+        let boxed = match boxed.downcast::<moe_arap::ArapError>() {
+            Ok(e) => return Self::Shape(*e),
+            Err(other) => other,
+        };
+        #[cfg(feature = "physics")]
+        let boxed = match boxed.downcast::<moe_physics::PhysicsError>() {
+            Ok(e) => return Self::Physics(*e),
+            Err(other) => other,
+        };
+        Self::ShapeEstimation(boxed)
+    }
+
+    /// A pipeline's contact stage failed: the DGCNN's and the KNN baseline's error as
+    /// [`TouchError::Contact`], the physics estimator's as [`TouchError::Physics`], any other
+    /// estimator's boxed ([`TouchError::ContactEstimation`]).
+    pub fn from_contact_stage<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
+        let boxed: Box<dyn std::error::Error + Send + Sync> = Box::new(e);
+        let boxed = match boxed.downcast::<moe_contact::ContactError>() {
+            Ok(e) => return Self::Contact(*e),
+            Err(other) => other,
+        };
+        #[cfg(feature = "physics")]
+        let boxed = match boxed.downcast::<moe_physics::PhysicsError>() {
+            Ok(e) => return Self::Physics(*e),
+            Err(other) => other,
+        };
+        Self::ContactEstimation(boxed)
+    }
+}
+
 /// Formats an error and its causes on one line (`outer: inner: root`), without backtraces: a
 /// cause whose text the previous message already includes is left out, so an error that names
 /// its source in its own message is not printed twice. Both command-line tools print errors
@@ -105,6 +142,27 @@ mod tests {
     #[derive(Debug, thiserror::Error)]
     #[error("reading frame 3: {0}")]
     struct Outer(#[source] TouchError);
+
+    /// An SR-ARAP failure reaches the caller as `Shape` whether it came from the estimator
+    /// directly (`?`) or through a pipeline's shape stage; another estimator's error is boxed.
+    #[test]
+    fn a_stage_error_takes_one_path() {
+        let arap = || moe_arap::ArapError::InvalidConfig {
+            name: "alpha",
+            value: -1.0,
+            reason: "must be non-negative",
+        };
+        let direct: TouchError = arap().into();
+        let staged = TouchError::from_shape_stage(arap());
+        assert!(matches!(staged, TouchError::Shape(_)), "{staged:?}");
+        assert_eq!(staged.to_string(), direct.to_string());
+        let net = TouchError::from_contact_stage(moe_contact::ContactError::InvalidBatch {
+            message: "empty".into(),
+        });
+        assert!(matches!(net, TouchError::Contact(_)), "{net:?}");
+        let other = TouchError::from_shape_stage(std::io::Error::other("a custom estimator"));
+        assert!(matches!(other, TouchError::ShapeEstimation(_)), "{other:?}");
+    }
 
     #[test]
     fn one_line_names_each_cause_once() {

@@ -397,7 +397,7 @@ where
                 world_from_hand: Some(&world_from_hand),
                 time_secs,
             })
-            .map_err(|e| TouchError::ShapeEstimation(Box::new(e)))?;
+            .map_err(TouchError::from_shape_stage)?;
         let t_shape = Instant::now();
         let estimate = self
             .contact
@@ -408,7 +408,7 @@ where
                 world_from_hand: Some(&world_from_hand),
                 time_secs,
             })
-            .map_err(|e| TouchError::ContactEstimation(Box::new(e)))?;
+            .map_err(TouchError::from_contact_stage)?;
         let vertex_force_n = estimate.vertex_force_n;
         let mut contact = estimate.map;
         if let Some(s) = &mut self.contact_smoother {

@@ -675,37 +675,7 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
         .with_context(|| format!("keypoints {}", kp_path.display()))?;
     let t_estimate = Instant::now();
     // Everything in memory first, so that a failure leaves nothing half-written.
-    let forces = finger_force_records(&estimate);
-    let mut plys = Vec::with_capacity(hand.num_fingers());
-    let mut fingers = Vec::with_capacity(hand.num_fingers());
-    for (i, probs) in estimate.contact.fingers.iter().enumerate() {
-        let vertices = &estimate.shape.fingers[i];
-        let force_magnitudes: Vec<f64> = estimate.vertex_force_n[i]
-            .iter()
-            .map(|v| v.norm())
-            .collect();
-        let ply = moe_lab::contact_eval::contact_ply(&hand, i, vertices, probs)?
-            .with_scalar("force_n", force_magnitudes.iter().copied());
-        let name = format!("finger_{i}.ply");
-        let report = &estimate.fingers[i];
-        let finite = |x: f64| x.is_finite().then_some(x);
-        fingers.push(PhysicsFingerRecord {
-            mesh: name.clone(),
-            vertices: probs.len(),
-            contact_vertices: probs.iter().filter(|&&p| p >= threshold).count(),
-            max_probability: probs.iter().copied().fold(0.0, f64::max),
-            pressed_probability: report.pressed_probability,
-            force_n: forces[i].force_n,
-            force_magnitude_n: forces[i].magnitude_n,
-            loads: forces[i].loads.unwrap_or(0),
-            statistic: report.statistic,
-            observed_markers: report.observed_markers,
-            free_rms_m: finite(report.free_rms_m),
-            fit_rms_m: finite(report.fit_rms_m),
-            error: report.error.clone(),
-        });
-        plys.push((name, ply));
-    }
+    let (plys, fingers) = physics_fingers(&hand, &estimate, threshold)?;
     let contacts = estimate
         .contact
         .contacts_above(threshold, &estimate.shape)?;
@@ -752,6 +722,54 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
     if args.json {
         return super::print_json(&record);
     }
+    print_physics(&record, &loads);
+    Ok(())
+}
+
+/// Each finger's mesh coloured by contact probability (with the force per vertex) and its
+/// record, in memory.
+fn physics_fingers(
+    hand: &moe_geom::HandModel,
+    estimate: &moe_physics::PhysicsEstimate,
+    threshold: f64,
+) -> Result<(Vec<(String, moe_io::PlyData)>, Vec<PhysicsFingerRecord>)> {
+    let forces = finger_force_records(estimate);
+    let mut plys = Vec::with_capacity(hand.num_fingers());
+    let mut fingers = Vec::with_capacity(hand.num_fingers());
+    for (i, probs) in estimate.contact.fingers.iter().enumerate() {
+        let vertices = &estimate.shape.fingers[i];
+        let force_magnitudes: Vec<f64> = estimate.vertex_force_n[i]
+            .iter()
+            .map(|v| v.norm())
+            .collect();
+        let ply = moe_lab::contact_eval::contact_ply(hand, i, vertices, probs)?
+            .with_scalar("force_n", force_magnitudes.iter().copied());
+        let name = format!("finger_{i}.ply");
+        let report = &estimate.fingers[i];
+        let finite = |x: f64| x.is_finite().then_some(x);
+        fingers.push(PhysicsFingerRecord {
+            mesh: name.clone(),
+            vertices: probs.len(),
+            contact_vertices: probs.iter().filter(|&&p| p >= threshold).count(),
+            max_probability: probs.iter().copied().fold(0.0, f64::max),
+            pressed_probability: report.pressed_probability,
+            force_n: forces[i].force_n,
+            force_magnitude_n: forces[i].magnitude_n,
+            loads: forces[i].loads.unwrap_or(0),
+            statistic: report.statistic,
+            observed_markers: report.observed_markers,
+            free_rms_m: finite(report.free_rms_m),
+            fit_rms_m: finite(report.fit_rms_m),
+            error: report.error.clone(),
+        });
+        plys.push((name, ply));
+    }
+    Ok((plys, fingers))
+}
+
+/// The physics estimate's lines on stdout: the hand, each finger, each load.
+fn print_physics(record: &PhysicsContactRecord, loads: &[LoadRecord]) {
+    let threshold = record.threshold;
     super::outln!(
         "hand '{}' (physics, material {}): {}, {} contact vertices at or above {threshold}; \
          estimate {:.1} ms",
@@ -778,7 +796,7 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
             f.mesh
         );
     }
-    for l in &loads {
+    for l in loads {
         super::outln!(
             "  load on finger {} at vertex {} ({:.1}, {:.1}, {:.1}) mm: {:.3} ± {:.3} N",
             l.finger,
@@ -790,7 +808,6 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
             l.magnitude_sd_n
         );
     }
-    Ok(())
 }
 
 /// The header of `contacts.csv` (hand frame, metres).

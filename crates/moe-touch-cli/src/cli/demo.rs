@@ -157,24 +157,14 @@ fn demo<S: ShapeEstimator, C: ContactEstimator>(
     Ok(())
 }
 
-/// The demo's figure: the camera frame with the markers found (labels that do not overlap) and
-/// the contact points; the estimated finger meshes coloured by contact probability with the
-/// estimated force arrows; the true meshes coloured by the simulator's contact.
-fn figure(
-    hand: &HandModel,
+/// The camera frame at twice its size, pixel for pixel, with the markers found and the contact
+/// points drawn on at that size so that the labels stay legible.
+fn camera_panel(
     intrinsics: &moe_geom::CameraIntrinsics,
     hand_from_camera: moe_geom::HandFromCamera,
     frame: &moe_io::RunFrame,
     source: &moe_io::EpisodeFrame,
-    record: &moe_lab::run::FrameReport,
-    index: usize,
-) -> Result<Vec<u8>> {
-    const PANEL_W: u32 = 320;
-    const HEADER: u32 = 28;
-    let white = image::Rgb([255, 255, 255]);
-    let ink = image::Rgb([20, 20, 20]);
-    // The camera image twice the size, pixel for pixel, drawn on at that size so that the
-    // labels stay legible.
+) -> Result<image::RgbImage> {
     let small = image::RgbImage::from_raw(
         intrinsics.width,
         intrinsics.height,
@@ -204,13 +194,32 @@ fn figure(
     let keypoints = moe_geom::HandKeypoints {
         fingers: frame.markers_in_hand.clone(),
     };
-    let camera = draw_keypoints(
+    Ok(draw_keypoints(
         &scaled,
         hand_from_camera,
         big.as_raw(),
         &keypoints,
         &contacts_in_hand,
-    )?;
+    )?)
+}
+
+/// The demo's figure: the camera frame with the markers found (labels that do not overlap) and
+/// the contact points; the estimated finger meshes coloured by contact probability with the
+/// estimated force arrows; the true meshes coloured by the simulator's contact.
+fn figure(
+    hand: &HandModel,
+    intrinsics: &moe_geom::CameraIntrinsics,
+    hand_from_camera: moe_geom::HandFromCamera,
+    frame: &moe_io::RunFrame,
+    source: &moe_io::EpisodeFrame,
+    record: &moe_lab::run::FrameReport,
+    index: usize,
+) -> Result<Vec<u8>> {
+    const PANEL_W: u32 = 320;
+    const HEADER: u32 = 28;
+    let white = image::Rgb([255, 255, 255]);
+    let ink = image::Rgb([20, 20, 20]);
+    let camera = camera_panel(intrinsics, hand_from_camera, frame, source)?;
 
     // The meshes, seen from the side the fingers bend to (hand x right, z up), turned 25°.
     let view_from_hand = moe_geom::nalgebra::Rotation3::from_matrix_unchecked(

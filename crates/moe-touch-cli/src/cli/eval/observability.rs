@@ -317,63 +317,81 @@ fn log_ticks(lo: Real, hi: Real) -> Vec<Real> {
     out
 }
 
-/// The figure: per layout, the finger's surface unrolled (x: angle around the axis, −180° to
-/// 180° with the camera side at 0°; y: height, 0 to 80 mm), each movable vertex a dot coloured
-/// by its along-axis bound on a log scale shared by the panels, the markers black rings; a
-/// legend in mm.
-pub(crate) fn bound_map_svg(layouts: &[LayoutBounds]) -> String {
-    // The shared scale: from the smallest finite bound to the 95th percentile (the few
-    // vertices next to the clamped base have bounds of metres; they share the top colour),
-    // widened to 1-2-5 values.
-    let finite: Vec<Real> = layouts
-        .iter()
-        .flat_map(|l| l.bounds.iter().map(|b| b.along_m * 1e3))
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    let lo_raw = finite.iter().copied().fold(Real::INFINITY, Real::min);
-    let hi_raw = quantile(&finite, 0.95);
-    let (lo, hi) = if lo_raw.is_finite() && hi_raw > lo_raw {
-        let down = |v: Real| {
-            let d = 10f64.powf(v.log10().floor());
-            [5.0, 2.0, 1.0]
-                .iter()
-                .map(|m| m * d)
-                .find(|&t| t <= v)
-                .unwrap_or(d)
+/// The colour scale the panels share: from the smallest finite bound to the 95th percentile
+/// (the few vertices next to the clamped base have bounds of metres; they share the top
+/// colour), widened to 1-2-5 values, in mm.
+struct BoundScale {
+    lo: Real,
+    hi: Real,
+    /// Some bounds lie above `hi` (or are undefined).
+    clipped: bool,
+}
+
+impl BoundScale {
+    fn of(layouts: &[LayoutBounds]) -> Self {
+        let finite: Vec<Real> = layouts
+            .iter()
+            .flat_map(|l| l.bounds.iter().map(|b| b.along_m * 1e3))
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .collect();
+        let lo_raw = finite.iter().copied().fold(Real::INFINITY, Real::min);
+        let hi_raw = quantile(&finite, 0.95);
+        let (lo, hi) = if lo_raw.is_finite() && hi_raw > lo_raw {
+            let down = |v: Real| {
+                let d = 10f64.powf(v.log10().floor());
+                [5.0, 2.0, 1.0]
+                    .iter()
+                    .map(|m| m * d)
+                    .find(|&t| t <= v)
+                    .unwrap_or(d)
+            };
+            let up = |v: Real| {
+                let d = 10f64.powf(v.log10().floor());
+                [1.0, 2.0, 5.0, 10.0]
+                    .iter()
+                    .map(|m| m * d)
+                    .find(|&t| t >= v)
+                    .unwrap_or(10.0 * d)
+            };
+            (down(lo_raw), up(hi_raw))
+        } else {
+            (0.1, 100.0)
         };
-        let up = |v: Real| {
-            let d = 10f64.powf(v.log10().floor());
-            [1.0, 2.0, 5.0, 10.0]
-                .iter()
-                .map(|m| m * d)
-                .find(|&t| t >= v)
-                .unwrap_or(10.0 * d)
-        };
-        (down(lo_raw), up(hi_raw))
-    } else {
-        (0.1, 100.0)
-    };
-    let clipped = layouts
-        .iter()
-        .flat_map(|l| &l.bounds)
-        .any(|b| b.along_m.is_nan() || b.along_m * 1e3 > hi);
-    let t_of = |v: Real| {
+        let clipped = layouts
+            .iter()
+            .flat_map(|l| &l.bounds)
+            .any(|b| b.along_m.is_nan() || b.along_m * 1e3 > hi);
+        Self { lo, hi, clipped }
+    }
+
+    /// Where `v` (mm) falls on the scale, 0 to 1 (undefined bounds at the top).
+    fn t(&self, v: Real) -> Real {
+        let (lo, hi) = (self.lo, self.hi);
         if v.is_finite() {
             ((v.max(lo).log10() - lo.log10()) / (hi.log10() - lo.log10())).min(1.0)
         } else {
             1.0
         }
-    };
+    }
+}
+
+/// Panel sizes of the figure, px.
+const PANEL_W: Real = 380.0;
+const PANEL_H: Real = 330.0;
+const LEGEND_H: Real = 70.0;
+
+/// The figure: per layout, the finger's surface unrolled (x: angle around the axis, −180° to
+/// 180° with the camera side at 0°; y: height, 0 to 80 mm), each movable vertex a dot coloured
+/// by its along-axis bound on a log scale shared by the panels, the markers black rings; a
+/// legend in mm.
+pub(crate) fn bound_map_svg(layouts: &[LayoutBounds]) -> String {
+    let scale = BoundScale::of(layouts);
     let cols = 2usize.min(layouts.len().max(1));
     let rows = layouts.len().div_ceil(cols).max(1);
-    let (pw, ph) = (380.0, 330.0); // panel
-    let (ml, mr, mt, mb) = (52.0, 16.0, 34.0, 40.0); // plot margins in a panel
-    let legend_h = 70.0;
     let (w, h) = (
-        pw * cols as Real + 20.0,
-        40.0 + ph * rows as Real + legend_h,
+        PANEL_W * cols as Real + 20.0,
+        40.0 + PANEL_H * rows as Real + LEGEND_H,
     );
-    let height_mm = 80.0;
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -386,82 +404,96 @@ pub(crate) fn bound_map_svg(layouts: &[LayoutBounds]) -> String {
         w / 2.0
     );
     for (k, l) in layouts.iter().enumerate() {
-        let (ox, oy) = (
-            10.0 + pw * (k % cols) as Real,
-            40.0 + ph * (k / cols) as Real,
+        let origin = (
+            10.0 + PANEL_W * (k % cols) as Real,
+            40.0 + PANEL_H * (k / cols) as Real,
         );
-        let (x0, x1) = (ox + ml, ox + pw - mr);
-        let (y0, y1) = (oy + mt, oy + ph - mb); // top, bottom of the plot
-        let x = |deg: Real| x0 + (deg + 180.0) / 360.0 * (x1 - x0);
-        let y = |z_m: Real| y1 - z_m * 1e3 / height_mm * (y1 - y0);
-        let _ = writeln!(
-            s,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="13">{} ({} markers)</text>"#,
-            (x0 + x1) / 2.0,
-            oy + 20.0,
-            l.layout.name(),
-            l.finger.marker_vertices().len()
-        );
-        // Grid and axes.
-        for deg in [-180.0, -90.0, 0.0, 90.0, 180.0] {
-            let _ = writeln!(
-                s,
-                r##"<line x1="{xx:.1}" x2="{xx:.1}" y1="{y0:.1}" y2="{y1:.1}" stroke="#ddd"/><text x="{xx:.1}" y="{:.1}" text-anchor="middle" font-size="10">{deg}°</text>"##,
-                y1 + 14.0,
-                xx = x(deg)
-            );
-        }
-        for mm in [0.0, 20.0, 40.0, 60.0, 80.0] {
-            let yy = y(mm * 1e-3);
-            let _ = writeln!(
-                s,
-                r##"<line x1="{x0:.1}" x2="{x1:.1}" y1="{yy:.1}" y2="{yy:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="10">{mm}</text>"##,
-                x0 - 4.0,
-                yy + 3.5
-            );
-        }
-        let _ = writeln!(
-            s,
-            r#"<rect x="{x0:.1}" y="{y0:.1}" width="{:.1}" height="{:.1}" fill="none" stroke="black"/>"#,
-            x1 - x0,
-            y1 - y0
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10">angle around the axis (camera side 0°, back ±180°)</text>"#,
-            (x0 + x1) / 2.0,
-            y1 + 28.0
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10" transform="rotate(-90 {:.1} {:.1})">height (mm)</text>"#,
-            ox + 14.0,
-            (y0 + y1) / 2.0,
-            ox + 14.0,
-            (y0 + y1) / 2.0
-        );
-        // The vertices, then the markers on top.
-        for b in &l.bounds {
-            let p = b.rest_in_finger;
-            let _ = writeln!(
-                s,
-                r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
-                x(angle_deg(&p)),
-                y(p.z),
-                ramp(t_of(b.along_m * 1e3))
-            );
-        }
-        for p in l.finger.marker_positions() {
-            let _ = writeln!(
-                s,
-                r#"<circle class="marker" cx="{:.1}" cy="{:.1}" r="4.5" fill="none" stroke="black" stroke-width="1.6"/>"#,
-                x(angle_deg(&p)),
-                y(p.z)
-            );
-        }
+        bound_panel(&mut s, origin, l, &scale);
     }
-    // The legend: a gradient bar with 1-2-5 ticks.
-    let (lx0, lx1, ly) = (w / 2.0 - 220.0, w / 2.0 + 220.0, h - legend_h + 14.0);
+    bound_legend(&mut s, w, h, &scale);
+    s.push_str("</svg>\n");
+    s
+}
+
+/// One layout's panel, its top left corner at `(ox, oy)`.
+fn bound_panel(s: &mut String, (ox, oy): (Real, Real), l: &LayoutBounds, scale: &BoundScale) {
+    let (ml, mr, mt, mb) = (52.0, 16.0, 34.0, 40.0); // plot margins in a panel
+    let height_mm = 80.0;
+    let (x0, x1) = (ox + ml, ox + PANEL_W - mr);
+    let (y0, y1) = (oy + mt, oy + PANEL_H - mb); // top, bottom of the plot
+    let x = |deg: Real| x0 + (deg + 180.0) / 360.0 * (x1 - x0);
+    let y = |z_m: Real| y1 - z_m * 1e3 / height_mm * (y1 - y0);
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="13">{} ({} markers)</text>"#,
+        (x0 + x1) / 2.0,
+        oy + 20.0,
+        l.layout.name(),
+        l.finger.marker_vertices().len()
+    );
+    // Grid and axes.
+    for deg in [-180.0, -90.0, 0.0, 90.0, 180.0] {
+        let _ = writeln!(
+            s,
+            r##"<line x1="{xx:.1}" x2="{xx:.1}" y1="{y0:.1}" y2="{y1:.1}" stroke="#ddd"/><text x="{xx:.1}" y="{:.1}" text-anchor="middle" font-size="10">{deg}°</text>"##,
+            y1 + 14.0,
+            xx = x(deg)
+        );
+    }
+    for mm in [0.0, 20.0, 40.0, 60.0, 80.0] {
+        let yy = y(mm * 1e-3);
+        let _ = writeln!(
+            s,
+            r##"<line x1="{x0:.1}" x2="{x1:.1}" y1="{yy:.1}" y2="{yy:.1}" stroke="#ddd"/><text x="{:.1}" y="{:.1}" text-anchor="end" font-size="10">{mm}</text>"##,
+            x0 - 4.0,
+            yy + 3.5
+        );
+    }
+    let _ = writeln!(
+        s,
+        r#"<rect x="{x0:.1}" y="{y0:.1}" width="{:.1}" height="{:.1}" fill="none" stroke="black"/>"#,
+        x1 - x0,
+        y1 - y0
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10">angle around the axis (camera side 0°, back ±180°)</text>"#,
+        (x0 + x1) / 2.0,
+        y1 + 28.0
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10" transform="rotate(-90 {:.1} {:.1})">height (mm)</text>"#,
+        ox + 14.0,
+        (y0 + y1) / 2.0,
+        ox + 14.0,
+        (y0 + y1) / 2.0
+    );
+    // The vertices, then the markers on top.
+    for b in &l.bounds {
+        let p = b.rest_in_finger;
+        let _ = writeln!(
+            s,
+            r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
+            x(angle_deg(&p)),
+            y(p.z),
+            ramp(scale.t(b.along_m * 1e3))
+        );
+    }
+    for p in l.finger.marker_positions() {
+        let _ = writeln!(
+            s,
+            r#"<circle class="marker" cx="{:.1}" cy="{:.1}" r="4.5" fill="none" stroke="black" stroke-width="1.6"/>"#,
+            x(angle_deg(&p)),
+            y(p.z)
+        );
+    }
+}
+
+/// The legend: a gradient bar with 1-2-5 ticks, across the bottom of a `w` × `h` figure.
+fn bound_legend(s: &mut String, w: Real, h: Real, scale: &BoundScale) {
+    let (lo, hi, clipped) = (scale.lo, scale.hi, scale.clipped);
+    let (lx0, lx1, ly) = (w / 2.0 - 220.0, w / 2.0 + 220.0, h - LEGEND_H + 14.0);
     let _ = writeln!(
         s,
         r#"<defs><linearGradient id="ramp" x1="0" x2="1" y1="0" y2="0">"#
@@ -477,7 +509,7 @@ pub(crate) fn bound_map_svg(layouts: &[LayoutBounds]) -> String {
         lx1 - lx0
     );
     for v in log_ticks(lo, hi) {
-        let xx = lx0 + t_of(v) * (lx1 - lx0);
+        let xx = lx0 + scale.t(v) * (lx1 - lx0);
         let label = if clipped && v >= hi {
             format!("≥ {v}")
         } else {
@@ -497,8 +529,6 @@ pub(crate) fn bound_map_svg(layouts: &[LayoutBounds]) -> String {
         w / 2.0,
         ly + 48.0
     );
-    s.push_str("</svg>\n");
-    s
 }
 
 #[cfg(test)]

@@ -17,21 +17,17 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_contact::KnnIndex;
-use moe_geom::{ContactEstimator, FingerParams, HandModel, HandPreset, Real, ShapeEstimator};
+use moe_geom::{FingerParams, HandModel, HandPreset, Real};
 use moe_gpis::bench_scene::{BenchScene, SceneKind, SceneReport, Spread, evaluate_scene_with};
 use moe_gpis::{HyperBounds, ReconstructOptions};
 use moe_io::{DatasetReader, PlyData, SplitFractions};
-use moe_lab::LabError;
 use moe_lab::patting::{
-    PatContacts, PattingEpisode, body_mesh, estimate_pat_contacts, pats_of, simulate_patting,
-    true_pat_contacts, ucd_to_truth_mm,
+    PatContacts, PattingEpisode, body_mesh, paper_pat_contacts, pats_of, physics_pat_contacts,
+    simulate_patting, true_pat_contacts, ucd_to_truth_mm,
 };
 use moe_tendon_sim::paper_scenes::{ARM_SEED, HEAD_SEED};
-use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::{PhysicsPipeline, Pipeline, TouchError};
 use serde::Serialize;
 use serde_json::{Value, json};
 
@@ -278,29 +274,6 @@ fn knn_index(path: Option<&Path>, hand: &HandModel) -> Result<KnnIndex> {
     Ok(index)
 }
 
-/// The contacts on every pat of the pipeline `build` makes around the episode's detector.
-fn pat_contacts<S: ShapeEstimator, C: ContactEstimator>(
-    hand: &HandModel,
-    episode: &PattingEpisode,
-    build: impl FnOnce(MarkerDetector) -> Result<Pipeline<S, C>, TouchError>,
-) -> Result<PatContacts, LabError> {
-    let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
-    estimate_pat_contacts(&mut build(detector)?, episode)
-}
-
-/// The paper's pipeline's contacts on every pat: SR-ARAP and `contact` at `threshold`.
-fn contacts_with<C: ContactEstimator>(
-    hand: &HandModel,
-    episode: &PattingEpisode,
-    contact: C,
-    threshold: Real,
-) -> Result<PatContacts, LabError> {
-    pat_contacts(hand, episode, |detector| {
-        let shape = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default())?;
-        Pipeline::new(hand.clone(), detector, shape, contact, threshold)
-    })
-}
-
 /// Everything about one pair; with `write`, its files go to that directory.
 #[allow(clippy::too_many_arguments)]
 fn evaluate_pair(
@@ -319,16 +292,14 @@ fn evaluate_pair(
     let episode = simulate_patting(body.kind(), truth_seed, pats, args.seed)?;
     let dgcnn = load_contact_model(&workspace_root().join(&args.model), hand)?;
     let threshold = dgcnn.threshold();
-    let dgcnn_contacts = contacts_with(hand, &episode, dgcnn, threshold)?;
-    let knn_contacts = contacts_with(hand, &episode, knn, 0.5)?;
-    let physics_contacts = pat_contacts(hand, &episode, |detector| {
-        PhysicsPipeline::physics(
-            hand.clone(),
-            detector,
-            &moe_physics::HandMaterial::default(),
-            &moe_physics::PhysicsConfig::default(),
-        )
-    })?;
+    let dgcnn_contacts = paper_pat_contacts(hand, &episode, dgcnn, threshold)?;
+    let knn_contacts = paper_pat_contacts(hand, &episode, knn, 0.5)?;
+    let physics_contacts = physics_pat_contacts(
+        hand,
+        &episode,
+        &moe_physics::HandMaterial::default(),
+        &moe_physics::PhysicsConfig::default(),
+    )?;
     let true_contacts = true_pat_contacts(&episode);
     let prior_level = match size {
         Size::Full => 5,
