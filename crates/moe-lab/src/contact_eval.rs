@@ -834,33 +834,31 @@ pub fn evaluate_plates(
     let threshold = dgcnn.threshold();
     let mut out = Vec::new();
     for t in plate_trials(scenes, trials, seed) {
-        {
-            let frames = simulate_labelled(&t.config, hand)?;
-            let (mut d, mut k) = (ContactMetrics::default(), ContactMetrics::default());
-            let mut contact_frames = 0;
-            for frame in frames.iter().filter(|f| f.contact_count() > 0) {
-                contact_frames += 1;
-                let estimated = arap.estimate(&frame.markers)?.shape;
-                let p = dgcnn.estimate_map(&ContactInput::of_frame(frame, &estimated))?;
-                d.add(&frame.shape, &frame.contact, &p.labels_at(threshold))?;
-                let m = knn_all.nearest(&frame.markers)?;
-                k.add(
-                    &frame.shape,
-                    &frame.contact,
-                    &knn_all.contact_map(m).labels_at(0.5),
-                )?;
-            }
-            out.push(PlateTrial {
-                scene: t.scene.name.clone(),
-                region: t.scene.region.clone(),
-                trial: t.trial,
-                offset_m: t.offset_m,
-                tilt_deg: t.tilt_deg,
-                contact_frames,
-                dgcnn: d.report(),
-                knn_all: k.report(),
-            });
+        let frames = simulate_labelled(&t.config, hand)?;
+        let (mut d, mut k) = (ContactMetrics::default(), ContactMetrics::default());
+        let mut contact_frames = 0;
+        for frame in frames.iter().filter(|f| f.contact_count() > 0) {
+            contact_frames += 1;
+            let estimated = arap.estimate(&frame.markers)?.shape;
+            let p = dgcnn.estimate_map(&ContactInput::of_frame(frame, &estimated))?;
+            d.add(&frame.shape, &frame.contact, &p.labels_at(threshold))?;
+            let m = knn_all.nearest(&frame.markers)?;
+            k.add(
+                &frame.shape,
+                &frame.contact,
+                &knn_all.contact_map(m).labels_at(0.5),
+            )?;
         }
+        out.push(PlateTrial {
+            scene: t.scene.name.clone(),
+            region: t.scene.region.clone(),
+            trial: t.trial,
+            offset_m: t.offset_m,
+            tilt_deg: t.tilt_deg,
+            contact_frames,
+            dgcnn: d.report(),
+            knn_all: k.report(),
+        });
     }
     Ok(out)
 }

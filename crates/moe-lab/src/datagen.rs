@@ -387,7 +387,7 @@ pub const MAX_DRAWS: u64 = 4;
 ///
 /// # Errors
 /// [`LabError::Simulation`] naming an invalid randomisation parameter
-/// ([`RandomSceneParams::validate`]); [`LabError::Geometry`] for invalid finger parameters
+/// ([`RandomSceneParams::validate`]); [`LabError::Touch`] for invalid finger parameters
 /// or fingers with different numbers of tendons ([`moe_geom::HandModel::tendons_per_finger`]).
 pub fn simulated_layout(params: &RandomSceneParams) -> Result<DatasetLayout, LabError> {
     params.validate()?;

@@ -728,44 +728,41 @@ pub fn evaluate_plates_physics(
 ) -> Result<Vec<PhysicsPlateTrial>, LabError> {
     let mut out = Vec::new();
     for t in crate::contact_eval::plate_trials(scenes, trials, seed) {
-        {
-            let (scene, trial) = (t.scene, t.trial);
-            let frames = simulate_stream(&t.config, hand, trial)?;
-            estimator.reset();
-            let (mut physics, mut on_physics) =
-                (ContactMetrics::default(), ContactMetrics::default());
-            let mut contact_frames = 0;
-            for sf in &frames {
-                let frame = &sf.frame;
-                let est = estimator.estimate(&PhysicsObservation {
-                    keypoints: &frame.markers,
-                    tendon_pull_m: &frame.tendon_pull_m,
-                    world_from_hand: &frame.world_from_hand,
-                    time_secs: Some(sf.time_secs),
-                })?;
-                if frame.contact_count() == 0 {
-                    continue;
-                }
-                contact_frames += 1;
-                physics.add(
-                    &frame.shape,
-                    &frame.contact,
-                    &est.contact.labels_at(moe_physics::CONTACT_THRESHOLD),
-                )?;
-                if let Some(d) = dgcnn {
-                    let p = d.estimate_map(&ContactInput::of_frame(frame, &est.shape))?;
-                    on_physics.add(&frame.shape, &frame.contact, &p.labels_at(d.threshold()))?;
-                }
+        let (scene, trial) = (t.scene, t.trial);
+        let frames = simulate_stream(&t.config, hand, trial)?;
+        estimator.reset();
+        let (mut physics, mut on_physics) = (ContactMetrics::default(), ContactMetrics::default());
+        let mut contact_frames = 0;
+        for sf in &frames {
+            let frame = &sf.frame;
+            let est = estimator.estimate(&PhysicsObservation {
+                keypoints: &frame.markers,
+                tendon_pull_m: &frame.tendon_pull_m,
+                world_from_hand: &frame.world_from_hand,
+                time_secs: Some(sf.time_secs),
+            })?;
+            if frame.contact_count() == 0 {
+                continue;
             }
-            out.push(PhysicsPlateTrial {
-                scene: scene.name.clone(),
-                region: scene.region.clone(),
-                trial,
-                contact_frames,
-                physics: physics.report(),
-                dgcnn_on_physics: dgcnn.map(|_| on_physics.report()),
-            });
+            contact_frames += 1;
+            physics.add(
+                &frame.shape,
+                &frame.contact,
+                &est.contact.labels_at(moe_physics::CONTACT_THRESHOLD),
+            )?;
+            if let Some(d) = dgcnn {
+                let p = d.estimate_map(&ContactInput::of_frame(frame, &est.shape))?;
+                on_physics.add(&frame.shape, &frame.contact, &p.labels_at(d.threshold()))?;
+            }
         }
+        out.push(PhysicsPlateTrial {
+            scene: scene.name.clone(),
+            region: scene.region.clone(),
+            trial,
+            contact_frames,
+            physics: physics.report(),
+            dgcnn_on_physics: dgcnn.map(|_| on_physics.report()),
+        });
     }
     Ok(out)
 }

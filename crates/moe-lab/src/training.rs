@@ -1,4 +1,4 @@
-//! Training a contact model on generated data sets: [`TrainingRun`] loads the frames, computes
+//! Training a contact model on generated data sets: [`TrainingRun`](crate::training::TrainingRun) loads the frames, computes
 //! the shapes the network learns from, normalises the features, and trains epoch by epoch with a
 //! checkpoint, the learning curve and a usable model (weights and card) after every epoch, so
 //! that a stopped run resumes where it stopped and leaves a model behind.

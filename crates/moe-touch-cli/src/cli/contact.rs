@@ -726,13 +726,16 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
     Ok(())
 }
 
+/// Named meshes to write.
+type NamedPlys = Vec<(String, moe_io::PlyData)>;
+
 /// Each finger's mesh coloured by contact probability (with the force per vertex) and its
 /// record, in memory.
 fn physics_fingers(
     hand: &moe_geom::HandModel,
     estimate: &moe_physics::PhysicsEstimate,
     threshold: f64,
-) -> Result<(Vec<(String, moe_io::PlyData)>, Vec<PhysicsFingerRecord>)> {
+) -> Result<(NamedPlys, Vec<PhysicsFingerRecord>)> {
     let forces = finger_force_records(estimate);
     let mut plys = Vec::with_capacity(hand.num_fingers());
     let mut fingers = Vec::with_capacity(hand.num_fingers());
