@@ -40,6 +40,52 @@ fn step(name: &str, mut cmd: Command) -> Result<()> {
     Ok(())
 }
 
+/// Crates the runtime library must not depend on (`cargo tree -p moe-touch -e normal`).
+const NOT_IN_THE_RUNTIME: [&str; 6] = [
+    "moe-tendon-sim",
+    "moe-lab",
+    "clap",
+    "anyhow",
+    "image",
+    "foxglove",
+];
+
+fn runtime_tree_is_lean() -> Result<()> {
+    let out = cargo()
+        .args([
+            "tree",
+            "-p",
+            "moe-touch",
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+            "--locked",
+        ])
+        .output()
+        .context("starting cargo tree")?;
+    if !out.status.success() {
+        bail!("cargo tree -p moe-touch failed ({})", out.status);
+    }
+    let tree = String::from_utf8_lossy(&out.stdout);
+    let found: Vec<&str> = NOT_IN_THE_RUNTIME
+        .iter()
+        .copied()
+        .filter(|name| {
+            tree.lines()
+                .any(|l| l.split_whitespace().next() == Some(name))
+        })
+        .collect();
+    if !found.is_empty() {
+        bail!("the runtime (moe-touch) depends on {}", found.join(", "));
+    }
+    eprintln!(
+        "xtask ci: moe-touch's tree holds none of {}",
+        NOT_IN_THE_RUNTIME.join(", ")
+    );
+    Ok(())
+}
+
 fn has_cargo_deny() -> bool {
     cargo()
         .args(["deny", "--version"])
@@ -63,6 +109,21 @@ pub(crate) fn run(args: &CiArgs) -> Result<()> {
         "warnings",
     ]);
     step("cargo clippy -D warnings", clippy)?;
+
+    // The runtime alone (features resolved for it, not the workspace): it must build, and its
+    // tree must hold no simulator, command-line parser, image codec or anyhow.
+    let mut runtime = cargo();
+    runtime.args([
+        "clippy",
+        "-p",
+        "moe-touch",
+        "--locked",
+        "--",
+        "-D",
+        "warnings",
+    ]);
+    step("cargo clippy -p moe-touch (the runtime alone)", runtime)?;
+    runtime_tree_is_lean()?;
 
     let mut test = cargo();
     test.args(["test", "--workspace", "--locked"]);

@@ -71,6 +71,7 @@ pub mod obj;
 /// Stanford PLY.
 pub mod ply;
 /// Pipeline results over an episode, as MCAP for Foxglove.
+#[cfg(feature = "mcap")]
 pub mod run_output;
 /// STL.
 pub mod stl;
@@ -84,9 +85,10 @@ pub use dataset::{
     DatasetCard, DatasetFrame, DatasetLayout, DatasetReader, LabelledFrames, Split, SplitFractions,
     read_shard, split_of, write_shard,
 };
+pub use episode::{CameraInfo, Episode, EpisodeFrame, EpisodeInfo, ObstacleMesh};
+#[cfg(feature = "mcap")]
 pub use episode::{
-    CameraInfo, Episode, EpisodeFrame, EpisodeInfo, EpisodeWriter, ObstacleMesh, create_episode,
-    parse_episode, parse_episode_prefix, read_episode, write_episode,
+    EpisodeWriter, create_episode, parse_episode, parse_episode_prefix, read_episode, write_episode,
 };
 pub use error::IoError;
 pub use files::{MEMORY, read_bytes};
@@ -95,6 +97,7 @@ pub use mesh_io::{read_mesh, write_mesh};
 pub use model::{ModelFiles, read_model_files, write_model_files};
 pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
 pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
+#[cfg(feature = "mcap")]
 pub use run_output::{
     FingerForceMessage, FingerForcesMessage, JsonTime, RUN_TOPICS, RunForces, RunFrame, RunInfo,
     RunLoad, RunTruth, RunWriter, probability_colour, viridis_colour, write_run,

@@ -28,23 +28,32 @@
 //! noisy depth image compresses least; sizes in the docs/results.md). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
+#[cfg(feature = "mcap")]
 mod foxglove;
+#[cfg(feature = "mcap")]
 mod read;
+#[cfg(feature = "mcap")]
 mod topic;
+#[cfg(feature = "mcap")]
 mod write;
 
+#[cfg(feature = "mcap")]
 use std::path::Path;
 
 use moe_geom::{Iso3, Point3};
 use serde::{Deserialize, Serialize};
 
+#[cfg(feature = "mcap")]
 use crate::error::IoError;
+#[cfg(feature = "mcap")]
 pub(crate) use foxglove::{
     add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color, fg_pose,
     fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities, schema_of, spheres_entity,
     timestamp, write_info, write_message,
 };
+#[cfg(feature = "mcap")]
 pub use read::{parse_episode, parse_episode_prefix, read_episode};
+#[cfg(feature = "mcap")]
 pub use write::{EpisodeWriter, create_episode, write_episode};
 
 /// Pinhole intrinsics of the recorded camera.
@@ -170,6 +179,7 @@ pub struct Episode {
     pub frames: Vec<EpisodeFrame>,
 }
 
+#[cfg(feature = "mcap")]
 pub(crate) fn check_info(path: &Path, info: &EpisodeInfo) -> Result<(), IoError> {
     let refuse = |message: String| Err(IoError::invalid(path, "episode info", message));
     let n = info.hand_from_finger.len();
@@ -227,6 +237,7 @@ pub const MAX_TENDONS_PER_FINGER: usize = 64;
 /// Largest uncompressed size a chunk may declare, bytes (a 640 × 480 frame takes 2.5 MB).
 pub const MAX_CHUNK_BYTES: u64 = 1 << 30;
 
+#[cfg(feature = "mcap")]
 pub(super) fn check_frame(
     path: &Path,
     info: &EpisodeInfo,
@@ -302,7 +313,7 @@ pub(super) fn check_frame(
     Ok(())
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "mcap"))]
 mod tests {
     use std::collections::BTreeMap;
     use std::io::{Seek, Write};
