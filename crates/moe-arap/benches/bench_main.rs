@@ -4,7 +4,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_arap::{ArapConfig, ArapSolver, ComponentSolver, MultiShapeEstimator, ShapeConfig, Start};
+use moe_arap::{ArapConfig, ArapSolver, MultiShapeEstimator, ShapeConfig, Start};
 use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, TriMesh, Vector3};
 
 /// Keypoints of a gentle bend toward each finger's +x side: marker `m` moves by a displacement
@@ -92,22 +92,12 @@ fn arap_single_mesh(c: &mut Criterion) {
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("preset");
     let (mesh, fixed, targets) = hand_as_one_mesh(&hand, &bent_keypoints(&hand, 0.015));
     let config = ArapConfig::default();
-    let split = ComponentSolver::new(&mesh, &config, &fixed, &[]).expect("solver");
+    let split = ArapSolver::new(&mesh, &config, &fixed, &[]).expect("solver");
     assert_eq!(split.num_parts(), 2);
     c.bench_function("arap/two-finger-one-mesh/50-iterations-by-part", |b| {
         b.iter(|| {
             black_box(
                 split
-                    .solve(black_box(&targets), &[], Start::Rest)
-                    .expect("solve"),
-            )
-        })
-    });
-    let whole = ArapSolver::new(&mesh, &config, &fixed, &[]).expect("solver");
-    c.bench_function("arap/two-finger-one-mesh/50-iterations-whole", |b| {
-        b.iter(|| {
-            black_box(
-                whole
                     .solve(black_box(&targets), &[], Start::Rest)
                     .expect("solve"),
             )

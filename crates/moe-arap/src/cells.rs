@@ -9,7 +9,7 @@
 //! `Σ_{e∋k} (c_e w_e / 2)(p′_k − p′_l) = Σ_{e∋k} (w_e / 2)(Σ_{i∈cells(e)} R_i)(p_k − p_l)`,
 //! which for spokes (`c_e = 2`) is docs/design.md's global step.
 
-use moe_geom::{Point3, Real, Topology, TriMesh, Vector3, cotan_weights};
+use moe_geom::{Real, Topology, TriMesh, Vector3, cotan_weights};
 
 use crate::config::ArapEnergy;
 
@@ -198,7 +198,13 @@ impl Cells {
     }
 
     /// The data term `Σ_{e∈cell(v)} w_e ‖(p′_a − p′_b) − R e‖²` of one cell.
-    pub(crate) fn cell_energy(&self, v: usize, deformed: &[Point3], r: &moe_geom::Matrix3) -> Real {
+    #[cfg(test)]
+    pub(crate) fn cell_energy(
+        &self,
+        v: usize,
+        deformed: &[moe_geom::Point3],
+        r: &moe_geom::Matrix3,
+    ) -> Real {
         self.cell(v)
             .iter()
             .map(|c| {

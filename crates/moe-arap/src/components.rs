@@ -6,17 +6,17 @@
 //! wall time: a hand exported as one mesh with a part per finger solves as fast as the per-finger
 //! estimator.
 
-use moe_geom::{Point3, Topology, TriMesh};
+use moe_geom::{Point3, Real, Topology, TriMesh};
 use rayon::prelude::*;
 
 use crate::config::ArapConfig;
 use crate::error::ArapError;
-use crate::solver::{ArapInfo, ArapSolution, ArapSolver, Start, check_id, check_inputs};
+use crate::solver::{ArapInfo, ArapSolution, PartSolver, Start, check_id, check_inputs};
 
 /// One connected part of the mesh with its solver.
 #[derive(Debug)]
 struct Part {
-    solver: ArapSolver,
+    solver: PartSolver,
     /// Global id of every local vertex.
     vertices: Vec<u32>,
     /// Positions, in the global fixed list, of the part's fixed vertices (local order).
@@ -28,34 +28,41 @@ struct Part {
 #[derive(Debug)]
 enum Layout {
     /// A connected mesh: one solver.
-    Whole(Box<ArapSolver>),
+    Whole(Box<PartSolver>),
     /// Two or more parts; `rest` is the whole rest mesh.
     Parts { parts: Vec<Part>, rest: Vec<Point3> },
 }
 
-/// An SR-ARAP solver for a whole mesh that splits it into its connected parts and solves them in
-/// parallel, one [`ArapSolver`] per part; the interface and the errors are [`ArapSolver`]'s.
+/// The SR-ARAP solver of a mesh of one or many connected parts, for one constraint structure:
+/// `fixed` vertices (always constrained, eliminated from the factorised system) and switchable
+/// `handles` (constrained in a solve when a target is given, through a small Schur complement;
+/// see the crate documentation). Factorised once when built; each solve runs
+/// `config.iterations` local/global iterations.
 ///
-/// A connected mesh is solved by one [`ArapSolver`],
-/// unchanged. Otherwise each part gets its own factorised system with the sequential local step
-/// (the parts already fill the cores) and the whole mesh's smoothing weight (α is relative to the
-/// whole surface area, as for [`ArapSolver`]), and a solve returns the vertices in the mesh's order, the
-/// energies summed over the parts, and the handles used in handle order.
+/// A connected mesh is one factorised system (its local step on the thread pool with
+/// `ArapConfig::parallel`). A mesh of several parts — a hand exported as one mesh — gets one
+/// system per part, solved in parallel with sequential local steps, the whole mesh's smoothing
+/// weight (α is relative to the whole surface area), and a solve returns the vertices in the
+/// mesh's order, the energies summed over the parts, and the handles used in handle order: the
+/// same shape as one system, to rounding, in a fraction of the time.
 #[derive(Debug)]
-pub struct ComponentSolver {
+pub struct ArapSolver {
+    config: ArapConfig,
+    surface_area: Real,
     num_vertices: usize,
     fixed: Vec<u32>,
     handles: Vec<u32>,
     layout: Layout,
 }
 
-impl ComponentSolver {
-    /// Finds the connected parts of `mesh` and builds a solver for each (in parallel).
+impl ArapSolver {
+    /// Finds the connected parts of `mesh` and builds and factorises a system for each (in
+    /// parallel).
     ///
     /// # Errors
-    /// As [`ArapSolver::new`], naming vertices by their ids in `mesh`: an invalid config, an
-    /// out-of-range or repeated id, a handle that is also fixed, a part with no fixed vertex
-    /// ([`ArapError::Unanchored`], its lowest vertex).
+    /// Naming vertices by their ids in `mesh`: an invalid config, an out-of-range or repeated
+    /// id, a handle that is also fixed, a part with no fixed vertex ([`ArapError::Unanchored`],
+    /// its lowest vertex).
     pub fn new(
         mesh: &TriMesh,
         config: &ArapConfig,
@@ -69,18 +76,21 @@ impl ComponentSolver {
         // Every vertex of a `TriMesh` is in a face and every face has area, so every part has
         // cells and a positive area.
         if count < 2 {
+            let whole = PartSolver::new(mesh, config, fixed, handles)?;
             return Ok(Self {
+                config: config.clone(),
+                surface_area: whole.surface_area(),
                 num_vertices: n,
                 fixed: fixed.to_vec(),
                 handles: handles.to_vec(),
-                layout: Layout::Whole(Box::new(ArapSolver::new(mesh, config, fixed, handles)?)),
+                layout: Layout::Whole(Box::new(whole)),
             });
         }
         let mut part_area = vec![0.0; count];
         for (f, a) in mesh.faces().iter().zip(mesh.face_areas()) {
             part_area[label[f[0] as usize] as usize] += a;
         }
-        // The checks of `ArapSolver::new`, in its order, on global ids.
+        // The checks of `PartSolver::new`, in its order, on global ids.
         let mut is_fixed = vec![false; n];
         for &v in fixed {
             let v = check_id("fixed", v, n)?;
@@ -149,7 +159,7 @@ impl ComponentSolver {
                 let local_ids = |ks: &[usize], ids: &[u32]| -> Vec<u32> {
                     ks.iter().map(|&k| local[ids[k] as usize]).collect()
                 };
-                let solver = ArapSolver::new(
+                let solver = PartSolver::new(
                     &sub,
                     &sub_config,
                     &local_ids(&fixed_k, fixed),
@@ -170,6 +180,8 @@ impl ComponentSolver {
             })
             .collect::<Result<Vec<_>, ArapError>>()?;
         Ok(Self {
+            config: config.clone(),
+            surface_area: area,
             num_vertices: n,
             fixed: fixed.to_vec(),
             handles: handles.to_vec(),
@@ -186,6 +198,16 @@ impl ComponentSolver {
             Layout::Whole(_) => 1,
             Layout::Parts { parts, .. } => parts.len(),
         }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ArapConfig {
+        &self.config
+    }
+
+    /// Surface area of the rest mesh (the scale of the smoothing weight).
+    pub fn surface_area(&self) -> Real {
+        self.surface_area
     }
 
     /// Number of vertices of the mesh.
@@ -206,10 +228,12 @@ impl ComponentSolver {
     /// Solves every part (in parallel) and returns the mesh's vertices in its own order.
     ///
     /// `fixed_targets[k]` is the target of `fixed()[k]`, `handle_targets[k]` that of
-    /// `handles()[k]` (`None`: free in this solve), as for [`ArapSolver::solve`].
+    /// `handles()[k]` (`None`: free in this solve). `start` is where the iteration starts:
+    /// [`Start::Rest`] (the paper's setting) or given positions, one per vertex.
     ///
     /// # Errors
-    /// As [`ArapSolver::solve`], with indices into the lists given here.
+    /// Wrong target or start counts, non-finite targets or start positions, with indices into
+    /// the lists given here.
     pub fn solve(
         &self,
         fixed_targets: &[Point3],
@@ -318,9 +342,9 @@ mod tests {
             iterations: 20,
             ..ArapConfig::default()
         };
-        let split = ComponentSolver::new(&mesh, &config, &fixed, &handles).unwrap();
+        let split = ArapSolver::new(&mesh, &config, &fixed, &handles).unwrap();
         assert_eq!(split.num_parts(), 2);
-        let whole = ArapSolver::new(&mesh, &config, &fixed, &handles).unwrap();
+        let whole = PartSolver::new(&mesh, &config, &fixed, &handles).unwrap();
         let motion = Iso3::translation(0.1, -0.05, 0.2);
         let fixed_targets: Vec<Point3> =
             fixed.iter().map(|&v| mesh.vertices()[v as usize]).collect();
@@ -360,7 +384,7 @@ mod tests {
     #[test]
     fn a_connected_mesh_is_solved_whole() {
         let mesh = jittered_sphere(8, 12, 0.05, 1);
-        let split = ComponentSolver::new(&mesh, &ArapConfig::default(), &[0, 1, 2], &[]).unwrap();
+        let split = ArapSolver::new(&mesh, &ArapConfig::default(), &[0, 1, 2], &[]).unwrap();
         assert_eq!(split.num_parts(), 1);
     }
 
@@ -370,8 +394,8 @@ mod tests {
         let n = mesh.num_vertices();
         let config = ArapConfig::default();
         let both = |fixed: &[u32], handles: &[u32]| {
-            let a = ComponentSolver::new(&mesh, &config, fixed, handles).unwrap_err();
-            let b = ArapSolver::new(&mesh, &config, fixed, handles).unwrap_err();
+            let a = ArapSolver::new(&mesh, &config, fixed, handles).unwrap_err();
+            let b = PartSolver::new(&mesh, &config, fixed, handles).unwrap_err();
             assert_eq!(a.to_string(), b.to_string());
             a
         };
@@ -392,8 +416,7 @@ mod tests {
             both(&[0, na as u32], &[5, na as u32]),
             ArapError::DuplicateVertex { what: "handle", vertex } if vertex == na
         ));
-        let split =
-            ComponentSolver::new(&mesh, &config, &[0, na as u32], &[3, na as u32 + 3]).unwrap();
+        let split = ArapSolver::new(&mesh, &config, &[0, na as u32], &[3, na as u32 + 3]).unwrap();
         let rest = mesh.vertices();
         let fixed_targets = [rest[0], rest[na]];
         let bad = Point3::new(f64::NAN, 0.0, 0.0);

@@ -96,7 +96,7 @@
 
 /// ARAP cells (spokes, spokes and rims) and per-edge data.
 mod cells;
-/// Meshes of several connected parts, one solver per part.
+/// The solver of a whole mesh: one factorised system per connected part, parts in parallel.
 mod components;
 /// Solver configuration.
 mod config;
@@ -108,7 +108,7 @@ mod multi;
 mod newton;
 /// Best-fitting rotations for the local step.
 mod rotation;
-/// The SR-ARAP solver.
+/// The solver of one part: cells, the local/global iteration, the allocation-free workspace.
 mod solver;
 /// The factorised reduced system and the handle Schur complement.
 mod system;
@@ -117,10 +117,10 @@ mod targets;
 #[cfg(test)]
 mod testmesh;
 
-pub use components::ComponentSolver;
+pub use components::ArapSolver;
 pub use config::{ArapConfig, ArapEnergy};
 pub use error::ArapError;
 pub use moe_geom::HandShape;
 pub use multi::{FingerReport, MultiShapeEstimator, ShapeConfig, ShapeEstimate};
-pub use solver::{ArapInfo, ArapSolution, ArapSolver, ArapWorkspace, Start};
+pub use solver::{ArapInfo, ArapSolution, Start};
 pub use targets::HandleTargets;

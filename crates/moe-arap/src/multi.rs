@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{ArapConfig, ArapEnergy};
 use crate::error::ArapError;
-use crate::solver::{ArapInfo, ArapSolver, ArapWorkspace, Start};
+use crate::solver::{ArapInfo, ArapWorkspace, PartSolver, Start};
 
 /// Number of nearest rest vertices examined when the nearest one is unusable for a handle.
 const HANDLE_CANDIDATES: usize = 32;
@@ -78,7 +78,7 @@ pub struct ShapeEstimate {
 /// Per-finger solver state.
 #[derive(Debug)]
 struct FingerState {
-    solver: ArapSolver,
+    solver: PartSolver,
     workspace: ArapWorkspace,
     info: ArapInfo,
     rest_index: PointIndex,
@@ -145,7 +145,7 @@ impl MultiShapeEstimator {
             .map(|f| {
                 let mesh = f.model.mesh();
                 let base = f.model.base_vertices();
-                let solver = ArapSolver::new(mesh, &config, base, &[])?;
+                let solver = PartSolver::new(mesh, &config, base, &[])?;
                 let workspace = solver.workspace();
                 let mut is_base = vec![false; mesh.num_vertices()];
                 for &b in base {

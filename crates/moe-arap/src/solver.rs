@@ -42,7 +42,7 @@ pub struct ArapInfo {
     pub iterations: usize,
     /// `energy[t]`: the energy `E(p′⁽ᵗ⁺¹⁾, R⁽ᵗ⁾)` after the global step of iteration `t` (squared
     /// mesh units). With `alpha = 0` it never increases. Evaluated through expanded squares
-    /// (see [`ArapSolver::energy`] for the direct form), so it carries a rounding error of about
+    /// (the direct form is the solver's energy evaluation), so it carries a rounding error of about
     /// 1e-16 of `Σ w (‖e‖² + ‖e′‖²)`.
     pub energy: Vec<Real>,
     /// Vertex ids of the switchable handles that were constrained in this solve, in handle order.
@@ -62,7 +62,7 @@ pub struct ArapSolution {
 }
 
 /// Preallocated buffers of a solver; reusing one makes the per-frame path allocation-free.
-pub struct ArapWorkspace {
+pub(crate) struct ArapWorkspace {
     deformed: Vec<Point3>,
     rot: Vec<Matrix3>,
     rot_prev: Vec<Matrix3>,
@@ -88,21 +88,23 @@ impl std::fmt::Debug for ArapWorkspace {
 
 impl ArapWorkspace {
     /// The positions of the last solve (the rest mesh before the first).
-    pub fn vertices(&self) -> &[Point3] {
+    pub(crate) fn vertices(&self) -> &[Point3] {
         &self.deformed
     }
 
     /// The rotations of the last iteration's local step, one per vertex.
-    pub fn rotations(&self) -> &[Matrix3] {
+    #[cfg(test)]
+    pub(crate) fn rotations(&self) -> &[Matrix3] {
         &self.rot_prev
     }
 }
 
-/// An SR-ARAP solver for one mesh and one constraint structure: `fixed` vertices (always
+/// The SR-ARAP solver of one connected part (or one factorised system) and one constraint
+/// structure: `fixed` vertices (always
 /// constrained, eliminated from the factorised system) and switchable `handles` (constrained in a
 /// solve when a target is given, through a small Schur complement; see the crate documentation).
 #[derive(Debug)]
-pub struct ArapSolver {
+pub(crate) struct PartSolver {
     config: ArapConfig,
     rest: Vec<Point3>,
     cells: Cells,
@@ -114,14 +116,14 @@ pub struct ArapSolver {
     smoothing: Vec<Real>,
 }
 
-impl ArapSolver {
+impl PartSolver {
     /// Builds the cells and factorises the system for `mesh` with the given fixed vertices and
     /// switchable handles.
     ///
     /// # Errors
     /// An invalid config, an out-of-range or repeated vertex id, or a part of the mesh connected to
     /// no fixed vertex ([`ArapError::Unanchored`]).
-    pub fn new(
+    pub(crate) fn new(
         mesh: &TriMesh,
         config: &ArapConfig,
         fixed: &[u32],
@@ -169,7 +171,7 @@ impl ArapSolver {
     ///
     /// # Errors
     /// An out-of-range id, a repeated id, or a handle that is also fixed.
-    pub fn set_handles(&mut self, handles: &[u32]) -> Result<(), ArapError> {
+    pub(crate) fn set_handles(&mut self, handles: &[u32]) -> Result<(), ArapError> {
         let n = self.rest.len();
         let mut unknowns = Vec::with_capacity(handles.len());
         let mut seen = std::collections::HashSet::with_capacity(handles.len());
@@ -189,38 +191,18 @@ impl ArapSolver {
         Ok(())
     }
 
-    /// The configuration.
-    pub fn config(&self) -> &ArapConfig {
-        &self.config
-    }
-
     /// Rest vertex positions.
-    pub fn rest_vertices(&self) -> &[Point3] {
+    pub(crate) fn rest_vertices(&self) -> &[Point3] {
         &self.rest
     }
 
-    /// Number of vertices.
-    pub fn num_vertices(&self) -> usize {
-        self.rest.len()
-    }
-
-    /// Fixed vertex ids.
-    pub fn fixed(&self) -> &[u32] {
-        &self.fixed
-    }
-
-    /// Switchable handle vertex ids.
-    pub fn handles(&self) -> &[u32] {
-        &self.handles
-    }
-
     /// Rest surface area `A` (squared mesh units).
-    pub fn surface_area(&self) -> Real {
+    pub(crate) fn surface_area(&self) -> Real {
         self.surface_area
     }
 
-    /// Buffers for [`ArapSolver::solve_in`], holding the rest mesh.
-    pub fn workspace(&self) -> ArapWorkspace {
+    /// Buffers for [`PartSolver::solve_in`], holding the rest mesh.
+    pub(crate) fn workspace(&self) -> ArapWorkspace {
         let n = self.rest.len();
         let h = self.system.num_handles();
         ArapWorkspace {
@@ -245,8 +227,8 @@ impl ArapSolver {
     /// `handles()[k]`, `None` when the handle is free in this solve.
     ///
     /// # Errors
-    /// See [`ArapSolver::solve_in`].
-    pub fn solve(
+    /// See [`PartSolver::solve_in`].
+    pub(crate) fn solve(
         &self,
         fixed_targets: &[Point3],
         handle_targets: &[Option<Point3>],
@@ -266,7 +248,7 @@ impl ArapSolver {
     ///
     /// # Errors
     /// Wrong target or start counts, non-finite targets or start positions.
-    pub fn solve_in(
+    pub(crate) fn solve_in(
         &self,
         ws: &mut ArapWorkspace,
         fixed_targets: &[Point3],
@@ -323,7 +305,8 @@ impl ArapSolver {
     ///
     /// # Panics
     /// If the slices do not have one entry per vertex (a programming error).
-    pub fn energy(&self, deformed: &[Point3], rotations: &[Matrix3]) -> Real {
+    #[cfg(test)]
+    pub(crate) fn energy(&self, deformed: &[Point3], rotations: &[Matrix3]) -> Real {
         assert_eq!(deformed.len(), self.rest.len());
         assert_eq!(rotations.len(), self.rest.len());
         (0..self.rest.len())
@@ -331,6 +314,7 @@ impl ArapSolver {
             .sum()
     }
 
+    #[cfg(test)]
     fn vertex_energy(&self, i: usize, deformed: &[Point3], rotations: &[Matrix3]) -> Real {
         let r = &rotations[i];
         let mut e = self.cells.cell_energy(i, deformed, r);

@@ -28,7 +28,7 @@ fn unmoved_handles_return_the_rest_mesh() {
         };
         let fixed = [0, 40, 77];
         let handles = [5, 60, 100];
-        let solver = ArapSolver::new(&mesh, &config, &fixed, &handles).unwrap();
+        let solver = PartSolver::new(&mesh, &config, &fixed, &handles).unwrap();
         let targets: Vec<Option<Point3>> = at(&mesh, &handles).into_iter().map(Some).collect();
         let sol = solver
             .solve(&at(&mesh, &fixed), &targets, Start::Rest)
@@ -68,7 +68,7 @@ fn rigid_motion_of_the_handles_converges_to_the_moved_mesh() {
             iterations,
             parallel: false,
         };
-        let solver = ArapSolver::new(&mesh, &config, &fixed, &handles).unwrap();
+        let solver = PartSolver::new(&mesh, &config, &fixed, &handles).unwrap();
         let targets: Vec<Option<Point3>> =
             handles.iter().map(|&h| Some(moved[h as usize])).collect();
         let fixed_targets: Vec<Point3> = fixed.iter().map(|&v| moved[v as usize]).collect();
@@ -92,7 +92,7 @@ fn occluded_handles_match_a_refactorised_solver() {
         iterations: 20,
         ..Default::default()
     };
-    let solver = ArapSolver::new(&mesh, &config, &fixed, &handles).unwrap();
+    let solver = PartSolver::new(&mesh, &config, &fixed, &handles).unwrap();
     let fixed_targets = at(&mesh, &fixed);
     let mut rng = SplitMix64(5);
     let moved: Vec<Point3> = at(&mesh, &handles)
@@ -117,7 +117,7 @@ fn occluded_handles_match_a_refactorised_solver() {
                 ref_targets.push(*t);
             }
         }
-        let reference = ArapSolver::new(&mesh, &config, &ref_fixed, &[]).unwrap();
+        let reference = PartSolver::new(&mesh, &config, &ref_fixed, &[]).unwrap();
         let expected = reference.solve(&ref_targets, &[], Start::Rest).unwrap();
         let err = max_error(ws.vertices(), &expected.vertices);
         assert!(err < 1e-10, "visible {visible:07b}: {err:e}");
@@ -141,11 +141,11 @@ fn bad_input_gives_typed_errors() {
     let n = mesh.num_vertices();
     let c = ArapConfig::default();
     assert_eq!(
-        ArapSolver::new(&mesh, &c, &[], &[]).unwrap_err(),
+        PartSolver::new(&mesh, &c, &[], &[]).unwrap_err(),
         ArapError::Unanchored { vertex: 0 }
     );
     assert_eq!(
-        ArapSolver::new(&mesh, &c, &[0, n as u32], &[]).unwrap_err(),
+        PartSolver::new(&mesh, &c, &[0, n as u32], &[]).unwrap_err(),
         ArapError::VertexOutOfRange {
             what: "fixed",
             index: n,
@@ -153,21 +153,21 @@ fn bad_input_gives_typed_errors() {
         }
     );
     assert_eq!(
-        ArapSolver::new(&mesh, &c, &[3, 3], &[]).unwrap_err(),
+        PartSolver::new(&mesh, &c, &[3, 3], &[]).unwrap_err(),
         ArapError::DuplicateVertex {
             what: "fixed",
             vertex: 3
         }
     );
     assert_eq!(
-        ArapSolver::new(&mesh, &c, &[3], &[3]).unwrap_err(),
+        PartSolver::new(&mesh, &c, &[3], &[3]).unwrap_err(),
         ArapError::DuplicateVertex {
             what: "handle",
             vertex: 3
         }
     );
     assert_eq!(
-        ArapSolver::new(&mesh, &c, &[3], &[9, 99]).unwrap_err(),
+        PartSolver::new(&mesh, &c, &[3], &[9, 99]).unwrap_err(),
         ArapError::VertexOutOfRange {
             what: "handle",
             index: 99,
@@ -179,10 +179,10 @@ fn bad_input_gives_typed_errors() {
         ..Default::default()
     };
     assert!(matches!(
-        ArapSolver::new(&mesh, &bad_alpha, &[3], &[]),
+        PartSolver::new(&mesh, &bad_alpha, &[3], &[]),
         Err(ArapError::InvalidConfig { name: "alpha", .. })
     ));
-    let solver = ArapSolver::new(&mesh, &c, &[3], &[9]).unwrap();
+    let solver = PartSolver::new(&mesh, &c, &[3], &[9]).unwrap();
     let p = mesh.vertices()[3];
     let nan = Point3::new(0.0, Real::NAN, 0.0);
     assert_eq!(
@@ -249,7 +249,7 @@ proptest! {
             .collect();
         let energy = if rims { ArapEnergy::SpokesAndRims } else { ArapEnergy::Smoothed };
         let config = ArapConfig { energy, alpha: 0.0, iterations: 15, parallel: false };
-        let solver = ArapSolver::new(&mesh, &config, &fixed, &[]).unwrap();
+        let solver = PartSolver::new(&mesh, &config, &fixed, &[]).unwrap();
         let sol = solver.solve(&targets, &[], Start::Rest).unwrap();
         let e = &sol.info.energy;
         prop_assert_eq!(e.len(), 15);
@@ -279,7 +279,7 @@ fn parallel_and_sequential_local_steps_agree_exactly() {
             parallel,
             ..Default::default()
         };
-        let solver = ArapSolver::new(&mesh, &config, &fixed, &handles).unwrap();
+        let solver = PartSolver::new(&mesh, &config, &fixed, &handles).unwrap();
         let mut ws = solver.workspace();
         let mut info = ArapInfo::default();
         solver

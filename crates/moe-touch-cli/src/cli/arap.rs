@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::{ArapConfig, ArapEnergy, ComponentSolver, HandleTargets, Start};
+use moe_arap::{ArapConfig, ArapEnergy, ArapSolver, HandleTargets, Start};
 use moe_geom::Point3;
 use serde::{Deserialize, Serialize};
 
@@ -88,7 +88,7 @@ pub(crate) fn run(args: ArapArgs) -> Result<()> {
         iterations: args.iterations,
         parallel: true,
     };
-    let solver = ComponentSolver::new(&mesh, &config, &handles.vertices, &[])
+    let solver = ArapSolver::new(&mesh, &config, &handles.vertices, &[])
         .with_context(|| format!("setting up ARAP on {}", args.mesh.display()))?;
     let solution = solver.solve(&handles.targets, &[], Start::Rest)?;
     let max_displacement = solution
