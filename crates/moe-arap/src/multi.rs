@@ -1,12 +1,13 @@
 //! Multi-finger shape estimation: one SR-ARAP solver per finger of a hand, solved in parallel.
 //!
 //! Each finger's base vertices are fixed at rest; each observed marker pulls one handle vertex
-//! onto its keypoint. Handle vertices follow the paper's rule so that a user's own markers work:
-//! when a marker is first observed, its handle is the rest-mesh vertex nearest to the observed
-//! keypoint (skipping base vertices and vertices already taken by another marker), and it is kept
-//! from then on. The hand should therefore be relaxed (near rest) when a marker is first seen, as
-//! it is when a camera stream starts; a marker first seen on a strongly bent finger would be
-//! attached to the wrong vertex. Missing markers are dropped for the frame without refactorising.
+//! onto its keypoint. [`MultiShapeEstimator::new`] attaches every marker to the rest-mesh vertex
+//! nearest its rest position (the marker's own vertex), so the first frame may be strongly bent.
+//! [`MultiShapeEstimator::unattached`] keeps the paper's rule instead: when a marker is first
+//! observed, its handle is the rest-mesh vertex nearest to the observed keypoint (skipping base
+//! vertices and vertices already taken by another marker), kept from then on — the hand must
+//! then be relaxed when a marker is first seen. Missing markers are dropped for the frame without
+//! refactorising.
 
 use moe_geom::{HandKeypoints, HandModel, HandShape, Point3, PointIndex, Real};
 use rayon::prelude::*;
@@ -183,7 +184,8 @@ impl MultiShapeEstimator {
         &self.options
     }
 
-    /// Handle vertex of every marker of finger `finger` (`None` until first observed).
+    /// Handle vertex of every marker of finger `finger` (`None` until attached: never with
+    /// [`MultiShapeEstimator::new`], until first observed with `unattached`).
     ///
     /// # Panics
     /// If `finger` is out of range (a programming error).

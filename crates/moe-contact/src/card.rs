@@ -204,14 +204,49 @@ pub struct ModelCard {
     pub hand: Option<CardHand>,
     /// How the weights were trained (optimiser, schedule, loss, seed, wall time, the command that
     /// reproduces them).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "provenance")]
     pub training: Option<CardTraining>,
     /// The data the model was trained on.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "dataset_section")]
     pub dataset: Option<CardDataset>,
     /// The learning curve.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "provenance")]
     pub metrics: Option<CardMetrics>,
+}
+
+/// A provenance section (training, learning curve) as its typed record. One written by an
+/// earlier version in another form is dropped on reading, not refused: the weights, the
+/// architecture, the threshold and the hand are what a model needs to run.
+fn provenance<'de, D, T>(d: D) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::de::DeserializeOwned,
+{
+    let value = Option::<serde_json::Value>::deserialize(d)?;
+    Ok(value.and_then(|v| serde_json::from_value(v).ok()))
+}
+
+/// The data set section; the one-record form earlier versions wrote for a single data set
+/// (`{"dir": …, "seed": …, …, "train_frames": …}`) is read as a list of one.
+fn dataset_section<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<Option<CardDataset>, D::Error> {
+    let Some(mut value) = Option::<serde_json::Value>::deserialize(d)? else {
+        return Ok(None);
+    };
+    if let Some(map) = value.as_object_mut()
+        && !map.contains_key("sets")
+        && map.contains_key("dir")
+    {
+        let counts: Vec<(String, serde_json::Value)> = ["train_frames", "validation_frames"]
+            .iter()
+            .filter_map(|k| map.remove(*k).map(|v| ((*k).to_owned(), v)))
+            .collect();
+        let source = serde_json::Value::Object(std::mem::take(map));
+        map.insert("sets".into(), serde_json::Value::Array(vec![source]));
+        map.extend(counts);
+    }
+    Ok(serde_json::from_value(value).ok())
 }
 
 fn default_threshold() -> f64 {
@@ -327,6 +362,25 @@ mod tests {
         let epochs = back.metrics.unwrap().epochs;
         assert!(epochs[0].validation_contact_bcd_mm.is_nan());
         assert_eq!(epochs[0].validation_miss_rate, 1.0);
+    }
+
+    /// Cards written before the sections were typed still load: the one-record data set form is
+    /// read as a list of one, and a provenance section of another form is dropped, not refused.
+    #[test]
+    fn earlier_cards_still_load() {
+        let mut v = serde_json::to_value(ModelCard::new(DgcnnConfig::default())).unwrap();
+        v["dataset"] = serde_json::json!({
+            "dir": "data/press800", "seed": 2026, "frames": 100, "trajectories": 8,
+            "label_rule": "press", "regenerate": "moe-touch gen-data", "generator": {},
+            "train_frames": 70, "validation_frames": 10
+        });
+        v["training"] = serde_json::json!({ "epochs": 3, "something": "else" });
+        v["metrics"] = serde_json::json!([1, 2, 3]);
+        let card = ModelCard::from_json(&v.to_string()).unwrap();
+        let data = card.dataset.unwrap();
+        assert_eq!((data.sets.len(), data.train_frames), (1, 70));
+        assert_eq!(data.sets[0].dir, "data/press800");
+        assert!(card.training.is_none() && card.metrics.is_none());
     }
 
     #[test]

@@ -110,7 +110,8 @@ pub enum ContactError {
     /// The model was trained on another hand than the one it is asked to run on.
     #[error(
         "the model was trained on the hand '{card_hand}' ({card_vertices:?} vertices per finger); \
-         this hand has {hand_vertices:?}{rule}"
+         this hand has {hand_vertices:?}{rule}; a model for this hand is trained on its own \
+         simulated data (`moe-touch gen-data`, then `moe-touch train`)"
     )]
     HandMismatch {
         /// The card's hand name.

@@ -443,7 +443,9 @@ fn start_trainer(
     let history_path = options.history_path();
     if options.resume && ckpt_path.exists() {
         let bytes = moe_io::read_bytes(&ckpt_path)?;
-        let trainer = Trainer::resume(arch.clone(), config.clone(), train, &Checkpoint { bytes })?;
+        let trainer =
+            Trainer::resume(arch.clone(), config.clone(), train, &Checkpoint { bytes })
+                .map_err(|e| training(format!("resuming from {}: {e}", ckpt_path.display())))?;
         let mut history: Vec<EpochRecord> = if history_path.exists() {
             moe_io::read_json(&history_path)?
         } else {
@@ -461,7 +463,8 @@ fn start_trainer(
             let files = moe_io::read_model_files(path)?;
             // Features added after the initial weights' own start with zero weights.
             let weights = ModelWeights::parse(&files.weights)
-                .and_then(|w| w.with_input_channels(train.channels()))?;
+                .and_then(|w| w.with_input_channels(train.channels()))
+                .map_err(|e| training(format!("initial weights {}: {e}", path.display())))?;
             log(&format!(
                 "train: starting from the weights of {}",
                 path.display()
@@ -690,7 +693,8 @@ fn init_input_of(init: Option<&Path>, spec: &InputSpec) -> Result<Option<InputSp
     };
     let files = moe_io::read_model_files(path)?;
     let Some(text) = files.card else {
-        let weights = ModelWeights::parse(&files.weights)?;
+        let weights = ModelWeights::parse(&files.weights)
+            .map_err(|e| training(format!("initial weights {}: {e}", path.display())))?;
         let channels = weights.get("edge1.theta").map(|(shape, _)| shape[1]);
         if channels != Some(spec.channels()) {
             return Err(training(format!(
@@ -704,7 +708,10 @@ fn init_input_of(init: Option<&Path>, spec: &InputSpec) -> Result<Option<InputSp
         }
         return Ok(None);
     };
-    let input = ModelCard::from_json(&text)?.architecture.input;
+    let input = ModelCard::from_json(&text)
+        .map_err(|e| training(format!("model card {}: {e}", files.card_path.display())))?
+        .architecture
+        .input;
     if input.features != spec.features
         && (!spec.features.starts_with(&input.features)
             || input.frame != spec.frame

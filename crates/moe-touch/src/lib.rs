@@ -7,14 +7,14 @@
 //!   `moe-touch` tool (contact from physics, no model); [`Pipeline::new`] takes any shape and
 //!   contact estimator, such as SR-ARAP and a trained network
 //!   ([`pipeline::load_contact_model`]).
+//! - [`perception`]: red markers in an RGB-D frame to tracked keypoints per finger.
+//! - [`filter`]: temporal filters on keypoints and contact maps.
 //!
 //! # Features
 //! - `physics`: the physics estimator's pipeline (`PhysicsPipeline`). It simulates the fingers
 //!   with the FEM model of `moe-tendon-sim`, which is therefore in the dependency tree only
 //!   with this feature.
 //! - `cuda`: the contact network on a CUDA device.
-//! - [`perception`]: red markers in an RGB-D frame to tracked keypoints per finger.
-//! - [`filter`]: temporal filters on keypoints and contact maps.
 //!
 //! Architecture invariant: library code that takes and returns in-memory values (file access
 //! goes through `moe-io`); no simulator (without `physics`), no command-line parsing, no image

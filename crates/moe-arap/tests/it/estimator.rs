@@ -43,7 +43,7 @@ fn occluded_markers_are_dropped_per_frame_without_error() {
             assert_eq!(r.iterations, 20);
             assert_eq!(r.markers_used.len(), 7 - missing.len());
             assert!(missing.iter().all(|m| !r.markers_used.contains(m)));
-            // Handle vertices were assigned in the first frame and kept.
+            // Handle vertices were attached when the estimator was built and kept.
             assert_eq!(est.handle_vertices(i), finger_handles.as_slice());
             // Visible markers sit exactly on their keypoints.
             let kp = bent_keypoints(&hand, tip, &missing);

@@ -25,7 +25,7 @@
 //! sees them (a corrupt length would otherwise make it reserve that much memory — the fuzz
 //! tests found one in a damaged zstd chunk), and a panic in the MCAP or protobuf decoders
 //! becomes [`IoError::ParserPanic`](crate::IoError::ParserPanic). Compression shrinks a frame about threefold (the
-//! noisy depth image compresses least; sizes in the docs/results.md). Unchunked, uncompressed files (as
+//! noisy depth image compresses least; sizes in docs/results.md). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
 #[cfg(feature = "mcap")]

@@ -436,10 +436,10 @@ fn hand_difference(a: &HandModel, b: &HandModel) -> Option<String> {
 fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
     let reader = DatasetReader::open(dir)?;
     let card = reader.card();
-    let params = moe_lab::datagen::dataset_params(card)
-        .with_context(|| format!("{}: the data set's card", dir.display()))?;
-    let data_hand = moe_lab::datagen::dataset_hand(&reader)
-        .with_context(|| format!("{}: the data set's hand", dir.display()))?;
+    let params =
+        moe_lab::datagen::dataset_params(card).with_context(|| dir.display().to_string())?;
+    let data_hand =
+        moe_lab::datagen::dataset_hand(&reader).with_context(|| dir.display().to_string())?;
     let (hand, hand_name) = match &args.hand {
         Some(spec) => {
             let hand = super::load_hand(spec)?;

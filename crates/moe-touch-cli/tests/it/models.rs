@@ -20,7 +20,7 @@ fn shipped_cards_name_the_two_finger_preset_finger_and_refuse_another() {
         let (weights, json) = model(name);
         let card = moe_contact::ModelCard::from_json(&json).unwrap();
         let trained = card.hand.as_ref().unwrap();
-        assert_eq!(trained.finger_digests, vec![digest.clone()], "{name}");
+        assert_eq!(trained.finger_digests, vec![digest.clone(); 2], "{name}");
         assert!(card.training.is_some() && card.dataset.is_some(), "{name}");
         assert!(!card.metrics.as_ref().unwrap().epochs.is_empty(), "{name}");
         // The finger alone, from its mesh: no markers or hand needed.

@@ -567,7 +567,7 @@ pub(crate) const HELDOUT_DIR: &str = "fixtures/contact/heldout";
 /// The shipped contact model.
 pub(crate) const SHIPPED_MODEL: &str = "models/contact-two-finger.safetensors";
 
-/// Arguments of `cargo xtask heldout-shard`.
+/// Arguments of `moe-touch heldout-shard`.
 #[derive(Debug, Args)]
 pub(crate) struct HeldoutArgs {
     /// Data set to take test frames from.
