@@ -71,6 +71,9 @@ pub mod obj;
 /// Stanford PLY.
 pub mod ply;
 /// Pipeline results over an episode, as MCAP for Foxglove.
+/// ROS 2 recordings in (rosbag2 with MCAP storage, CDR messages).
+#[cfg(feature = "mcap")]
+pub mod ros2;
 #[cfg(feature = "mcap")]
 pub mod run_output;
 /// STL.

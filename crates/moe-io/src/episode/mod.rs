@@ -52,6 +52,8 @@ pub(crate) use foxglove::{
     timestamp, write_info, write_message,
 };
 #[cfg(feature = "mcap")]
+pub(crate) use read::check_declared_lengths;
+#[cfg(feature = "mcap")]
 pub use read::{parse_episode, parse_episode_prefix, read_episode};
 #[cfg(feature = "mcap")]
 pub use write::{EpisodeWriter, create_episode, write_episode};

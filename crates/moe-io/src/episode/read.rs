@@ -16,7 +16,7 @@ use crate::error::IoError;
 /// chunk. A top-level record that runs past the end of the file is truncation: the bytes the
 /// reader gets end before it, and it reports the frames before the cut. Returns how many bytes
 /// to read. (Decompressing twice costs about a millisecond per 640 × 480 frame.)
-fn check_declared_lengths(path: &Path, bytes: &[u8]) -> Result<usize, IoError> {
+pub(crate) fn check_declared_lengths(path: &Path, bytes: &[u8]) -> Result<usize, IoError> {
     const CHUNK: u8 = 0x06;
     let magic = mcap::MAGIC.len();
     if bytes.len() < magic {

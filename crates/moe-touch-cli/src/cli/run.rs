@@ -118,10 +118,16 @@ impl EstimatorArgs {
 /// Arguments of `moe-touch run`.
 #[derive(Debug, Args)]
 pub(crate) struct RunArgs {
-    /// Episode to read (MCAP, as `moe-touch sim --out EP.mcap` records it). An episode cut
-    /// short runs up to its last complete frame, and the cut is reported.
-    #[arg(long, value_name = "EP.mcap")]
+    /// Episode to read: MCAP as `moe-touch sim --out EP.mcap` records it (an episode cut short
+    /// runs up to its last complete frame, and the cut is reported), or a ROS 2 recording (a
+    /// rosbag2 directory with MCAP storage, or an MCAP file of CDR messages).
+    #[arg(long, value_name = "EP.mcap|BAG")]
     episode: PathBuf,
+    /// The ROS 2 recording's topics, frame names, pairing tolerance and tendon joint names
+    /// (TOML `RosConfig`; defaults: `realsense2_camera`'s topics, frames `world` and `hand`).
+    /// Implies that `--episode` is a ROS 2 recording.
+    #[arg(long, value_name = "CONFIG.toml")]
+    ros: Option<PathBuf>,
     #[command(flatten)]
     estimator: EstimatorArgs,
     /// physics: length of a force arrow in the result file per newton, metres [default: 0.2,
@@ -181,16 +187,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         Some(path) => moe_io::read_config(path)?,
         None => DetectorConfig::default(),
     };
-    let bytes = std::fs::read(&args.episode)
-        .with_context(|| format!("reading {}", args.episode.display()))?;
-    let (episode, cut) = moe_io::parse_episode_prefix(&args.episode, &bytes);
-    let Some(episode) = episode else {
-        return Err(match cut {
-            Some(err) => err.into(),
-            None => anyhow::anyhow!("{}: holds no episode", args.episode.display()),
-        });
-    };
     let hand = super::load_hand(&args.hand)?;
+    let (episode, cut) = read_episode(&args, &hand)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
     let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
@@ -230,6 +228,34 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
                 Some(force_scale),
             )
         }
+    }
+}
+
+/// The episode of `--episode`: a ROS 2 recording (with `--ros`, or when it is one), or an
+/// episode MCAP, with the error that cut it short if it was.
+fn read_episode(
+    args: &RunArgs,
+    hand: &moe_geom::HandModel,
+) -> Result<(moe_io::Episode, Option<moe_io::IoError>)> {
+    if args.ros.is_some() || moe_io::ros2::is_ros2_recording(&args.episode) {
+        let config: moe_io::ros2::RosConfig = match &args.ros {
+            Some(path) => moe_io::read_config(path)?,
+            None => moe_io::ros2::RosConfig::default(),
+        };
+        return Ok((
+            moe_io::ros2::read_ros2_bag(&args.episode, &config, hand)?,
+            None,
+        ));
+    }
+    let bytes = std::fs::read(&args.episode)
+        .with_context(|| format!("reading {}", args.episode.display()))?;
+    let (episode, cut) = moe_io::parse_episode_prefix(&args.episode, &bytes);
+    match episode {
+        Some(episode) => Ok((episode, cut)),
+        None => Err(match cut {
+            Some(err) => err.into(),
+            None => anyhow::anyhow!("{}: holds no episode", args.episode.display()),
+        }),
     }
 }
 

@@ -10,5 +10,6 @@ mod models;
 mod physics;
 mod pipeline;
 mod plane;
+mod ros2;
 mod sim;
 mod surface;

@@ -1,0 +1,27 @@
+//! ROS 2 recordings in: a rosbag2 directory (its `metadata.yaml` and MCAP storage) or one MCAP
+//! file whose messages are CDR, read into an [`Episode`](crate::Episode) the pipeline runs on.
+//!
+//! | what | message | default topic (`realsense2_camera`) |
+//! |---|---|---|
+//! | colour | `sensor_msgs/msg/Image`, `rgb8` or `bgr8` | `/camera/camera/color/image_raw` |
+//! | depth, aligned to colour | `sensor_msgs/msg/Image`, `16UC1` (mm) or `32FC1` (m) | `/camera/camera/aligned_depth_to_color/image_raw` |
+//! | intrinsics | `sensor_msgs/msg/CameraInfo` | `/camera/camera/color/camera_info` |
+//! | poses | `tf2_msgs/msg/TFMessage` | `/tf`, `/tf_static` |
+//! | tendon pulls | `sensor_msgs/msg/JointState` (position, metres) | `/hand/tendons` |
+//!
+//! Topics, frame names, the pairing tolerance and the joint name of every tendon come from a
+//! [`RosConfig`](crate::ros2::RosConfig) (a small TOML file). A frame is a colour image and the depth image nearest to
+//! it in time (within the tolerance), the hand's pose in the world from TF at the colour
+//! image's stamp (the latest transform at or before it; static transforms always), and the
+//! tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is
+//! the TF path from the hand frame to the colour image's frame. Recordings have no ground truth:
+//! the frames' truth fields are empty.
+
+/// CDR decoding of the messages.
+pub mod cdr;
+
+mod bag;
+mod write;
+
+pub use bag::{RosConfig, is_ros2_recording, read_ros2_bag};
+pub use write::{CAMERA_FRAME, DepthEncoding, write_ros2_bag};

@@ -1,0 +1,151 @@
+//! ROS 2 recordings in: an episode written as a rosbag2 recording reads back as the same
+//! frames, and `moe-touch run` on the recording finds what it finds on the episode.
+
+use std::path::Path;
+
+use moe_geom::{FingerParams, HandModel, HandPreset, Point3};
+use moe_io::ros2::{DepthEncoding, RosConfig, read_ros2_bag, write_ros2_bag};
+
+use crate::common::{fixtures, run, scratch};
+
+fn hand() -> HandModel {
+    HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap()
+}
+
+fn episode_path() -> std::path::PathBuf {
+    fixtures().join("episodes/plate_tip_front_small.mcap")
+}
+
+/// `16UC1` depth comes back within its millimetre quantisation, everything else exactly (poses
+/// to rounding, through quaternions).
+#[test]
+fn an_episode_written_as_a_bag_reads_back_as_its_frames() {
+    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let dir = scratch("ros2-roundtrip").join("bag");
+    let config = RosConfig::default();
+    write_ros2_bag(&dir, &episode, &config, DepthEncoding::Millimetres16).unwrap();
+    assert!(moe_io::ros2::is_ros2_recording(&dir));
+    let back = read_ros2_bag(&dir, &config, &hand()).unwrap();
+    assert_eq!(back.frames.len(), episode.frames.len());
+    assert_eq!(back.info.camera, episode.info.camera);
+    let p = Point3::new(0.01, -0.02, 0.03);
+    let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
+    assert!(close(
+        back.info.hand_from_camera * p,
+        episode.info.hand_from_camera * p
+    ));
+    for (a, b) in back.frames.iter().zip(&episode.frames) {
+        assert_eq!(a.time_ns, b.time_ns - episode.frames[0].time_ns);
+        assert_eq!(a.color_rgb8, b.color_rgb8);
+        assert_eq!(a.tendon_pull_m, b.tendon_pull_m);
+        assert!(close(a.world_from_hand * p, b.world_from_hand * p));
+        for (x, y) in a.depth_m.iter().zip(&b.depth_m) {
+            assert!((x - y).abs() <= 0.0005 + 1e-6, "{x} vs {y}");
+        }
+    }
+    // Writing into an existing directory is refused and changes nothing.
+    let err = write_ros2_bag(&dir, &episode, &config, DepthEncoding::Metres32).unwrap_err();
+    assert!(err.to_string().contains("already exists"), "{err}");
+}
+
+fn run_json(episode: &Path, out: &Path) -> serde_json::Value {
+    let model = fixtures().join("../models/contact-two-finger.safetensors");
+    let o = run(&[
+        "run",
+        "--contact",
+        "dgcnn",
+        "--model",
+        model.to_str().unwrap(),
+        "--episode",
+        episode.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--report",
+        out.with_extension("json").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_str(&std::fs::read_to_string(out.with_extension("json")).unwrap()).unwrap()
+}
+
+/// The same frames as a ROS 2 recording (exact depth): the same markers and contacts, frame by
+/// frame; a recording has no ground truth to score.
+#[test]
+fn run_on_a_recording_finds_what_it_finds_on_the_episode() {
+    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let root = scratch("ros2-run");
+    let bag = root.join("bag");
+    write_ros2_bag(
+        &bag,
+        &episode,
+        &RosConfig::default(),
+        DepthEncoding::Metres32,
+    )
+    .unwrap();
+    let from_episode = run_json(&episode_path(), &root.join("a.mcap"));
+    let from_bag = run_json(&bag, &root.join("b.mcap"));
+    assert_eq!(from_bag["frames"], from_episode["frames"]);
+    let frames = |v: &serde_json::Value| -> Vec<(u64, u64)> {
+        v["per_frame"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .map(|f| {
+                        (
+                            f["markers_found"].as_u64().unwrap(),
+                            f["contact_points"].as_u64().unwrap(),
+                        )
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    assert!(!frames(&from_episode).is_empty());
+    assert_eq!(frames(&from_bag), frames(&from_episode));
+    assert!(from_bag["contact"].is_null() && !from_episode["contact"].is_null());
+}
+
+/// A recording without its colour topic, or with a tendon joint the config names but the
+/// recording lacks: one error line, nothing written.
+#[test]
+fn bad_recordings_give_one_error_line_and_no_output() {
+    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let root = scratch("ros2-bad");
+    let bag = root.join("bag");
+    let renamed = RosConfig {
+        color_topic: "/elsewhere/image".into(),
+        ..RosConfig::default()
+    };
+    write_ros2_bag(&bag, &episode, &renamed, DepthEncoding::Metres32).unwrap();
+    let out = root.join("r.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        bag.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let line = crate::common::assert_one_line_error(&o);
+    assert!(
+        line.contains("no message on the colour topic /camera/camera/color/image_raw"),
+        "{line}"
+    );
+    assert!(!out.exists());
+    let config = root.join("ros.toml");
+    std::fs::write(
+        &config,
+        "color_topic = \"/elsewhere/image\"\ntendon_joints = [[\"a\", \"b\", \"c\", \"d\"], [\"e\", \"f\", \"g\", \"h\"]]\n",
+    )
+    .unwrap();
+    let o = run(&[
+        "run",
+        "--episode",
+        bag.to_str().unwrap(),
+        "--ros",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let line = crate::common::assert_one_line_error(&o);
+    assert!(line.contains("has no joint 'a'"), "{line}");
+    assert!(!out.exists());
+}
