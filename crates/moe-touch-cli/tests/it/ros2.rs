@@ -149,3 +149,74 @@ fn bad_recordings_give_one_error_line_and_no_output() {
     assert!(line.contains("has no joint 'a'"), "{line}");
     assert!(!out.exists());
 }
+
+/// The recording `tools/episode_to_rosbag.py` made of the example episode with the `rosbags`
+/// library (its CDR serialiser and MCAP writer, not ours): the same images (colour bit for bit,
+/// depth within `16UC1`'s millimetre), poses and pulls as its source episode.
+#[test]
+fn a_recording_written_by_rosbags_decodes_to_its_source_episode() {
+    let bag = fixtures().join("episodes/plate_tip_front_small_ros2");
+    assert!(moe_io::ros2::is_ros2_recording(&bag));
+    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let back = read_ros2_bag(&bag, &RosConfig::default(), &hand()).unwrap();
+    assert_eq!(back.frames.len(), episode.frames.len());
+    assert_eq!(back.info.camera, episode.info.camera);
+    let p = Point3::new(0.01, -0.02, 0.03);
+    let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
+    assert!(close(
+        back.info.hand_from_camera * p,
+        episode.info.hand_from_camera * p
+    ));
+    for (a, b) in back.frames.iter().zip(&episode.frames) {
+        assert_eq!(a.color_rgb8, b.color_rgb8);
+        assert_eq!(a.tendon_pull_m, b.tendon_pull_m);
+        assert!(close(a.world_from_hand * p, b.world_from_hand * p));
+        for (x, y) in a.depth_m.iter().zip(&b.depth_m) {
+            assert!((x - y).abs() <= 0.0005 + 1e-6, "{x} vs {y}");
+        }
+    }
+}
+
+/// `run` (the default physics pipeline) on the rosbags recording: the frames with contact are the
+/// episode's, and depth rounded to the millimetre moves at most one marker per frame.
+#[test]
+fn run_on_the_rosbags_recording_finds_the_episodes_contact_frames() {
+    let root = scratch("ros2-rosbags-run");
+    let report = |episode: &Path, name: &str| -> Vec<(u64, u64)> {
+        let out = root.join(format!("{name}.mcap"));
+        let json = root.join(format!("{name}.json"));
+        let o = run(&[
+            "run",
+            "--episode",
+            episode.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--report",
+            json.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        v["per_frame"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| {
+                (
+                    f["markers_found"].as_u64().unwrap(),
+                    f["contact_points"].as_u64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let a = report(&episode_path(), "episode");
+    let b = report(
+        &fixtures().join("episodes/plate_tip_front_small_ros2"),
+        "bag",
+    );
+    assert_eq!(a.len(), b.len());
+    for (k, ((ma, ca), (mb, cb))) in a.iter().zip(&b).enumerate() {
+        assert!(ma.abs_diff(*mb) <= 1, "frame {k}: {a:?} vs {b:?}");
+        assert_eq!(*ca > 0, *cb > 0, "frame {k}: {a:?} vs {b:?}");
+    }
+}
