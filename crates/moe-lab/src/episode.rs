@@ -99,29 +99,12 @@ impl EpisodeRecorder {
         }
         let camera = scene.config().camera;
         let hand = scene.hand();
-        // An episode records one tendon count for the hand.
-        let tendons_per_finger = hand.tendons_per_finger()?;
-        let info = EpisodeInfo {
-            scene: name.to_owned(),
-            camera: camera.intrinsics.into(),
-            hand_from_camera: *camera.hand_from_camera.iso(),
-            hand_from_finger: hand
-                .fingers()
-                .iter()
-                .map(|f| *f.hand_from_finger.iso())
-                .collect(),
-            finger_faces: hand
-                .fingers()
-                .iter()
-                .map(|f| f.model.mesh().faces().to_vec())
-                .collect(),
-            finger_num_vertices: hand
-                .fingers()
-                .iter()
-                .map(|f| f.model.mesh().num_vertices())
-                .collect(),
-            tendons_per_finger,
-        };
+        let info = EpisodeInfo::for_hand(
+            name,
+            camera.intrinsics.into(),
+            *camera.hand_from_camera.iso(),
+            hand,
+        )?;
         let obstacle_surfaces = scene
             .config()
             .obstacles

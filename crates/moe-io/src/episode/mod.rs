@@ -118,6 +118,43 @@ impl From<CameraInfo> for moe_geom::CameraIntrinsics {
     }
 }
 
+impl EpisodeInfo {
+    /// The fixed information of an episode of `hand` seen by a camera with intrinsics `camera`
+    /// mounted at `hand_from_camera`: the fingers' poses, faces and vertex counts, and the
+    /// tendon count, from the hand.
+    ///
+    /// # Errors
+    /// A hand whose fingers have different numbers of tendons (an episode records one count).
+    pub fn for_hand(
+        scene: impl Into<String>,
+        camera: CameraInfo,
+        hand_from_camera: Iso3,
+        hand: &moe_geom::HandModel,
+    ) -> Result<Self, moe_geom::GeomError> {
+        Ok(Self {
+            scene: scene.into(),
+            camera,
+            hand_from_camera,
+            hand_from_finger: hand
+                .fingers()
+                .iter()
+                .map(|f| *f.hand_from_finger.iso())
+                .collect(),
+            finger_faces: hand
+                .fingers()
+                .iter()
+                .map(|f| f.model.mesh().faces().to_vec())
+                .collect(),
+            finger_num_vertices: hand
+                .fingers()
+                .iter()
+                .map(|f| f.model.mesh().num_vertices())
+                .collect(),
+            tendons_per_finger: hand.tendons_per_finger()?,
+        })
+    }
+}
+
 /// What stays fixed over an episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

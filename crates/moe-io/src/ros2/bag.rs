@@ -558,36 +558,19 @@ fn assemble(
             ),
         );
     }
-    let info = EpisodeInfo {
-        scene: path
-            .file_stem()
-            .map_or_else(|| "ros2".into(), |s| s.to_string_lossy().into_owned()),
-        camera: CameraInfo {
-            width: info.width,
-            height: info.height,
-            fx: info.k[0],
-            fy: info.k[4],
-            cx: info.k[2],
-            cy: info.k[5],
-        },
-        hand_from_camera,
-        hand_from_finger: hand
-            .fingers()
-            .iter()
-            .map(|f| *f.hand_from_finger.iso())
-            .collect(),
-        finger_faces: hand
-            .fingers()
-            .iter()
-            .map(|f| f.model.mesh().faces().to_vec())
-            .collect(),
-        finger_num_vertices: hand
-            .fingers()
-            .iter()
-            .map(|f| f.model.mesh().num_vertices())
-            .collect(),
-        tendons_per_finger: names.first().map_or(0, Vec::len),
+    let scene = path
+        .file_stem()
+        .map_or_else(|| "ros2".into(), |s| s.to_string_lossy().into_owned());
+    let camera = CameraInfo {
+        width: info.width,
+        height: info.height,
+        fx: info.k[0],
+        fy: info.k[4],
+        cx: info.k[2],
+        cy: info.k[5],
     };
+    let info = EpisodeInfo::for_hand(scene, camera, hand_from_camera, hand)
+        .map_err(|e| IoError::invalid(path, "hand", e.to_string()))?;
     Ok(Episode { info, frames })
 }
 
@@ -885,6 +868,18 @@ mod tests {
             assert!(
                 read_ros2_bag(&file, &RosConfig::default(), &hand()).is_err(),
                 "cut {cut}"
+            );
+        }
+        // Splices: the head of one recording on the tail of another, at many cuts.
+        let other = bag(&recording()[..6]);
+        for cut in (0..bytes.len().min(other.len())).step_by(101) {
+            let mut b = bytes[..cut].to_vec();
+            b.extend_from_slice(&other[cut..]);
+            std::fs::write(&file, &b).unwrap();
+            let r = read_ros2_bag(&file, &RosConfig::default(), &hand());
+            assert!(
+                !matches!(r, Err(IoError::ParserPanic { .. })),
+                "splice at {cut}"
             );
         }
         for at in (0..bytes.len()).step_by(13) {
