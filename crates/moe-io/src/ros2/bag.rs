@@ -111,17 +111,33 @@ impl Tf {
         Ok(())
     }
 
-    /// `parent_from_child` of one edge at time `t`: the static transform, or the latest at or
-    /// before `t` (the earliest when `t` precedes them all).
+    /// `parent_from_child` of one edge at time `t`: the static transform; between two stamped
+    /// transforms, their interpolation (translation linear, rotation spherical), as tf2 looks
+    /// transforms up; before the first or after the last, the nearest one.
     fn edge_at(list: &[(Option<i64>, Iso3)], t: i64) -> Iso3 {
         if let Some((None, iso)) = list.first() {
             return *iso;
         }
-        list.iter()
-            .rev()
-            .find(|(s, _)| s.is_some_and(|s| s <= t))
-            .or(list.first())
-            .map_or_else(Iso3::identity, |(_, iso)| *iso)
+        let after = list.partition_point(|(s, _)| s.is_some_and(|s| s <= t));
+        match (after.checked_sub(1).map(|i| &list[i]), list.get(after)) {
+            (Some((Some(s0), a)), Some((Some(s1), b))) if s1 > s0 => {
+                let f = (t - s0) as f64 / (s1 - s0) as f64;
+                let translation = a.translation.vector.lerp(&b.translation.vector, f);
+                // q and −q are one rotation: interpolate towards the nearer sign. Rotations half
+                // a turn apart have no unique arc; the nearer stamp's is kept.
+                let to = if a.rotation.coords.dot(&b.rotation.coords) < 0.0 {
+                    UnitQuaternion::new_unchecked(-b.rotation.into_inner())
+                } else {
+                    b.rotation
+                };
+                let nearer = if f < 0.5 { a.rotation } else { b.rotation };
+                let rotation = a.rotation.try_slerp(&to, f, 1e-9).unwrap_or(nearer);
+                Iso3::from_parts(translation.into(), rotation)
+            }
+            (Some((_, a)), _) => *a,
+            (None, Some((_, b))) => *b,
+            (None, None) => Iso3::identity(),
+        }
     }
 
     /// `to_from_from` at time `t` through the tree, edges used either way.
@@ -237,7 +253,8 @@ pub fn read_ros2_bag(
             read_messages(&file, bytes, config, &mut messages)
         })?;
     }
-    assemble(path, config, hand, messages)
+    // A second line of defence, as for the third-party parsers: a panic becomes an error.
+    crate::files::guarded(path, "ros2", || assemble(path, config, hand, messages))
 }
 
 fn read_messages(
@@ -854,6 +871,44 @@ mod tests {
         late[7].3 = image(50_000_000, "cam", "rgb8", 3, |_| vec![0, 0, 0]);
         late[7].2 = t;
         assert!(err(&late, &config).contains("timestamps out of order"));
+    }
+
+    /// Between two stamped transforms the pose is interpolated (translation linearly, rotation
+    /// along the arc); outside them it is the nearest; a static transform holds at any time.
+    #[test]
+    fn transforms_are_interpolated_between_stamps() {
+        let at = |stamp: i64, x: f64, yaw_deg: f64| {
+            let half = yaw_deg.to_radians() / 2.0;
+            TransformStamped {
+                header: cdr::Header {
+                    stamp_ns: stamp,
+                    frame_id: "world".into(),
+                },
+                child_frame_id: "hand".into(),
+                translation: [x, 0.0, 0.0],
+                rotation_xyzw: [0.0, 0.0, half.sin(), half.cos()],
+            }
+        };
+        let mut tf = Tf::default();
+        tf.add(&at(100, 1.0, 90.0), false).unwrap();
+        tf.add(&at(0, 0.0, 0.0), false).unwrap();
+        let pose = |t| tf.lookup("world", "hand", t).unwrap();
+        let p = pose(25);
+        assert!((p.translation.vector.x - 0.25).abs() < 1e-12);
+        assert!((p.rotation.angle() - 22.5f64.to_radians()).abs() < 1e-12);
+        assert!((pose(-5).translation.vector.x).abs() < 1e-12);
+        assert!((pose(500).translation.vector.x - 1.0).abs() < 1e-12);
+        // A sign flip of the quaternion (the same rotation) interpolates without a turn.
+        let mut flipped = Tf::default();
+        flipped.add(&at(0, 0.0, 10.0), false).unwrap();
+        let mut minus = at(100, 0.0, 10.0);
+        minus.rotation_xyzw = minus.rotation_xyzw.map(|c| -c);
+        flipped.add(&minus, false).unwrap();
+        let mid = flipped.lookup("world", "hand", 50).unwrap();
+        assert!((mid.rotation.angle() - 10f64.to_radians()).abs() < 1e-9);
+        // The inverse direction composes the same edge backwards.
+        let back = tf.lookup("hand", "world", 50).unwrap();
+        assert!((back * pose(50)).translation.vector.norm() < 1e-12);
     }
 
     #[test]

@@ -12,8 +12,8 @@
 //! Topics, frame names, the pairing tolerance and the joint name of every tendon come from a
 //! [`RosConfig`](crate::ros2::RosConfig) (a small TOML file). A frame is a colour image and the depth image nearest to
 //! it in time (within the tolerance), the hand's pose in the world from TF at the colour
-//! image's stamp (the latest transform at or before it; static transforms always), and the
-//! tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is
+//! image's stamp (interpolated between the stamped transforms around it, as tf2 does; static
+//! transforms always), and the tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is
 //! the TF path from the hand frame to the colour image's frame. Recordings have no ground truth:
 //! the frames' truth fields are empty.
 
