@@ -87,34 +87,37 @@ impl TouchError {
     /// estimator's as [`TouchError::Physics`], any other estimator's boxed
     /// ([`TouchError::ShapeEstimation`]) — one path per failure whatever the stage's type.
     pub fn from_shape_stage<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
-        let boxed: Box<dyn std::error::Error + Send + Sync> = Box::new(e);
-        let boxed = match boxed.downcast::<moe_arap::ArapError>() {
-            Ok(e) => return Self::Shape(*e),
-            Err(other) => other,
-        };
-        #[cfg(feature = "physics")]
-        let boxed = match boxed.downcast::<moe_physics::PhysicsError>() {
-            Ok(e) => return Self::Physics(*e),
-            Err(other) => other,
-        };
-        Self::ShapeEstimation(boxed)
+        Self::from_stage(e, Self::ShapeEstimation)
     }
 
     /// A pipeline's contact stage failed: the DGCNN's and the KNN baseline's error as
     /// [`TouchError::Contact`], the physics estimator's as [`TouchError::Physics`], any other
     /// estimator's boxed ([`TouchError::ContactEstimation`]).
     pub fn from_contact_stage<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
+        Self::from_stage(e, Self::ContactEstimation)
+    }
+
+    /// The variant of this workspace's own error types, whichever stage raised them; `other`
+    /// boxes an estimator's error of another type.
+    fn from_stage<E: std::error::Error + Send + Sync + 'static>(
+        e: E,
+        other: fn(Box<dyn std::error::Error + Send + Sync>) -> Self,
+    ) -> Self {
         let boxed: Box<dyn std::error::Error + Send + Sync> = Box::new(e);
+        let boxed = match boxed.downcast::<moe_arap::ArapError>() {
+            Ok(e) => return Self::Shape(*e),
+            Err(b) => b,
+        };
         let boxed = match boxed.downcast::<moe_contact::ContactError>() {
             Ok(e) => return Self::Contact(*e),
-            Err(other) => other,
+            Err(b) => b,
         };
         #[cfg(feature = "physics")]
         let boxed = match boxed.downcast::<moe_physics::PhysicsError>() {
             Ok(e) => return Self::Physics(*e),
-            Err(other) => other,
+            Err(b) => b,
         };
-        Self::ContactEstimation(boxed)
+        other(boxed)
     }
 }
 

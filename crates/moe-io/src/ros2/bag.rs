@@ -67,6 +67,19 @@ struct Stamped<T> {
     pixels: Vec<T>,
 }
 
+impl<T> Stamped<T> {
+    /// `im`'s stamp, frame and size with its decoded `pixels`.
+    fn of(im: &cdr::Image<'_>, pixels: Vec<T>) -> Self {
+        Self {
+            stamp_ns: im.header.stamp_ns,
+            frame_id: im.header.frame_id.clone(),
+            width: im.width,
+            height: im.height,
+            pixels,
+        }
+    }
+}
+
 /// What the messages of a recording hold, before frames are assembled.
 #[derive(Default)]
 struct Messages {
@@ -349,13 +362,7 @@ fn color_image(im: &cdr::Image<'_>) -> Result<Stamped<u8>, String> {
             }
         }
     }
-    Ok(Stamped {
-        stamp_ns: im.header.stamp_ns,
-        frame_id: im.header.frame_id.clone(),
-        width: im.width,
-        height: im.height,
-        pixels,
-    })
+    Ok(Stamped::of(im, pixels))
 }
 
 fn depth_image(im: &cdr::Image<'_>) -> Result<Stamped<f32>, String> {
@@ -393,13 +400,7 @@ fn depth_image(im: &cdr::Image<'_>) -> Result<Stamped<f32>, String> {
             pixels.push(v);
         }
     }
-    Ok(Stamped {
-        stamp_ns: im.header.stamp_ns,
-        frame_id: im.header.frame_id.clone(),
-        width: im.width,
-        height: im.height,
-        pixels,
-    })
+    Ok(Stamped::of(im, pixels))
 }
 
 /// The joint names of every tendon.
@@ -498,13 +499,17 @@ fn assemble(
             ),
         );
     }
-    let first = &m.color[0];
-    if (info.width, info.height) != (first.width, first.height) {
+    // The first image's stamp, frame and size: the episode's start, the camera and its size.
+    let (first_stamp, first_frame, size) = {
+        let f = &m.color[0];
+        (f.stamp_ns, f.frame_id.clone(), (f.width, f.height))
+    };
+    if (info.width, info.height) != size {
         return refuse(
             "camera info",
             format!(
                 "{} × {} pixels, the colour images {} × {}",
-                info.width, info.height, first.width, first.height
+                info.width, info.height, size.0, size.1
             ),
         );
     }
@@ -521,12 +526,13 @@ fn assemble(
         )
     };
     let hand_from_camera =
-        m.tf.lookup(&config.hand_frame, &first.frame_id, first.stamp_ns)
-            .ok_or_else(|| no_path(&config.hand_frame, &first.frame_id))?;
+        m.tf.lookup(&config.hand_frame, &first_frame, first_stamp)
+            .ok_or_else(|| no_path(&config.hand_frame, &first_frame))?;
     let tolerance_ns = (config.pair_tolerance_s * 1e9).round() as i64;
     let mut frames = Vec::new();
-    for (k, color) in m.color.iter().enumerate() {
-        if (color.width, color.height) != (first.width, first.height) {
+    // The colour images move into the frames; a depth image may serve two of them.
+    for (k, color) in m.color.into_iter().enumerate() {
+        if (color.width, color.height) != size {
             return refuse(
                 &format!("colour message {k}"),
                 "another size than the first".into(),
@@ -555,8 +561,8 @@ fn assemble(
         let tendon_pull_m = pulls_at(&m.joints, &names, color.stamp_ns)
             .map_err(|e| IoError::invalid(path, config.joint_state_topic.clone(), e))?;
         frames.push(EpisodeFrame {
-            time_ns: (color.stamp_ns - first.stamp_ns) as u64,
-            color_rgb8: color.pixels.clone(),
+            time_ns: (color.stamp_ns - first_stamp) as u64,
+            color_rgb8: color.pixels,
             depth_m: depth.pixels.clone(),
             world_from_hand,
             tendon_pull_m,
@@ -597,9 +603,14 @@ pub fn is_ros2_recording(path: &Path) -> bool {
     if path.is_dir() {
         return path.join("metadata.yaml").is_file();
     }
-    let Ok(bytes) = std::fs::read(path) else {
+    // The first message is in the file's head: read no more than that.
+    const HEAD: u64 = 64 << 20;
+    let mut bytes = Vec::new();
+    let read = std::fs::File::open(path)
+        .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, HEAD), &mut bytes));
+    if read.is_err() {
         return false;
-    };
+    }
     let Ok(n) = check_declared_lengths(path, &bytes) else {
         return false;
     };

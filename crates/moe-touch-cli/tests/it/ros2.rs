@@ -16,6 +16,30 @@ fn episode_path() -> std::path::PathBuf {
     fixtures().join("episodes/plate_tip_front_small.mcap")
 }
 
+/// `back`, read from a recording, holds `episode`'s frames: the same camera, colour bit for bit,
+/// depth within `16UC1`'s half millimetre, poses to rounding (through quaternions), the same
+/// pulls, and times from the first frame.
+fn assert_decodes_to(back: &moe_io::Episode, episode: &moe_io::Episode) {
+    assert_eq!(back.frames.len(), episode.frames.len());
+    assert_eq!(back.info.camera, episode.info.camera);
+    let p = Point3::new(0.01, -0.02, 0.03);
+    let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
+    assert!(close(
+        back.info.hand_from_camera * p,
+        episode.info.hand_from_camera * p
+    ));
+    let start = episode.frames[0].time_ns;
+    for (a, b) in back.frames.iter().zip(&episode.frames) {
+        assert_eq!(a.time_ns, b.time_ns - start);
+        assert_eq!(a.color_rgb8, b.color_rgb8);
+        assert_eq!(a.tendon_pull_m, b.tendon_pull_m);
+        assert!(close(a.world_from_hand * p, b.world_from_hand * p));
+        for (x, y) in a.depth_m.iter().zip(&b.depth_m) {
+            assert!((x - y).abs() <= 0.0005 + 1e-6, "{x} vs {y}");
+        }
+    }
+}
+
 /// `16UC1` depth comes back within its millimetre quantisation, everything else exactly (poses
 /// to rounding, through quaternions).
 #[test]
@@ -26,45 +50,42 @@ fn an_episode_written_as_a_bag_reads_back_as_its_frames() {
     write_ros2_bag(&dir, &episode, &config, DepthEncoding::Millimetres16).unwrap();
     assert!(moe_io::ros2::is_ros2_recording(&dir));
     let back = read_ros2_bag(&dir, &config, &hand()).unwrap();
-    assert_eq!(back.frames.len(), episode.frames.len());
-    assert_eq!(back.info.camera, episode.info.camera);
-    let p = Point3::new(0.01, -0.02, 0.03);
-    let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
-    assert!(close(
-        back.info.hand_from_camera * p,
-        episode.info.hand_from_camera * p
-    ));
-    for (a, b) in back.frames.iter().zip(&episode.frames) {
-        assert_eq!(a.time_ns, b.time_ns - episode.frames[0].time_ns);
-        assert_eq!(a.color_rgb8, b.color_rgb8);
-        assert_eq!(a.tendon_pull_m, b.tendon_pull_m);
-        assert!(close(a.world_from_hand * p, b.world_from_hand * p));
-        for (x, y) in a.depth_m.iter().zip(&b.depth_m) {
-            assert!((x - y).abs() <= 0.0005 + 1e-6, "{x} vs {y}");
-        }
-    }
+    assert_decodes_to(&back, &episode);
     // Writing into an existing directory is refused and changes nothing.
     let err = write_ros2_bag(&dir, &episode, &config, DepthEncoding::Metres32).unwrap_err();
     assert!(err.to_string().contains("already exists"), "{err}");
 }
 
-fn run_json(episode: &Path, out: &Path) -> serde_json::Value {
-    let model = fixtures().join("../models/contact-two-finger.safetensors");
-    let o = run(&[
+/// `moe-touch run` on `episode` (with `extra` options), writing `out` and its report beside it:
+/// the report, and per frame the markers found and the contact points.
+fn run_report(episode: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, Vec<(u64, u64)>) {
+    let report = out.with_extension("json");
+    let mut args = vec![
         "run",
-        "--contact",
-        "dgcnn",
-        "--model",
-        model.to_str().unwrap(),
         "--episode",
         episode.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--report",
-        out.with_extension("json").to_str().unwrap(),
-    ]);
+        report.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_str(&std::fs::read_to_string(out.with_extension("json")).unwrap()).unwrap()
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let frames = v["per_frame"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            (
+                f["markers_found"].as_u64().unwrap(),
+                f["contact_points"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    (v, frames)
 }
 
 /// The same frames as a ROS 2 recording (exact depth): the same markers and contacts, frame by
@@ -81,26 +102,12 @@ fn run_on_a_recording_finds_what_it_finds_on_the_episode() {
         DepthEncoding::Metres32,
     )
     .unwrap();
-    let from_episode = run_json(&episode_path(), &root.join("a.mcap"));
-    let from_bag = run_json(&bag, &root.join("b.mcap"));
-    assert_eq!(from_bag["frames"], from_episode["frames"]);
-    let frames = |v: &serde_json::Value| -> Vec<(u64, u64)> {
-        v["per_frame"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .map(|f| {
-                        (
-                            f["markers_found"].as_u64().unwrap(),
-                            f["contact_points"].as_u64().unwrap(),
-                        )
-                    })
-                    .collect()
-            })
-            .unwrap_or_default()
-    };
-    assert!(!frames(&from_episode).is_empty());
-    assert_eq!(frames(&from_bag), frames(&from_episode));
+    let model = fixtures().join("../models/contact-two-finger.safetensors");
+    let dgcnn = ["--contact", "dgcnn", "--model", model.to_str().unwrap()];
+    let (from_episode, a) = run_report(&episode_path(), &root.join("a.mcap"), &dgcnn);
+    let (from_bag, b) = run_report(&bag, &root.join("b.mcap"), &dgcnn);
+    assert!(!a.is_empty());
+    assert_eq!(a, b);
     assert!(from_bag["contact"].is_null() && !from_episode["contact"].is_null());
 }
 
@@ -157,24 +164,14 @@ fn bad_recordings_give_one_error_line_and_no_output() {
 fn a_recording_written_by_rosbags_decodes_to_its_source_episode() {
     let bag = fixtures().join("episodes/plate_tip_front_small_ros2");
     assert!(moe_io::ros2::is_ros2_recording(&bag));
+    // Its MCAP file alone is recognised by its CDR messages; a Foxglove episode is not one.
+    assert!(moe_io::ros2::is_ros2_recording(
+        &bag.join("plate_tip_front_small_ros2.mcap")
+    ));
+    assert!(!moe_io::ros2::is_ros2_recording(&episode_path()));
     let episode = moe_io::read_episode(&episode_path()).unwrap();
     let back = read_ros2_bag(&bag, &RosConfig::default(), &hand()).unwrap();
-    assert_eq!(back.frames.len(), episode.frames.len());
-    assert_eq!(back.info.camera, episode.info.camera);
-    let p = Point3::new(0.01, -0.02, 0.03);
-    let close = |a: Point3, b: Point3| (a - b).norm() < 1e-12;
-    assert!(close(
-        back.info.hand_from_camera * p,
-        episode.info.hand_from_camera * p
-    ));
-    for (a, b) in back.frames.iter().zip(&episode.frames) {
-        assert_eq!(a.color_rgb8, b.color_rgb8);
-        assert_eq!(a.tendon_pull_m, b.tendon_pull_m);
-        assert!(close(a.world_from_hand * p, b.world_from_hand * p));
-        for (x, y) in a.depth_m.iter().zip(&b.depth_m) {
-            assert!((x - y).abs() <= 0.0005 + 1e-6, "{x} vs {y}");
-        }
-    }
+    assert_decodes_to(&back, &episode);
 }
 
 /// `run` (the default physics pipeline) on the rosbags recording: the frames with contact are the
@@ -182,38 +179,9 @@ fn a_recording_written_by_rosbags_decodes_to_its_source_episode() {
 #[test]
 fn run_on_the_rosbags_recording_finds_the_episodes_contact_frames() {
     let root = scratch("ros2-rosbags-run");
-    let report = |episode: &Path, name: &str| -> Vec<(u64, u64)> {
-        let out = root.join(format!("{name}.mcap"));
-        let json = root.join(format!("{name}.json"));
-        let o = run(&[
-            "run",
-            "--episode",
-            episode.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--report",
-            json.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
-        v["per_frame"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|f| {
-                (
-                    f["markers_found"].as_u64().unwrap(),
-                    f["contact_points"].as_u64().unwrap(),
-                )
-            })
-            .collect()
-    };
-    let a = report(&episode_path(), "episode");
-    let b = report(
-        &fixtures().join("episodes/plate_tip_front_small_ros2"),
-        "bag",
-    );
+    let (_, a) = run_report(&episode_path(), &root.join("episode.mcap"), &[]);
+    let bag = fixtures().join("episodes/plate_tip_front_small_ros2");
+    let (_, b) = run_report(&bag, &root.join("bag.mcap"), &[]);
     assert_eq!(a.len(), b.len());
     for (k, ((ma, ca), (mb, cb))) in a.iter().zip(&b).enumerate() {
         assert!(ma.abs_diff(*mb) <= 1, "frame {k}: {a:?} vs {b:?}");
