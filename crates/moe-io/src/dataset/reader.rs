@@ -35,6 +35,39 @@ impl DatasetReader {
         &self.card
     }
 
+    /// Number of shards the card lists.
+    pub fn num_shards(&self) -> usize {
+        self.card.shards.len()
+    }
+
+    /// Every frame of shard `index` (in card order), in the order stored.
+    ///
+    /// # Errors
+    /// [`IoError::InvalidData`] for an index past the last shard or a shard whose layout differs
+    /// from the card's; an unreadable or malformed shard.
+    pub fn shard(&self, index: usize) -> Result<Vec<DatasetFrame>, IoError> {
+        let entry = self.card.shards.get(index).ok_or_else(|| {
+            IoError::invalid(
+                &self.dir,
+                "shard",
+                format!(
+                    "index {index} is past the last of {} shards",
+                    self.card.shards.len()
+                ),
+            )
+        })?;
+        let path = self.dir.join(&entry.file);
+        let (layout, frames) = read_shard(&path)?;
+        if layout != self.card.layout {
+            return Err(IoError::invalid(
+                &path,
+                "layout",
+                "differs from the data set card",
+            ));
+        }
+        Ok(frames)
+    }
+
     /// Like [`DatasetReader::frames`], as the in-memory vocabulary ([`LabelledFrame`]: per-finger
     /// vertices, labels and markers, typed wrist pose).
     pub fn labelled_frames(
@@ -119,21 +152,12 @@ impl Iterator for DatasetFrames<'_> {
                 }
                 continue;
             }
-            let entry = self.reader.card.shards.get(self.shard)?;
+            if self.shard >= self.reader.num_shards() {
+                return None;
+            }
             self.shard += 1;
-            let path = self.reader.dir.join(&entry.file);
-            match read_shard(&path) {
-                Ok((layout, frames)) if layout == self.reader.card.layout => {
-                    self.buffer = frames.into_iter()
-                }
-                Ok(_) => {
-                    self.failed = true;
-                    return Some(Err(IoError::invalid(
-                        &path,
-                        "layout",
-                        "differs from the data set card",
-                    )));
-                }
+            match self.reader.shard(self.shard - 1) {
+                Ok(frames) => self.buffer = frames.into_iter(),
                 Err(e) => {
                     self.failed = true;
                     return Some(Err(e));

@@ -1,0 +1,111 @@
+//! The trained contact network (DGCNN) on its own: a hand's surface in, contact probability per
+//! vertex out.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use moe_contact::DgcnnEstimator;
+use moe_geom::{ContactEstimator, ContactInput, HandShape};
+use numpy::{PyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+
+use crate::convert::{self, OrRaise, invalid};
+use crate::hand::Hand;
+
+/// A trained contact model (`NAME.safetensors` with its card `NAME.json`) for a hand, in f32 on
+/// the CPU.
+#[pyclass(module = "moe_touch")]
+pub struct ContactModel {
+    pub(crate) model: Mutex<DgcnnEstimator>,
+    threshold: f64,
+    num_fingers: usize,
+}
+
+impl ContactModel {
+    /// The model of `path` for `hand`, as the pipeline loads it.
+    pub(crate) fn estimator(path: &std::path::Path, hand: &Hand) -> PyResult<DgcnnEstimator> {
+        moe_touch::pipeline::load_contact_model(path, &hand.model).py()
+    }
+}
+
+#[pymethods]
+impl ContactModel {
+    /// Loads the model at `path` (its card beside it) for `hand`; a model trained for another
+    /// hand or finger is refused with the reason.
+    #[new]
+    fn new(py: Python<'_>, path: PathBuf, hand: &Hand) -> PyResult<Self> {
+        let model = py.detach(|| Self::estimator(&path, hand))?;
+        Ok(Self {
+            threshold: model.threshold(),
+            model: Mutex::new(model),
+            num_fingers: hand.model.num_fingers(),
+        })
+    }
+
+    /// The contact threshold of the model's card: vertices at or above it are in contact.
+    #[getter]
+    fn threshold(&self) -> f64 {
+        self.threshold
+    }
+
+    /// The model card as a dict (features, normalisation, training, metrics).
+    #[getter]
+    fn card<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let json = {
+            let model = self
+                .model
+                .lock()
+                .map_err(|_| invalid("the contact model failed in another thread"))?;
+            serde_json::to_string(model.card()).map_err(|e| invalid(e.to_string()))?
+        };
+        py.import("json")?.call_method1("loads", (json,))
+    }
+
+    /// Contact probability of every vertex of `vertices`, one `(n, 3)` array per finger (hand
+    /// frame, the hand's vertex order), with `pulls` `(fingers, tendons)` metres for a model
+    /// that takes them. Returns one `(n,)` array per finger.
+    #[pyo3(signature = (vertices, pulls=None))]
+    fn estimate<'py>(
+        &self,
+        py: Python<'py>,
+        vertices: Vec<PyReadonlyArray2<'py, f64>>,
+        pulls: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<Vec<Bound<'py, PyArray1<f64>>>> {
+        if vertices.len() != self.num_fingers {
+            return Err(invalid(format!(
+                "vertices: {} arrays for a hand of {} fingers",
+                vertices.len(),
+                self.num_fingers
+            )));
+        }
+        let shape = HandShape {
+            fingers: vertices
+                .iter()
+                .enumerate()
+                .map(|(f, v)| convert::to_points(v, &format!("vertices[{f}]")))
+                .collect::<PyResult<_>>()?,
+        };
+        let pulls = pulls.as_ref().map(convert::to_pulls).transpose()?;
+        let estimate = py.detach(|| {
+            let mut model = self
+                .model
+                .lock()
+                .map_err(|_| invalid("the contact model failed in another thread"))?;
+            model
+                .estimate(&ContactInput {
+                    shape: &shape,
+                    keypoints: None,
+                    tendon_pull_m: pulls.as_deref(),
+                    world_from_hand: None,
+                    time_secs: None,
+                })
+                .py()
+        })?;
+        Ok(estimate
+            .map
+            .fingers
+            .into_iter()
+            .map(|p| convert::array1(py, p))
+            .collect())
+    }
+}

@@ -1,0 +1,465 @@
+//! The per-frame pipeline: colour, depth and the hand's pose in; markers, shape, contact and
+//! force out.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
+use moe_contact::DgcnnEstimator;
+use moe_geom::WorldFromHand;
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimate};
+use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::{FrameEstimate, PhysicsPipeline, RgbdFrame, StreamEvent};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::contact::ContactModel;
+use crate::convert::{self, OrRaise, invalid};
+use crate::hand::{Camera, Hand};
+
+/// The two pipelines the tool runs.
+enum Inner {
+    /// The physics estimator (the tool's default).
+    Physics(Box<PhysicsPipeline>),
+    /// SR-ARAP and a trained network (the paper's pipeline).
+    Dgcnn(Box<moe_touch::Pipeline<MultiShapeEstimator, DgcnnEstimator>>),
+}
+
+/// What one frame gives besides the [`FrameEstimate`]: the physics estimator's estimate.
+struct Processed {
+    estimate: FrameEstimate,
+    physics: Option<PhysicsEstimate>,
+}
+
+/// A settings file (TOML or JSON) of type `T`, or its defaults without one.
+fn settings<T: serde::de::DeserializeOwned + Default>(path: Option<&PathBuf>) -> PyResult<T> {
+    path.map_or_else(|| Ok(T::default()), |p| moe_io::read_config(p).py())
+}
+
+/// The marker detector for `camera` and `hand`, with parameters from `detector` (a TOML or JSON
+/// `DetectorConfig` file) or the defaults.
+fn detector(camera: &Camera, hand: &Hand, config: Option<&PathBuf>) -> PyResult<MarkerDetector> {
+    let config: DetectorConfig = settings(config)?;
+    MarkerDetector::new(
+        camera.intrinsics,
+        camera.hand_from_camera,
+        &hand.model,
+        config,
+    )
+    .py()
+}
+
+/// The whole pipeline on wrist RGB-D frames: marker perception, the hand's shape, contact per
+/// vertex, contact points in the hand and the world, and with the physics estimator the force
+/// on every vertex and finger. Frames given with their time carry memory across the stream.
+#[pyclass(module = "moe_touch")]
+pub struct Pipeline {
+    inner: Mutex<Inner>,
+    size: (usize, usize),
+    num_fingers: usize,
+    tendons: usize,
+}
+
+impl Pipeline {
+    fn wrap(inner: Inner, camera: &Camera, hand: &Hand) -> PyResult<Self> {
+        Ok(Self {
+            inner: Mutex::new(inner),
+            size: (
+                camera.intrinsics.height as usize,
+                camera.intrinsics.width as usize,
+            ),
+            num_fingers: hand.model.num_fingers(),
+            tendons: hand.model.tendons_per_finger().py()?,
+        })
+    }
+
+    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, Inner>> {
+        self.inner
+            .lock()
+            .map_err(|_| invalid("the pipeline failed in another thread; make a new one"))
+    }
+}
+
+#[pymethods]
+impl Pipeline {
+    /// The physics estimator's pipeline (the `moe-touch` tool's default): the finger's FEM model
+    /// read backwards from the markers, the tendon pulls and the hand's pose. `material` and
+    /// `config` are TOML or JSON files (`moe-touch calibrate` writes the material); `detector`
+    /// the marker detector's parameters.
+    #[staticmethod]
+    #[pyo3(signature = (hand, camera, *, material=None, config=None, detector=None))]
+    fn physics(
+        py: Python<'_>,
+        hand: &Hand,
+        camera: &Camera,
+        material: Option<PathBuf>,
+        config: Option<PathBuf>,
+        detector: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let marker_detector = self::detector(camera, hand, detector.as_ref())?;
+        let material: HandMaterial = settings(material.as_ref())?;
+        material.validate().py()?;
+        let config: PhysicsConfig = settings(config.as_ref())?;
+        config.validate().py()?;
+        let pipeline = py.detach(|| {
+            PhysicsPipeline::physics(hand.model.clone(), marker_detector, &material, &config).py()
+        })?;
+        Self::wrap(Inner::Physics(Box::new(pipeline)), camera, hand)
+    }
+
+    /// The paper's pipeline: SR-ARAP shape (`iterations` per frame, default 50;
+    /// `warm_start` starts each frame from the previous shape), then the trained network at
+    /// `model` (`NAME.safetensors` with its card), contact where it reaches the card's
+    /// threshold.
+    #[staticmethod]
+    #[pyo3(signature = (hand, camera, model, *, iterations=None, warm_start=false, detector=None))]
+    fn dgcnn(
+        py: Python<'_>,
+        hand: &Hand,
+        camera: &Camera,
+        model: PathBuf,
+        iterations: Option<usize>,
+        warm_start: bool,
+        detector: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let marker_detector = self::detector(camera, hand, detector.as_ref())?;
+        let mut options = ShapeConfig::default();
+        if let Some(i) = iterations {
+            options.iterations = i;
+        }
+        options.warm_start = warm_start;
+        let pipeline = py.detach(|| {
+            let network = ContactModel::estimator(&model, hand)?;
+            let threshold = network.threshold();
+            let shape = MultiShapeEstimator::new(hand.model.clone(), options).py()?;
+            moe_touch::Pipeline::new(
+                hand.model.clone(),
+                marker_detector,
+                shape,
+                network,
+                threshold,
+            )
+            .py()
+        })?;
+        Self::wrap(Inner::Dgcnn(Box::new(pipeline)), camera, hand)
+    }
+
+    /// Runs every stage on one frame. `color` is `(height, width, 3)` uint8 RGB, `depth`
+    /// `(height, width)` float32 metres (0 or NaN: no depth), `world_from_hand` 4 × 4, `pulls`
+    /// `(fingers, tendons)` metres (the physics estimator needs them; zero without), `time`
+    /// seconds on a clock that only moves forward (frames further apart than the memory
+    /// horizon, or untimed, start afresh). The arrays are read in place when C-contiguous; do
+    /// not change them from another thread during the call. The GIL is released while the
+    /// pipeline runs.
+    #[pyo3(signature = (color, depth, world_from_hand, pulls=None, time=None))]
+    fn process<'py>(
+        &self,
+        py: Python<'py>,
+        color: PyReadonlyArray3<'py, u8>,
+        depth: PyReadonlyArray2<'py, f32>,
+        world_from_hand: PyReadonlyArray2<'py, f64>,
+        pulls: Option<PyReadonlyArray2<'py, f64>>,
+        time: Option<f64>,
+    ) -> PyResult<FrameResult> {
+        let (h, w) = self.size;
+        if color.shape() != [h, w, 3] {
+            return Err(invalid(format!(
+                "color: expected a ({h}, {w}, 3) uint8 array for the camera, got shape {:?}",
+                color.shape()
+            )));
+        }
+        if depth.shape() != [h, w] {
+            return Err(invalid(format!(
+                "depth: expected a ({h}, {w}) float32 array for the camera, got shape {:?}",
+                depth.shape()
+            )));
+        }
+        let world_from_hand = WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
+        let pulls = match &pulls {
+            Some(p) => {
+                let shape = [self.num_fingers, self.tendons];
+                if p.shape() != shape {
+                    return Err(invalid(format!(
+                        "pulls: expected shape {shape:?} (fingers, tendons), got {:?}",
+                        p.shape()
+                    )));
+                }
+                Some(convert::to_pulls(p)?)
+            }
+            None => None,
+        };
+        // Contiguous arrays are read in place; others are copied once into that layout.
+        let color_copy;
+        let color_rgb8 = match color.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                color_copy = color.as_array().iter().copied().collect::<Vec<u8>>();
+                &color_copy
+            }
+        };
+        let depth_copy;
+        let depth_m = match depth.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                depth_copy = depth.as_array().iter().copied().collect::<Vec<f32>>();
+                &depth_copy
+            }
+        };
+        let processed = py.detach(|| {
+            let mut inner = self.lock()?;
+            let frame = RgbdFrame {
+                color_rgb8,
+                depth_m,
+            };
+            run(&mut inner, frame, world_from_hand, pulls.as_deref(), time)
+        })?;
+        FrameResult::new(py, processed)
+    }
+
+    /// Forgets the stream (marker tracks, warm starts, the physics estimator's memory).
+    fn reset(&self) -> PyResult<()> {
+        let mut inner = self.lock()?;
+        match &mut *inner {
+            Inner::Physics(p) => p.reset(),
+            Inner::Dgcnn(p) => p.reset(),
+        }
+        Ok(())
+    }
+
+    /// The contact threshold: vertices at or above it are contact points.
+    #[getter]
+    fn threshold(&self) -> PyResult<f64> {
+        Ok(match &*self.lock()? {
+            Inner::Physics(p) => p.threshold(),
+            Inner::Dgcnn(p) => p.threshold(),
+        })
+    }
+
+    /// `"physics"` or `"dgcnn"`.
+    #[getter]
+    fn method(&self) -> PyResult<&'static str> {
+        Ok(match &*self.lock()? {
+            Inner::Physics(_) => "physics",
+            Inner::Dgcnn(_) => "dgcnn",
+        })
+    }
+}
+
+/// One frame through `inner`, timed when `time` is given.
+fn run(
+    inner: &mut Inner,
+    frame: RgbdFrame<'_>,
+    world_from_hand: WorldFromHand,
+    pulls: Option<&[Vec<f64>]>,
+    time: Option<f64>,
+) -> PyResult<Processed> {
+    macro_rules! process {
+        ($p:expr) => {
+            match time {
+                Some(t) => $p.process_timed(frame, world_from_hand, pulls, t),
+                None => $p.process_with_pulls(frame, world_from_hand, pulls),
+            }
+            .py()?
+        };
+    }
+    Ok(match inner {
+        Inner::Physics(p) => {
+            let estimate = process!(p);
+            // The estimate of this frame (the stage keeps the last one it made).
+            let physics = p
+                .last_physics_estimate()
+                .filter(|e| e.shape == estimate.shape);
+            Processed { estimate, physics }
+        }
+        Inner::Dgcnn(p) => Processed {
+            estimate: process!(p),
+            physics: None,
+        },
+    })
+}
+
+/// Wall time of each stage of one frame, milliseconds.
+#[pyclass(module = "moe_touch", frozen, get_all)]
+#[derive(Debug, Clone, Copy)]
+pub struct Timings {
+    /// Marker perception.
+    markers_ms: f64,
+    /// Shape estimation.
+    shape_ms: f64,
+    /// Contact estimation and contact points.
+    contact_ms: f64,
+    /// The whole frame.
+    total_ms: f64,
+}
+
+#[pymethods]
+impl Timings {
+    fn __repr__(&self) -> String {
+        format!(
+            "Timings(markers_ms={:.3}, shape_ms={:.3}, contact_ms={:.3}, total_ms={:.3})",
+            self.markers_ms, self.shape_ms, self.contact_ms, self.total_ms
+        )
+    }
+}
+
+/// Everything the pipeline estimated about one frame. Arrays are float64 in metres and
+/// newtons; per-finger values are lists with one array per finger.
+#[pyclass(module = "moe_touch", frozen, get_all)]
+pub struct FrameResult {
+    /// Every marker in the hand frame, `(markers, 3)` per finger, NaN where not seen.
+    keypoints: Vec<Py<PyArray2<f64>>>,
+    /// The estimated surface, hand frame, `(n, 3)` per finger.
+    vertices: Vec<Py<PyArray2<f64>>>,
+    /// Contact probability of every vertex, `(n,)` per finger.
+    contact_probability: Vec<Py<PyArray1<f64>>>,
+    /// Force on every vertex, hand frame, `(n, 3)` per finger (physics), else None.
+    vertex_force: Option<Vec<Py<PyArray2<f64>>>>,
+    /// Net force the world exerts on every finger, hand frame, `(fingers, 3)` (physics), else
+    /// None.
+    finger_force: Option<Py<PyArray2<f64>>>,
+    /// Probability that each finger is pressed, `(fingers,)` (physics), else None.
+    pressed_probability: Option<Py<PyArray1<f64>>>,
+    /// The loads found (physics): dicts with finger, vertex, location (hand frame), force,
+    /// magnitude and its standard deviation, location standard deviations along and around
+    /// the finger.
+    loads: Vec<Py<PyDict>>,
+    /// Contact points (vertices at or above the threshold), hand frame, `(k, 3)`.
+    contacts_hand: Py<PyArray2<f64>>,
+    /// The same points in the world frame, `(k, 3)`.
+    contacts_world: Py<PyArray2<f64>>,
+    /// Finger of each contact point, `(k,)`.
+    contact_finger: Py<PyArray1<u32>>,
+    /// Vertex of each contact point on its finger, `(k,)`.
+    contact_vertex: Py<PyArray1<u32>>,
+    /// Probability of each contact point, `(k,)`.
+    contact_point_probability: Py<PyArray1<f64>>,
+    /// Markers found in the image.
+    markers_found: usize,
+    /// Fingers none of whose markers were seen.
+    fingers_without_markers: Vec<usize>,
+    /// Where the hand was, world-from-hand 4 × 4.
+    world_from_hand: Py<PyArray2<f64>>,
+    /// Per-stage wall time.
+    timings: Timings,
+    /// Where the frame stands in the stream: "untimed", "started", "continued" or "restarted".
+    stream: &'static str,
+    /// Seconds since the previous frame ("continued", "restarted"), else None.
+    gap_secs: Option<f64>,
+}
+
+impl FrameResult {
+    fn new(py: Python<'_>, p: Processed) -> PyResult<Self> {
+        let e = p.estimate;
+        let points = |f: &[moe_geom::ContactPoint]| {
+            convert::points(py, &f.iter().map(|c| c.point).collect::<Vec<_>>()).unbind()
+        };
+        let (stream, gap_secs) = match e.stream {
+            StreamEvent::Untimed => ("untimed", None),
+            StreamEvent::Started => ("started", None),
+            StreamEvent::Continued { gap_secs } => ("continued", Some(gap_secs)),
+            StreamEvent::Restarted { gap_secs } => ("restarted", Some(gap_secs)),
+        };
+        let physics = p.physics.as_ref();
+        let loads = physics
+            .map(|e| {
+                e.loads
+                    .iter()
+                    .map(|l| {
+                        let d = PyDict::new(py);
+                        d.set_item("finger", l.finger)?;
+                        d.set_item("vertex", l.vertex)?;
+                        d.set_item("location_rest", convert::points(py, &[l.location_rest]).get_item(0)?)?;
+                        d.set_item("location", convert::points(py, &[l.location]).get_item(0)?)?;
+                        d.set_item("force", convert::vectors(py, &[l.force_n]).get_item(0)?)?;
+                        d.set_item("magnitude", l.magnitude_n)?;
+                        d.set_item("magnitude_sd", l.magnitude_sd_n)?;
+                        let finite = |x: f64| x.is_finite().then_some(x);
+                        d.set_item("location_sd_along", finite(l.location_sd_m[0]))?;
+                        d.set_item("location_sd_around", finite(l.location_sd_m[1]))?;
+                        Ok(d.unbind())
+                    })
+                    .collect::<PyResult<Vec<_>>>()
+            })
+            .transpose()?
+            .unwrap_or_default();
+        Ok(Self {
+            keypoints: e
+                .keypoints
+                .fingers
+                .iter()
+                .map(|k| convert::optional_points(py, k).unbind())
+                .collect(),
+            vertices: e
+                .shape
+                .fingers
+                .iter()
+                .map(|v| convert::points(py, v).unbind())
+                .collect(),
+            contact_probability: e
+                .contact
+                .fingers
+                .into_iter()
+                .map(|p| convert::array1(py, p).unbind())
+                .collect(),
+            vertex_force: e.vertex_force_n.as_ref().map(|fingers| {
+                fingers
+                    .iter()
+                    .map(|f| convert::vectors(py, f).unbind())
+                    .collect()
+            }),
+            finger_force: physics.map(|e| convert::vectors(py, &e.finger_forces_n()).unbind()),
+            pressed_probability: physics.map(|e| {
+                convert::array1(py, e.fingers.iter().map(|f| f.pressed_probability).collect())
+                    .unbind()
+            }),
+            loads,
+            contacts_hand: points(&e.contacts_in_hand),
+            contacts_world: points(&e.contacts_in_world),
+            contact_finger: convert::array1(
+                py,
+                e.contacts_in_hand.iter().map(|c| c.finger as u32).collect(),
+            )
+            .unbind(),
+            contact_vertex: convert::array1(
+                py,
+                e.contacts_in_hand.iter().map(|c| c.vertex).collect(),
+            )
+            .unbind(),
+            contact_point_probability: convert::array1(
+                py,
+                e.contacts_in_hand.iter().map(|c| c.probability).collect(),
+            )
+            .unbind(),
+            markers_found: e.markers.found,
+            fingers_without_markers: e.fingers_without_markers,
+            world_from_hand: convert::iso(py, e.world_from_hand.iso()).unbind(),
+            timings: Timings {
+                markers_ms: e.timings.markers_ms,
+                shape_ms: e.timings.shape_ms,
+                contact_ms: e.timings.contact_ms,
+                total_ms: e.timings.total_ms,
+            },
+            stream,
+            gap_secs,
+        })
+    }
+}
+
+#[pymethods]
+impl FrameResult {
+    /// Number of contact points.
+    #[getter]
+    fn num_contacts(&self, py: Python<'_>) -> usize {
+        self.contacts_hand.bind(py).shape()[0]
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> String {
+        format!(
+            "FrameResult({} markers, {} contact points, {:.1} ms)",
+            self.markers_found,
+            self.num_contacts(py),
+            self.timings.total_ms
+        )
+    }
+}

@@ -1,0 +1,212 @@
+//! SR-ARAP: a mesh deformed by fixed and handle vertices, and the hand's shape from its
+//! markers.
+
+use moe_arap::{ArapConfig, MultiShapeEstimator, ShapeConfig, Start};
+use moe_geom::{HandKeypoints, Point3, TriMesh};
+use numpy::{PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+
+use crate::convert::{self, OrRaise, invalid};
+use crate::hand::Hand;
+
+/// Keypoints `[finger][marker]` from one `(markers, 3)` array per finger (NaN rows: not seen).
+pub(crate) fn to_keypoints(
+    fingers: &[PyReadonlyArray2<'_, f64>],
+    what: &str,
+) -> PyResult<HandKeypoints> {
+    let fingers = fingers
+        .iter()
+        .enumerate()
+        .map(|(f, a)| {
+            let a = a.as_array();
+            if a.ncols() != 3 {
+                return Err(invalid(format!(
+                    "{what}[{f}]: expected a (markers, 3) array, got shape {:?}",
+                    a.shape()
+                )));
+            }
+            a.rows()
+                .into_iter()
+                .enumerate()
+                .map(|(m, r)| {
+                    if r.iter().all(|x| x.is_nan()) {
+                        Ok(None)
+                    } else if r.iter().all(|x| x.is_finite()) {
+                        Ok(Some(Point3::new(r[0], r[1], r[2])))
+                    } else {
+                        Err(invalid(format!(
+                            "{what}[{f}]: marker {m} is neither finite nor all NaN (not seen)"
+                        )))
+                    }
+                })
+                .collect()
+        })
+        .collect::<PyResult<_>>()?;
+    Ok(HandKeypoints { fingers })
+}
+
+/// SR-ARAP on any triangle mesh (one or many connected parts): factorised once for its fixed
+/// and handle vertices, then solved for any targets.
+#[pyclass(module = "moe_touch", frozen)]
+pub struct ArapSolver {
+    solver: moe_arap::ArapSolver,
+    num_fixed: usize,
+    num_handles: usize,
+}
+
+#[pymethods]
+impl ArapSolver {
+    /// Builds and factorises SR-ARAP for `vertices` `(n, 3)` and `faces` `(m, 3)`, with
+    /// `fixed` vertex ids held at their targets and `handles` pulled towards theirs (every part
+    /// needs a fixed vertex). `alpha` is the smoothness weight, `iterations` the local-global
+    /// iterations of a solve.
+    #[new]
+    #[pyo3(signature = (vertices, faces, fixed, handles, *, alpha=None, iterations=None))]
+    fn new(
+        py: Python<'_>,
+        vertices: PyReadonlyArray2<'_, f64>,
+        faces: PyReadonlyArray2<'_, i64>,
+        fixed: PyReadonlyArray1<'_, i64>,
+        handles: PyReadonlyArray1<'_, i64>,
+        alpha: Option<f64>,
+        iterations: Option<usize>,
+    ) -> PyResult<Self> {
+        let vertices = convert::to_points(&vertices, "vertices")?;
+        let ids = |a: &PyReadonlyArray1<'_, i64>, what: &str| -> PyResult<Vec<u32>> {
+            a.as_array()
+                .iter()
+                .map(|&i| {
+                    u32::try_from(i).map_err(|_| invalid(format!("{what}: vertex id {i}")))
+                })
+                .collect()
+        };
+        let f = faces.as_array();
+        if f.ncols() != 3 {
+            return Err(invalid(format!(
+                "faces: expected an (m, 3) array, got shape {:?}",
+                f.shape()
+            )));
+        }
+        let faces: Vec<[u32; 3]> = f
+            .rows()
+            .into_iter()
+            .map(|r| {
+                let id = |i: i64| u32::try_from(i).map_err(|_| invalid(format!("faces: vertex id {i}")));
+                Ok([id(r[0])?, id(r[1])?, id(r[2])?])
+            })
+            .collect::<PyResult<_>>()?;
+        let fixed = ids(&fixed, "fixed")?;
+        let handles = ids(&handles, "handles")?;
+        let mut config = ArapConfig::default();
+        if let Some(a) = alpha {
+            config.alpha = a;
+        }
+        if let Some(i) = iterations {
+            config.iterations = i;
+        }
+        let solver = py.detach(|| {
+            let mesh = TriMesh::new(vertices, faces).py()?;
+            moe_arap::ArapSolver::new(&mesh, &config, &fixed, &handles).py()
+        })?;
+        Ok(Self {
+            solver,
+            num_fixed: fixed.len(),
+            num_handles: handles.len(),
+        })
+    }
+
+    /// Deforms the mesh: `fixed_targets` `(len(fixed), 3)`, `handle_targets`
+    /// `(len(handles), 3)` (a NaN row leaves that handle free). Starts from rest (the paper's
+    /// setting) or from `start` `(n, 3)`. Returns the vertices `(n, 3)`.
+    #[pyo3(signature = (fixed_targets, handle_targets, start=None))]
+    fn solve<'py>(
+        &self,
+        py: Python<'py>,
+        fixed_targets: PyReadonlyArray2<'py, f64>,
+        handle_targets: PyReadonlyArray2<'py, f64>,
+        start: Option<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let fixed = convert::to_points(&fixed_targets, "fixed_targets")?;
+        let handles = to_keypoints(&[handle_targets], "handle_targets")?
+            .fingers
+            .remove(0);
+        if fixed.len() != self.num_fixed || handles.len() != self.num_handles {
+            return Err(invalid(format!(
+                "expected {} fixed and {} handle targets, got {} and {}",
+                self.num_fixed,
+                self.num_handles,
+                fixed.len(),
+                handles.len()
+            )));
+        }
+        let start = start
+            .map(|s| convert::to_points(&s, "start"))
+            .transpose()?;
+        let solution = py.detach(|| {
+            let start = start.as_deref().map_or(Start::Rest, Start::Positions);
+            self.solver.solve(&fixed, &handles, start).py()
+        })?;
+        Ok(convert::points(py, &solution.vertices))
+    }
+
+    /// Number of vertices.
+    #[getter]
+    fn num_vertices(&self) -> usize {
+        self.solver.num_vertices()
+    }
+
+    /// Number of connected parts (each solved on its own).
+    #[getter]
+    fn num_parts(&self) -> usize {
+        self.solver.num_parts()
+    }
+}
+
+/// The hand's shape from its markers by SR-ARAP (the paper's shape stage): the markers are
+/// handles, the finger bases fixed.
+#[pyclass(module = "moe_touch")]
+pub struct ShapeEstimator {
+    estimator: std::sync::Mutex<MultiShapeEstimator>,
+}
+
+#[pymethods]
+impl ShapeEstimator {
+    /// SR-ARAP for `hand` with `iterations` per frame (default 50) and, with `warm_start`,
+    /// each frame starting from the previous shape (the paper starts from rest).
+    #[new]
+    #[pyo3(signature = (hand, *, iterations=None, warm_start=false))]
+    fn new(hand: &Hand, iterations: Option<usize>, warm_start: bool) -> PyResult<Self> {
+        let mut options = ShapeConfig::default();
+        if let Some(i) = iterations {
+            options.iterations = i;
+        }
+        options.warm_start = warm_start;
+        let estimator = MultiShapeEstimator::new(hand.model.clone(), options).py()?;
+        Ok(Self {
+            estimator: std::sync::Mutex::new(estimator),
+        })
+    }
+
+    /// The hand's surface from `keypoints`, one `(markers, 3)` array per finger, hand frame
+    /// (NaN rows: markers not seen). Returns one `(n, 3)` array per finger, hand frame.
+    fn estimate<'py>(
+        &self,
+        py: Python<'py>,
+        keypoints: Vec<PyReadonlyArray2<'py, f64>>,
+    ) -> PyResult<Vec<Bound<'py, PyArray2<f64>>>> {
+        let keypoints = to_keypoints(&keypoints, "keypoints")?;
+        let shape = py.detach(|| {
+            let mut estimator = self
+                .estimator
+                .lock()
+                .map_err(|_| invalid("the shape estimator failed in another thread"))?;
+            estimator.estimate(&keypoints).py()
+        })?;
+        Ok(shape
+            .shape
+            .fingers
+            .iter()
+            .map(|f| convert::points(py, f))
+            .collect())
+    }
+}
