@@ -73,7 +73,10 @@ pub(crate) fn rows<'py, T: numpy::Element + Copy>(
 }
 
 /// A vector as a 1-D array, moved into numpy without a copy.
-pub(crate) fn array1<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>) -> Bound<'py, PyArray1<T>> {
+pub(crate) fn array1<'py, T: numpy::Element>(
+    py: Python<'py>,
+    v: Vec<T>,
+) -> Bound<'py, PyArray1<T>> {
     Array1::from_vec(v).into_pyarray(py)
 }
 
@@ -151,10 +154,15 @@ pub(crate) fn to_pulls(array: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Vec<f6
 }
 
 /// Tendon pulls `[finger][tendon]` as an `(fingers, tendons)` array.
-pub(crate) fn pulls<'py>(py: Python<'py>, pulls: &[Vec<f64>]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+pub(crate) fn pulls<'py>(
+    py: Python<'py>,
+    pulls: &[Vec<f64>],
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let cols = pulls.first().map_or(0, Vec::len);
     if pulls.iter().any(|p| p.len() != cols) {
-        return Err(invalid("tendon pulls: fingers have different numbers of tendons"));
+        return Err(invalid(
+            "tendon pulls: fingers have different numbers of tendons",
+        ));
     }
     let flat: Vec<f64> = pulls.iter().flatten().copied().collect();
     Array2::from_shape_vec((pulls.len(), cols), flat)

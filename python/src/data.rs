@@ -40,7 +40,12 @@ pub struct EpisodeFrame {
 impl EpisodeFrame {
     /// Moves the frame's images into numpy (no copy) and converts the rest.
     fn new(py: Python<'_>, f: moe_io::EpisodeFrame, h: usize, w: usize) -> PyResult<Self> {
-        let bad = |what: &str| invalid(format!("frame at {} ns: {what} does not fit {w} x {h}", f.time_ns));
+        let bad = |what: &str| {
+            invalid(format!(
+                "frame at {} ns: {what} does not fit {w} x {h}",
+                f.time_ns
+            ))
+        };
         let color = Array3::from_shape_vec((h, w, 3), f.color_rgb8)
             .map_err(|_| bad("colour"))?
             .into_pyarray(py)
@@ -156,6 +161,10 @@ impl Episode {
         self.frames.len()
     }
 
+    fn __iter__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyIterator>> {
+        pyo3::types::PyList::new(py, self.frames.iter().map(|f| f.clone_ref(py)))?.try_iter()
+    }
+
     fn __getitem__(&self, py: Python<'_>, index: isize) -> PyResult<Py<EpisodeFrame>> {
         let n = self.frames.len() as isize;
         let i = if index < 0 { index + n } else { index };
@@ -222,7 +231,9 @@ pub(crate) fn read_episode(
         Ok::<_, PyErr>(moe_io::parse_episode_prefix(&path, &bytes))
     })?;
     match (episode, cut) {
-        (Some(episode), cut) => Episode::new(py, episode, cut.map(|e| moe_touch::error::one_line(&e))),
+        (Some(episode), cut) => {
+            Episode::new(py, episode, cut.map(|e| moe_touch::error::one_line(&e)))
+        }
         (None, Some(err)) => Err(convert::raise(&err)),
         (None, None) => Err(invalid(format!("{}: holds no episode", path.display()))),
     }
@@ -298,7 +309,10 @@ fn stacked<'py>(py: Python<'py>, frames: &[DatasetFrame]) -> PyResult<Bound<'py,
     macro_rules! stack {
         ($name:literal, $field:ident, $cols:expr) => {{
             let cols = $cols;
-            let flat: Vec<_> = frames.iter().flat_map(|f| f.$field.iter().copied()).collect();
+            let flat: Vec<_> = frames
+                .iter()
+                .flat_map(|f| f.$field.iter().copied())
+                .collect();
             Array2::from_shape_vec((n, cols), flat)
                 .map_err(|_| ragged($name))?
                 .into_pyarray(py)
@@ -320,7 +334,10 @@ fn stacked<'py>(py: Python<'py>, frames: &[DatasetFrame]) -> PyResult<Bound<'py,
         stack3(py, frames, nv, "vertices", |f| &f.vertices)?,
     )?;
     d.set_item("contact", stack!("contact", contact, nv))?;
-    d.set_item("contact_force_n", stack!("contact_force_n", contact_force_n, nv))?;
+    d.set_item(
+        "contact_force_n",
+        stack!("contact_force_n", contact_force_n, nv),
+    )?;
     d.set_item(
         "obstacle_distance_m",
         stack!("obstacle_distance_m", obstacle_distance_m, nv),
@@ -348,7 +365,11 @@ fn stacked<'py>(py: Python<'py>, frames: &[DatasetFrame]) -> PyResult<Bound<'py,
     )?;
     d.set_item(
         "tendon_pull_m",
-        stack!("tendon_pull_m", tendon_pull_m, first.map_or(0, |f| f.tendon_pull_m.len())),
+        stack!(
+            "tendon_pull_m",
+            tendon_pull_m,
+            first.map_or(0, |f| f.tendon_pull_m.len())
+        ),
     )?;
     d.set_item(
         "object_family",
@@ -356,7 +377,11 @@ fn stacked<'py>(py: Python<'py>, frames: &[DatasetFrame]) -> PyResult<Bound<'py,
     )?;
     d.set_item(
         "object_params",
-        stack!("object_params", object_params, first.map_or(0, |f| f.object_params.len())),
+        stack!(
+            "object_params",
+            object_params,
+            first.map_or(0, |f| f.object_params.len())
+        ),
     )?;
     Ok(d)
 }
@@ -375,7 +400,8 @@ impl Dataset {
     #[getter]
     fn card<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let json = serde_json::to_string(self.reader.card()).map_err(|e| invalid(e.to_string()))?;
-        py.import("json")?.call_method1("loads", (PyString::new(py, &json),))
+        py.import("json")?
+            .call_method1("loads", (PyString::new(py, &json),))
     }
 
     /// Number of shards.

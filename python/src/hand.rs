@@ -104,7 +104,10 @@ impl Hand {
         finger: usize,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         self.finger(finger)?;
-        Ok(convert::points(py, &self.model.rest_vertices_in_hand(finger)))
+        Ok(convert::points(
+            py,
+            &self.model.rest_vertices_in_hand(finger),
+        ))
     }
 
     /// Finger `finger`'s triangles, `(m, 3)` vertex indices.

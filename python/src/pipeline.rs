@@ -175,7 +175,8 @@ impl Pipeline {
                 depth.shape()
             )));
         }
-        let world_from_hand = WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
+        let world_from_hand =
+            WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
         let pulls = match &pulls {
             Some(p) => {
                 let shape = [self.num_fingers, self.tendons];
@@ -189,19 +190,20 @@ impl Pipeline {
             }
             None => None,
         };
-        // Contiguous arrays are read in place; others are copied once into that layout.
+        // C-contiguous arrays are read in place; others (Fortran order, strided views) are copied
+        // once into row-major order (`as_slice` also accepts Fortran order, hence the check).
         let color_copy;
         let color_rgb8 = match color.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
+            Ok(s) if color.is_c_contiguous() => s,
+            _ => {
                 color_copy = color.as_array().iter().copied().collect::<Vec<u8>>();
                 &color_copy
             }
         };
         let depth_copy;
         let depth_m = match depth.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
+            Ok(s) if depth.is_c_contiguous() => s,
+            _ => {
                 depth_copy = depth.as_array().iter().copied().collect::<Vec<f32>>();
                 &depth_copy
             }
@@ -369,7 +371,10 @@ impl FrameResult {
                         let d = PyDict::new(py);
                         d.set_item("finger", l.finger)?;
                         d.set_item("vertex", l.vertex)?;
-                        d.set_item("location_rest", convert::points(py, &[l.location_rest]).get_item(0)?)?;
+                        d.set_item(
+                            "location_rest",
+                            convert::points(py, &[l.location_rest]).get_item(0)?,
+                        )?;
                         d.set_item("location", convert::points(py, &[l.location]).get_item(0)?)?;
                         d.set_item("force", convert::vectors(py, &[l.force_n]).get_item(0)?)?;
                         d.set_item("magnitude", l.magnitude_n)?;
@@ -410,8 +415,11 @@ impl FrameResult {
             }),
             finger_force: physics.map(|e| convert::vectors(py, &e.finger_forces_n()).unbind()),
             pressed_probability: physics.map(|e| {
-                convert::array1(py, e.fingers.iter().map(|f| f.pressed_probability).collect())
-                    .unbind()
+                convert::array1(
+                    py,
+                    e.fingers.iter().map(|f| f.pressed_probability).collect(),
+                )
+                .unbind()
             }),
             loads,
             contacts_hand: points(&e.contacts_in_hand),

@@ -3,7 +3,7 @@
 
 use moe_arap::{ArapConfig, MultiShapeEstimator, ShapeConfig, Start};
 use moe_geom::{HandKeypoints, Point3, TriMesh};
-use numpy::{PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{AllowTypeChange, PyArray2, PyArrayLike1, PyArrayLike2, PyReadonlyArray2};
 use pyo3::prelude::*;
 
 use crate::convert::{self, OrRaise, invalid};
@@ -65,19 +65,17 @@ impl ArapSolver {
     fn new(
         py: Python<'_>,
         vertices: PyReadonlyArray2<'_, f64>,
-        faces: PyReadonlyArray2<'_, i64>,
-        fixed: PyReadonlyArray1<'_, i64>,
-        handles: PyReadonlyArray1<'_, i64>,
+        faces: PyArrayLike2<'_, i64, AllowTypeChange>,
+        fixed: PyArrayLike1<'_, i64, AllowTypeChange>,
+        handles: PyArrayLike1<'_, i64, AllowTypeChange>,
         alpha: Option<f64>,
         iterations: Option<usize>,
     ) -> PyResult<Self> {
         let vertices = convert::to_points(&vertices, "vertices")?;
-        let ids = |a: &PyReadonlyArray1<'_, i64>, what: &str| -> PyResult<Vec<u32>> {
+        let ids = |a: &PyArrayLike1<'_, i64, AllowTypeChange>, what: &str| -> PyResult<Vec<u32>> {
             a.as_array()
                 .iter()
-                .map(|&i| {
-                    u32::try_from(i).map_err(|_| invalid(format!("{what}: vertex id {i}")))
-                })
+                .map(|&i| u32::try_from(i).map_err(|_| invalid(format!("{what}: vertex id {i}"))))
                 .collect()
         };
         let f = faces.as_array();
@@ -91,7 +89,8 @@ impl ArapSolver {
             .rows()
             .into_iter()
             .map(|r| {
-                let id = |i: i64| u32::try_from(i).map_err(|_| invalid(format!("faces: vertex id {i}")));
+                let id =
+                    |i: i64| u32::try_from(i).map_err(|_| invalid(format!("faces: vertex id {i}")));
                 Ok([id(r[0])?, id(r[1])?, id(r[2])?])
             })
             .collect::<PyResult<_>>()?;
@@ -139,9 +138,7 @@ impl ArapSolver {
                 handles.len()
             )));
         }
-        let start = start
-            .map(|s| convert::to_points(&s, "start"))
-            .transpose()?;
+        let start = start.map(|s| convert::to_points(&s, "start")).transpose()?;
         let solution = py.detach(|| {
             let start = start.as_deref().map_or(Start::Rest, Start::Positions);
             self.solver.solve(&fixed, &handles, start).py()

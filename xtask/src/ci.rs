@@ -14,6 +14,14 @@ pub(crate) struct CiArgs {
     /// Skip `cargo deny` (for quick local runs; CI never skips it).
     #[arg(long)]
     skip_deny: bool,
+    /// The Python interpreter of a virtual environment with pip, pytest and numpy, in which the
+    /// Python package is installed (`pip install ./python`) and tested [default:
+    /// $MOE_TOUCH_PYTHON; `.ci/run` makes a fresh one].
+    #[arg(long, value_name = "PYTHON")]
+    python: Option<PathBuf>,
+    /// Skip the Python package (for quick local runs; CI never skips it).
+    #[arg(long)]
+    skip_python: bool,
 }
 
 /// The workspace root (the parent of this crate's directory).
@@ -86,6 +94,52 @@ fn runtime_tree_is_lean() -> Result<()> {
     Ok(())
 }
 
+/// The Python package as a user installs it (`pip install ./python`, which builds the wheel with
+/// maturin), then its pytest suite against the `moe-touch` tool of the same tree. The wheel is
+/// built with the dev profile (dependencies optimised, see the workspace's profiles) so that it
+/// reuses what `cargo test` compiled.
+fn python_package(args: &CiArgs) -> Result<()> {
+    let python = match &args.python {
+        Some(p) => p.clone(),
+        None => std::env::var_os("MOE_TOUCH_PYTHON")
+            .map(PathBuf::from)
+            .context(
+                "the Python package needs a virtual environment with pytest and numpy: \
+             --python PATH or $MOE_TOUCH_PYTHON (.ci/run makes one), or --skip-python",
+            )?,
+    };
+    let root = workspace_root();
+    let mut tool = cargo();
+    tool.args(["build", "--locked", "-p", "moe-touch-cli"]);
+    step(
+        "cargo build -p moe-touch-cli (for the Python comparisons)",
+        tool,
+    )?;
+
+    let mut install = Command::new(&python);
+    install
+        .current_dir(&root)
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--force-reinstall",
+            "--no-deps",
+            "./python",
+        ])
+        .env("MATURIN_PEP517_ARGS", "--profile dev --locked");
+    step("pip install ./python", install)?;
+
+    let mut pytest = Command::new(&python);
+    pytest
+        .current_dir(root.join("python"))
+        .args(["-m", "pytest", "-q", "tests"])
+        .env("MOE_TOUCH_BIN", root.join("target/debug/moe-touch"))
+        .env("CI", "true");
+    step("pytest python/tests", pytest)
+}
+
 fn has_cargo_deny() -> bool {
     cargo()
         .args(["deny", "--version"])
@@ -134,6 +188,12 @@ pub(crate) fn run(args: &CiArgs) -> Result<()> {
         let mut run = cargo();
         run.args(["run", "--locked", "-p", package, "--example", example]);
         step(&format!("example {package}/{example}"), run)?;
+    }
+
+    if args.skip_python {
+        eprintln!("xtask ci: the Python package skipped (--skip-python)");
+    } else {
+        python_package(args)?;
     }
 
     let mut doc = cargo();
