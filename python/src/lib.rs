@@ -26,7 +26,8 @@ pyo3::create_exception!(
 
 /// The Python module.
 #[pymodule]
-fn moe_touch(m: &Bound<'_, PyModule>) -> PyResult<()> {
+#[pyo3(name = "moe_touch")]
+fn moe_touch_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("MoeTouchError", m.py().get_type::<MoeTouchError>())?;
     m.add_class::<hand::Hand>()?;
