@@ -246,7 +246,7 @@ impl<W: Write + Seek> RunWriter<W> {
                 format!("force_arrow_m_per_n = {scale} must be finite and positive"),
             ));
         }
-        let mut writer = mcap_writer(sink, path)?;
+        let mut writer = mcap_writer(sink, path, "")?;
         write_info(&mut writer, path, "/run/info", "moe.RunInfo", info)?;
         let scene = || Some((schema_of::<fg::SceneUpdate>(), "protobuf"));
         let forces = info.force_arrow_m_per_n.is_some();

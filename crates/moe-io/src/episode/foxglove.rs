@@ -244,13 +244,15 @@ pub(crate) fn first_triangles<'a>(
 
 /// An MCAP writer with the project's settings: one zstd chunk per frame (closed by `flush`, so no
 /// size limit), compressed on the writing thread so that the bytes do not depend on the core
-/// count.
+/// count. `profile` is the MCAP profile: empty for Foxglove files, `ros2` for rosbag2 storage
+/// (which ROS 2 readers require).
 pub(crate) fn mcap_writer<W: Write + Seek>(
     sink: W,
     path: &Path,
+    profile: &str,
 ) -> Result<mcap::Writer<W>, IoError> {
     mcap::WriteOptions::new()
-        .profile("")
+        .profile(profile)
         .library("moe-touch")
         .compression(Some(mcap::Compression::Zstd))
         .compression_threads(0)

@@ -37,7 +37,7 @@ impl<W: Write + Seek> EpisodeWriter<W> {
     /// `path` names the destination in errors (use [`crate::MEMORY`] for an in-memory sink).
     pub fn new(sink: W, info: &EpisodeInfo, path: &Path) -> Result<Self, IoError> {
         check_info(path, info)?;
-        let mut writer = mcap_writer(sink, path)?;
+        let mut writer = mcap_writer(sink, path, "")?;
         write_info(&mut writer, path, INFO_TOPIC, "moe.EpisodeInfo", info)?;
         let mut channels = [0u16; Topic::ALL.len()];
         for (slot, topic) in channels.iter_mut().zip(Topic::ALL) {

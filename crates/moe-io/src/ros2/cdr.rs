@@ -7,7 +7,8 @@
 //! counts a terminating NUL, then the bytes; sequences are a `u32` count, then the elements.
 //! XCDR2 and parameter-list encodings are refused by name (ROS 2 does not write them).
 //!
-//! The decoder is written for these five message types rather than generic: every declared
+//! The decoder is written for these message types (the five a recording carries, and the two
+//! results `moe-touch run --ros-out` writes) rather than generic: every declared
 //! length is checked against the bytes that remain before anything is allocated (a corrupt
 //! count cannot make it reserve gigabytes), image data is borrowed, not copied, and every error
 //! names the field and the byte offset.
@@ -123,6 +124,11 @@ impl<'a> CdrReader<'a> {
     /// An `int32`.
     pub fn i32(&mut self, field: &'static str) -> Result<i32, CdrError> {
         Ok(i32::from_le_bytes(self.take(field)?))
+    }
+
+    /// A `float32`.
+    pub fn f32(&mut self, field: &'static str) -> Result<f32, CdrError> {
+        Ok(f32::from_le_bytes(self.take(field)?))
     }
 
     /// A `float64`.
@@ -390,6 +396,127 @@ pub fn joint_state(bytes: &[u8]) -> Result<JointState, CdrError> {
     })
 }
 
+/// `geometry_msgs/WrenchStamped`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WrenchStamped {
+    /// Header.
+    pub header: Header,
+    /// Force, newtons.
+    pub force: [f64; 3],
+    /// Torque, newton-metres.
+    pub torque: [f64; 3],
+}
+
+/// Decodes a `geometry_msgs/msg/WrenchStamped` (what `moe-touch run --ros-out` writes per
+/// finger).
+///
+/// # Errors
+/// A field that does not decode.
+pub fn wrench_stamped(bytes: &[u8]) -> Result<WrenchStamped, CdrError> {
+    let mut r = CdrReader::new(bytes)?;
+    Ok(WrenchStamped {
+        header: Header::read(&mut r)?,
+        force: r.f64_array::<3>("wrench.force")?,
+        torque: r.f64_array::<3>("wrench.torque")?,
+    })
+}
+
+/// A `visualization_msgs/Marker` (ROS 2 Jazzy's definition), the fields a result uses; the
+/// texture, UV coordinates, text and mesh fields are read past.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Marker {
+    /// Header (the frame the points are in).
+    pub header: Header,
+    /// Namespace.
+    pub ns: String,
+    /// Id within the namespace.
+    pub id: i32,
+    /// Type (`ARROW` 0, `SPHERE_LIST` 7, `POINTS` 8, ...).
+    pub kind: i32,
+    /// Action (`ADD` 0, `DELETE` 2, `DELETEALL` 3).
+    pub action: i32,
+    /// Pose: position then orientation `x, y, z, w`.
+    pub pose: [f64; 7],
+    /// Scale.
+    pub scale: [f64; 3],
+    /// Colour, RGBA in `[0, 1]`.
+    pub color: [f32; 4],
+    /// Points.
+    pub points: Vec<[f64; 3]>,
+    /// Per-point colours.
+    pub colors: Vec<[f32; 4]>,
+}
+
+impl Marker {
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        let header = Header::read(r)?;
+        let ns = r.string("ns")?;
+        let id = r.i32("id")?;
+        let kind = r.i32("type")?;
+        let action = r.i32("action")?;
+        let pose = r.f64_array::<7>("pose")?;
+        let scale = r.f64_array::<3>("scale")?;
+        let mut color = [0.0; 4];
+        for c in &mut color {
+            *c = r.f32("color")?;
+        }
+        r.i32("lifetime.sec")?;
+        r.u32("lifetime.nanosec")?;
+        r.u8("frame_locked")?;
+        let n = r.count("points", 24)?;
+        let points = (0..n)
+            .map(|_| r.f64_array::<3>("points"))
+            .collect::<Result<_, _>>()?;
+        let n = r.count("colors", 16)?;
+        let colors = (0..n)
+            .map(|_| {
+                let mut c = [0.0; 4];
+                for v in &mut c {
+                    *v = r.f32("colors")?;
+                }
+                Ok(c)
+            })
+            .collect::<Result<_, _>>()?;
+        r.string("texture_resource")?;
+        Header::read(r)?;
+        r.string("texture.format")?;
+        r.bytes("texture.data")?;
+        let n = r.count("uv_coordinates", 8)?;
+        for _ in 0..n {
+            r.f32("uv_coordinates")?;
+            r.f32("uv_coordinates")?;
+        }
+        r.string("text")?;
+        r.string("mesh_resource")?;
+        r.string("mesh_file.filename")?;
+        r.bytes("mesh_file.data")?;
+        r.u8("mesh_use_embedded_materials")?;
+        Ok(Self {
+            header,
+            ns,
+            id,
+            kind,
+            action,
+            pose,
+            scale,
+            color,
+            points,
+            colors,
+        })
+    }
+}
+
+/// Decodes a `visualization_msgs/msg/MarkerArray` (ROS 2 Jazzy's `Marker`).
+///
+/// # Errors
+/// A field that does not decode.
+pub fn marker_array(bytes: &[u8]) -> Result<Vec<Marker>, CdrError> {
+    let mut r = CdrReader::new(bytes)?;
+    // A marker takes well over 100 bytes; 100 bounds the count.
+    let n = r.count("markers", 100)?;
+    (0..n).map(|_| Marker::read(&mut r)).collect()
+}
+
 /// Writes CDR messages (little-endian), for tests and for results written as ROS 2 messages.
 #[derive(Debug, Default)]
 pub struct CdrWriter {
@@ -425,6 +552,13 @@ impl CdrWriter {
 
     /// An `int32`.
     pub fn i32(&mut self, v: i32) -> &mut Self {
+        self.align(4);
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+        self
+    }
+
+    /// A `float32`.
+    pub fn f32(&mut self, v: f32) -> &mut Self {
         self.align(4);
         self.bytes.extend_from_slice(&v.to_le_bytes());
         self

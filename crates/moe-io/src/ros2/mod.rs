@@ -24,4 +24,7 @@ mod bag;
 mod write;
 
 pub use bag::{RosConfig, is_ros2_recording, read_ros2_bag};
-pub use write::{CAMERA_FRAME, DepthEncoding, write_ros2_bag};
+pub use write::{
+    CAMERA_FRAME, DepthEncoding, RESULT_ARROW_M_PER_N, RESULT_MARKERS_TOPIC, result_wrench_topic,
+    write_ros2_bag, write_ros2_results,
+};

@@ -1,17 +1,18 @@
-//! Writing an episode as a ROS 2 recording (rosbag2 with MCAP storage, CDR messages), on the
-//! topics and frames of a [`RosConfig`]: what a robot would have recorded of the same frames.
+//! Writing ROS 2 recordings (rosbag2 with MCAP storage, CDR messages): an episode, on the topics
+//! and frames of a [`RosConfig`] (what a robot would have recorded of the same frames), and a
+//! run's results as `visualization_msgs` and `geometry_msgs` to replay beside the robot's own.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use moe_geom::Iso3;
+use moe_geom::{Iso3, Point3};
 
 use super::RosConfig;
 use super::cdr::CdrWriter;
 use crate::episode::{add_channel, mcap_writer};
 use crate::error::IoError;
-use crate::{AtomicFile, Episode};
+use crate::{AtomicFile, Episode, RunFrame};
 
 /// How depth is written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,6 +40,106 @@ fn transform(w: &mut CdrWriter, time_ns: u64, parent: &str, child: &str, iso: &I
     }
 }
 
+/// A rosbag2 directory being written: one MCAP file of CDR messages, then its `metadata.yaml`
+/// (written last, so that a recording cut short by an error is not taken for a whole one).
+struct BagWriter<'a> {
+    dir: &'a Path,
+    path: std::path::PathBuf,
+    file_name: String,
+    writer: mcap::Writer<AtomicFile>,
+    channels: BTreeMap<String, (u16, &'static str, u64)>,
+    sequence: u32,
+    last_ns: u64,
+}
+
+impl<'a> BagWriter<'a> {
+    /// Creates `dir` (it must not exist) and its MCAP file.
+    fn create(dir: &'a Path) -> Result<Self, IoError> {
+        if dir.exists() {
+            return Err(IoError::invalid(
+                dir,
+                "output",
+                "already exists; give a new directory",
+            ));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| IoError::io(dir, e))?;
+        let name = dir
+            .file_name()
+            .map_or_else(|| "bag".into(), |n| n.to_string_lossy().into_owned());
+        let file_name = format!("{name}_0.mcap");
+        let path = dir.join(&file_name);
+        let writer = mcap_writer(AtomicFile::create(&path)?, &path, "ros2")?;
+        Ok(Self {
+            dir,
+            path,
+            file_name,
+            writer,
+            channels: BTreeMap::new(),
+            sequence: 0,
+            last_ns: 0,
+        })
+    }
+
+    /// Declares `topic` of message type `ty` with its `ros2msg` definition.
+    fn channel(&mut self, topic: &str, ty: &'static str, definition: &str) -> Result<(), IoError> {
+        let schema = (
+            ty.to_owned(),
+            "ros2msg".to_owned(),
+            definition.as_bytes().to_vec(),
+        );
+        let id = add_channel(&mut self.writer, &self.path, topic, schema, "cdr")?;
+        self.channels.insert(topic.to_owned(), (id, ty, 0));
+        Ok(())
+    }
+
+    /// Writes one message on a declared topic at `time_ns`.
+    fn put(&mut self, topic: &str, time_ns: u64, data: &[u8]) -> Result<(), IoError> {
+        let Some(channel) = self.channels.get_mut(topic) else {
+            return Err(IoError::invalid(&self.path, topic, "topic not declared"));
+        };
+        channel.2 += 1;
+        self.last_ns = self.last_ns.max(time_ns);
+        crate::episode::write_message(
+            &mut self.writer,
+            &self.path,
+            channel.0,
+            &mut self.sequence,
+            time_ns,
+            data,
+        )
+    }
+
+    /// Finishes the MCAP file and writes `metadata.yaml`.
+    fn finish(mut self) -> Result<(), IoError> {
+        self.writer
+            .finish()
+            .map_err(|e| crate::episode::mcap_err(&self.path, e))?;
+        self.writer.into_inner().commit()?;
+        let mut meta = String::from(
+            "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n",
+        );
+        let _ = writeln!(meta, "  duration:\n    nanoseconds: {}", self.last_ns);
+        let _ = writeln!(meta, "  starting_time:\n    nanoseconds_since_epoch: 0");
+        let total: u64 = self.channels.values().map(|c| c.2).sum();
+        let _ = writeln!(
+            meta,
+            "  message_count: {total}\n  topics_with_message_count:"
+        );
+        for (topic, (_, ty, n)) in &self.channels {
+            let _ = writeln!(
+                meta,
+                "    - topic_metadata:\n        name: {topic}\n        type: {ty}\n        serialization_format: cdr\n      message_count: {n}"
+            );
+        }
+        let _ = writeln!(
+            meta,
+            "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - {}",
+            self.file_name
+        );
+        crate::write_atomic(&self.dir.join("metadata.yaml"), meta.as_bytes())
+    }
+}
+
 /// Writes `episode` into the directory `dir` (created; it must not exist yet) as a rosbag2
 /// recording: `metadata.yaml` and `NAME_0.mcap`. Colour as `rgb8`, depth as `encoding`, the
 /// intrinsics with every frame, the camera's mounting on `/tf_static` (hand → the camera's
@@ -53,121 +154,276 @@ pub fn write_ros2_bag(
     config: &RosConfig,
     encoding: DepthEncoding,
 ) -> Result<(), IoError> {
-    if dir.exists() {
-        return Err(IoError::invalid(
-            dir,
-            "output",
-            "already exists; give a new directory",
-        ));
+    let mut bag = BagWriter::create(dir)?;
+    let topics = [
+        (&config.tf_static_topic, "tf2_msgs/msg/TFMessage"),
+        (&config.camera_info_topic, "sensor_msgs/msg/CameraInfo"),
+        (&config.color_topic, "sensor_msgs/msg/Image"),
+        (&config.depth_topic, "sensor_msgs/msg/Image"),
+        (&config.tf_topic, "tf2_msgs/msg/TFMessage"),
+        (&config.joint_state_topic, "sensor_msgs/msg/JointState"),
+    ];
+    for (topic, ty) in topics {
+        bag.channel(topic, ty, "")?;
     }
-    std::fs::create_dir_all(dir).map_err(|e| IoError::io(dir, e))?;
-    let name = dir
-        .file_name()
-        .map_or_else(|| "bag".into(), |n| n.to_string_lossy().into_owned());
-    let file_name = format!("{name}_0.mcap");
-    let path = dir.join(&file_name);
-    let file = AtomicFile::create(&path)?;
-    let mut counts: BTreeMap<&str, (&str, u64)> = BTreeMap::new();
-    let file = {
-        let mut w = mcap_writer(file, &path)?;
-        let mut channels: BTreeMap<&str, u16> = BTreeMap::new();
-        let topics = [
-            (config.tf_static_topic.as_str(), "tf2_msgs/msg/TFMessage"),
-            (
-                config.camera_info_topic.as_str(),
-                "sensor_msgs/msg/CameraInfo",
-            ),
-            (config.color_topic.as_str(), "sensor_msgs/msg/Image"),
-            (config.depth_topic.as_str(), "sensor_msgs/msg/Image"),
-            (config.tf_topic.as_str(), "tf2_msgs/msg/TFMessage"),
-            (
-                config.joint_state_topic.as_str(),
-                "sensor_msgs/msg/JointState",
-            ),
-        ];
-        for (topic, ty) in topics {
-            let schema = (ty.to_owned(), "ros2msg".to_owned(), Vec::new());
-            channels.insert(topic, add_channel(&mut w, &path, topic, schema, "cdr")?);
-            counts.insert(topic, (ty, 0));
-        }
-        let mut sequence = 0u32;
-        let mut put = |w: &mut mcap::Writer<_>, topic: &str, t: u64, data: Vec<u8>| {
-            if let Some(c) = counts.get_mut(topic) {
-                c.1 += 1;
-            }
-            crate::episode::write_message(w, &path, channels[topic], &mut sequence, t, &data)
-        };
-        let mut tf_static = CdrWriter::new();
-        tf_static.u32(1);
+    let mut tf_static = CdrWriter::new();
+    tf_static.u32(1);
+    transform(
+        &mut tf_static,
+        0,
+        &config.hand_frame,
+        CAMERA_FRAME,
+        &episode.info.hand_from_camera,
+    );
+    bag.put(&config.tf_static_topic, 0, &tf_static.finish())?;
+    let names = joint_names(config, episode);
+    for frame in &episode.frames {
+        let t = frame.time_ns;
+        bag.put(&config.camera_info_topic, t, &camera_info(episode, t))?;
+        bag.put(&config.color_topic, t, &color(episode, frame, t))?;
+        bag.put(&config.depth_topic, t, &depth(episode, frame, t, encoding))?;
+        let mut tf = CdrWriter::new();
+        tf.u32(1);
         transform(
-            &mut tf_static,
-            0,
+            &mut tf,
+            t,
+            &config.world_frame,
             &config.hand_frame,
-            CAMERA_FRAME,
-            &episode.info.hand_from_camera,
+            &frame.world_from_hand,
         );
-        put(&mut w, &config.tf_static_topic, 0, tf_static.finish())?;
-        let names = joint_names(config, episode);
-        for frame in &episode.frames {
-            let t = frame.time_ns;
-            put(
-                &mut w,
-                &config.camera_info_topic,
-                t,
-                camera_info(episode, t),
-            )?;
-            put(&mut w, &config.color_topic, t, color(episode, frame, t))?;
-            put(
-                &mut w,
-                &config.depth_topic,
-                t,
-                depth(episode, frame, t, encoding),
-            )?;
-            let mut tf = CdrWriter::new();
-            tf.u32(1);
-            transform(
-                &mut tf,
-                t,
-                &config.world_frame,
-                &config.hand_frame,
-                &frame.world_from_hand,
-            );
-            put(&mut w, &config.tf_topic, t, tf.finish())?;
-            let mut js = CdrWriter::new();
-            stamp(&mut js, t, "");
-            js.u32(names.len() as u32);
-            for n in &names {
-                js.string(n);
-            }
-            let positions: Vec<f64> = frame.tendon_pull_m.iter().flatten().copied().collect();
-            js.f64_seq(&positions).f64_seq(&[]).f64_seq(&[]);
-            put(&mut w, &config.joint_state_topic, t, js.finish())?;
+        bag.put(&config.tf_topic, t, &tf.finish())?;
+        let mut js = CdrWriter::new();
+        stamp(&mut js, t, "");
+        js.u32(names.len() as u32);
+        for n in &names {
+            js.string(n);
         }
-        w.finish().map_err(|e| crate::episode::mcap_err(&path, e))?;
-        w.into_inner()
-    };
-    file.commit()?;
-    let duration = episode.frames.last().map_or(0, |f| f.time_ns);
-    let mut meta =
-        String::from("rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n");
-    let _ = writeln!(meta, "  duration:\n    nanoseconds: {duration}");
-    let _ = writeln!(meta, "  starting_time:\n    nanoseconds_since_epoch: 0");
-    let total: u64 = counts.values().map(|c| c.1).sum();
-    let _ = writeln!(
-        meta,
-        "  message_count: {total}\n  topics_with_message_count:"
-    );
-    for (topic, (ty, n)) in &counts {
-        let _ = writeln!(
-            meta,
-            "    - topic_metadata:\n        name: {topic}\n        type: {ty}\n        serialization_format: cdr\n      message_count: {n}"
-        );
+        let positions: Vec<f64> = frame.tendon_pull_m.iter().flatten().copied().collect();
+        js.f64_seq(&positions).f64_seq(&[]).f64_seq(&[]);
+        bag.put(&config.joint_state_topic, t, &js.finish())?;
     }
-    let _ = writeln!(
-        meta,
-        "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - {file_name}"
-    );
-    crate::write_atomic(&dir.join("metadata.yaml"), meta.as_bytes())
+    bag.finish()
+}
+
+/// The topic of the results' markers (`visualization_msgs/msg/MarkerArray`).
+pub const RESULT_MARKERS_TOPIC: &str = "/moe_touch/markers";
+
+/// The topic of finger `finger`'s estimated force (`geometry_msgs/msg/WrenchStamped`).
+pub fn result_wrench_topic(finger: usize) -> String {
+    format!("/moe_touch/finger{finger}/wrench")
+}
+
+/// `visualization_msgs/Marker` types and actions used here.
+const POINTS: i32 = 8;
+const SPHERE_LIST: i32 = 7;
+const ARROW: i32 = 0;
+const ADD: i32 = 0;
+const DELETE_ALL: i32 = 3;
+
+/// Length of a load's arrow per newton in the written markers, metres (a 50 mN press draws a
+/// 10 mm arrow, as in the Foxglove result).
+pub const RESULT_ARROW_M_PER_N: f64 = 0.2;
+
+/// One `visualization_msgs/Marker` (the Jazzy definition, with the texture and mesh-file fields).
+struct MarkerSpec<'a> {
+    frame: &'a str,
+    ns: &'a str,
+    id: i32,
+    kind: i32,
+    action: i32,
+    scale: [f64; 3],
+    color: [f32; 4],
+    points: &'a [Point3],
+    colors: &'a [[f32; 4]],
+}
+
+fn marker(w: &mut CdrWriter, t: u64, m: &MarkerSpec<'_>) {
+    stamp(w, t, m.frame);
+    w.string(m.ns).i32(m.id).i32(m.kind).i32(m.action);
+    for v in [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0] {
+        w.f64(v); // pose: position, orientation (identity)
+    }
+    for v in m.scale {
+        w.f64(v);
+    }
+    for c in m.color {
+        w.f32(c);
+    }
+    w.i32(0).u32(0).u8(0); // lifetime 0 (forever), frame_locked false
+    w.u32(m.points.len() as u32);
+    for p in m.points {
+        w.f64(p.x).f64(p.y).f64(p.z);
+    }
+    w.u32(m.colors.len() as u32);
+    for c in m.colors {
+        for v in c {
+            w.f32(*v);
+        }
+    }
+    w.string(""); // texture_resource
+    stamp(w, 0, ""); // texture: sensor_msgs/CompressedImage, empty
+    w.string("").bytes(&[]);
+    w.u32(0); // uv_coordinates
+    w.string("").string(""); // text, mesh_resource
+    w.string("").bytes(&[]); // mesh_file
+    w.u8(0); // mesh_use_embedded_materials
+}
+
+/// Writes the results of a run of `frames` into the directory `dir` (created; it must not exist
+/// yet) as a rosbag2 recording to replay beside the robot's own topics:
+///
+/// - [`RESULT_MARKERS_TOPIC`] (`visualization_msgs/msg/MarkerArray`, stamped with each frame's
+///   time): every finger's estimated surface as points coloured by contact probability and the
+///   markers found, in `config.hand_frame`; the contact points in `config.world_frame`; with the
+///   physics estimator each load as an arrow ending at its place ([`RESULT_ARROW_M_PER_N`]).
+///   The first marker of every array deletes the previous frame's.
+/// - [`result_wrench_topic`]`(f)` (`geometry_msgs/msg/WrenchStamped`, `config.hand_frame`): the
+///   net force the world exerts on finger `f` (zero torque), for runs that estimate force.
+///
+/// Messages carry their `ros2msg` definitions (as ROS 2 Jazzy defines them), so viewers that
+/// decode from the file (Foxglove) need no ROS installation.
+///
+/// # Errors
+/// A directory that exists or cannot be created, a file that cannot be written.
+pub fn write_ros2_results(
+    dir: &Path,
+    frames: &[RunFrame],
+    config: &RosConfig,
+) -> Result<(), IoError> {
+    let mut bag = BagWriter::create(dir)?;
+    bag.channel(
+        RESULT_MARKERS_TOPIC,
+        "visualization_msgs/msg/MarkerArray",
+        MARKER_ARRAY_DEFINITION,
+    )?;
+    let fingers = frames
+        .iter()
+        .find_map(|f| f.forces.as_ref().map(|r| r.finger_force_n.len()))
+        .unwrap_or(0);
+    for f in 0..fingers {
+        bag.channel(
+            &result_wrench_topic(f),
+            "geometry_msgs/msg/WrenchStamped",
+            WRENCH_STAMPED_DEFINITION,
+        )?;
+    }
+    for frame in frames {
+        let t = frame.time_ns;
+        bag.put(RESULT_MARKERS_TOPIC, t, &result_markers(frame, config, t))?;
+        let Some(forces) = &frame.forces else {
+            continue;
+        };
+        for (f, force) in forces.finger_force_n.iter().enumerate().take(fingers) {
+            let mut w = CdrWriter::new();
+            stamp(&mut w, t, &config.hand_frame);
+            for v in [force.x, force.y, force.z, 0.0, 0.0, 0.0] {
+                w.f64(v);
+            }
+            bag.put(&result_wrench_topic(f), t, &w.finish())?;
+        }
+    }
+    bag.finish()
+}
+
+/// One frame's `MarkerArray`.
+fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64) -> Vec<u8> {
+    let hand = config.hand_frame.as_str();
+    let red = [1.0, 0.1, 0.1, 1.0];
+    let seen: Vec<Point3> = frame
+        .markers_in_hand
+        .iter()
+        .flatten()
+        .flatten()
+        .copied()
+        .collect();
+    let arrows: Vec<[Point3; 2]> = frame
+        .forces
+        .iter()
+        .flat_map(|f| &f.loads)
+        .map(|l| {
+            [
+                l.location_in_hand - RESULT_ARROW_M_PER_N * l.force_n,
+                l.location_in_hand,
+            ]
+        })
+        .collect();
+    let colours: Vec<Vec<[f32; 4]>> = frame
+        .contact_probability
+        .iter()
+        .map(|p| {
+            p.iter()
+                .map(|&p| {
+                    let [r, g, b] = crate::probability_colour(p);
+                    [r, g, b, 255].map(|c| f32::from(c) / 255.0)
+                })
+                .collect()
+        })
+        .collect();
+    let mut specs = vec![MarkerSpec {
+        frame: hand,
+        ns: "",
+        id: 0,
+        kind: ARROW,
+        action: DELETE_ALL,
+        scale: [0.0; 3],
+        color: [0.0; 4],
+        points: &[],
+        colors: &[],
+    }];
+    for (f, (vertices, colors)) in frame.vertices_in_hand.iter().zip(&colours).enumerate() {
+        specs.push(MarkerSpec {
+            frame: hand,
+            ns: "surface",
+            id: f as i32,
+            kind: POINTS,
+            action: ADD,
+            scale: [0.001, 0.001, 0.0],
+            color: [1.0; 4],
+            points: vertices,
+            colors,
+        });
+    }
+    specs.push(MarkerSpec {
+        frame: hand,
+        ns: "markers",
+        id: 0,
+        kind: SPHERE_LIST,
+        action: ADD,
+        scale: [0.003; 3],
+        color: red,
+        points: &seen,
+        colors: &[],
+    });
+    specs.push(MarkerSpec {
+        frame: &config.world_frame,
+        ns: "contacts",
+        id: 0,
+        kind: SPHERE_LIST,
+        action: ADD,
+        scale: [0.002; 3],
+        color: [1.0, 0.85, 0.0, 1.0],
+        points: &frame.contacts_in_world,
+        colors: &[],
+    });
+    for (k, arrow) in arrows.iter().enumerate() {
+        specs.push(MarkerSpec {
+            frame: hand,
+            ns: "loads",
+            id: k as i32,
+            kind: ARROW,
+            action: ADD,
+            scale: [0.001, 0.002, 0.003],
+            color: [0.1, 0.4, 1.0, 1.0],
+            points: arrow,
+            colors: &[],
+        });
+    }
+    let mut w = CdrWriter::new();
+    w.u32(specs.len() as u32);
+    for m in &specs {
+        marker(&mut w, t, m);
+    }
+    w.finish()
 }
 
 fn joint_names(config: &RosConfig, episode: &Episode) -> Vec<String> {
@@ -250,4 +506,231 @@ fn depth(
         .u32(bpp * c.width);
     w.bytes(&bytes);
     w.finish()
+}
+
+/// `geometry_msgs/msg/WrenchStamped` and its dependencies, `ros2msg` form.
+const WRENCH_STAMPED_DEFINITION: &str = "std_msgs/Header header
+geometry_msgs/Wrench wrench
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+================================================================================
+MSG: geometry_msgs/Wrench
+Vector3 force
+Vector3 torque
+================================================================================
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+";
+
+/// `visualization_msgs/msg/MarkerArray` and its dependencies (ROS 2 Jazzy), `ros2msg` form.
+const MARKER_ARRAY_DEFINITION: &str = "Marker[] markers
+================================================================================
+MSG: visualization_msgs/Marker
+int32 ARROW=0
+int32 CUBE=1
+int32 SPHERE=2
+int32 CYLINDER=3
+int32 LINE_STRIP=4
+int32 LINE_LIST=5
+int32 CUBE_LIST=6
+int32 SPHERE_LIST=7
+int32 POINTS=8
+int32 TEXT_VIEW_FACING=9
+int32 MESH_RESOURCE=10
+int32 TRIANGLE_LIST=11
+int32 ARROW_STRIP=12
+int32 ADD=0
+int32 MODIFY=0
+int32 DELETE=2
+int32 DELETEALL=3
+std_msgs/Header header
+string ns
+int32 id
+int32 type
+int32 action
+geometry_msgs/Pose pose
+geometry_msgs/Vector3 scale
+std_msgs/ColorRGBA color
+builtin_interfaces/Duration lifetime
+bool frame_locked
+geometry_msgs/Point[] points
+std_msgs/ColorRGBA[] colors
+string texture_resource
+sensor_msgs/CompressedImage texture
+UVCoordinate[] uv_coordinates
+string text
+string mesh_resource
+MeshFile mesh_file
+bool mesh_use_embedded_materials
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+================================================================================
+MSG: geometry_msgs/Pose
+Point position
+Quaternion orientation
+================================================================================
+MSG: geometry_msgs/Point
+float64 x
+float64 y
+float64 z
+================================================================================
+MSG: geometry_msgs/Quaternion
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+================================================================================
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+================================================================================
+MSG: std_msgs/ColorRGBA
+float32 r
+float32 g
+float32 b
+float32 a
+================================================================================
+MSG: builtin_interfaces/Duration
+int32 sec
+uint32 nanosec
+================================================================================
+MSG: sensor_msgs/CompressedImage
+std_msgs/Header header
+string format
+uint8[] data
+================================================================================
+MSG: visualization_msgs/UVCoordinate
+float32 u
+float32 v
+================================================================================
+MSG: visualization_msgs/MeshFile
+string filename
+uint8[] data
+";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ros2::cdr::{marker_array, wrench_stamped};
+    use crate::{RunForces, RunLoad};
+    use moe_geom::Vector3;
+
+    fn frame(time_ns: u64, pressed: bool) -> RunFrame {
+        let p = |x: f64| Point3::new(x, 0.0, 0.01);
+        RunFrame {
+            time_ns,
+            color_rgb8: Vec::new(),
+            world_from_hand: Iso3::translation(1.0, 0.0, 0.0),
+            markers_in_hand: vec![vec![Some(p(0.0)), None], vec![Some(p(1.0))]],
+            vertices_in_hand: vec![vec![p(0.0), p(0.1), p(0.2)], vec![p(1.0), p(1.1), p(1.2)]],
+            contact_probability: vec![vec![0.0, 0.5, 1.0], vec![0.0; 3]],
+            contacts_in_world: if pressed { vec![p(1.2)] } else { Vec::new() },
+            truth: None,
+            forces: Some(RunForces {
+                finger_force_n: vec![Vector3::new(0.0, 0.0, -0.05), Vector3::zeros()],
+                pressed_probability: None,
+                loads: if pressed {
+                    vec![RunLoad {
+                        finger: 0,
+                        location_in_hand: p(0.2),
+                        force_n: Vector3::new(0.0, 0.0, -0.05),
+                    }]
+                } else {
+                    Vec::new()
+                },
+            }),
+        }
+    }
+
+    /// The written messages decode to the frames: a marker array per frame (the previous
+    /// deleted, a surface per finger coloured by contact, the markers seen, the contacts in the
+    /// world, an arrow per load ending at its place) and a wrench per finger.
+    #[test]
+    fn results_decode_to_the_frames() {
+        let dir = std::env::temp_dir().join(format!("moe-io-ros2-results-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let frames = [frame(100, true), frame(200, false)];
+        let config = RosConfig::default();
+        write_ros2_results(&dir, &frames, &config).unwrap();
+        assert!(crate::ros2::is_ros2_recording(&dir));
+        let meta = std::fs::read_to_string(dir.join("metadata.yaml")).unwrap();
+        assert!(meta.contains("message_count: 6"), "{meta}");
+        let bytes = std::fs::read(dir.join(format!(
+            "{}_0.mcap",
+            dir.file_name().unwrap().to_string_lossy()
+        )))
+        .unwrap();
+        // The header record's profile: rosbag2's, which ROS 2 readers require.
+        assert_eq!(bytes[8], 0x01);
+        assert_eq!(&bytes[17..25], b"\x04\0\0\0ros2");
+        let mut arrays = Vec::new();
+        let mut wrenches = Vec::new();
+        for m in mcap::MessageStream::new(&bytes).unwrap() {
+            let m = m.unwrap();
+            let schema = m.channel.schema.as_ref().unwrap();
+            assert_eq!(schema.encoding, "ros2msg");
+            assert!(
+                !schema.data.is_empty(),
+                "the definition travels with the file"
+            );
+            if m.channel.topic == RESULT_MARKERS_TOPIC {
+                arrays.push((m.log_time, marker_array(&m.data).unwrap()));
+            } else {
+                let w = wrench_stamped(&m.data).unwrap();
+                wrenches.push((m.channel.topic.clone(), m.log_time, w));
+            }
+        }
+        assert_eq!(arrays.len(), 2);
+        let (t, a) = &arrays[0];
+        assert_eq!(*t, 100);
+        let kinds: Vec<(&str, i32, i32)> = a
+            .iter()
+            .map(|m| (m.ns.as_str(), m.kind, m.action))
+            .collect();
+        assert_eq!(
+            kinds,
+            [
+                ("", ARROW, DELETE_ALL),
+                ("surface", POINTS, ADD),
+                ("surface", POINTS, ADD),
+                ("markers", SPHERE_LIST, ADD),
+                ("contacts", SPHERE_LIST, ADD),
+                ("loads", ARROW, ADD),
+            ]
+        );
+        assert_eq!(a[1].points[2], [0.2, 0.0, 0.01]);
+        assert_eq!(a[1].colors[0][0], 0.0);
+        assert_eq!(a[1].colors[2][0], 1.0, "probability 1 is full red");
+        assert_eq!(a[3].points.len(), 2, "the two markers seen");
+        assert_eq!(a[4].header.frame_id, "world");
+        assert_eq!(a[4].points, [[1.2, 0.0, 0.01]]);
+        let arrow = &a[5].points;
+        assert_eq!(arrow[1], [0.2, 0.0, 0.01]);
+        assert!((arrow[0][2] - (0.01 + RESULT_ARROW_M_PER_N * 0.05)).abs() < 1e-15);
+        assert_eq!(arrays[1].1.len(), 5, "no load, no arrow");
+        assert_eq!(wrenches.len(), 4);
+        let (topic, t, w) = &wrenches[0];
+        assert_eq!((topic.as_str(), *t), ("/moe_touch/finger0/wrench", 100));
+        assert_eq!(w.header.frame_id, "hand");
+        assert_eq!(w.force, [0.0, 0.0, -0.05]);
+        assert_eq!(w.torque, [0.0; 3]);
+        let err = write_ros2_results(&dir, &frames, &config).unwrap_err();
+        assert!(err.to_string().contains("already exists"), "{err}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

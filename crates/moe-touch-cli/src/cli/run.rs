@@ -140,6 +140,13 @@ pub(crate) struct RunArgs {
     /// Also write the report (per-frame and overall figures) as JSON here.
     #[arg(long, value_name = "R.json")]
     report: Option<PathBuf>,
+    /// Also write the results as a ROS 2 recording into this new directory, to replay beside
+    /// the robot's own topics: `visualization_msgs/MarkerArray` on /moe_touch/markers (the
+    /// surface coloured by contact, the markers found, the contact points, the loads as
+    /// arrows) and each finger's force as `geometry_msgs/WrenchStamped` on
+    /// /moe_touch/finger{i}/wrench, in the frames of `--ros` (default `world`, `hand`).
+    #[arg(long, value_name = "DIR")]
+    ros_out: Option<PathBuf>,
     /// The hand: a preset (two-finger, three-finger, five-finger) or a hand config file; it
     /// must be the episode's hand and the model's.
     #[arg(long, value_name = "PRESET|CONFIG", default_value = "two-finger")]
@@ -183,6 +190,12 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         &[(args.force_scale.is_some(), "--force-scale")],
     )?;
     let force_scale = check_force_scale(args.force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N))?;
+    if let Some(dir) = args.ros_out.as_ref().filter(|d| d.exists()) {
+        bail!(
+            "--ros-out {}: already exists; give a new directory",
+            dir.display()
+        );
+    }
     let config: DetectorConfig = match &args.config {
         Some(path) => moe_io::read_config(path)?,
         None => DetectorConfig::default(),
@@ -238,12 +251,8 @@ fn read_episode(
     hand: &moe_geom::HandModel,
 ) -> Result<(moe_io::Episode, Option<moe_io::IoError>)> {
     if args.ros.is_some() || moe_io::ros2::is_ros2_recording(&args.episode) {
-        let config: moe_io::ros2::RosConfig = match &args.ros {
-            Some(path) => moe_io::read_config(path)?,
-            None => moe_io::ros2::RosConfig::default(),
-        };
         return Ok((
-            moe_io::ros2::read_ros2_bag(&args.episode, &config, hand)?,
+            moe_io::ros2::read_ros2_bag(&args.episode, &ros_config(args)?, hand)?,
             None,
         ));
     }
@@ -257,6 +266,14 @@ fn read_episode(
             None => anyhow::anyhow!("{}: holds no episode", args.episode.display()),
         }),
     }
+}
+
+/// The ROS 2 topics and frames of `--ros`, or the defaults.
+fn ros_config(args: &RunArgs) -> Result<moe_io::ros2::RosConfig> {
+    Ok(match &args.ros {
+        Some(path) => moe_io::read_config(path)?,
+        None => moe_io::ros2::RosConfig::default(),
+    })
 }
 
 /// Runs the pipeline over the episode, writes the result and the report, prints the summary.
@@ -295,6 +312,9 @@ fn finish<S: ShapeEstimator, C: ContactEstimator>(
     // The report is built before anything is written; the result file is written whole.
     let report_text = serde_json::to_string_pretty(&report)?;
     moe_io::write_run(&args.out, &info, &frames)?;
+    if let Some(dir) = &args.ros_out {
+        moe_io::ros2::write_ros2_results(dir, &frames, &ros_config(args)?)?;
+    }
     if let Some(path) = &args.report {
         moe_io::write_atomic(path, report_text.as_bytes())?;
     }

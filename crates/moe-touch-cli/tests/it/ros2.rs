@@ -188,3 +188,107 @@ fn run_on_the_rosbags_recording_finds_the_episodes_contact_frames() {
         assert_eq!(*ca > 0, *cb > 0, "frame {k}: {a:?} vs {b:?}");
     }
 }
+
+/// Every message of a recording's MCAP files: topic, log time, CDR bytes.
+fn bag_messages(dir: &Path) -> Vec<(String, u64, Vec<u8>)> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "mcap") {
+            let bytes = std::fs::read(&path).unwrap();
+            for m in mcap::MessageStream::new(&bytes).unwrap() {
+                let m = m.unwrap();
+                out.push((m.channel.topic.clone(), m.log_time, m.data.into_owned()));
+            }
+        }
+    }
+    out
+}
+
+/// `run --ros-out` writes the results as ROS 2 messages: per frame one `MarkerArray` (the previous
+/// frame's deleted first, a surface per finger, the contact points of the report in the world
+/// frame, an arrow per load) and per finger a `WrenchStamped` of the report's force in the hand
+/// frame. A directory that exists is refused before anything runs.
+#[test]
+fn run_writes_its_results_as_ros_messages() {
+    use moe_io::ros2::cdr::{marker_array, wrench_stamped};
+    use moe_io::ros2::{RESULT_MARKERS_TOPIC, result_wrench_topic};
+    let root = scratch("ros2-results");
+    let results = root.join("results");
+    let bag = fixtures().join("episodes/plate_tip_front_small_ros2");
+    let (report, _) = run_report(
+        &bag,
+        &root.join("r.mcap"),
+        &["--ros-out", results.to_str().unwrap()],
+    );
+    assert!(moe_io::ros2::is_ros2_recording(&results));
+    let meta = std::fs::read_to_string(results.join("metadata.yaml")).unwrap();
+    assert!(
+        meta.contains("type: visualization_msgs/msg/MarkerArray"),
+        "{meta}"
+    );
+    let messages = bag_messages(&results);
+    let frames = report["per_frame"].as_array().unwrap();
+    let arrays: Vec<_> = messages
+        .iter()
+        .filter(|m| m.0 == RESULT_MARKERS_TOPIC)
+        .collect();
+    assert_eq!(arrays.len(), frames.len());
+    let mut pressed = 0;
+    for (m, f) in arrays.iter().zip(frames) {
+        assert_eq!(m.1, f["time_ns"].as_u64().unwrap());
+        let array = marker_array(&m.2).unwrap();
+        assert_eq!(array[0].action, 3, "DELETEALL first");
+        let ns = |name: &'static str| array.iter().filter(move |x| x.ns == name);
+        let contacts: Vec<_> = ns("contacts").collect();
+        assert_eq!(contacts.len(), 1);
+        assert_eq!(contacts[0].header.frame_id, "world");
+        assert_eq!(contacts[0].header.stamp_ns as u64, m.1);
+        let n = contacts[0].points.len() as u64;
+        assert_eq!(n, f["contact_points"].as_u64().unwrap());
+        pressed += usize::from(n > 0);
+        let surfaces: Vec<_> = ns("surface").collect();
+        assert_eq!(surfaces.len(), 2);
+        for s in &surfaces {
+            assert_eq!(s.points.len(), 1024);
+            assert_eq!(s.colors.len(), 1024);
+        }
+        assert_eq!(
+            ns("loads").count(),
+            f["loads"].as_array().unwrap().len(),
+            "an arrow per load"
+        );
+        assert_eq!(
+            ns("markers").next().unwrap().points.len() as u64,
+            f["markers_found"].as_u64().unwrap()
+        );
+        for finger in 0..2 {
+            let topic = result_wrench_topic(finger);
+            let w = messages
+                .iter()
+                .find(|x| x.0 == topic && x.1 == m.1)
+                .unwrap();
+            let w = wrench_stamped(&w.2).unwrap();
+            assert_eq!(w.header.frame_id, "hand");
+            let expected = &f["finger_forces"][finger]["force_n"];
+            for k in 0..3 {
+                assert!((w.force[k] - expected[k].as_f64().unwrap()).abs() < 1e-12);
+                assert_eq!(w.torque[k], 0.0);
+            }
+        }
+    }
+    assert!(pressed > 0, "the episode presses finger 0");
+    let out = root.join("again.mcap");
+    let o = run(&[
+        "run",
+        "--episode",
+        bag.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--ros-out",
+        results.to_str().unwrap(),
+    ]);
+    let line = crate::common::assert_one_line_error(&o);
+    assert!(line.contains("already exists"), "{line}");
+    assert!(!out.exists());
+}
