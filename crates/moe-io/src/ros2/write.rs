@@ -508,10 +508,11 @@ fn depth(
     w.finish()
 }
 
-/// `geometry_msgs/msg/WrenchStamped` and its dependencies, `ros2msg` form.
-const WRENCH_STAMPED_DEFINITION: &str = "std_msgs/Header header
-geometry_msgs/Wrench wrench
-================================================================================
+/// The `ros2msg` definitions of `std_msgs/Header` and `builtin_interfaces/Time`, which both
+/// result messages use.
+macro_rules! header_definitions {
+    () => {
+        "================================================================================
 MSG: std_msgs/Header
 builtin_interfaces/Time stamp
 string frame_id
@@ -519,19 +520,39 @@ string frame_id
 MSG: builtin_interfaces/Time
 int32 sec
 uint32 nanosec
-================================================================================
-MSG: geometry_msgs/Wrench
-Vector3 force
-Vector3 torque
-================================================================================
+"
+    };
+}
+
+/// The `ros2msg` definition of `geometry_msgs/Vector3`.
+macro_rules! vector3_definition {
+    () => {
+        "================================================================================
 MSG: geometry_msgs/Vector3
 float64 x
 float64 y
 float64 z
-";
+"
+    };
+}
+
+/// `geometry_msgs/msg/WrenchStamped` and its dependencies, `ros2msg` form.
+const WRENCH_STAMPED_DEFINITION: &str = concat!(
+    "std_msgs/Header header
+geometry_msgs/Wrench wrench
+",
+    header_definitions!(),
+    "================================================================================
+MSG: geometry_msgs/Wrench
+Vector3 force
+Vector3 torque
+",
+    vector3_definition!()
+);
 
 /// `visualization_msgs/msg/MarkerArray` and its dependencies (ROS 2 Jazzy), `ros2msg` form.
-const MARKER_ARRAY_DEFINITION: &str = "Marker[] markers
+const MARKER_ARRAY_DEFINITION: &str = concat!(
+    "Marker[] markers
 ================================================================================
 MSG: visualization_msgs/Marker
 int32 ARROW=0
@@ -570,15 +591,9 @@ string text
 string mesh_resource
 MeshFile mesh_file
 bool mesh_use_embedded_materials
-================================================================================
-MSG: std_msgs/Header
-builtin_interfaces/Time stamp
-string frame_id
-================================================================================
-MSG: builtin_interfaces/Time
-int32 sec
-uint32 nanosec
-================================================================================
+",
+    header_definitions!(),
+    "================================================================================
 MSG: geometry_msgs/Pose
 Point position
 Quaternion orientation
@@ -593,12 +608,9 @@ float64 x 0
 float64 y 0
 float64 z 0
 float64 w 1
-================================================================================
-MSG: geometry_msgs/Vector3
-float64 x
-float64 y
-float64 z
-================================================================================
+",
+    vector3_definition!(),
+    "================================================================================
 MSG: std_msgs/ColorRGBA
 float32 r
 float32 g
@@ -621,7 +633,8 @@ float32 v
 MSG: visualization_msgs/MeshFile
 string filename
 uint8[] data
-";
+"
+);
 
 #[cfg(test)]
 mod tests {

@@ -111,6 +111,23 @@ fn run_on_a_recording_finds_what_it_finds_on_the_episode() {
     assert!(from_bag["contact"].is_null() && !from_episode["contact"].is_null());
 }
 
+/// `moe-touch run --episode episode --out OUT` with `extra` options fails in one error line that
+/// says `says`, and writes no result.
+fn assert_run_refused(episode: &Path, extra: &[&str], says: &str) {
+    let out = scratch("ros2-refused").join("r.mcap");
+    let mut args = vec![
+        "run",
+        "--episode",
+        episode.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let line = crate::common::assert_one_line_error(&run(&args));
+    assert!(line.contains(says), "{line}");
+    assert!(!out.exists());
+}
+
 /// A recording without its colour topic, or with a tendon joint the config names but the
 /// recording lacks: one error line, nothing written.
 #[test]
@@ -123,38 +140,22 @@ fn bad_recordings_give_one_error_line_and_no_output() {
         ..RosConfig::default()
     };
     write_ros2_bag(&bag, &episode, &renamed, DepthEncoding::Metres32).unwrap();
-    let out = root.join("r.mcap");
-    let o = run(&[
-        "run",
-        "--episode",
-        bag.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let line = crate::common::assert_one_line_error(&o);
-    assert!(
-        line.contains("no message on the colour topic /camera/camera/color/image_raw"),
-        "{line}"
+    assert_run_refused(
+        &bag,
+        &[],
+        "no message on the colour topic /camera/camera/color/image_raw",
     );
-    assert!(!out.exists());
     let config = root.join("ros.toml");
     std::fs::write(
         &config,
         "color_topic = \"/elsewhere/image\"\ntendon_joints = [[\"a\", \"b\", \"c\", \"d\"], [\"e\", \"f\", \"g\", \"h\"]]\n",
     )
     .unwrap();
-    let o = run(&[
-        "run",
-        "--episode",
-        bag.to_str().unwrap(),
-        "--ros",
-        config.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let line = crate::common::assert_one_line_error(&o);
-    assert!(line.contains("has no joint 'a'"), "{line}");
-    assert!(!out.exists());
+    assert_run_refused(
+        &bag,
+        &["--ros", config.to_str().unwrap()],
+        "has no joint 'a'",
+    );
 }
 
 /// The recording `tools/episode_to_rosbag.py` made of the example episode with the `rosbags`
@@ -278,17 +279,9 @@ fn run_writes_its_results_as_ros_messages() {
         }
     }
     assert!(pressed > 0, "the episode presses finger 0");
-    let out = root.join("again.mcap");
-    let o = run(&[
-        "run",
-        "--episode",
-        bag.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--ros-out",
-        results.to_str().unwrap(),
-    ]);
-    let line = crate::common::assert_one_line_error(&o);
-    assert!(line.contains("already exists"), "{line}");
-    assert!(!out.exists());
+    assert_run_refused(
+        &bag,
+        &["--ros-out", results.to_str().unwrap()],
+        "already exists",
+    );
 }
