@@ -1,8 +1,9 @@
 """MOE-Touch: contact from a soft hand's deformation, numpy in and out.
 
 Arrays are float64 in metres and newtons unless said; per-finger values are lists with one
-array per finger. Every failure raises MoeTouchError (a ValueError) with the line the moe-touch
-tool prints for the same error. Long calls release the GIL.
+array per finger. Every failure of the Rust code raises MoeTouchError (a ValueError) with the
+line the moe-touch tool prints for the same error; wrong types are TypeError, an index past the
+end IndexError. Long calls release the GIL.
 """
 
 from os import PathLike
@@ -277,7 +278,8 @@ class Dataset:
 
 class DatasetFrames:
     def __iter__(self) -> DatasetFrames: ...
-    def __next__(self) -> dict[str, Optional[npt.NDArray[Any]]]: ...
+    def __next__(self) -> dict[str, Any]:
+        """One frame: arrays, and numpy scalars for the per-frame numbers."""
 
 def read_episode(
     path: _Path, hand: Optional[Hand] = None, ros: Union[_Path, dict[str, Any], None] = None

@@ -19,6 +19,8 @@ pub struct ContactModel {
     pub(crate) model: Mutex<DgcnnEstimator>,
     threshold: f64,
     num_fingers: usize,
+    /// The card, JSON (read once, so that asking for it never waits on an estimate).
+    card: String,
 }
 
 impl ContactModel {
@@ -35,7 +37,9 @@ impl ContactModel {
     #[new]
     fn new(py: Python<'_>, path: PathBuf, hand: &Hand) -> PyResult<Self> {
         let model = py.detach(|| Self::estimator(&path, hand))?;
+        let card = serde_json::to_string(model.card()).map_err(|e| invalid(e.to_string()))?;
         Ok(Self {
+            card,
             threshold: model.threshold(),
             model: Mutex::new(model),
             num_fingers: hand.model.num_fingers(),
@@ -51,14 +55,7 @@ impl ContactModel {
     /// The model card as a dict (features, normalisation, training, metrics).
     #[getter]
     fn card<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let json = {
-            let model = self
-                .model
-                .lock()
-                .map_err(|_| invalid("the contact model failed in another thread"))?;
-            serde_json::to_string(model.card()).map_err(|e| invalid(e.to_string()))?
-        };
-        py.import("json")?.call_method1("loads", (json,))
+        py.import("json")?.call_method1("loads", (&self.card,))
     }
 
     /// Contact probability of every vertex of `vertices`, one `(n, 3)` array per finger (hand

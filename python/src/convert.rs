@@ -147,8 +147,10 @@ pub(crate) fn iso<'py>(py: Python<'py>, iso: &Iso3) -> Bound<'py, PyArray2<f64>>
 /// Tendon pulls `[finger][tendon]` from an `(fingers, tendons)` array.
 pub(crate) fn to_pulls(array: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Vec<f64>>> {
     let a = array.as_array();
-    if a.iter().any(|x| !x.is_finite()) {
-        return Err(invalid("pulls: not finite"));
+    if let Some(((f, t), x)) = a.indexed_iter().find(|(_, x)| !x.is_finite()) {
+        return Err(invalid(format!(
+            "pulls: finger {f}, tendon {t} is not finite ({x})"
+        )));
     }
     Ok(a.rows().into_iter().map(|r| r.to_vec()).collect())
 }

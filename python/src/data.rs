@@ -210,11 +210,33 @@ fn ros_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<RosConfig> {
     moe_io::read_config(&path).py()
 }
 
+/// Refuses a hand whose fingers, vertices or tendons are not those an episode was recorded with.
+fn check_hand(hand: &Hand, info: &moe_io::EpisodeInfo) -> PyResult<()> {
+    let ours: Vec<usize> = hand
+        .model
+        .fingers()
+        .iter()
+        .map(|f| f.model.mesh().num_vertices())
+        .collect();
+    let tendons = hand.model.tendons_per_finger().ok();
+    if ours != info.finger_num_vertices || tendons != Some(info.tendons_per_finger) {
+        return Err(invalid(format!(
+            "hand '{}' does not fit the episode: fingers of {ours:?} vertices and {tendons:?} \
+             tendons each, the episode's {:?} and {}",
+            hand.label(),
+            info.finger_num_vertices,
+            info.tendons_per_finger
+        )));
+    }
+    Ok(())
+}
+
 /// Reads an episode: the simulator's MCAP (`moe-touch sim --out`), or a ROS 2 recording (a
 /// rosbag2 directory with MCAP storage, or an MCAP file of CDR messages) of `hand` (default:
 /// the two-finger preset) with the topics, frames and joint names of `ros` (a TOML or JSON
 /// file, or a dict; default: `realsense2_camera`'s topics). A simulated episode cut short is
-/// read up to its last whole frame, and `Episode.truncated` says why.
+/// read up to its last whole frame, and `Episode.truncated` says why; it carries its hand's
+/// layout, which a given `hand` must fit.
 #[pyfunction]
 #[pyo3(signature = (path, hand=None, ros=None))]
 pub(crate) fn read_episode(
@@ -230,6 +252,9 @@ pub(crate) fn read_episode(
         let bytes = moe_io::read_bytes(&path).py()?;
         Ok::<_, PyErr>(moe_io::parse_episode_prefix(&path, &bytes))
     })?;
+    if let (Some(hand), Some(episode)) = (hand, &episode) {
+        check_hand(hand, &episode.info)?;
+    }
     match (episode, cut) {
         (Some(episode), cut) => {
             Episode::new(py, episode, cut.map(|e| moe_touch::error::one_line(&e)))
@@ -390,9 +415,9 @@ fn stacked<'py>(py: Python<'py>, frames: &[DatasetFrame]) -> PyResult<Bound<'py,
 impl Dataset {
     /// Opens the data set directory `path` (reads its card; shards are read when asked for).
     #[new]
-    fn new(path: PathBuf) -> PyResult<Self> {
+    fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         Ok(Self {
-            reader: DatasetReader::open(&path).py()?,
+            reader: py.detach(|| DatasetReader::open(&path).py())?,
         })
     }
 
@@ -419,14 +444,23 @@ impl Dataset {
     /// `frame_index` (F,), `vertices` (F, N, 3), `contact` (F, N) uint8, `contact_force_n` (F,
     /// N), `obstacle_distance_m` (F, N), `markers` (F, M, 3), `finger_force_n` (F, fingers,
     /// 3) or None, `world_from_hand` (F, 7: xyz then quaternion xyzw), `tendon_pull_m` (F, T),
-    /// `object_family` (F,), `object_params` (F, P). float32 unless said.
+    /// `object_family` (F,), `object_params` (F, P). float32 but `trajectory_id` (uint64),
+    /// `frame_index` (uint32), `contact` and `object_family` (uint8) and `world_from_hand`
+    /// (float64). An index past the last shard is an `IndexError`.
     fn shard<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.reader.num_shards();
+        if index >= n {
+            return Err(pyo3::exceptions::PyIndexError::new_err(format!(
+                "shard {index} of a data set of {n} shards"
+            )));
+        }
         let frames = py.detach(|| self.reader.shard(index).py())?;
-        stacked(py, &frames)
+        stacked(py, &frames).map_err(|e| invalid(format!("shard {index}: {e}")))
     }
 
-    /// The frames of `split` ("train", "validation", "test"; None: all), one dict of arrays per
-    /// frame (as `shard`, without the first axis), read a shard at a time.
+    /// The frames of `split` ("train", "validation", "test"; None: all), one dict per frame (as
+    /// `shard`, without the first axis: scalars for the per-frame numbers), read a shard at a
+    /// time. A shard that fails to read raises its error and ends the iteration.
     #[pyo3(signature = (split=None))]
     fn frames(&self, split: Option<&str>) -> PyResult<DatasetFrames> {
         Ok(DatasetFrames {
@@ -434,6 +468,7 @@ impl Dataset {
             split: parse_split(split)?,
             next_shard: 0,
             buffer: VecDeque::new(),
+            failed: false,
         })
     }
 }
@@ -447,6 +482,8 @@ pub struct DatasetFrames {
     next_shard: usize,
     /// The frames left of the last shard read.
     buffer: VecDeque<DatasetFrame>,
+    /// A shard failed to read: the iteration has ended (as the Rust iterator's).
+    failed: bool,
 }
 
 #[pymethods]
@@ -474,13 +511,19 @@ impl DatasetFrames {
                 }
                 continue;
             }
-            if self.next_shard >= self.reader.num_shards() {
+            if self.failed || self.next_shard >= self.reader.num_shards() {
                 return Ok(None);
             }
             let index = self.next_shard;
             self.next_shard += 1;
             let reader = &self.reader;
-            self.buffer = py.detach(|| reader.shard(index).py())?.into();
+            match py.detach(|| reader.shard(index).py()) {
+                Ok(frames) => self.buffer = frames.into(),
+                Err(e) => {
+                    self.failed = true;
+                    return Err(e);
+                }
+            }
         }
     }
 }

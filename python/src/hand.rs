@@ -33,6 +33,11 @@ impl Hand {
         Self::from_file(path)
     }
 
+    /// The preset's name or the config file's path.
+    pub(crate) fn label(&self) -> &str {
+        &self.name
+    }
+
     fn finger(&self, finger: usize) -> PyResult<&moe_geom::HandFinger> {
         self.model.fingers().get(finger).ok_or_else(|| {
             pyo3::exceptions::PyIndexError::new_err(format!(

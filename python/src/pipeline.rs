@@ -58,20 +58,31 @@ pub struct Pipeline {
     inner: Mutex<Inner>,
     size: (usize, usize),
     num_fingers: usize,
-    tendons: usize,
+    /// Tendons of every finger (`None` for a hand whose fingers differ: no pulls from Python).
+    tendons: Option<usize>,
+    /// `"physics"` or `"dgcnn"`.
+    method: &'static str,
+    threshold: f64,
 }
 
 impl Pipeline {
-    fn wrap(inner: Inner, camera: &Camera, hand: &Hand) -> PyResult<Self> {
-        Ok(Self {
+    fn wrap(inner: Inner, camera: &Camera, hand: &Hand) -> Self {
+        // Read once here, so that asking for them never waits on a frame being processed.
+        let (method, threshold) = match &inner {
+            Inner::Physics(p) => ("physics", p.threshold()),
+            Inner::Dgcnn(p) => ("dgcnn", p.threshold()),
+        };
+        Self {
             inner: Mutex::new(inner),
             size: (
                 camera.intrinsics.height as usize,
                 camera.intrinsics.width as usize,
             ),
             num_fingers: hand.model.num_fingers(),
-            tendons: hand.model.tendons_per_finger().py()?,
-        })
+            tendons: hand.model.tendons_per_finger().ok(),
+            method,
+            threshold,
+        }
     }
 
     fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, Inner>> {
@@ -105,7 +116,7 @@ impl Pipeline {
         let pipeline = py.detach(|| {
             PhysicsPipeline::physics(hand.model.clone(), marker_detector, &material, &config).py()
         })?;
-        Self::wrap(Inner::Physics(Box::new(pipeline)), camera, hand)
+        Ok(Self::wrap(Inner::Physics(Box::new(pipeline)), camera, hand))
     }
 
     /// The paper's pipeline: SR-ARAP shape (`iterations` per frame, default 50;
@@ -142,7 +153,7 @@ impl Pipeline {
             )
             .py()
         })?;
-        Self::wrap(Inner::Dgcnn(Box::new(pipeline)), camera, hand)
+        Ok(Self::wrap(Inner::Dgcnn(Box::new(pipeline)), camera, hand))
     }
 
     /// Runs every stage on one frame. `color` is `(height, width, 3)` uint8 RGB, `depth`
@@ -179,7 +190,13 @@ impl Pipeline {
             WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
         let pulls = match &pulls {
             Some(p) => {
-                let shape = [self.num_fingers, self.tendons];
+                let Some(tendons) = self.tendons else {
+                    return Err(invalid(
+                        "pulls: the hand's fingers have different numbers of tendons, which an \
+                         array of pulls cannot hold",
+                    ));
+                };
+                let shape = [self.num_fingers, tendons];
                 if p.shape() != shape {
                     return Err(invalid(format!(
                         "pulls: expected shape {shape:?} (fingers, tendons), got {:?}",
@@ -220,31 +237,27 @@ impl Pipeline {
     }
 
     /// Forgets the stream (marker tracks, warm starts, the physics estimator's memory).
-    fn reset(&self) -> PyResult<()> {
-        let mut inner = self.lock()?;
-        match &mut *inner {
-            Inner::Physics(p) => p.reset(),
-            Inner::Dgcnn(p) => p.reset(),
-        }
-        Ok(())
+    fn reset(&self, py: Python<'_>) -> PyResult<()> {
+        // Waits for a frame another thread is processing without holding the GIL.
+        py.detach(|| {
+            match &mut *self.lock()? {
+                Inner::Physics(p) => p.reset(),
+                Inner::Dgcnn(p) => p.reset(),
+            }
+            Ok(())
+        })
     }
 
     /// The contact threshold: vertices at or above it are contact points.
     #[getter]
-    fn threshold(&self) -> PyResult<f64> {
-        Ok(match &*self.lock()? {
-            Inner::Physics(p) => p.threshold(),
-            Inner::Dgcnn(p) => p.threshold(),
-        })
+    fn threshold(&self) -> f64 {
+        self.threshold
     }
 
     /// `"physics"` or `"dgcnn"`.
     #[getter]
-    fn method(&self) -> PyResult<&'static str> {
-        Ok(match &*self.lock()? {
-            Inner::Physics(_) => "physics",
-            Inner::Dgcnn(_) => "dgcnn",
-        })
+    fn method(&self) -> &'static str {
+        self.method
     }
 }
 

@@ -105,5 +105,5 @@ def test_a_data_set_reads_as_stacked_shards_and_as_frames():
                 np.testing.assert_array_equal(frames[i][key], value[i])
     splits = [list(ds.frames(s)) for s in ("train", "validation", "test")]
     assert sum(map(len, splits)) == len(ds)
-    with pytest.raises(mt.MoeTouchError, match="past the last"):
+    with pytest.raises(IndexError, match="of a data set of 1 shards"):
         ds.shard(ds.num_shards)

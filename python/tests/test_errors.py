@@ -32,7 +32,8 @@ def test_an_error_is_a_value_error():
     (lambda c, d, T, p: (c, d, 2 * T, p), "last row"),
     (lambda c, d, T, p: (c, d, np.diag([2.0, 1, 1, 1]), p), "not a rotation"),
     (lambda c, d, T, p: (c, d, T, p[:, :3]), r"pulls: expected shape \[2, 4\]"),
-    (lambda c, d, T, p: (c, d, T, np.full_like(p, np.nan)), "pulls: not finite"),
+    (lambda c, d, T, p: (c, d, T, np.where(np.arange(8).reshape(2, 4) == 6, np.nan, p)),
+     "pulls: finger 1, tendon 2 is not finite"),
 ])
 def test_bad_frames_are_refused(frame, change, message):
     pipeline, f = frame
@@ -44,6 +45,28 @@ def test_wrong_dtypes_are_type_errors(frame):
     pipeline, f = frame
     with pytest.raises(TypeError):
         pipeline.process(f.color.astype(np.float32), f.depth, f.world_from_hand, f.pulls)
+
+
+def test_a_simulated_episode_refuses_another_hand():
+    with pytest.raises(mt.MoeTouchError, match="does not fit the episode"):
+        mt.read_episode(EPISODE, hand=mt.Hand.preset("three-finger"))
+    assert len(mt.read_episode(EPISODE, hand=mt.Hand.preset("two-finger"))) == 7
+
+
+def test_bad_solver_input_names_the_item():
+    hand = mt.Hand.preset("two-finger")
+    rest = hand.rest_vertices(0)
+    base = np.flatnonzero(rest[:, 2] < rest[:, 2].min() + 0.002)
+    top = np.argsort(rest[:, 2])[-2:]
+    solver = mt.ArapSolver(rest, hand.faces(0), base, top)
+    bad = rest[top].copy()
+    bad[1, 2] = np.inf
+    with pytest.raises(mt.MoeTouchError, match="handle_targets: row 1 is neither finite"):
+        solver.solve(rest[base], bad)
+    with pytest.raises(mt.MoeTouchError, match=r"expected \d+ fixed and 2 handle targets"):
+        solver.solve(rest[base][:-1], rest[top])
+    with pytest.raises(mt.MoeTouchError, match="handles: vertex id -1"):
+        mt.ArapSolver(rest, hand.faces(0), base, [-1])
 
 
 def test_missing_and_malformed_files_name_the_file(tmp_path):

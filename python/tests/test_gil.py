@@ -32,3 +32,26 @@ def test_a_thread_keeps_running_during_a_pipeline_call():
     # Holding the GIL for the call would leave the other thread no tick inside it.
     assert result.timings.total_ms > 1.0
     assert len(inside) > 100, f"{len(inside)} ticks during a {1e3 * (end - start):.0f} ms call"
+
+
+def test_asking_a_busy_pipeline_for_its_settings_does_not_wait():
+    episode = mt.read_episode(EPISODE)
+    pipeline = mt.Pipeline.physics(mt.Hand.preset("two-finger"), episode.camera, config=OCCLUDING)
+    f = episode[3]
+    started, times = threading.Event(), {}
+
+    def process():
+        started.set()
+        pipeline.process(f.color, f.depth, f.world_from_hand, f.pulls)
+        times["processed"] = time.perf_counter()
+
+    thread = threading.Thread(target=process)
+    thread.start()
+    started.wait()
+    time.sleep(0.005)
+    method, threshold = pipeline.method, pipeline.threshold
+    times["asked"] = time.perf_counter()
+    thread.join()
+    assert method == "physics" and 0 < threshold <= 1
+    # The answers came while the frame was still being processed.
+    assert times["asked"] < times["processed"]

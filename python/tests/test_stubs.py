@@ -29,3 +29,39 @@ def test_the_stubs_match_the_module():
         assert not missing, (name, missing)
         real = {m for m in vars(cls) if not m.startswith("_")}
         assert real <= members, (name, real - members)
+
+
+def stub_parameters(fn):
+    args = fn.args
+    names = [a.arg for a in args.posonlyargs + args.args + args.kwonlyargs]
+    return [n for n in names if n not in ("self", "cls")]
+
+
+def test_the_stub_signatures_name_the_real_parameters():
+    """Every stubbed function, constructor and method whose signature the module exposes takes
+    the parameters the stub names, in its order (special methods keep Python's own names)."""
+    tree = ast.parse(STUB.read_text())
+    checked = 0
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef):
+            targets = [(getattr(mt, node.name), node)]
+        elif isinstance(node, ast.ClassDef):
+            cls = getattr(mt, node.name)
+            targets = [
+                (cls if f.name == "__init__" else getattr(cls, f.name), f)
+                for f in node.body
+                if isinstance(f, ast.FunctionDef)
+                and (f.name == "__init__" or not f.name.startswith("__"))
+                and not any(isinstance(d, ast.Name) and d.id == "property" for d in f.decorator_list)
+            ]
+        else:
+            continue
+        for real, stub in targets:
+            try:
+                signature = inspect.signature(real)
+            except (TypeError, ValueError):
+                continue
+            names = [p for p in signature.parameters if p not in ("self", "cls", "$self", "$cls")]
+            assert names == stub_parameters(stub), (node.name, stub.name, names)
+            checked += 1
+    assert checked >= 15, checked

@@ -499,11 +499,18 @@ fn assemble(
             ),
         );
     }
-    // The first image's stamp, frame and size: the episode's start, the camera and its size.
+    // The first image's stamp, frame and size: where the camera's mounting is looked up, the
+    // camera and its size.
     let (first_stamp, first_frame, size) = {
         let f = &m.color[0];
         (f.stamp_ns, f.frame_id.clone(), (f.width, f.height))
     };
+    if first_stamp < 0 {
+        return refuse(
+            "colour message 0",
+            format!("stamp {first_stamp} ns is before 1970: stamps must be times since the epoch"),
+        );
+    }
     if (info.width, info.height) != size {
         return refuse(
             "camera info",
@@ -561,7 +568,8 @@ fn assemble(
         let tendon_pull_m = pulls_at(&m.joints, &names, color.stamp_ns)
             .map_err(|e| IoError::invalid(path, config.joint_state_topic.clone(), e))?;
         frames.push(EpisodeFrame {
-            time_ns: (color.stamp_ns - first_stamp) as u64,
+            // Stamps are ordered and the first is not negative.
+            time_ns: color.stamp_ns.unsigned_abs(),
             color_rgb8: color.pixels,
             depth_m: depth.pixels.clone(),
             world_from_hand,
@@ -832,7 +840,7 @@ mod tests {
         assert_eq!(ep.info.hand_from_camera.translation.vector.z, 0.1);
         assert_eq!(ep.info.finger_num_vertices.len(), 2);
         let f = &ep.frames[1];
-        assert_eq!(f.time_ns, 100_000_000);
+        assert_eq!(f.time_ns, 200_000_000, "the colour image's stamp");
         // bgr8 became rgb8.
         assert_eq!(&f.color_rgb8[..3], &[0, 11, 1]);
         // 16UC1 millimetres became metres.

@@ -15,7 +15,9 @@
 //! image's stamp (interpolated between the stamped transforms around it, as tf2 does; static
 //! transforms always), and the tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is
 //! the TF path from the hand frame to the colour image's frame. Recordings have no ground truth:
-//! the frames' truth fields are empty.
+//! the frames' truth fields are empty. A frame's time is its colour image's stamp (nanoseconds
+//! since the epoch), so that results written back ([`write_ros2_results`]) line up with the
+//! robot's own recording.
 
 /// CDR decoding of the messages.
 pub mod cdr;
@@ -25,6 +27,6 @@ mod write;
 
 pub use bag::{RosConfig, is_ros2_recording, read_ros2_bag};
 pub use write::{
-    CAMERA_FRAME, DepthEncoding, RESULT_ARROW_M_PER_N, RESULT_MARKERS_TOPIC, result_wrench_topic,
-    write_ros2_bag, write_ros2_results,
+    CAMERA_FRAME, DepthEncoding, RESULT_MARKERS_TOPIC, result_wrench_topic, write_ros2_bag,
+    write_ros2_results,
 };

@@ -49,10 +49,25 @@ struct BagWriter<'a> {
     writer: mcap::Writer<AtomicFile>,
     channels: BTreeMap<String, (u16, &'static str, u64)>,
     sequence: u32,
-    last_ns: u64,
+    /// The first and last message times.
+    span_ns: Option<(u64, u64)>,
 }
 
 impl<'a> BagWriter<'a> {
+    /// Creates `dir` (it must not exist), writes the recording with `messages`, and finishes
+    /// it; on an error, removes what it created, so that nothing half-written is left.
+    fn write(
+        dir: &'a Path,
+        messages: impl FnOnce(&mut Self) -> Result<(), IoError>,
+    ) -> Result<(), IoError> {
+        let mut bag = Self::create(dir)?;
+        let written = messages(&mut bag).and_then(|()| bag.finish());
+        if written.is_err() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+        written
+    }
+
     /// Creates `dir` (it must not exist) and its MCAP file.
     fn create(dir: &'a Path) -> Result<Self, IoError> {
         if dir.exists() {
@@ -76,7 +91,7 @@ impl<'a> BagWriter<'a> {
             writer,
             channels: BTreeMap::new(),
             sequence: 0,
-            last_ns: 0,
+            span_ns: None,
         })
     }
 
@@ -98,7 +113,9 @@ impl<'a> BagWriter<'a> {
             return Err(IoError::invalid(&self.path, topic, "topic not declared"));
         };
         channel.2 += 1;
-        self.last_ns = self.last_ns.max(time_ns);
+        self.span_ns = Some(self.span_ns.map_or((time_ns, time_ns), |(a, b)| {
+            (a.min(time_ns), b.max(time_ns))
+        }));
         crate::episode::write_message(
             &mut self.writer,
             &self.path,
@@ -109,18 +126,26 @@ impl<'a> BagWriter<'a> {
         )
     }
 
-    /// Finishes the MCAP file and writes `metadata.yaml`.
+    /// Finishes the MCAP file and writes `metadata.yaml` in rosbag2's version 8 form (ROS 2
+    /// Jazzy), with every field its reader requires.
     fn finish(mut self) -> Result<(), IoError> {
         self.writer
             .finish()
             .map_err(|e| crate::episode::mcap_err(&self.path, e))?;
         self.writer.into_inner().commit()?;
+        let (start, end) = self.span_ns.unwrap_or((0, 0));
+        let total: u64 = self.channels.values().map(|c| c.2).sum();
+        let time = |m: &mut String, indent: &str| {
+            let _ = writeln!(
+                m,
+                "{indent}starting_time:\n{indent}  nanoseconds_since_epoch: {start}\n{indent}duration:\n{indent}  nanoseconds: {}",
+                end - start
+            );
+        };
         let mut meta = String::from(
             "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n",
         );
-        let _ = writeln!(meta, "  duration:\n    nanoseconds: {}", self.last_ns);
-        let _ = writeln!(meta, "  starting_time:\n    nanoseconds_since_epoch: 0");
-        let total: u64 = self.channels.values().map(|c| c.2).sum();
+        time(&mut meta, "  ");
         let _ = writeln!(
             meta,
             "  message_count: {total}\n  topics_with_message_count:"
@@ -128,13 +153,18 @@ impl<'a> BagWriter<'a> {
         for (topic, (_, ty, n)) in &self.channels {
             let _ = writeln!(
                 meta,
-                "    - topic_metadata:\n        name: {topic}\n        type: {ty}\n        serialization_format: cdr\n      message_count: {n}"
+                "    - topic_metadata:\n        name: {topic}\n        type: {ty}\n        serialization_format: cdr\n        offered_qos_profiles: \"[]\"\n        type_description_hash: \"\"\n      message_count: {n}"
             );
         }
         let _ = writeln!(
             meta,
-            "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - {}",
-            self.file_name
+            "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - {}\n  files:\n    - path: {}",
+            self.file_name, self.file_name
+        );
+        time(&mut meta, "      ");
+        let _ = writeln!(
+            meta,
+            "      message_count: {total}\n  custom_data: ~\n  ros_distro: jazzy"
         );
         crate::write_atomic(&self.dir.join("metadata.yaml"), meta.as_bytes())
     }
@@ -154,7 +184,15 @@ pub fn write_ros2_bag(
     config: &RosConfig,
     encoding: DepthEncoding,
 ) -> Result<(), IoError> {
-    let mut bag = BagWriter::create(dir)?;
+    BagWriter::write(dir, |bag| write_episode(bag, episode, config, encoding))
+}
+
+fn write_episode(
+    bag: &mut BagWriter<'_>,
+    episode: &Episode,
+    config: &RosConfig,
+    encoding: DepthEncoding,
+) -> Result<(), IoError> {
     let topics = [
         (&config.tf_static_topic, "tf2_msgs/msg/TFMessage"),
         (&config.camera_info_topic, "sensor_msgs/msg/CameraInfo"),
@@ -202,7 +240,7 @@ pub fn write_ros2_bag(
         js.f64_seq(&positions).f64_seq(&[]).f64_seq(&[]);
         bag.put(&config.joint_state_topic, t, &js.finish())?;
     }
-    bag.finish()
+    Ok(())
 }
 
 /// The topic of the results' markers (`visualization_msgs/msg/MarkerArray`).
@@ -219,10 +257,6 @@ const SPHERE_LIST: i32 = 7;
 const ARROW: i32 = 0;
 const ADD: i32 = 0;
 const DELETE_ALL: i32 = 3;
-
-/// Length of a load's arrow per newton in the written markers, metres (a 50 mN press draws a
-/// 10 mm arrow, as in the Foxglove result).
-pub const RESULT_ARROW_M_PER_N: f64 = 0.2;
 
 /// One `visualization_msgs/Marker` (the Jazzy definition, with the texture and mesh-file fields).
 struct MarkerSpec<'a> {
@@ -275,7 +309,8 @@ fn marker(w: &mut CdrWriter, t: u64, m: &MarkerSpec<'_>) {
 /// - [`RESULT_MARKERS_TOPIC`] (`visualization_msgs/msg/MarkerArray`, stamped with each frame's
 ///   time): every finger's estimated surface as points coloured by contact probability and the
 ///   markers found, in `config.hand_frame`; the contact points in `config.world_frame`; with the
-///   physics estimator each load as an arrow ending at its place ([`RESULT_ARROW_M_PER_N`]).
+///   physics estimator each load as an arrow ending at its place, `arrow_m_per_n` metres long
+///   per newton.
 ///   The first marker of every array deletes the previous frame's.
 /// - [`result_wrench_topic`]`(f)` (`geometry_msgs/msg/WrenchStamped`, `config.hand_frame`): the
 ///   net force the world exerts on finger `f` (zero torque), for runs that estimate force.
@@ -289,8 +324,17 @@ pub fn write_ros2_results(
     dir: &Path,
     frames: &[RunFrame],
     config: &RosConfig,
+    arrow_m_per_n: f64,
 ) -> Result<(), IoError> {
-    let mut bag = BagWriter::create(dir)?;
+    BagWriter::write(dir, |bag| write_results(bag, frames, config, arrow_m_per_n))
+}
+
+fn write_results(
+    bag: &mut BagWriter<'_>,
+    frames: &[RunFrame],
+    config: &RosConfig,
+    arrow_m_per_n: f64,
+) -> Result<(), IoError> {
     bag.channel(
         RESULT_MARKERS_TOPIC,
         "visualization_msgs/msg/MarkerArray",
@@ -309,7 +353,11 @@ pub fn write_ros2_results(
     }
     for frame in frames {
         let t = frame.time_ns;
-        bag.put(RESULT_MARKERS_TOPIC, t, &result_markers(frame, config, t))?;
+        bag.put(
+            RESULT_MARKERS_TOPIC,
+            t,
+            &result_markers(frame, config, t, arrow_m_per_n),
+        )?;
         let Some(forces) = &frame.forces else {
             continue;
         };
@@ -322,11 +370,11 @@ pub fn write_ros2_results(
             bag.put(&result_wrench_topic(f), t, &w.finish())?;
         }
     }
-    bag.finish()
+    Ok(())
 }
 
 /// One frame's `MarkerArray`.
-fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64) -> Vec<u8> {
+fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64, arrow_m_per_n: f64) -> Vec<u8> {
     let hand = config.hand_frame.as_str();
     let red = [1.0, 0.1, 0.1, 1.0];
     let seen: Vec<Point3> = frame
@@ -342,7 +390,7 @@ fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64) -> Vec<u8> {
         .flat_map(|f| &f.loads)
         .map(|l| {
             [
-                l.location_in_hand - RESULT_ARROW_M_PER_N * l.force_n,
+                l.location_in_hand - arrow_m_per_n * l.force_n,
                 l.location_in_hand,
             ]
         })
@@ -679,10 +727,23 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         let frames = [frame(100, true), frame(200, false)];
         let config = RosConfig::default();
-        write_ros2_results(&dir, &frames, &config).unwrap();
+        write_ros2_results(&dir, &frames, &config, 0.2).unwrap();
         assert!(crate::ros2::is_ros2_recording(&dir));
         let meta = std::fs::read_to_string(dir.join("metadata.yaml")).unwrap();
-        assert!(meta.contains("message_count: 6"), "{meta}");
+        // Every field rosbag2's version-8 reader requires, and the frames' time span.
+        for key in [
+            "version: 8",
+            "message_count: 6",
+            "offered_qos_profiles:",
+            "type_description_hash:",
+            "files:",
+            "custom_data:",
+            "ros_distro: jazzy",
+            "nanoseconds_since_epoch: 100",
+            "nanoseconds: 100",
+        ] {
+            assert!(meta.contains(key), "{key} in {meta}");
+        }
         let bytes = std::fs::read(dir.join(format!(
             "{}_0.mcap",
             dir.file_name().unwrap().to_string_lossy()
@@ -734,7 +795,7 @@ mod tests {
         assert_eq!(a[4].points, [[1.2, 0.0, 0.01]]);
         let arrow = &a[5].points;
         assert_eq!(arrow[1], [0.2, 0.0, 0.01]);
-        assert!((arrow[0][2] - (0.01 + RESULT_ARROW_M_PER_N * 0.05)).abs() < 1e-15);
+        assert!((arrow[0][2] - (0.01 + 0.2 * 0.05)).abs() < 1e-15);
         assert_eq!(arrays[1].1.len(), 5, "no load, no arrow");
         assert_eq!(wrenches.len(), 4);
         let (topic, t, w) = &wrenches[0];
@@ -742,7 +803,7 @@ mod tests {
         assert_eq!(w.header.frame_id, "hand");
         assert_eq!(w.force, [0.0, 0.0, -0.05]);
         assert_eq!(w.torque, [0.0; 3]);
-        let err = write_ros2_results(&dir, &frames, &config).unwrap_err();
+        let err = write_ros2_results(&dir, &frames, &config, 0.2).unwrap_err();
         assert!(err.to_string().contains("already exists"), "{err}");
         let _ = std::fs::remove_dir_all(&dir);
     }

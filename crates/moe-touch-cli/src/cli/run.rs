@@ -144,7 +144,8 @@ pub(crate) struct RunArgs {
     /// the robot's own topics: `visualization_msgs/MarkerArray` on /moe_touch/markers (the
     /// surface coloured by contact, the markers found, the contact points, the loads as
     /// arrows) and each finger's force as `geometry_msgs/WrenchStamped` on
-    /// /moe_touch/finger{i}/wrench, in the frames of `--ros` (default `world`, `hand`).
+    /// /moe_touch/finger{i}/wrench, in the frames of `--ros` (default `world`, `hand`); the
+    /// arrows' length per newton is `--force-scale`'s.
     #[arg(long, value_name = "DIR")]
     ros_out: Option<PathBuf>,
     /// The hand: a preset (two-finger, three-finger, five-finger) or a hand config file; it
@@ -313,7 +314,8 @@ fn finish<S: ShapeEstimator, C: ContactEstimator>(
     let report_text = serde_json::to_string_pretty(&report)?;
     moe_io::write_run(&args.out, &info, &frames)?;
     if let Some(dir) = &args.ros_out {
-        moe_io::ros2::write_ros2_results(dir, &frames, &ros_config(args)?)?;
+        let arrow = force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N);
+        moe_io::ros2::write_ros2_results(dir, &frames, &ros_config(args)?, arrow)?;
     }
     if let Some(path) = &args.report {
         moe_io::write_atomic(path, report_text.as_bytes())?;
