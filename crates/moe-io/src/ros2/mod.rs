@@ -16,8 +16,9 @@
 //! transforms always), and the tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is
 //! the TF path from the hand frame to the colour image's frame. Recordings have no ground truth:
 //! the frames' truth fields are empty. A frame's time is its colour image's stamp (nanoseconds
-//! since the epoch), so that results written back ([`write_ros2_results`]) line up with the
-//! robot's own recording.
+//! since the epoch), so that results written back
+//! ([`write_ros2_results`](crate::ros2::write_ros2_results)) line up with the robot's own
+//! recording.
 
 /// CDR decoding of the messages.
 pub mod cdr;
