@@ -117,6 +117,44 @@ class ContactModel:
     def estimate(self, vertices: list[_F64], pulls: Optional[_F64] = None) -> list[_F64]:
         """(n, 3) per finger -> contact probability (n,) per finger."""
 
+class PhysicsResult:
+    """What the physics estimator found (hand frame, metres, newtons)."""
+
+    @property
+    def vertices(self) -> list[_F64]:
+        """(n, 3) per finger: the dented surface."""
+    @property
+    def contact_probability(self) -> list[_F64]: ...
+    @property
+    def vertex_force(self) -> list[_F64]: ...
+    @property
+    def finger_force(self) -> _F64:
+        """(fingers, 3)."""
+    @property
+    def pressed_probability(self) -> _F64: ...
+    @property
+    def loads(self) -> list[dict[str, Any]]: ...
+    @property
+    def finger_errors(self) -> list[Optional[str]]: ...
+
+class PhysicsEstimator:
+    """The finger's FEM model read backwards from its markers (no camera)."""
+
+    def __init__(
+        self, hand: Hand, *, material: Optional[_Path] = None, config: Optional[_Path] = None
+    ) -> None: ...
+    def estimate(
+        self,
+        keypoints: list[_F64],
+        pulls: _F64,
+        world_from_hand: Optional[_F64] = None,
+        time: Optional[float] = None,
+    ) -> PhysicsResult:
+        """keypoints (markers, 3) per finger (NaN: not seen), pulls (fingers, tendons)."""
+    def reset(self) -> None: ...
+    @property
+    def threshold(self) -> float: ...
+
 class Timings:
     """Wall time of each stage of one frame, milliseconds."""
 

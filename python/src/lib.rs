@@ -11,6 +11,7 @@ mod contact;
 mod convert;
 mod data;
 mod hand;
+mod physics;
 mod pipeline;
 mod shape;
 
@@ -35,6 +36,8 @@ fn moe_touch_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<shape::ArapSolver>()?;
     m.add_class::<shape::ShapeEstimator>()?;
     m.add_class::<contact::ContactModel>()?;
+    m.add_class::<physics::PhysicsEstimator>()?;
+    m.add_class::<physics::PhysicsResult>()?;
     m.add_class::<pipeline::Pipeline>()?;
     m.add_class::<pipeline::FrameResult>()?;
     m.add_class::<pipeline::Timings>()?;

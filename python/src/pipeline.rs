@@ -33,7 +33,9 @@ struct Processed {
 }
 
 /// A settings file (TOML or JSON) of type `T`, or its defaults without one.
-fn settings<T: serde::de::DeserializeOwned + Default>(path: Option<&PathBuf>) -> PyResult<T> {
+pub(crate) fn settings<T: serde::de::DeserializeOwned + Default>(
+    path: Option<&PathBuf>,
+) -> PyResult<T> {
     path.map_or_else(|| Ok(T::default()), |p| moe_io::read_config(p).py())
 }
 
@@ -158,7 +160,7 @@ impl Pipeline {
 
     /// Runs every stage on one frame. `color` is `(height, width, 3)` uint8 RGB, `depth`
     /// `(height, width)` float32 metres (0 or NaN: no depth), `world_from_hand` 4 × 4, `pulls`
-    /// `(fingers, tendons)` metres (the physics estimator needs them; zero without), `time`
+    /// `(fingers, tendons)` metres (the physics estimator needs them), `time`
     /// seconds on a clock that only moves forward (frames further apart than the memory
     /// horizon, or untimed, start afresh). The arrays are read in place when C-contiguous; do
     /// not change them from another thread during the call. The GIL is released while the
@@ -294,6 +296,46 @@ fn run(
     })
 }
 
+/// The physics estimator's loads as dicts: finger, vertex, location_rest, location, force,
+/// magnitude, magnitude_sd, location_sd_along, location_sd_around (None where not estimated).
+pub(crate) fn load_dicts(
+    py: Python<'_>,
+    loads: &[moe_physics::ContactLoad],
+) -> PyResult<Vec<Py<PyDict>>> {
+    let xyz = |v: &nalgebra::Vector3<f64>| convert::array1(py, vec![v.x, v.y, v.z]);
+    loads
+        .iter()
+        .map(|l| {
+            let d = PyDict::new(py);
+            d.set_item("finger", l.finger)?;
+            d.set_item("vertex", l.vertex)?;
+            d.set_item("location_rest", xyz(&l.location_rest.coords))?;
+            d.set_item("location", xyz(&l.location.coords))?;
+            d.set_item("force", xyz(&l.force_n))?;
+            d.set_item("magnitude", l.magnitude_n)?;
+            d.set_item("magnitude_sd", l.magnitude_sd_n)?;
+            let finite = |x: f64| x.is_finite().then_some(x);
+            d.set_item("location_sd_along", finite(l.location_sd_m[0]))?;
+            d.set_item("location_sd_around", finite(l.location_sd_m[1]))?;
+            Ok(d.unbind())
+        })
+        .collect()
+}
+
+/// The net force the world exerts on every finger, `(fingers, 3)`.
+pub(crate) fn finger_forces(py: Python<'_>, e: &PhysicsEstimate) -> Py<PyArray2<f64>> {
+    convert::vectors(py, &e.finger_forces_n()).unbind()
+}
+
+/// The probability that each finger is pressed, `(fingers,)`.
+pub(crate) fn pressed_probabilities(py: Python<'_>, e: &PhysicsEstimate) -> Py<PyArray1<f64>> {
+    convert::array1(
+        py,
+        e.fingers.iter().map(|f| f.pressed_probability).collect(),
+    )
+    .unbind()
+}
+
 /// Wall time of each stage of one frame, milliseconds.
 #[pyclass(module = "moe_touch", frozen, get_all)]
 #[derive(Debug, Clone, Copy)]
@@ -376,31 +418,7 @@ impl FrameResult {
             StreamEvent::Restarted { gap_secs } => ("restarted", Some(gap_secs)),
         };
         let physics = p.physics.as_ref();
-        let loads = physics
-            .map(|e| {
-                e.loads
-                    .iter()
-                    .map(|l| {
-                        let d = PyDict::new(py);
-                        d.set_item("finger", l.finger)?;
-                        d.set_item("vertex", l.vertex)?;
-                        d.set_item(
-                            "location_rest",
-                            convert::points(py, &[l.location_rest]).get_item(0)?,
-                        )?;
-                        d.set_item("location", convert::points(py, &[l.location]).get_item(0)?)?;
-                        d.set_item("force", convert::vectors(py, &[l.force_n]).get_item(0)?)?;
-                        d.set_item("magnitude", l.magnitude_n)?;
-                        d.set_item("magnitude_sd", l.magnitude_sd_n)?;
-                        let finite = |x: f64| x.is_finite().then_some(x);
-                        d.set_item("location_sd_along", finite(l.location_sd_m[0]))?;
-                        d.set_item("location_sd_around", finite(l.location_sd_m[1]))?;
-                        Ok(d.unbind())
-                    })
-                    .collect::<PyResult<Vec<_>>>()
-            })
-            .transpose()?
-            .unwrap_or_default();
+        let loads = physics.map_or_else(|| Ok(Vec::new()), |e| load_dicts(py, &e.loads))?;
         Ok(Self {
             keypoints: e
                 .keypoints

@@ -106,3 +106,32 @@ def test_frames_out_of_time_order_are_refused_and_change_nothing():
     assert again.stream == "continued" and again.gap_secs == pytest.approx(0.1)
     late = pipeline.process(f.color, f.depth, f.world_from_hand, f.pulls, time=100.0)
     assert late.stream == "restarted"
+
+
+def test_the_physics_estimator_alone_gives_the_pipelines_estimate():
+    """Fed the markers the pipeline found, the estimator gives the pipeline's shape and forces."""
+    episode = mt.read_episode(EPISODE)
+    hand = mt.Hand.preset("two-finger")
+    pipeline = mt.Pipeline.physics(hand, episode.camera, config=OCCLUDING)
+    alone = mt.PhysicsEstimator(hand, config=OCCLUDING)
+    assert alone.threshold == pipeline.threshold
+    for f in episode:
+        r = pipeline.process(f.color, f.depth, f.world_from_hand, f.pulls, time=f.time)
+        e = alone.estimate(r.keypoints, f.pulls, f.world_from_hand, time=f.time)
+        for a, b in zip(e.vertices, r.vertices):
+            np.testing.assert_array_equal(a, b)
+        for a, b in zip(e.contact_probability, r.contact_probability):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(e.finger_force, r.finger_force)
+        assert len(e.loads) == len(r.loads)
+
+
+def test_the_physics_estimator_at_rest_finds_no_press():
+    hand = mt.Hand.preset("two-finger")
+    estimator = mt.PhysicsEstimator(hand)
+    e = estimator.estimate(hand.rest_keypoints(), np.zeros((2, 4)))
+    assert e.loads == [] and e.finger_errors == [None, None]
+    np.testing.assert_array_equal(e.finger_force, np.zeros((2, 3)))
+    assert (e.pressed_probability < 0.5).all()
+    with pytest.raises(mt.MoeTouchError, match=r"pulls: expected shape \[2, 4\]"):
+        estimator.estimate(hand.rest_keypoints(), np.zeros((2, 3)))

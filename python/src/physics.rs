@@ -1,0 +1,162 @@
+//! The physics estimator on its own: markers, tendon pulls and the hand's pose in; the dented
+//! shape, contact, loads and forces out (the pipeline's physics stages without the camera).
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use moe_geom::WorldFromHand;
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsObservation};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{self, OrRaise, invalid};
+use crate::hand::Hand;
+use crate::pipeline::{finger_forces, load_dicts, pressed_probabilities, settings};
+use crate::shape::to_keypoints;
+
+/// The finger's FEM model read backwards from its markers: where and how hard each finger is
+/// pressed, and its dented shape. Calls given a `time` carry memory across a stream.
+#[pyclass(module = "moe_touch")]
+pub(crate) struct PhysicsEstimator {
+    estimator: Mutex<moe_physics::PhysicsEstimator>,
+    num_fingers: usize,
+    tendons: Option<usize>,
+}
+
+#[pymethods]
+impl PhysicsEstimator {
+    /// The estimator of `hand` with `material` and `config` (TOML or JSON files; defaults:
+    /// the nominal silicone and the default settings).
+    #[new]
+    #[pyo3(signature = (hand, *, material=None, config=None))]
+    fn new(
+        py: Python<'_>,
+        hand: &Hand,
+        material: Option<PathBuf>,
+        config: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let material: HandMaterial = settings(material.as_ref())?;
+        let config: PhysicsConfig = settings(config.as_ref())?;
+        let estimator =
+            py.detach(|| moe_physics::PhysicsEstimator::new(&hand.model, &material, &config).py())?;
+        Ok(Self {
+            estimator: Mutex::new(estimator),
+            num_fingers: hand.model.num_fingers(),
+            tendons: hand.model.tendons_per_finger().ok(),
+        })
+    }
+
+    /// Estimates every finger from `keypoints` (one `(markers, 3)` array per finger, hand
+    /// frame, NaN rows not seen), `pulls` `(fingers, tendons)` metres, the hand's pose
+    /// `world_from_hand` 4 × 4 (for gravity; default identity) and `time` seconds.
+    #[pyo3(signature = (keypoints, pulls, world_from_hand=None, time=None))]
+    fn estimate<'py>(
+        &self,
+        py: Python<'py>,
+        keypoints: Vec<PyReadonlyArray2<'py, f64>>,
+        pulls: PyReadonlyArray2<'py, f64>,
+        world_from_hand: Option<PyReadonlyArray2<'py, f64>>,
+        time: Option<f64>,
+    ) -> PyResult<PhysicsResult> {
+        if keypoints.len() != self.num_fingers {
+            return Err(invalid(format!(
+                "keypoints: {} arrays for a hand of {} fingers",
+                keypoints.len(),
+                self.num_fingers
+            )));
+        }
+        let keypoints = to_keypoints(&keypoints, "keypoints")?;
+        let Some(tendons) = self.tendons else {
+            return Err(invalid(
+                "pulls: the hand's fingers have different numbers of tendons, which an array \
+                 of pulls cannot hold",
+            ));
+        };
+        if pulls.shape() != [self.num_fingers, tendons] {
+            return Err(invalid(format!(
+                "pulls: expected shape {:?} (fingers, tendons), got {:?}",
+                [self.num_fingers, tendons],
+                pulls.shape()
+            )));
+        }
+        let pulls = convert::to_pulls(&pulls)?;
+        let world_from_hand = WorldFromHand::new(match &world_from_hand {
+            Some(t) => convert::to_iso(t, "world_from_hand")?,
+            None => moe_geom::Iso3::identity(),
+        });
+        let estimate = py.detach(|| {
+            let mut estimator = self
+                .estimator
+                .lock()
+                .map_err(|_| invalid("the physics estimator failed in another thread"))?;
+            estimator
+                .estimate(&PhysicsObservation {
+                    keypoints: &keypoints,
+                    tendon_pull_m: &pulls,
+                    world_from_hand: &world_from_hand,
+                    time_secs: time,
+                })
+                .py()
+        })?;
+        Ok(PhysicsResult {
+            vertices: estimate
+                .shape
+                .fingers
+                .iter()
+                .map(|v| convert::points(py, v).unbind())
+                .collect(),
+            contact_probability: estimate
+                .contact
+                .fingers
+                .iter()
+                .map(|p| convert::array1(py, p.clone()).unbind())
+                .collect(),
+            vertex_force: estimate
+                .vertex_force_n
+                .iter()
+                .map(|f| convert::vectors(py, f).unbind())
+                .collect(),
+            finger_force: finger_forces(py, &estimate),
+            pressed_probability: pressed_probabilities(py, &estimate),
+            loads: load_dicts(py, &estimate.loads)?,
+            finger_errors: estimate.fingers.iter().map(|f| f.error.clone()).collect(),
+        })
+    }
+
+    /// Forgets the stream (warm starts and the previous observation).
+    fn reset(&self, py: Python<'_>) -> PyResult<()> {
+        py.detach(|| {
+            self.estimator
+                .lock()
+                .map_err(|_| invalid("the physics estimator failed in another thread"))?
+                .reset();
+            Ok(())
+        })
+    }
+
+    /// The contact threshold of the physics estimator's probabilities.
+    #[getter]
+    fn threshold(&self) -> f64 {
+        moe_physics::CONTACT_THRESHOLD
+    }
+}
+
+/// What the physics estimator found: float64, metres and newtons, hand frame.
+#[pyclass(module = "moe_touch", frozen, get_all)]
+pub(crate) struct PhysicsResult {
+    /// The estimated (dented) surface, `(n, 3)` per finger.
+    vertices: Vec<Py<PyArray2<f64>>>,
+    /// Contact probability of every vertex, `(n,)` per finger.
+    contact_probability: Vec<Py<PyArray1<f64>>>,
+    /// Force on every vertex, `(n, 3)` per finger.
+    vertex_force: Vec<Py<PyArray2<f64>>>,
+    /// Net force the world exerts on every finger, `(fingers, 3)`.
+    finger_force: Py<PyArray2<f64>>,
+    /// Probability that each finger is pressed, `(fingers,)`.
+    pressed_probability: Py<PyArray1<f64>>,
+    /// The loads found (see `FrameResult.loads`).
+    loads: Vec<Py<PyDict>>,
+    /// Why a finger has no estimate (too few markers, a solve that did not converge), else None.
+    finger_errors: Vec<Option<String>>,
+}
