@@ -80,8 +80,8 @@ pub(crate) fn array1<'py, T: numpy::Element>(
     Array1::from_vec(v).into_pyarray(py)
 }
 
-/// An `(n, 3)` array of finite numbers as points; `what` names it in the error.
-pub(crate) fn to_points(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<Point3>> {
+/// The rows of an `(n, 3)` array; `what` names it in the error.
+fn rows_of(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<[f64; 3]>> {
     let a = array.as_array();
     if a.ncols() != 3 {
         return Err(invalid(format!(
@@ -89,15 +89,42 @@ pub(crate) fn to_points(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResu
             a.shape()
         )));
     }
-    a.rows()
+    Ok(a.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+}
+
+/// An `(n, 3)` array of finite numbers as points; `what` names it in the error.
+pub(crate) fn to_points(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<Vec<Point3>> {
+    rows_of(array, what)?
         .into_iter()
         .enumerate()
         .map(|(i, r)| {
-            let p = Point3::new(r[0], r[1], r[2]);
-            if p.coords.iter().all(|x| x.is_finite()) {
-                Ok(p)
+            if r.iter().all(|x| x.is_finite()) {
+                Ok(Point3::from(r))
             } else {
-                Err(invalid(format!("{what}: row {i} is not finite ({p:?})")))
+                Err(invalid(format!("{what}: row {i} is not finite ({r:?})")))
+            }
+        })
+        .collect()
+}
+
+/// Points from an `(n, 3)` array whose all-NaN rows are missing (a marker not seen, a free
+/// handle); `what` names it in the error.
+pub(crate) fn to_optional_points(
+    array: &PyReadonlyArray2<'_, f64>,
+    what: &str,
+) -> PyResult<Vec<Option<Point3>>> {
+    rows_of(array, what)?
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            if r.iter().all(|x| x.is_nan()) {
+                Ok(None)
+            } else if r.iter().all(|x| x.is_finite()) {
+                Ok(Some(Point3::from(r)))
+            } else {
+                Err(invalid(format!(
+                    "{what}: row {i} is neither finite nor all NaN (missing)"
+                )))
             }
         })
         .collect()

@@ -2,42 +2,12 @@
 //! markers.
 
 use moe_arap::{ArapConfig, MultiShapeEstimator, ShapeConfig, Start};
-use moe_geom::{HandKeypoints, Point3, TriMesh};
+use moe_geom::{HandKeypoints, TriMesh};
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike1, PyArrayLike2, PyReadonlyArray2};
 use pyo3::prelude::*;
 
 use crate::convert::{self, OrRaise, invalid};
 use crate::hand::Hand;
-
-/// Points from an `(n, 3)` array whose all-NaN rows are missing (a marker not seen, a free
-/// handle); `what` names it in the error.
-fn to_optional_points(
-    array: &PyReadonlyArray2<'_, f64>,
-    what: &str,
-) -> PyResult<Vec<Option<Point3>>> {
-    let a = array.as_array();
-    if a.ncols() != 3 {
-        return Err(invalid(format!(
-            "{what}: expected an (n, 3) array, got shape {:?}",
-            a.shape()
-        )));
-    }
-    a.rows()
-        .into_iter()
-        .enumerate()
-        .map(|(m, r)| {
-            if r.iter().all(|x| x.is_nan()) {
-                Ok(None)
-            } else if r.iter().all(|x| x.is_finite()) {
-                Ok(Some(Point3::new(r[0], r[1], r[2])))
-            } else {
-                Err(invalid(format!(
-                    "{what}: row {m} is neither finite nor all NaN (missing)"
-                )))
-            }
-        })
-        .collect()
-}
 
 /// Keypoints `[finger][marker]` from one `(markers, 3)` array per finger (NaN rows: not seen).
 pub(crate) fn to_keypoints(
@@ -47,7 +17,7 @@ pub(crate) fn to_keypoints(
     let fingers = fingers
         .iter()
         .enumerate()
-        .map(|(f, a)| to_optional_points(a, &format!("{what}[{f}]")))
+        .map(|(f, a)| convert::to_optional_points(a, &format!("{what}[{f}]")))
         .collect::<PyResult<_>>()?;
     Ok(HandKeypoints { fingers })
 }
@@ -133,7 +103,7 @@ impl ArapSolver {
         start: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let fixed = convert::to_points(&fixed_targets, "fixed_targets")?;
-        let handles = to_optional_points(&handle_targets, "handle_targets")?;
+        let handles = convert::to_optional_points(&handle_targets, "handle_targets")?;
         if fixed.len() != self.num_fixed || handles.len() != self.num_handles {
             return Err(invalid(format!(
                 "expected {} fixed and {} handle targets, got {} and {}",

@@ -55,20 +55,25 @@ fn an_episode_written_as_a_bag_reads_back_as_its_frames() {
     assert!(err.to_string().contains("already exists"), "{err}");
 }
 
-/// `moe-touch run` on `episode` (with `extra` options), writing `out` and its report beside it:
-/// the report, and per frame the markers found and the contact points.
-fn run_report(episode: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, Vec<(u64, u64)>) {
-    let report = out.with_extension("json");
+/// The arguments of `moe-touch run --episode episode --out out` and `extra`.
+fn run_args<'a>(episode: &'a Path, out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec![
         "run",
         "--episode",
         episode.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
     ];
     args.extend_from_slice(extra);
+    args
+}
+
+/// `moe-touch run` on `episode` (with `extra` options), writing `out` and its report beside it:
+/// the report, and per frame the markers found and the contact points.
+fn run_report(episode: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, Vec<(u64, u64)>) {
+    let report = out.with_extension("json");
+    let mut args = run_args(episode, out, extra);
+    args.extend_from_slice(&["--report", report.to_str().unwrap()]);
     let o = run(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value =
@@ -114,15 +119,7 @@ fn run_on_a_recording_finds_what_it_finds_on_the_episode() {
 /// says `says`, and writes no result.
 fn assert_run_refused(episode: &Path, extra: &[&str], says: &str) {
     let out = scratch("ros2-refused").join("r.mcap");
-    let mut args = vec![
-        "run",
-        "--episode",
-        episode.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    let line = crate::common::assert_one_line_error(&run(&args));
+    let line = crate::common::assert_one_line_error(&run(&run_args(episode, &out, extra)));
     assert!(line.contains(says), "{line}");
     assert!(!out.exists());
 }
