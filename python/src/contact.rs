@@ -84,10 +84,7 @@ impl ContactModel {
         };
         let pulls = pulls.as_ref().map(convert::to_pulls).transpose()?;
         let estimate = py.detach(|| {
-            let mut model = self
-                .model
-                .lock()
-                .map_err(|_| invalid("the contact model failed in another thread"))?;
+            let mut model = convert::lock(&self.model, "contact model")?;
             model
                 .estimate(&ContactInput {
                     shape: &shape,

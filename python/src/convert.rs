@@ -3,7 +3,7 @@
 use moe_geom::{Iso3, Point3, Real, Vector3};
 use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion};
 use numpy::ndarray::{Array1, Array2};
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 use crate::MoeTouchError;
@@ -169,6 +169,43 @@ pub(crate) fn to_iso(array: &PyReadonlyArray2<'_, f64>, what: &str) -> PyResult<
 pub(crate) fn iso<'py>(py: Python<'py>, iso: &Iso3) -> Bound<'py, PyArray2<f64>> {
     let m = iso.to_homogeneous();
     Array2::from_shape_fn((4, 4), |(i, j)| m[(i, j)]).into_pyarray(py)
+}
+
+/// Locks a pipeline's or estimator's state (`what` names it if a panic in another thread left
+/// it poisoned). Called with the GIL released, so that waiting for another thread's call does
+/// not hold the interpreter.
+pub(crate) fn lock<'a, T>(
+    state: &'a std::sync::Mutex<T>,
+    what: &str,
+) -> PyResult<std::sync::MutexGuard<'a, T>> {
+    state.lock().map_err(|_| {
+        invalid(format!(
+            "the {what} failed in another thread; make a new one"
+        ))
+    })
+}
+
+/// The tendon pulls of a hand of `fingers` fingers with `tendons` tendons each (`None`: its
+/// fingers differ, which an array cannot hold) from an `(fingers, tendons)` array.
+pub(crate) fn to_hand_pulls(
+    array: &PyReadonlyArray2<'_, f64>,
+    fingers: usize,
+    tendons: Option<usize>,
+) -> PyResult<Vec<Vec<f64>>> {
+    let Some(tendons) = tendons else {
+        return Err(invalid(
+            "pulls: the hand's fingers have different numbers of tendons, which an array of \
+             pulls cannot hold",
+        ));
+    };
+    let shape = [fingers, tendons];
+    if array.shape() != shape {
+        return Err(invalid(format!(
+            "pulls: expected shape {shape:?} (fingers, tendons), got {:?}",
+            array.shape()
+        )));
+    }
+    to_pulls(array)
 }
 
 /// Tendon pulls `[finger][tendon]` from an `(fingers, tendons)` array.

@@ -210,27 +210,6 @@ fn ros_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<RosConfig> {
     moe_io::read_config(&path).py()
 }
 
-/// Refuses a hand whose fingers, vertices or tendons are not those an episode was recorded with.
-fn check_hand(hand: &Hand, info: &moe_io::EpisodeInfo) -> PyResult<()> {
-    let ours: Vec<usize> = hand
-        .model
-        .fingers()
-        .iter()
-        .map(|f| f.model.mesh().num_vertices())
-        .collect();
-    let tendons = hand.model.tendons_per_finger().ok();
-    if ours != info.finger_num_vertices || tendons != Some(info.tendons_per_finger) {
-        return Err(invalid(format!(
-            "hand '{}' does not fit the episode: fingers of {ours:?} vertices and {tendons:?} \
-             tendons each, the episode's {:?} and {}",
-            hand.label(),
-            info.finger_num_vertices,
-            info.tendons_per_finger
-        )));
-    }
-    Ok(())
-}
-
 /// Reads an episode: the simulator's MCAP (`moe-touch sim --out`), or a ROS 2 recording (a
 /// rosbag2 directory with MCAP storage, or an MCAP file of CDR messages) of `hand` (default:
 /// the two-finger preset) with the topics, frames and joint names of `ros` (a TOML or JSON
@@ -252,8 +231,12 @@ pub(crate) fn read_episode(
         let bytes = moe_io::read_bytes(&path).py()?;
         Ok::<_, PyErr>(moe_io::parse_episode_prefix(&path, &bytes))
     })?;
-    if let (Some(hand), Some(episode)) = (hand, &episode) {
-        check_hand(hand, &episode.info)?;
+    let mismatch = hand.zip(episode.as_ref()).and_then(|(hand, episode)| {
+        let reason = episode.info.hand_mismatch(&hand.model)?;
+        Some(format!("hand '{}': {reason}", hand.label()))
+    });
+    if let Some(message) = mismatch {
+        return Err(invalid(message));
     }
     match (episode, cut) {
         (Some(episode), cut) => {

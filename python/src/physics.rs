@@ -6,7 +6,7 @@ use std::sync::Mutex;
 
 use moe_geom::WorldFromHand;
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsObservation};
-use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -67,29 +67,13 @@ impl PhysicsEstimator {
             )));
         }
         let keypoints = to_keypoints(&keypoints, "keypoints")?;
-        let Some(tendons) = self.tendons else {
-            return Err(invalid(
-                "pulls: the hand's fingers have different numbers of tendons, which an array \
-                 of pulls cannot hold",
-            ));
-        };
-        if pulls.shape() != [self.num_fingers, tendons] {
-            return Err(invalid(format!(
-                "pulls: expected shape {:?} (fingers, tendons), got {:?}",
-                [self.num_fingers, tendons],
-                pulls.shape()
-            )));
-        }
-        let pulls = convert::to_pulls(&pulls)?;
+        let pulls = convert::to_hand_pulls(&pulls, self.num_fingers, self.tendons)?;
         let world_from_hand = WorldFromHand::new(match &world_from_hand {
             Some(t) => convert::to_iso(t, "world_from_hand")?,
             None => moe_geom::Iso3::identity(),
         });
         let estimate = py.detach(|| {
-            let mut estimator = self
-                .estimator
-                .lock()
-                .map_err(|_| invalid("the physics estimator failed in another thread"))?;
+            let mut estimator = convert::lock(&self.estimator, "physics estimator")?;
             estimator
                 .estimate(&PhysicsObservation {
                     keypoints: &keypoints,
@@ -127,10 +111,7 @@ impl PhysicsEstimator {
     /// Forgets the stream (warm starts and the previous observation).
     fn reset(&self, py: Python<'_>) -> PyResult<()> {
         py.detach(|| {
-            self.estimator
-                .lock()
-                .map_err(|_| invalid("the physics estimator failed in another thread"))?
-                .reset();
+            convert::lock(&self.estimator, "physics estimator")?.reset();
             Ok(())
         })
     }

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-use moe_arap::{MultiShapeEstimator, ShapeConfig};
+use moe_arap::MultiShapeEstimator;
 use moe_contact::DgcnnEstimator;
 use moe_geom::WorldFromHand;
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimate};
@@ -17,6 +17,7 @@ use pyo3::types::PyDict;
 use crate::contact::ContactModel;
 use crate::convert::{self, OrRaise, invalid};
 use crate::hand::{Camera, Hand};
+use crate::shape::shape_config;
 
 /// The two pipelines the tool runs.
 enum Inner {
@@ -88,9 +89,7 @@ impl Pipeline {
     }
 
     fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, Inner>> {
-        self.inner
-            .lock()
-            .map_err(|_| invalid("the pipeline failed in another thread; make a new one"))
+        convert::lock(&self.inner, "pipeline")
     }
 }
 
@@ -111,10 +110,9 @@ impl Pipeline {
         detector: Option<PathBuf>,
     ) -> PyResult<Self> {
         let marker_detector = self::detector(camera, hand, detector.as_ref())?;
+        // The estimator validates both.
         let material: HandMaterial = settings(material.as_ref())?;
-        material.validate().py()?;
         let config: PhysicsConfig = settings(config.as_ref())?;
-        config.validate().py()?;
         let pipeline = py.detach(|| {
             PhysicsPipeline::physics(hand.model.clone(), marker_detector, &material, &config).py()
         })?;
@@ -137,11 +135,7 @@ impl Pipeline {
         detector: Option<PathBuf>,
     ) -> PyResult<Self> {
         let marker_detector = self::detector(camera, hand, detector.as_ref())?;
-        let mut options = ShapeConfig::default();
-        if let Some(i) = iterations {
-            options.iterations = i;
-        }
-        options.warm_start = warm_start;
+        let options = shape_config(iterations, warm_start);
         let pipeline = py.detach(|| {
             let network = ContactModel::estimator(&model, hand)?;
             let threshold = network.threshold();
@@ -190,25 +184,10 @@ impl Pipeline {
         }
         let world_from_hand =
             WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
-        let pulls = match &pulls {
-            Some(p) => {
-                let Some(tendons) = self.tendons else {
-                    return Err(invalid(
-                        "pulls: the hand's fingers have different numbers of tendons, which an \
-                         array of pulls cannot hold",
-                    ));
-                };
-                let shape = [self.num_fingers, tendons];
-                if p.shape() != shape {
-                    return Err(invalid(format!(
-                        "pulls: expected shape {shape:?} (fingers, tendons), got {:?}",
-                        p.shape()
-                    )));
-                }
-                Some(convert::to_pulls(p)?)
-            }
-            None => None,
-        };
+        let pulls = pulls
+            .as_ref()
+            .map(|p| convert::to_hand_pulls(p, self.num_fingers, self.tendons))
+            .transpose()?;
         // C-contiguous arrays are read in place; others (Fortran order, strided views) are copied
         // once into row-major order (`as_slice` also accepts Fortran order, hence the check).
         let color_copy;
@@ -444,14 +423,8 @@ impl FrameResult {
                     .map(|f| convert::vectors(py, f).unbind())
                     .collect()
             }),
-            finger_force: physics.map(|e| convert::vectors(py, &e.finger_forces_n()).unbind()),
-            pressed_probability: physics.map(|e| {
-                convert::array1(
-                    py,
-                    e.fingers.iter().map(|f| f.pressed_probability).collect(),
-                )
-                .unbind()
-            }),
+            finger_force: physics.map(|e| finger_forces(py, e)),
+            pressed_probability: physics.map(|e| pressed_probabilities(py, e)),
             loads,
             contacts_hand: points(&e.contacts_in_hand),
             contacts_world: points(&e.contacts_in_world),

@@ -22,13 +22,27 @@ pub(crate) fn to_keypoints(
     Ok(HandKeypoints { fingers })
 }
 
+/// Vertex ids from Python integers; `what` names them in the error.
+fn vertex_ids<'a>(ids: impl Iterator<Item = &'a i64>, what: &str) -> PyResult<Vec<u32>> {
+    ids.map(|&i| u32::try_from(i).map_err(|_| invalid(format!("{what}: vertex id {i}"))))
+        .collect()
+}
+
+/// `MultiShapeEstimator`'s settings with `iterations` per frame (default 50) and `warm_start`.
+pub(crate) fn shape_config(iterations: Option<usize>, warm_start: bool) -> ShapeConfig {
+    let defaults = ShapeConfig::default();
+    ShapeConfig {
+        iterations: iterations.unwrap_or(defaults.iterations),
+        warm_start,
+        ..defaults
+    }
+}
+
 /// SR-ARAP on any triangle mesh (one or many connected parts): factorised once for its fixed
 /// and handle vertices, then solved for any targets.
 #[pyclass(module = "moe_touch", frozen)]
 pub struct ArapSolver {
     solver: moe_arap::ArapSolver,
-    num_fixed: usize,
-    num_handles: usize,
 }
 
 #[pymethods]
@@ -49,12 +63,6 @@ impl ArapSolver {
         iterations: Option<usize>,
     ) -> PyResult<Self> {
         let vertices = convert::to_points(&vertices, "vertices")?;
-        let ids = |a: &PyArrayLike1<'_, i64, AllowTypeChange>, what: &str| -> PyResult<Vec<u32>> {
-            a.as_array()
-                .iter()
-                .map(|&i| u32::try_from(i).map_err(|_| invalid(format!("{what}: vertex id {i}"))))
-                .collect()
-        };
         let f = faces.as_array();
         if f.ncols() != 3 {
             return Err(invalid(format!(
@@ -62,17 +70,12 @@ impl ArapSolver {
                 f.shape()
             )));
         }
-        let faces: Vec<[u32; 3]> = f
-            .rows()
-            .into_iter()
-            .map(|r| {
-                let id =
-                    |i: i64| u32::try_from(i).map_err(|_| invalid(format!("faces: vertex id {i}")));
-                Ok([id(r[0])?, id(r[1])?, id(r[2])?])
-            })
-            .collect::<PyResult<_>>()?;
-        let fixed = ids(&fixed, "fixed")?;
-        let handles = ids(&handles, "handles")?;
+        let faces: Vec<[u32; 3]> = vertex_ids(f.iter(), "faces")?
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        let fixed = vertex_ids(fixed.as_array().iter(), "fixed")?;
+        let handles = vertex_ids(handles.as_array().iter(), "handles")?;
         let mut config = ArapConfig::default();
         if let Some(a) = alpha {
             config.alpha = a;
@@ -84,11 +87,7 @@ impl ArapSolver {
             let mesh = TriMesh::new(vertices, faces).py()?;
             moe_arap::ArapSolver::new(&mesh, &config, &fixed, &handles).py()
         })?;
-        Ok(Self {
-            solver,
-            num_fixed: fixed.len(),
-            num_handles: handles.len(),
-        })
+        Ok(Self { solver })
     }
 
     /// Deforms the mesh: `fixed_targets` `(len(fixed), 3)`, `handle_targets`
@@ -104,15 +103,6 @@ impl ArapSolver {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let fixed = convert::to_points(&fixed_targets, "fixed_targets")?;
         let handles = convert::to_optional_points(&handle_targets, "handle_targets")?;
-        if fixed.len() != self.num_fixed || handles.len() != self.num_handles {
-            return Err(invalid(format!(
-                "expected {} fixed and {} handle targets, got {} and {}",
-                self.num_fixed,
-                self.num_handles,
-                fixed.len(),
-                handles.len()
-            )));
-        }
         let start = start.map(|s| convert::to_points(&s, "start")).transpose()?;
         let solution = py.detach(|| {
             let start = start.as_deref().map_or(Start::Rest, Start::Positions);
@@ -148,12 +138,9 @@ impl ShapeEstimator {
     #[new]
     #[pyo3(signature = (hand, *, iterations=None, warm_start=false))]
     fn new(hand: &Hand, iterations: Option<usize>, warm_start: bool) -> PyResult<Self> {
-        let mut options = ShapeConfig::default();
-        if let Some(i) = iterations {
-            options.iterations = i;
-        }
-        options.warm_start = warm_start;
-        let estimator = MultiShapeEstimator::new(hand.model.clone(), options).py()?;
+        let estimator =
+            MultiShapeEstimator::new(hand.model.clone(), shape_config(iterations, warm_start))
+                .py()?;
         Ok(Self {
             estimator: std::sync::Mutex::new(estimator),
         })
@@ -168,10 +155,7 @@ impl ShapeEstimator {
     ) -> PyResult<Vec<Bound<'py, PyArray2<f64>>>> {
         let keypoints = to_keypoints(&keypoints, "keypoints")?;
         let shape = py.detach(|| {
-            let mut estimator = self
-                .estimator
-                .lock()
-                .map_err(|_| invalid("the shape estimator failed in another thread"))?;
+            let mut estimator = convert::lock(&self.estimator, "shape estimator")?;
             estimator.estimate(&keypoints).py()
         })?;
         Ok(shape

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import moe_touch as mt
-from conftest import EPISODE, OCCLUDING, TENDONS, recording, write_bag
+from conftest import EPISODE, OCCLUDING, recording, write_bag
 
 
 @pytest.fixture(scope="module")
@@ -48,7 +48,7 @@ def test_wrong_dtypes_are_type_errors(frame):
 
 
 def test_a_simulated_episode_refuses_another_hand():
-    with pytest.raises(mt.MoeTouchError, match="does not fit the episode"):
+    with pytest.raises(mt.MoeTouchError, match=r"hand 'three-finger': the hand has fingers of \[1024, 1024, 1024\] vertices, the episode"):
         mt.read_episode(EPISODE, hand=mt.Hand.preset("three-finger"))
     assert len(mt.read_episode(EPISODE, hand=mt.Hand.preset("two-finger"))) == 7
 
@@ -63,7 +63,7 @@ def test_bad_solver_input_names_the_item():
     bad[1, 2] = np.inf
     with pytest.raises(mt.MoeTouchError, match="handle_targets: row 1 is neither finite"):
         solver.solve(rest[base], bad)
-    with pytest.raises(mt.MoeTouchError, match=r"expected \d+ fixed and 2 handle targets"):
+    with pytest.raises(mt.MoeTouchError, match=r"fixed targets: expected \d+ items, got \d+"):
         solver.solve(rest[base][:-1], rest[top])
     with pytest.raises(mt.MoeTouchError, match="handles: vertex id -1"):
         mt.ArapSolver(rest, hand.faces(0), base, [-1])
@@ -107,7 +107,6 @@ def test_a_recording_written_here_reads(tmp_path):
     assert len(episode) == 2 and episode.camera.width == 4
     assert episode[1].depth[0, 0] == pytest.approx(0.501)
     np.testing.assert_array_equal(episode[1].pulls, np.full((2, 4), 0.001))
-    assert TENDONS[0] == "finger0_tendon0"
 
 
 def test_bad_recordings_raise_the_tools_error_line(tmp_path, moe_touch_bin):

@@ -330,20 +330,10 @@ pub fn evaluate_episode(
 /// # Errors
 /// [`LabError::InvalidEvaluation`] naming the first difference.
 pub fn check_hand(hand: &HandModel, info: &EpisodeInfo) -> Result<(), LabError> {
-    let ours: Vec<usize> = hand
-        .fingers()
-        .iter()
-        .map(|f| f.model.mesh().num_vertices())
-        .collect();
-    if ours != info.finger_num_vertices {
-        return Err(LabError::InvalidEvaluation {
-            reason: format!(
-                "the hand has fingers of {ours:?} vertices, the episode '{}' of {:?}",
-                info.scene, info.finger_num_vertices
-            ),
-        });
+    match info.hand_mismatch(hand) {
+        Some(reason) => Err(LabError::InvalidEvaluation { reason }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 #[cfg(test)]

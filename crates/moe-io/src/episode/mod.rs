@@ -119,6 +119,22 @@ impl From<CameraInfo> for moe_geom::CameraIntrinsics {
 }
 
 impl EpisodeInfo {
+    /// Whether `hand` is the episode's hand (as many fingers, as many vertices each): `None`
+    /// when it is, else the first difference in words.
+    pub fn hand_mismatch(&self, hand: &moe_geom::HandModel) -> Option<String> {
+        let ours: Vec<usize> = hand
+            .fingers()
+            .iter()
+            .map(|f| f.model.mesh().num_vertices())
+            .collect();
+        (ours != self.finger_num_vertices).then(|| {
+            format!(
+                "the hand has fingers of {ours:?} vertices, the episode '{}' of {:?}",
+                self.scene, self.finger_num_vertices
+            )
+        })
+    }
+
     /// The fixed information of an episode of `hand` seen by a camera with intrinsics `camera`
     /// mounted at `hand_from_camera`: the fingers' poses, faces and vertex counts, and the
     /// tendon count, from the hand.
