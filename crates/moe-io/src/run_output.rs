@@ -127,8 +127,23 @@ pub struct JsonTime {
 /// in the Plot panel's message paths.
 const FINGER_FORCES_SCHEMA: &str = r#"{"title":"moe.FingerForces","description":"Net force the world exerts on every finger, hand frame, newtons","type":"object","properties":{"timestamp":{"type":"object","properties":{"sec":{"type":"integer","minimum":0},"nsec":{"type":"integer","minimum":0}}},"frame_id":{"type":"string"},"fingers":{"type":"array","items":{"type":"object","properties":{"finger":{"type":"integer"},"x_n":{"type":"number"},"y_n":{"type":"number"},"z_n":{"type":"number"},"magnitude_n":{"type":"number"},"pressed_probability":{"type":"number"},"loads":{"type":"integer"}}}}}}"#;
 
-/// Colour of the force arrows.
-const FORCE_COLOR: [f64; 4] = [1.0, 0.62, 0.0, 1.0];
+/// Colour of the force arrows (RGBA), here and in results written as ROS 2 messages.
+pub(crate) const FORCE_COLOR: [f64; 4] = [1.0, 0.62, 0.0, 1.0];
+
+/// Colour and diameter of the markers found.
+pub(crate) const MARKER_COLOR: [f64; 4] = [0.1, 1.0, 0.2, 1.0];
+/// Diameter of a found marker's sphere, metres.
+pub(crate) const MARKER_DIAMETER_M: f64 = 0.004;
+/// Colour of the estimated contact points.
+pub(crate) const CONTACT_COLOR: [f64; 4] = [1.0, 0.1, 0.1, 1.0];
+/// Diameter of a contact point's sphere, metres.
+pub(crate) const CONTACT_DIAMETER_M: f64 = 0.002;
+
+/// A vertex's colour for contact probability `p` ([`probability_colour`]), RGBA in `[0, 1]`.
+pub(crate) fn probability_rgba(p: f64) -> [f64; 4] {
+    let [r, g, b] = probability_colour(p);
+    [r, g, b, 255].map(|c| f64::from(c) / 255.0)
+}
 
 /// The ground truth of a frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -329,8 +344,8 @@ impl<W: Write + Seek> RunWriter<W> {
             "world",
             "contacts".into(),
             &frame.contacts_in_world,
-            0.002,
-            [1.0, 0.1, 0.1, 1.0],
+            CONTACT_DIAMETER_M,
+            CONTACT_COLOR,
         )]);
         let [forces, finger_forces] = self
             .force_messages(frame)?
@@ -431,21 +446,12 @@ impl<W: Write + Seek> RunWriter<W> {
     fn mesh_update(&self, frame: &RunFrame) -> Vec<u8> {
         let info = &self.info.episode;
         let t = frame.time_ns;
-        let rgba = |c: [u8; 3]| {
-            fg_color([
-                f64::from(c[0]) / 255.0,
-                f64::from(c[1]) / 255.0,
-                f64::from(c[2]) / 255.0,
-                1.0,
-            ])
-            .expect("some")
-        };
         scene_update(
             (0..info.finger_faces.len())
                 .map(|f| {
                     let colors = frame.contact_probability[f]
                         .iter()
-                        .map(|&p| rgba(probability_colour(p)))
+                        .map(|&p| fg_color(probability_rgba(p)).expect("some"))
                         .collect();
                     mesh_entity(
                         t,
@@ -545,8 +551,8 @@ fn markers_update(frame: &RunFrame) -> Vec<u8> {
                     "hand",
                     format!("markers_{f}"),
                     &seen,
-                    0.004,
-                    [0.1, 1.0, 0.2, 1.0],
+                    MARKER_DIAMETER_M,
+                    MARKER_COLOR,
                 )
             })
             .collect(),

@@ -119,8 +119,13 @@ impl Tf {
         let stamp = (!is_static).then_some(t.header.stamp_ns);
         let edge = (t.header.frame_id.clone(), t.child_frame_id.clone());
         let list = self.edges.entry(edge).or_default();
+        // Messages come in time order as a rule: sort only when one does not (sorting on
+        // every push made reading a long recording quadratic).
+        let in_order = list.last().is_none_or(|(last, _)| *last <= stamp);
         list.push((stamp, iso));
-        list.sort_by_key(|(s, _)| *s);
+        if !in_order {
+            list.sort_by_key(|(s, _)| *s);
+        }
         Ok(())
     }
 

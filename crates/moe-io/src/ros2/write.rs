@@ -2,7 +2,6 @@
 //! and frames of a [`RosConfig`] (what a robot would have recorded of the same frames), and a
 //! run's results as `visualization_msgs` and `geometry_msgs` to replay beside the robot's own.
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -12,6 +11,10 @@ use super::RosConfig;
 use super::cdr::CdrWriter;
 use crate::episode::{add_channel, mcap_writer};
 use crate::error::IoError;
+use crate::run_output::{
+    CONTACT_COLOR, CONTACT_DIAMETER_M, FORCE_COLOR, MARKER_COLOR, MARKER_DIAMETER_M,
+    probability_rgba,
+};
 use crate::{AtomicFile, Episode, RunFrame};
 
 /// How depth is written.
@@ -44,10 +47,11 @@ fn transform(w: &mut CdrWriter, time_ns: u64, parent: &str, child: &str, iso: &I
 /// (written last, so that a recording cut short by an error is not taken for a whole one).
 struct BagWriter<'a> {
     dir: &'a Path,
+    /// The MCAP file, `dir/NAME_0.mcap`.
     path: std::path::PathBuf,
-    file_name: String,
     writer: mcap::Writer<AtomicFile>,
-    channels: BTreeMap<String, (u16, &'static str, u64)>,
+    /// Per declared channel: topic, message type, MCAP channel id, messages written.
+    channels: Vec<(String, &'static str, u16, u64)>,
     sequence: u32,
     /// The first and last message times.
     span_ns: Option<(u64, u64)>,
@@ -70,60 +74,73 @@ impl<'a> BagWriter<'a> {
 
     /// Creates `dir` (it must not exist) and its MCAP file.
     fn create(dir: &'a Path) -> Result<Self, IoError> {
-        if dir.exists() {
-            return Err(IoError::invalid(
-                dir,
-                "output",
-                "already exists; give a new directory",
-            ));
+        if let Some(parent) = dir.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| IoError::io(parent, e))?;
         }
-        std::fs::create_dir_all(dir).map_err(|e| IoError::io(dir, e))?;
+        // `create_dir`, not a check then a create: a directory that appears in between is
+        // refused, never filled (nor removed after a failure).
+        std::fs::create_dir(dir).map_err(|e| match e.kind() {
+            std::io::ErrorKind::AlreadyExists => {
+                IoError::invalid(dir, "output", "already exists; give a new directory")
+            }
+            _ => IoError::io(dir, e),
+        })?;
         let name = dir
             .file_name()
             .map_or_else(|| "bag".into(), |n| n.to_string_lossy().into_owned());
-        let file_name = format!("{name}_0.mcap");
-        let path = dir.join(&file_name);
+        let path = dir.join(format!("{name}_0.mcap"));
         let writer = mcap_writer(AtomicFile::create(&path)?, &path, "ros2")?;
         Ok(Self {
             dir,
             path,
-            file_name,
             writer,
-            channels: BTreeMap::new(),
+            channels: Vec::new(),
             sequence: 0,
             span_ns: None,
         })
     }
 
-    /// Declares `topic` of message type `ty` with its `ros2msg` definition.
-    fn channel(&mut self, topic: &str, ty: &'static str, definition: &str) -> Result<(), IoError> {
+    /// Declares `topic` of message type `ty` with its `ros2msg` definition; the handle to
+    /// [`BagWriter::put`] its messages with.
+    fn channel(
+        &mut self,
+        topic: &str,
+        ty: &'static str,
+        definition: &str,
+    ) -> Result<usize, IoError> {
         let schema = (
             ty.to_owned(),
             "ros2msg".to_owned(),
             definition.as_bytes().to_vec(),
         );
         let id = add_channel(&mut self.writer, &self.path, topic, schema, "cdr")?;
-        self.channels.insert(topic.to_owned(), (id, ty, 0));
-        Ok(())
+        self.channels.push((topic.to_owned(), ty, id, 0));
+        Ok(self.channels.len() - 1)
     }
 
-    /// Writes one message on a declared topic at `time_ns`.
-    fn put(&mut self, topic: &str, time_ns: u64, data: &[u8]) -> Result<(), IoError> {
-        let Some(channel) = self.channels.get_mut(topic) else {
-            return Err(IoError::invalid(&self.path, topic, "topic not declared"));
-        };
-        channel.2 += 1;
+    /// Writes one message on the declared `channel` at `time_ns`.
+    fn put(&mut self, channel: usize, time_ns: u64, data: &[u8]) -> Result<(), IoError> {
+        let channel = &mut self.channels[channel];
+        channel.3 += 1;
         self.span_ns = Some(self.span_ns.map_or((time_ns, time_ns), |(a, b)| {
             (a.min(time_ns), b.max(time_ns))
         }));
         crate::episode::write_message(
             &mut self.writer,
             &self.path,
-            channel.0,
+            channel.2,
             &mut self.sequence,
             time_ns,
             data,
         )
+    }
+
+    /// Ends a frame's messages: closes their chunk, so that no chunk grows with the recording
+    /// (the reader refuses chunks over a gigabyte).
+    fn end_frame(&mut self) -> Result<(), IoError> {
+        self.writer
+            .flush()
+            .map_err(|e| crate::episode::mcap_err(&self.path, e))
     }
 
     /// Finishes the MCAP file and writes `metadata.yaml` in rosbag2's version 8 form (ROS 2
@@ -134,7 +151,11 @@ impl<'a> BagWriter<'a> {
             .map_err(|e| crate::episode::mcap_err(&self.path, e))?;
         self.writer.into_inner().commit()?;
         let (start, end) = self.span_ns.unwrap_or((0, 0));
-        let total: u64 = self.channels.values().map(|c| c.2).sum();
+        let file_name = self
+            .path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let total: u64 = self.channels.iter().map(|c| c.3).sum();
         let time = |m: &mut String, indent: &str| {
             let _ = writeln!(
                 m,
@@ -150,7 +171,7 @@ impl<'a> BagWriter<'a> {
             meta,
             "  message_count: {total}\n  topics_with_message_count:"
         );
-        for (topic, (_, ty, n)) in &self.channels {
+        for (topic, ty, _, n) in &self.channels {
             let _ = writeln!(
                 meta,
                 "    - topic_metadata:\n        name: {topic}\n        type: {ty}\n        serialization_format: cdr\n        offered_qos_profiles: \"[]\"\n        type_description_hash: \"\"\n      message_count: {n}"
@@ -159,7 +180,7 @@ impl<'a> BagWriter<'a> {
         let _ = writeln!(
             meta,
             "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - {}\n  files:\n    - path: {}",
-            self.file_name, self.file_name
+            file_name, file_name
         );
         time(&mut meta, "      ");
         let _ = writeln!(
@@ -201,25 +222,28 @@ fn write_episode(
         (&config.tf_topic, "tf2_msgs/msg/TFMessage"),
         (&config.joint_state_topic, "sensor_msgs/msg/JointState"),
     ];
-    for (topic, ty) in topics {
-        bag.channel(topic, ty, "")?;
-    }
+    let [tf_static_ch, info_ch, color_ch, depth_ch, tf_ch, joints_ch] =
+        topics.map(|(topic, ty)| bag.channel(topic, ty, ""));
+    // The static transform at the first frame's time, so that the recording starts there.
+    let start = episode.frames.first().map_or(0, |f| f.time_ns);
     let mut tf_static = CdrWriter::new();
     tf_static.u32(1);
     transform(
         &mut tf_static,
-        0,
+        start,
         &config.hand_frame,
         CAMERA_FRAME,
         &episode.info.hand_from_camera,
     );
-    bag.put(&config.tf_static_topic, 0, &tf_static.finish())?;
+    bag.put(tf_static_ch?, start, &tf_static.finish())?;
+    let [info_ch, color_ch, depth_ch, tf_ch, joints_ch] =
+        [info_ch?, color_ch?, depth_ch?, tf_ch?, joints_ch?];
     let names = joint_names(config, episode);
     for frame in &episode.frames {
         let t = frame.time_ns;
-        bag.put(&config.camera_info_topic, t, &camera_info(episode, t))?;
-        bag.put(&config.color_topic, t, &color(episode, frame, t))?;
-        bag.put(&config.depth_topic, t, &depth(episode, frame, t, encoding))?;
+        bag.put(info_ch, t, &camera_info(episode, t))?;
+        bag.put(color_ch, t, &color(episode, frame, t))?;
+        bag.put(depth_ch, t, &depth(episode, frame, t, encoding))?;
         let mut tf = CdrWriter::new();
         tf.u32(1);
         transform(
@@ -229,7 +253,7 @@ fn write_episode(
             &config.hand_frame,
             &frame.world_from_hand,
         );
-        bag.put(&config.tf_topic, t, &tf.finish())?;
+        bag.put(tf_ch, t, &tf.finish())?;
         let mut js = CdrWriter::new();
         stamp(&mut js, t, "");
         js.u32(names.len() as u32);
@@ -238,7 +262,8 @@ fn write_episode(
         }
         let positions: Vec<f64> = frame.tendon_pull_m.iter().flatten().copied().collect();
         js.f64_seq(&positions).f64_seq(&[]).f64_seq(&[]);
-        bag.put(&config.joint_state_topic, t, &js.finish())?;
+        bag.put(joints_ch, t, &js.finish())?;
+        bag.end_frame()?;
     }
     Ok(())
 }
@@ -335,7 +360,7 @@ fn write_results(
     config: &RosConfig,
     arrow_m_per_n: f64,
 ) -> Result<(), IoError> {
-    bag.channel(
+    let markers_ch = bag.channel(
         RESULT_MARKERS_TOPIC,
         "visualization_msgs/msg/MarkerArray",
         MARKER_ARRAY_DEFINITION,
@@ -344,39 +369,48 @@ fn write_results(
         .iter()
         .find_map(|f| f.forces.as_ref().map(|r| r.finger_force_n.len()))
         .unwrap_or(0);
-    for f in 0..fingers {
-        bag.channel(
-            &result_wrench_topic(f),
-            "geometry_msgs/msg/WrenchStamped",
-            WRENCH_STAMPED_DEFINITION,
-        )?;
-    }
+    let wrench_ch = (0..fingers)
+        .map(|f| {
+            bag.channel(
+                &result_wrench_topic(f),
+                "geometry_msgs/msg/WrenchStamped",
+                WRENCH_STAMPED_DEFINITION,
+            )
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     for frame in frames {
         let t = frame.time_ns;
         bag.put(
-            RESULT_MARKERS_TOPIC,
+            markers_ch,
             t,
             &result_markers(frame, config, t, arrow_m_per_n),
         )?;
-        let Some(forces) = &frame.forces else {
-            continue;
-        };
-        for (f, force) in forces.finger_force_n.iter().enumerate().take(fingers) {
+        for (force, &ch) in frame
+            .forces
+            .iter()
+            .flat_map(|r| &r.finger_force_n)
+            .zip(&wrench_ch)
+        {
             let mut w = CdrWriter::new();
             stamp(&mut w, t, &config.hand_frame);
             for v in [force.x, force.y, force.z, 0.0, 0.0, 0.0] {
                 w.f64(v);
             }
-            bag.put(&result_wrench_topic(f), t, &w.finish())?;
+            bag.put(ch, t, &w.finish())?;
         }
+        bag.end_frame()?;
     }
     Ok(())
 }
 
-/// One frame's `MarkerArray`.
+/// A colour in a marker's `float32` form.
+fn rgba(c: [f64; 4]) -> [f32; 4] {
+    c.map(|v| v as f32)
+}
+
+/// One frame's `MarkerArray`: the colours and sizes of the Foxglove result file.
 fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64, arrow_m_per_n: f64) -> Vec<u8> {
     let hand = config.hand_frame.as_str();
-    let red = [1.0, 0.1, 0.1, 1.0];
     let seen: Vec<Point3> = frame
         .markers_in_hand
         .iter()
@@ -398,14 +432,7 @@ fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64, arrow_m_per_n: f
     let colours: Vec<Vec<[f32; 4]>> = frame
         .contact_probability
         .iter()
-        .map(|p| {
-            p.iter()
-                .map(|&p| {
-                    let [r, g, b] = crate::probability_colour(p);
-                    [r, g, b, 255].map(|c| f32::from(c) / 255.0)
-                })
-                .collect()
-        })
+        .map(|p| p.iter().map(|&p| rgba(probability_rgba(p))).collect())
         .collect();
     let mut specs = vec![MarkerSpec {
         frame: hand,
@@ -437,8 +464,8 @@ fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64, arrow_m_per_n: f
         id: 0,
         kind: SPHERE_LIST,
         action: ADD,
-        scale: [0.003; 3],
-        color: red,
+        scale: [MARKER_DIAMETER_M; 3],
+        color: rgba(MARKER_COLOR),
         points: &seen,
         colors: &[],
     });
@@ -448,8 +475,8 @@ fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64, arrow_m_per_n: f
         id: 0,
         kind: SPHERE_LIST,
         action: ADD,
-        scale: [0.002; 3],
-        color: [1.0, 0.85, 0.0, 1.0],
+        scale: [CONTACT_DIAMETER_M; 3],
+        color: rgba(CONTACT_COLOR),
         points: &frame.contacts_in_world,
         colors: &[],
     });
@@ -461,7 +488,7 @@ fn result_markers(frame: &RunFrame, config: &RosConfig, t: u64, arrow_m_per_n: f
             kind: ARROW,
             action: ADD,
             scale: [0.001, 0.002, 0.003],
-            color: [0.1, 0.4, 1.0, 1.0],
+            color: rgba(FORCE_COLOR),
             points: arrow,
             colors: &[],
         });
@@ -752,8 +779,17 @@ mod tests {
         // The header record's profile: rosbag2's, which ROS 2 readers require.
         assert_eq!(bytes[8], 0x01);
         assert_eq!(&bytes[17..25], b"\x04\0\0\0ros2");
+        // A chunk per frame (records: opcode, u64 length, content; 0x06 a chunk).
+        let (mut at, mut chunks) = (8, 0);
+        while at + 9 <= bytes.len() - 8 {
+            let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+            chunks += usize::from(bytes[at] == 0x06);
+            at += 9 + len;
+        }
+        assert_eq!(chunks, frames.len());
         let mut arrays = Vec::new();
         let mut wrenches = Vec::new();
+        let mut raw = Vec::new();
         for m in mcap::MessageStream::new(&bytes).unwrap() {
             let m = m.unwrap();
             let schema = m.channel.schema.as_ref().unwrap();
@@ -763,6 +799,7 @@ mod tests {
                 "the definition travels with the file"
             );
             if m.channel.topic == RESULT_MARKERS_TOPIC {
+                raw.push(m.data.to_vec());
                 arrays.push((m.log_time, marker_array(&m.data).unwrap()));
             } else {
                 let w = wrench_stamped(&m.data).unwrap();
@@ -803,6 +840,32 @@ mod tests {
         assert_eq!(w.header.frame_id, "hand");
         assert_eq!(w.force, [0.0, 0.0, -0.05]);
         assert_eq!(w.torque, [0.0; 3]);
+        // Damaged result messages are errors, never panics: every truncation, flipped bytes.
+        let (markers, wrench) = (&raw[0], {
+            let mut w = CdrWriter::new();
+            w.header(100, "hand");
+            for v in [0.0, 0.0, -0.05, 0.0, 0.0, 0.0] {
+                w.f64(v);
+            }
+            w.finish()
+        });
+        assert_eq!(wrench_stamped(&wrench).unwrap(), wrenches[0].2);
+        for cut in 0..markers.len() {
+            assert!(marker_array(&markers[..cut]).is_err(), "cut at {cut}");
+        }
+        for cut in 0..wrench.len() {
+            assert!(wrench_stamped(&wrench[..cut]).is_err(), "cut at {cut}");
+        }
+        for bytes in [markers, &wrench] {
+            for at in 0..bytes.len() {
+                for flip in [0x01, 0x80, 0xff] {
+                    let mut b = bytes.clone();
+                    b[at] ^= flip;
+                    let _ = marker_array(&b);
+                    let _ = wrench_stamped(&b);
+                }
+            }
+        }
         let err = write_ros2_results(&dir, &frames, &config, 0.2).unwrap_err();
         assert!(err.to_string().contains("already exists"), "{err}");
         let _ = std::fs::remove_dir_all(&dir);

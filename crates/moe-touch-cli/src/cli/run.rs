@@ -202,7 +202,9 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
         None => DetectorConfig::default(),
     };
     let hand = super::load_hand(&args.hand)?;
-    let (episode, cut) = read_episode(&args, &hand)?;
+    // The recording's topics and frames, read once: they name the input's and the results'.
+    let ros = ros_config(&args)?;
+    let (episode, cut) = read_episode(&args, &ros, &hand)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
     let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
@@ -228,12 +230,22 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             let model_name = model_path
                 .file_name()
                 .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-            finish(&args, pipeline, None, &episode, cut, &model_name, None)
+            finish(
+                &args,
+                &ros,
+                pipeline,
+                None,
+                &episode,
+                cut,
+                &model_name,
+                None,
+            )
         }
         ContactMethod::Physics => {
             let (pipeline, stage, name) = args.estimator.physics_pipeline(hand, detector)?;
             finish(
                 &args,
+                &ros,
                 pipeline,
                 Some(&stage),
                 &episode,
@@ -249,13 +261,11 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
 /// episode MCAP, with the error that cut it short if it was.
 fn read_episode(
     args: &RunArgs,
+    ros: &moe_io::ros2::RosConfig,
     hand: &moe_geom::HandModel,
 ) -> Result<(moe_io::Episode, Option<moe_io::IoError>)> {
     if args.ros.is_some() || moe_io::ros2::is_ros2_recording(&args.episode) {
-        return Ok((
-            moe_io::ros2::read_ros2_bag(&args.episode, &ros_config(args)?, hand)?,
-            None,
-        ));
+        return Ok((moe_io::ros2::read_ros2_bag(&args.episode, ros, hand)?, None));
     }
     let bytes = std::fs::read(&args.episode)
         .with_context(|| format!("reading {}", args.episode.display()))?;
@@ -278,8 +288,10 @@ fn ros_config(args: &RunArgs) -> Result<moe_io::ros2::RosConfig> {
 }
 
 /// Runs the pipeline over the episode, writes the result and the report, prints the summary.
+#[allow(clippy::too_many_arguments)]
 fn finish<S: ShapeEstimator, C: ContactEstimator>(
     args: &RunArgs,
+    ros: &moe_io::ros2::RosConfig,
     mut pipeline: Pipeline<S, C>,
     physics: Option<&PhysicsContactStage>,
     episode: &moe_io::Episode,
@@ -312,10 +324,17 @@ fn finish<S: ShapeEstimator, C: ContactEstimator>(
     info.force_arrow_m_per_n = force_scale;
     // The report is built before anything is written; the result file is written whole.
     let report_text = serde_json::to_string_pretty(&report)?;
-    moe_io::write_run(&args.out, &info, &frames)?;
+    // The ROS 2 results first: their writer removes what it wrote on a failure, so a failing
+    // command leaves neither output behind.
     if let Some(dir) = &args.ros_out {
         let arrow = force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N);
-        moe_io::ros2::write_ros2_results(dir, &frames, &ros_config(args)?, arrow)?;
+        moe_io::ros2::write_ros2_results(dir, &frames, ros, arrow)?;
+    }
+    if let Err(e) = moe_io::write_run(&args.out, &info, &frames) {
+        if let Some(dir) = &args.ros_out {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+        return Err(e.into());
     }
     if let Some(path) = &args.report {
         moe_io::write_atomic(path, report_text.as_bytes())?;

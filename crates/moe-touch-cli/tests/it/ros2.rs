@@ -33,6 +33,7 @@ fn assert_decodes_to(back: &moe_io::Episode, episode: &moe_io::Episode) {
         assert_eq!(a.color_rgb8, b.color_rgb8);
         assert_eq!(a.tendon_pull_m, b.tendon_pull_m);
         assert!(close(a.world_from_hand * p, b.world_from_hand * p));
+        assert_eq!(a.depth_m.len(), b.depth_m.len());
         for (x, y) in a.depth_m.iter().zip(&b.depth_m) {
             assert!((x - y).abs() <= 0.0005 + 1e-6, "{x} vs {y}");
         }
@@ -53,6 +54,7 @@ fn an_episode_written_as_a_bag_reads_back_as_its_frames() {
     // Writing into an existing directory is refused and changes nothing.
     let err = write_ros2_bag(&dir, &episode, &config, DepthEncoding::Metres32).unwrap_err();
     assert!(err.to_string().contains("already exists"), "{err}");
+    assert_decodes_to(&read_ros2_bag(&dir, &config, &hand()).unwrap(), &episode);
 }
 
 /// The arguments of `moe-touch run --episode episode --out out` and `extra`.
