@@ -1,6 +1,5 @@
 //! Reading episodes (the simulator's MCAP and ROS 2 recordings) and data sets, as numpy arrays.
 
-use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 
 use moe_io::ros2::RosConfig;
@@ -447,26 +446,19 @@ impl Dataset {
     #[pyo3(signature = (split=None))]
     fn frames(&self, split: Option<&str>) -> PyResult<DatasetFrames> {
         Ok(DatasetFrames {
-            reader: self.reader.clone(),
-            split: parse_split(split)?,
-            next_shard: 0,
-            buffer: VecDeque::new(),
-            failed: false,
+            frames: self
+                .reader
+                .clone()
+                .into_frames(parse_split(split)?, SplitFractions::default()),
         })
     }
 }
 
-/// Iterator over a data set's frames (see `Dataset.frames`).
+/// Iterator over a data set's frames (see `Dataset.frames`): `moe_io`'s, reading a shard at a
+/// time with the GIL released.
 #[pyclass(module = "moe_touch")]
 pub struct DatasetFrames {
-    reader: DatasetReader,
-    split: Option<Split>,
-    /// The next shard to read.
-    next_shard: usize,
-    /// The frames left of the last shard read.
-    buffer: VecDeque<DatasetFrame>,
-    /// A shard failed to read: the iteration has ended (as the Rust iterator's).
-    failed: bool,
+    frames: moe_io::dataset::DatasetFrames<DatasetReader>,
 }
 
 #[pymethods]
@@ -476,37 +468,16 @@ impl DatasetFrames {
     }
 
     fn __next__<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let fractions = SplitFractions::default();
-        let seed = self.reader.card().seed;
-        loop {
-            if let Some(frame) = self.buffer.pop_front() {
-                let keep = self
-                    .split
-                    .is_none_or(|s| moe_io::split_of(frame.trajectory_id, seed, fractions) == s);
-                if keep {
-                    let d = stacked(py, std::slice::from_ref(&frame))?;
-                    for (k, v) in d.iter() {
-                        if !v.is_none() {
-                            d.set_item(k, v.get_item(0)?)?;
-                        }
-                    }
-                    return Ok(Some(d));
-                }
-                continue;
-            }
-            if self.failed || self.next_shard >= self.reader.num_shards() {
-                return Ok(None);
-            }
-            let index = self.next_shard;
-            self.next_shard += 1;
-            let reader = &self.reader;
-            match py.detach(|| reader.shard(index).py()) {
-                Ok(frames) => self.buffer = frames.into(),
-                Err(e) => {
-                    self.failed = true;
-                    return Err(e);
-                }
+        let frames = &mut self.frames;
+        let Some(frame) = py.detach(|| frames.next()).transpose().py()? else {
+            return Ok(None);
+        };
+        let d = stacked(py, std::slice::from_ref(&frame))?;
+        for (k, v) in d.iter() {
+            if !v.is_none() {
+                d.set_item(k, v.get_item(0)?)?;
             }
         }
+        Ok(Some(d))
     }
 }

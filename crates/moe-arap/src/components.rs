@@ -1,4 +1,5 @@
-//! SR-ARAP on a mesh made of several connected parts: one solver per part, run in parallel.
+//! SR-ARAP on any mesh (`ArapSolver`): a mesh of one connected part is solved whole; a mesh
+//! of several parts by one solver per part, run in parallel.
 //!
 //! The SR-ARAP energy couples a vertex only to its one-ring, so the parts of a mesh that share no
 //! edge are independent problems: the whole system is block diagonal. Solving each part with its

@@ -42,7 +42,7 @@ pub struct ArapInfo {
     pub iterations: usize,
     /// `energy[t]`: the energy `E(p′⁽ᵗ⁺¹⁾, R⁽ᵗ⁾)` after the global step of iteration `t` (squared
     /// mesh units). With `alpha = 0` it never increases. Evaluated through expanded squares
-    /// (the direct form is the solver's energy evaluation), so it carries a rounding error of about
+    /// (the tests check it against the direct form), so it carries a rounding error of about
     /// 1e-16 of `Σ w (‖e‖² + ‖e′‖²)`.
     pub energy: Vec<Real>,
     /// Vertex ids of the switchable handles that were constrained in this solve, in handle order.
@@ -243,7 +243,7 @@ impl PartSolver {
         })
     }
 
-    /// Runs `config().iterations` local/global iterations in `ws`; the result is
+    /// Runs the configuration's `iterations` local/global iterations in `ws`; the result is
     /// [`ArapWorkspace::vertices`]. Does not allocate once `ws` and `info` have been used.
     ///
     /// # Errors

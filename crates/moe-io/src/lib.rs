@@ -70,10 +70,11 @@ pub mod model;
 pub mod obj;
 /// Stanford PLY.
 pub mod ply;
-/// Pipeline results over an episode, as MCAP for Foxglove.
-/// ROS 2 recordings in (rosbag2 with MCAP storage, CDR messages).
+/// ROS 2 recordings (rosbag2 with MCAP storage, CDR messages): recordings in, episodes and
+/// pipeline results out.
 #[cfg(feature = "mcap")]
 pub mod ros2;
+/// Pipeline results over an episode, as MCAP for Foxglove.
 #[cfg(feature = "mcap")]
 pub mod run_output;
 /// STL.

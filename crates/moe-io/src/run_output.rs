@@ -159,7 +159,7 @@ pub struct RunTruth {
 /// One frame's input and estimates.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunFrame {
-    /// Time since the start of the episode, nanoseconds.
+    /// The episode frame's time, nanoseconds ([`crate::EpisodeFrame::time_ns`]).
     pub time_ns: u64,
     /// The input colour image, RGB8.
     pub color_rgb8: Vec<u8>,

@@ -18,7 +18,8 @@ pub enum TouchError {
         /// Where the card was looked for.
         path: std::path::PathBuf,
     },
-    /// A shape estimator other than SR-ARAP failed.
+    /// A shape estimator that is neither SR-ARAP nor the physics estimator failed (their
+    /// errors are `Shape` and `Physics`, inside a pipeline too: `from_shape_stage`).
     #[error("shape estimation: {0}")]
     ShapeEstimation(Box<dyn std::error::Error + Send + Sync>),
     /// Contact estimation failed.

@@ -1,5 +1,6 @@
 //! Lazy reading of a data set directory: the card, then shards one at a time.
 
+use std::borrow::Borrow;
 use std::path::{Path, PathBuf};
 
 use moe_geom::LabelledFrame;
@@ -82,7 +83,28 @@ impl DatasetReader {
 
     /// Frames of `split` (all frames for `None`), shard by shard in card order; each item is a
     /// frame or the error that stopped reading a shard.
-    pub fn frames(&self, split: Option<Split>, fractions: SplitFractions) -> DatasetFrames<'_> {
+    pub fn frames(
+        &self,
+        split: Option<Split>,
+        fractions: SplitFractions,
+    ) -> DatasetFrames<&DatasetReader> {
+        DatasetFrames {
+            reader: self,
+            split,
+            fractions,
+            shard: 0,
+            buffer: Vec::new().into_iter(),
+            failed: false,
+        }
+    }
+
+    /// [`DatasetReader::frames`] that owns the reader (for an iterator that outlives it, as a
+    /// binding's does).
+    pub fn into_frames(
+        self,
+        split: Option<Split>,
+        fractions: SplitFractions,
+    ) -> DatasetFrames<DatasetReader> {
         DatasetFrames {
             reader: self,
             split,
@@ -98,7 +120,7 @@ impl DatasetReader {
 /// [`DatasetReader::labelled_frames`].
 #[derive(Debug)]
 pub struct LabelledFrames<'a> {
-    frames: DatasetFrames<'a>,
+    frames: DatasetFrames<&'a DatasetReader>,
 }
 
 impl Iterator for LabelledFrames<'_> {
@@ -124,10 +146,11 @@ impl Iterator for LabelledFrames<'_> {
     }
 }
 
-/// Iterator over a data set's frames; see [`DatasetReader::frames`].
+/// Iterator over a data set's frames; see [`DatasetReader::frames`] (borrowing the reader) and
+/// [`DatasetReader::into_frames`] (owning it).
 #[derive(Debug)]
-pub struct DatasetFrames<'a> {
-    reader: &'a DatasetReader,
+pub struct DatasetFrames<R: Borrow<DatasetReader>> {
+    reader: R,
     split: Option<Split>,
     fractions: SplitFractions,
     shard: usize,
@@ -135,28 +158,29 @@ pub struct DatasetFrames<'a> {
     failed: bool,
 }
 
-impl Iterator for DatasetFrames<'_> {
+impl<R: Borrow<DatasetReader>> Iterator for DatasetFrames<R> {
     type Item = Result<DatasetFrame, IoError>;
 
     fn next(&mut self) -> Option<Self::Item> {
+        let reader = self.reader.borrow();
         loop {
             if self.failed {
                 return None;
             }
             if let Some(frame) = self.buffer.next() {
                 let keep = self.split.is_none_or(|s| {
-                    split_of(frame.trajectory_id, self.reader.card.seed, self.fractions) == s
+                    split_of(frame.trajectory_id, reader.card.seed, self.fractions) == s
                 });
                 if keep {
                     return Some(Ok(frame));
                 }
                 continue;
             }
-            if self.shard >= self.reader.num_shards() {
+            if self.shard >= reader.num_shards() {
                 return None;
             }
             self.shard += 1;
-            match self.reader.shard(self.shard - 1) {
+            match reader.shard(self.shard - 1) {
                 Ok(frames) => self.buffer = frames.into_iter(),
                 Err(e) => {
                     self.failed = true;

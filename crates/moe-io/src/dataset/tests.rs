@@ -376,6 +376,25 @@ fn reader_iterates_shards_lazily_and_splits_by_trajectory() {
         }
     }
     assert_eq!(union, 36);
+    // The owning iterator gives the borrowing one's frames; a shard is its frames; a shard past
+    // the last is named.
+    let owned: Vec<DatasetFrame> = reader
+        .clone()
+        .into_frames(Some(Split::Test), SplitFractions::default())
+        .map(Result::unwrap)
+        .collect();
+    let borrowed: Vec<DatasetFrame> = reader
+        .frames(Some(Split::Test), SplitFractions::default())
+        .map(Result::unwrap)
+        .collect();
+    assert_eq!(owned, borrowed);
+    assert_eq!(reader.num_shards(), 3);
+    assert_eq!(reader.shard(1).unwrap(), all[12..24]);
+    let err = reader.shard(3).unwrap_err().to_string();
+    assert!(
+        err.contains("index 3 is past the last of 3 shards"),
+        "{err}"
+    );
     // The same frames as the in-memory vocabulary, split for split.
     for split in [None, Some(Split::Validation)] {
         let labelled: Vec<LabelledFrame> = reader

@@ -205,7 +205,8 @@ pub struct ObstacleMesh {
 /// Everything recorded at one instant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EpisodeFrame {
-    /// Time since the start of the episode, nanoseconds.
+    /// Time, nanoseconds: since the start of a simulated episode; for a ROS 2 recording, the
+    /// colour image's stamp (since the epoch).
     pub time_ns: u64,
     /// Colour image, RGB8 row-major.
     pub color_rgb8: Vec<u8>,

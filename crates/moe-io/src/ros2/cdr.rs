@@ -7,7 +7,7 @@
 //! counts a terminating NUL, then the bytes; sequences are a `u32` count, then the elements.
 //! XCDR2 and parameter-list encodings are refused by name (ROS 2 does not write them).
 //!
-//! The decoder is written for these message types (the five a recording carries, and the two
+//! The decoder is written for these message types (the four a recording carries, and the two
 //! results `moe-touch run --ros-out` writes) rather than generic: every declared
 //! length is checked against the bytes that remain before anything is allocated (a corrupt
 //! count cannot make it reserve gigabytes), image data is borrowed, not copied, and every error
@@ -517,7 +517,8 @@ pub fn marker_array(bytes: &[u8]) -> Result<Vec<Marker>, CdrError> {
     (0..n).map(|_| Marker::read(&mut r)).collect()
 }
 
-/// Writes CDR messages (little-endian), for tests and for results written as ROS 2 messages.
+/// Writes CDR messages (little-endian): episodes and results written as ROS 2 recordings, and
+/// test messages.
 #[derive(Debug, Default)]
 pub struct CdrWriter {
     bytes: Vec<u8>,

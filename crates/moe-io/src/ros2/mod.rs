@@ -10,13 +10,14 @@
 //! | tendon pulls | `sensor_msgs/msg/JointState` (position, metres) | `/hand/tendons` |
 //!
 //! Topics, frame names, the pairing tolerance and the joint name of every tendon come from a
-//! [`RosConfig`](crate::ros2::RosConfig) (a small TOML file). A frame is a colour image and the depth image nearest to
-//! it in time (within the tolerance), the hand's pose in the world from TF at the colour
-//! image's stamp (interpolated between the stamped transforms around it, as tf2 does; static
-//! transforms always), and the tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is
-//! the TF path from the hand frame to the colour image's frame. Recordings have no ground truth:
-//! the frames' truth fields are empty. A frame's time is its colour image's stamp (nanoseconds
-//! since the epoch), so that results written back
+//! [`RosConfig`](crate::ros2::RosConfig) (a small TOML file). A frame is a colour image and the
+//! depth image nearest to it in time (within the tolerance), the hand's pose in the world from TF
+//! at the colour image's stamp (interpolated between the stamped transforms around it, as tf2 does;
+//! outside their span the nearest, where tf2 would refuse; static transforms always), and the
+//! tendon pulls of the latest joint state at or before it. The camera's mounting on the hand is the
+//! TF path from the hand frame to the colour image's frame. Recordings have no ground truth: the
+//! frames' truth fields are empty. A frame's time is its colour image's stamp (nanoseconds since
+//! the epoch), so that results written back
 //! ([`write_ros2_results`](crate::ros2::write_ros2_results)) line up with the robot's own
 //! recording.
 
