@@ -538,38 +538,36 @@ impl CdrWriter {
         }
     }
 
+    /// A primitive of `N` bytes, aligned to its size (the reader's `take::<N>` backwards).
+    fn put<const N: usize>(&mut self, bytes: [u8; N]) -> &mut Self {
+        self.align(N);
+        self.bytes.extend_from_slice(&bytes);
+        self
+    }
+
     /// A `uint8`.
     pub fn u8(&mut self, v: u8) -> &mut Self {
-        self.bytes.push(v);
-        self
+        self.put(v.to_le_bytes())
     }
 
     /// A `uint32`.
     pub fn u32(&mut self, v: u32) -> &mut Self {
-        self.align(4);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
+        self.put(v.to_le_bytes())
     }
 
     /// An `int32`.
     pub fn i32(&mut self, v: i32) -> &mut Self {
-        self.align(4);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
+        self.put(v.to_le_bytes())
     }
 
     /// A `float32`.
     pub fn f32(&mut self, v: f32) -> &mut Self {
-        self.align(4);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
+        self.put(v.to_le_bytes())
     }
 
     /// A `float64`.
     pub fn f64(&mut self, v: f64) -> &mut Self {
-        self.align(8);
-        self.bytes.extend_from_slice(&v.to_le_bytes());
-        self
+        self.put(v.to_le_bytes())
     }
 
     /// A `string`.
