@@ -88,14 +88,7 @@ impl DatasetReader {
         split: Option<Split>,
         fractions: SplitFractions,
     ) -> DatasetFrames<&DatasetReader> {
-        DatasetFrames {
-            reader: self,
-            split,
-            fractions,
-            shard: 0,
-            buffer: Vec::new().into_iter(),
-            failed: false,
-        }
+        DatasetFrames::new(self, split, fractions)
     }
 
     /// [`DatasetReader::frames`] that owns the reader (for an iterator that outlives it, as a
@@ -105,14 +98,7 @@ impl DatasetReader {
         split: Option<Split>,
         fractions: SplitFractions,
     ) -> DatasetFrames<DatasetReader> {
-        DatasetFrames {
-            reader: self,
-            split,
-            fractions,
-            shard: 0,
-            buffer: Vec::new().into_iter(),
-            failed: false,
-        }
+        DatasetFrames::new(self, split, fractions)
     }
 }
 
@@ -156,6 +142,20 @@ pub struct DatasetFrames<R: Borrow<DatasetReader>> {
     shard: usize,
     buffer: std::vec::IntoIter<DatasetFrame>,
     failed: bool,
+}
+
+impl<R: Borrow<DatasetReader>> DatasetFrames<R> {
+    /// The frames of `split` in `reader`, from its first shard.
+    fn new(reader: R, split: Option<Split>, fractions: SplitFractions) -> Self {
+        Self {
+            reader,
+            split,
+            fractions,
+            shard: 0,
+            buffer: Vec::new().into_iter(),
+            failed: false,
+        }
+    }
 }
 
 impl<R: Borrow<DatasetReader>> Iterator for DatasetFrames<R> {
