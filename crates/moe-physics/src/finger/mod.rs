@@ -1,0 +1,476 @@
+//! One finger read backwards: from its observed markers and tendon pulls to the loads that
+//! explain them and the shape they produce.
+//!
+//! 1. **Free finger**: in a stream, the finger's own model is simulated from one observation
+//!    to the next under the commanded pulls and gravity (backward Euler with the body's
+//!    damping), without loads: where an untouched finger would be now, lag included. A lone
+//!    observation uses the static equilibrium instead.
+//! 2. **Test**: `χ²₀ = ‖m − m_free‖²/σ²` over the observed marker coordinates. Below the
+//!    detection threshold no load can pass the test, and the free shape is the answer.
+//! 3. **Compliance by reciprocity**: otherwise the tangent of the static problem is factorised
+//!    at the linearisation point and solved once per observed coordinate; column `j` evaluated
+//!    at a surface point is the response of coordinate `j` to a unit force there.
+//! 4. **Search**: every candidate patch (a disc of surface around a movable vertex) gets the
+//!    non-negative force along its admissible directions (the inward normal, or a friction
+//!    pyramid) that best explains the residual; the best wins. A second load, at least a set
+//!    distance away, is kept when it lowers χ² enough.
+//! 5. **Gauss–Newton**: the loads are applied in a static solve (their forces halved while the
+//!    residual grows), the tangent is factorised again about the loaded shape and the search
+//!    repeated, until the places stop changing. In a stream the previous frame's loads are the
+//!    start, so a held press costs one or two iterations.
+//! 6. **Decision**: the likelihood-ratio statistic `Δχ² = (‖r₀‖² − ‖r‖²)/σ²` must pass the
+//!    threshold and the force the minimum; the contact probability is a logistic of `Δχ²`
+//!    about the threshold.
+
+mod compliance;
+mod free;
+mod gauss_newton;
+mod outliers;
+mod search;
+mod stream;
+mod uncertainty;
+
+use moe_geom::{FingerModel, Iso3, Point3, Real, Vector3};
+use moe_tendon_sim::mechanics::StepContext;
+use moe_tendon_sim::{SimError, TendonCommand};
+
+use crate::config::{HandMaterial, PhysicsConfig};
+use crate::error::PhysicsError;
+use crate::mechanics::{FingerMechanics, PatchLoad, StaticSettings};
+
+use free::DynamicFree;
+use search::PAIR_SPACING_M;
+use stream::Tracked;
+use uncertainty::PressedLoads;
+
+/// What a finger's estimate is built from, in the finger frame.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FingerObservation<'a> {
+    /// Marker `m`, `None` when unseen.
+    pub(crate) markers: &'a [Option<Point3>],
+    /// Gravity, m/s² (finger frame).
+    pub(crate) gravity: Vector3,
+    /// Where the finger's base is in the world (the free finger is simulated in the world with
+    /// its base following it).
+    pub(crate) world_from_finger: Iso3,
+    /// Pulled length of each tendon, metres.
+    pub(crate) pulls: &'a [Real],
+    /// Time of the observation, seconds (`None`: a lone frame).
+    pub(crate) time_secs: Option<Real>,
+}
+
+impl FingerObservation<'_> {
+    fn commands(&self) -> Vec<TendonCommand> {
+        commands_of(self.pulls)
+    }
+}
+
+fn commands_of(pulls: &[Real]) -> Vec<TendonCommand> {
+    pulls
+        .iter()
+        .map(|&pull_m| TendonCommand::Displacement { pull_m })
+        .collect()
+}
+
+/// One estimated load, finger frame.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct FingerLoad {
+    /// The patch's centre vertex.
+    pub(crate) vertex: u32,
+    /// The place: rest-surface vertices and weights summing to one (the posterior mean within
+    /// `place_radius_m`; the centre vertex alone with a radius of 0).
+    pub(crate) place: Vec<(u32, Real)>,
+    /// The patch.
+    pub(crate) patch: Vec<(u32, Real)>,
+    /// Force, newtons.
+    pub(crate) force: Vector3,
+    /// Standard deviation of the force's magnitude, newtons (from the fit's information).
+    pub(crate) force_sd_n: Real,
+    /// Posterior standard deviation of the location on the rest surface along the finger's
+    /// axis and around it (arc length at the local radius), metres.
+    pub(crate) location_sd_m: [Real; 2],
+}
+
+/// A finger's estimate, finger frame.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct FingerEstimate {
+    /// The loads found (empty when none passed the test).
+    pub(crate) loads: Vec<FingerLoad>,
+    /// The estimated surface (under the loads, when any).
+    pub(crate) surface: Vec<Point3>,
+    /// Per vertex: contact probability.
+    pub(crate) probability: Vec<Real>,
+    /// Per vertex: force, newtons.
+    pub(crate) vertex_force: Vec<Vector3>,
+    /// Probability that the finger is pressed.
+    pub(crate) pressed_probability: Real,
+    /// The likelihood-ratio statistic of the best loads against none.
+    pub(crate) statistic: Real,
+    /// RMS of the observed marker coordinates about the free shape, metres.
+    pub(crate) free_rms_m: Real,
+    /// RMS about the estimate, metres.
+    pub(crate) fit_rms_m: Real,
+    /// Markers used.
+    pub(crate) observed_markers: usize,
+    /// Linear solves of the frame (Newton iterations and dynamic steps).
+    pub(crate) solves: usize,
+}
+
+/// The per-finger estimator.
+#[derive(Debug)]
+pub(crate) struct FingerInverse {
+    index: usize,
+    mech: FingerMechanics,
+    markers: Vec<u32>,
+    rest_surface: Vec<Point3>,
+    faces: Vec<[u32; 3]>,
+    /// Surface vertices that can move, the centres of candidate patches.
+    candidates: Vec<u32>,
+    /// Per candidate: its patch `(vertex, share)`.
+    patches: Vec<Vec<(u32, Real)>>,
+    /// Per candidate: the free nodes its patch's load acts on, `(free index, weight)`.
+    patch_nodes: Vec<Vec<(u32, Real)>>,
+    /// Per surface vertex: a third of its faces' areas.
+    area: Vec<Real>,
+    /// Candidates at least [`PAIR_SPACING_M`] apart: the coarse pair search.
+    pair_subset: Vec<usize>,
+    /// Per surface vertex: the outward normal at rest.
+    rest_normals: Vec<Vector3>,
+    config: PhysicsConfig,
+    /// The body's stiffness-proportional damping time, seconds.
+    beta: Real,
+    warm_static: Option<Vec<Point3>>,
+    tracked: Option<Tracked>,
+    dynamic: Option<DynamicFree>,
+    /// The previous observation's contact residual and its time.
+    previous_residual: Option<(Real, Vec<Option<Vector3>>)>,
+    /// The posterior over the candidates of the previous observation's press (one load, in a
+    /// stream), for `place_memory_m`.
+    place_memory: Option<Vec<Real>>,
+    /// This observation's prior over the candidates (normalised), when memory applies.
+    place_prior: Option<Vec<Real>>,
+    /// The previous observation's time and the belief then that the finger was pressed, for
+    /// `press_hold_secs`.
+    press_belief: Option<(Real, Real)>,
+    /// Per marker slot: seen in an observation of this stream (for `hidden_marker_prior`).
+    seen_in_stream: Vec<bool>,
+}
+
+fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
+    match e {
+        SimError::StaticNotConverged {
+            iterations,
+            update_m,
+            ..
+        } => PhysicsError::StaticNotConverged {
+            finger,
+            stage,
+            iterations,
+            update_m,
+        },
+        source => PhysicsError::Model { finger, source },
+    }
+}
+
+/// The no-load hypothesis a fit is tested against.
+struct Baseline {
+    /// ‖m − m(x)‖² of the free shape over the observed coordinates.
+    chi0: Real,
+    /// Markers used.
+    observed: usize,
+    /// Observed coordinates (three per marker used).
+    n_obs: Real,
+}
+
+impl FingerInverse {
+    /// Builds finger `index`'s model.
+    pub(crate) fn new(
+        index: usize,
+        finger: &FingerModel,
+        material: &HandMaterial,
+        config: &PhysicsConfig,
+    ) -> Result<Self, PhysicsError> {
+        let mech =
+            FingerMechanics::new(finger, &material.material, &config.voxel, &material.tendon)
+                .map_err(|e| to_physics(index, "", e))?;
+        let mesh = finger.mesh();
+        let rest_surface = mesh.vertices().to_vec();
+        let faces = mesh.faces().to_vec();
+        let mut area = vec![0.0; rest_surface.len()];
+        for (f, a) in faces.iter().zip(mesh.face_areas()) {
+            for &v in f {
+                area[v as usize] += a / 3.0;
+            }
+        }
+        let movable = mech.body().movable_surface_vertices();
+        let candidates: Vec<u32> = (0..rest_surface.len() as u32)
+            .filter(|&v| movable[v as usize])
+            .collect();
+        let normals = mesh.vertex_normals();
+        let r = config.patch_radius_m;
+        let patches: Vec<Vec<(u32, Real)>> = candidates
+            .iter()
+            .map(|&c| {
+                let pc = rest_surface[c as usize];
+                let nc = normals[c as usize];
+                let mut patch: Vec<(u32, Real)> = (0..rest_surface.len() as u32)
+                    .filter_map(|u| {
+                        let d = (rest_surface[u as usize] - pc).norm();
+                        // One side of the surface only (thin parts have two).
+                        (d <= r && movable[u as usize] && normals[u as usize].dot(&nc) > 0.3).then(
+                            || {
+                                (
+                                    u,
+                                    area[u as usize] * (1.0 - (d / r).powi(2)).max(0.0) + 1e-12,
+                                )
+                            },
+                        )
+                    })
+                    .collect();
+                if patch.is_empty() {
+                    patch.push((c, 1.0));
+                }
+                let total: Real = patch.iter().map(|p| p.1).sum();
+                patch.iter_mut().for_each(|p| p.1 /= total);
+                patch
+            })
+            .collect();
+        let patch_nodes = patches
+            .iter()
+            .map(|patch| {
+                let mut nodes: Vec<(u32, Real)> = Vec::new();
+                for &(u, share) in patch {
+                    for (i, w) in mech.load_free_weights(u) {
+                        match nodes.iter_mut().find(|n| n.0 == i) {
+                            Some(n) => n.1 += share * w,
+                            None => nodes.push((i, share * w)),
+                        }
+                    }
+                }
+                nodes
+            })
+            .collect();
+        let mut pair_subset: Vec<usize> = Vec::new();
+        for (c, &v) in candidates.iter().enumerate() {
+            let p = rest_surface[v as usize];
+            if pair_subset
+                .iter()
+                .all(|&s| (rest_surface[candidates[s] as usize] - p).norm() >= PAIR_SPACING_M)
+            {
+                pair_subset.push(c);
+            }
+        }
+        Ok(Self {
+            index,
+            mech,
+            pair_subset,
+            rest_normals: normals.clone(),
+            markers: finger.marker_vertices().to_vec(),
+            rest_surface,
+            faces,
+            candidates,
+            patches,
+            patch_nodes,
+            area,
+            config: config.clone(),
+            beta: material.material.rayleigh_stiffness,
+            warm_static: None,
+            tracked: None,
+            dynamic: None,
+            previous_residual: None,
+            place_memory: None,
+            place_prior: None,
+            press_belief: None,
+            seen_in_stream: Vec::new(),
+        })
+    }
+
+    /// Replaces the material (and forgets the stream).
+    pub(crate) fn set_material(&mut self, material: &HandMaterial) -> Result<(), PhysicsError> {
+        self.mech
+            .set_material(&material.material)
+            .map_err(|e| to_physics(self.index, "", e))?;
+        self.beta = material.material.rayleigh_stiffness;
+        self.reset();
+        Ok(())
+    }
+
+    /// Forgets the stream.
+    pub(crate) fn reset(&mut self) {
+        self.warm_static = None;
+        self.tracked = None;
+        self.dynamic = None;
+        self.previous_residual = None;
+        self.place_memory = None;
+        self.place_prior = None;
+        self.press_belief = None;
+        self.seen_in_stream.clear();
+    }
+
+    fn settings(&self) -> StaticSettings {
+        StaticSettings {
+            tolerance_m: self.config.static_tolerance_m,
+            max_iterations: self.config.static_max_iterations,
+        }
+    }
+
+    fn ctx(&self) -> StepContext {
+        StepContext {
+            step: 0,
+            finger: self.index,
+        }
+    }
+
+    /// Solves the static shape from `x` under `loads`, naming `stage` on failure.
+    fn solve(
+        &mut self,
+        x: &mut Vec<Point3>,
+        obs: &FingerObservation<'_>,
+        loads: &[(usize, Vector3)],
+        stage: &'static str,
+    ) -> Result<usize, PhysicsError> {
+        let settings = self.settings();
+        let ctx = self.ctx();
+        let patch: Vec<PatchLoad> = loads
+            .iter()
+            .map(|&(c, force)| PatchLoad {
+                patch: self.patches[c].clone(),
+                force,
+            })
+            .collect();
+        self.mech
+            .solve_static(x, &obs.commands(), &obs.gravity, &patch, settings, ctx)
+            .map_err(|e| to_physics(self.index, stage, e))
+    }
+
+    /// Surface positions for nodes `x`.
+    fn surface_of(&self, x: &[Point3]) -> Vec<Point3> {
+        self.mech.body().surface().positions(x)
+    }
+
+    /// ‖m − m(x)‖² over the observed coordinates.
+    fn marker_residual_sq(&self, x: &[Point3], markers: &[Option<Point3>]) -> Real {
+        markers
+            .iter()
+            .zip(&self.markers)
+            .filter_map(|(m, &v)| m.map(|p| (p - self.mech.surface_position(x, v)).norm_squared()))
+            .sum()
+    }
+
+    /// Estimates the finger's loads and shape from one observation.
+    pub(crate) fn estimate(
+        &mut self,
+        obs: &FingerObservation<'_>,
+    ) -> Result<FingerEstimate, PhysicsError> {
+        let observed = obs.markers.iter().filter(|m| m.is_some()).count();
+        if observed < self.config.min_markers {
+            self.reset();
+            return Err(PhysicsError::TooFewMarkers {
+                finger: self.index,
+                observed,
+                needed: self.config.min_markers,
+            });
+        }
+        let result = self.estimate_observed(obs, observed);
+        if result.is_err() {
+            self.tracked = None;
+        }
+        result
+    }
+
+    /// Estimates the loads and shape from an observation with enough markers (`observed`).
+    fn estimate_observed(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        observed: usize,
+    ) -> Result<FingerEstimate, PhysicsError> {
+        let sigma2 = self.config.marker_sigma_m.powi(2);
+        let mut solves = 0;
+        let free = self.free_reference(obs, &mut solves)?;
+        self.update_place_prior(obs, free.dynamic);
+        let lag_corrected = self.contact_lag_corrected(obs, &free.x);
+        let markers: Vec<Option<Point3>> = lag_corrected.unwrap_or_else(|| obs.markers.to_vec());
+        let base = Baseline {
+            chi0: self.marker_residual_sq(&free.x, &markers),
+            observed,
+            n_obs: (3 * observed) as Real,
+        };
+        // The belief that the finger is pressed, before this observation's evidence (even odds
+        // without memory); the evidence is the statistic against the detection threshold.
+        let prior_logit = self.press_prior_logit(obs, free.dynamic);
+        let threshold = self.config.detection_chi2;
+        let belief =
+            move |statistic: Real| logistic(prior_logit + (statistic - threshold) / EVIDENCE_SCALE);
+        let remember = |this: &mut Self, p: Real| {
+            this.press_belief = obs.time_secs.map(|t| (t, p));
+        };
+        // Nothing to explain: no load can pass the test (χ² of no load bounds the statistic; the
+        // belief remembered is that bound's, below even odds).
+        if belief(base.chi0 / sigma2) < 0.5 {
+            self.tracked = None;
+            remember(self, belief(base.chi0 / sigma2));
+            return Ok(self.free_estimate(&free.x, &base, 0.0, solves));
+        }
+        let start = self.static_start(obs, &free, markers, &mut solves)?;
+        let sobs = FingerObservation {
+            markers: &start.markers,
+            ..*obs
+        };
+        let (state, lin) = self.search_held_press(&sobs, &start.x, base.chi0, &mut solves)?;
+        // A marker the best fit leaves far off — a blob taken for the wrong marker; no load of
+        // the model moves one marker millimetres away from where its neighbours put it — is
+        // left out, and the loads are searched again from the free shape without it.
+        let (base, state, lin) = match self.outlier(&state.x, &start.markers, observed) {
+            Some(worst) => self.search_without_marker(obs, &start, worst, &base, &mut solves)?,
+            None => (base, state, lin),
+        };
+        // A second load that no longer pays its way is dropped by the test above; a pair
+        // carried from the previous frame is kept while each load carries the minimum force.
+        let statistic = (base.chi0 - state.chi) / sigma2;
+        let total_force: Real = state.loads.iter().map(|l| l.1.norm()).sum();
+        let pressed_probability = belief(statistic);
+        // The force floor guards onsets against tiny fits; a press held from the previous
+        // observation (memory) is followed down to any force.
+        let floor = if prior_logit > 0.0 {
+            0.0
+        } else {
+            self.config.min_force_n
+        };
+        let pressed = pressed_probability >= 0.5 && total_force > 0.0 && total_force >= floor;
+        if !pressed {
+            self.tracked = None;
+            remember(self, pressed_probability);
+            return Ok(self.free_estimate(&free.x, &base, statistic, solves));
+        }
+        remember(self, pressed_probability);
+        let PressedLoads {
+            loads,
+            probability,
+            vertex_force,
+            posteriors,
+        } = self.describe_loads(&lin, &state, pressed_probability);
+        self.remember_press(posteriors, &state);
+        let surface = self.estimated_surface(&free, &state.x, &start.x);
+        Ok(FingerEstimate {
+            loads,
+            surface,
+            probability,
+            vertex_force,
+            pressed_probability,
+            statistic,
+            free_rms_m: (base.chi0 / base.n_obs).sqrt(),
+            fit_rms_m: (state.chi / base.n_obs).sqrt(),
+            observed_markers: base.observed,
+            solves,
+        })
+    }
+}
+
+/// Units of χ² per unit of log-odds of the evidence for a press: the statistic's excess over
+/// the detection threshold, tempered (a χ² difference `Δ` is a likelihood ratio of `e^{Δ/2}`
+/// for an exact model; the model error makes it a weaker one).
+const EVIDENCE_SCALE: Real = 4.0;
+
+fn logistic(t: Real) -> Real {
+    1.0 / (1.0 + (-t).exp())
+}
