@@ -1,0 +1,348 @@
+//! Tests of the RGB-D camera: depth of planes, noise, grazing surfaces, markers and what hides them.
+
+use super::*;
+use moe_geom::{FingerParams, HandModel, HandPreset};
+
+/// A square of side `size` centred on the camera axis at depth `z` in the camera frame,
+/// expressed in the hand frame for `camera`.
+fn plane_facing(
+    camera: &RgbdCamera,
+    z: Real,
+    size: Real,
+    tilt_rad: Real,
+) -> (Vec<Point3>, Vec<[u32; 3]>) {
+    let rot = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), tilt_rad);
+    let s = 0.5 * size;
+    let v = [(-s, -s), (s, -s), (s, s), (-s, s)].map(|(x, y)| {
+        camera
+            .hand_from_camera
+            .transform_point(&(Point3::new(0.0, 0.0, z) + rot * Vector3::new(x, y, 0.0)))
+    });
+    (v.to_vec(), vec![[0, 1, 2], [0, 2, 3]])
+}
+
+/// The default camera with an ideal (noise-free) sensor.
+fn ideal_camera() -> RgbdCamera {
+    RgbdCamera {
+        noise: NoiseModel::ideal(),
+        ..RgbdCamera::default()
+    }
+}
+
+fn item<'a>(v: &'a [Point3], f: &'a [[u32; 3]], markers: &'a [Point3]) -> RenderItem<'a> {
+    RenderItem {
+        vertices_in_hand: v,
+        faces: f,
+        albedo: [200, 200, 200],
+        markers_in_hand: markers,
+        marker_radius_m: 0.003,
+    }
+}
+
+#[test]
+fn ideal_depth_of_a_fronto_parallel_plane_is_exact() {
+    let camera = ideal_camera();
+    let (v, f) = plane_facing(&camera, 0.5, 2.0, 0.0);
+    let img = camera.render(&[item(&v, &f, &[])], 1).unwrap();
+    assert!(
+        img.depth_m
+            .iter()
+            .all(|&d| (Real::from(d) - 0.5).abs() < 1e-6)
+    );
+}
+
+#[test]
+fn tilted_plane_depth_matches_ray_plane_intersection() {
+    let camera = ideal_camera();
+    let tilt = 0.4;
+    let (v, f) = plane_facing(&camera, 0.4, 2.0, tilt);
+    let img = camera.render(&[item(&v, &f, &[])], 1).unwrap();
+    let n = Vector3::new(tilt.sin(), 0.0, tilt.cos()); // plane normal in the camera frame
+    let k = &camera.intrinsics;
+    for (i, j) in [(10, 10), (320, 240), (600, 50), (200, 470)] {
+        let ray = Vector3::new(
+            (Real::from(i) - k.cx) / k.fx,
+            (Real::from(j) - k.cy) / k.fy,
+            1.0,
+        );
+        let t = 0.4 * n.z / n.dot(&ray); // point on the plane: (0, 0, 0.4)
+        let expected = t * ray.z;
+        let got = Real::from(img.depth(i, j));
+        assert!(
+            (got - expected).abs() < 1e-5 * expected,
+            "pixel ({i},{j}): {got} vs {expected}"
+        );
+    }
+}
+
+#[test]
+fn noisy_depth_stays_within_the_noise_model() {
+    let camera = RgbdCamera::default();
+    let z = 0.5;
+    let (v, f) = plane_facing(&camera, z, 2.0, 0.0);
+    let img = camera.render(&[item(&v, &f, &[])], 7).unwrap();
+    let sigma = camera.noise.depth_std(z);
+    let n = img.depth_m.len() as Real;
+    let mean = img.depth_m.iter().map(|&d| Real::from(d)).sum::<Real>() / n;
+    let var = img
+        .depth_m
+        .iter()
+        .map(|&d| (Real::from(d) - mean).powi(2))
+        .sum::<Real>()
+        / n;
+    assert!(
+        img.depth_m
+            .iter()
+            .all(|&d| (Real::from(d) - z).abs() < 6.0 * sigma)
+    );
+    assert!((mean - z).abs() < 0.05 * sigma, "mean {mean}");
+    assert!(
+        (var.sqrt() / sigma - 1.0).abs() < 0.02,
+        "std {} vs {sigma}",
+        var.sqrt()
+    );
+    // Same seed, same bytes; another seed, another image.
+    assert_eq!(img, camera.render(&[item(&v, &f, &[])], 7).unwrap());
+    assert_ne!(img, camera.render(&[item(&v, &f, &[])], 8).unwrap());
+}
+
+#[test]
+fn grazing_surfaces_and_out_of_range_have_no_depth() {
+    let camera = RgbdCamera::default();
+    // Tilted 87° about y: along the centre column the rays meet the plane at 87° or more
+    // from its normal; toward the left edge the angle opens up to well below the cut-off.
+    let (v, f) = plane_facing(&camera, 0.5, 8.0, 87f64.to_radians());
+    let img = camera.render(&[item(&v, &f, &[])], 3).unwrap();
+    let centre = camera.intrinsics.cx.round() as u32;
+    let mut centre_hits = 0;
+    for j in 0..img.height {
+        if img.rgb(centre, j) != BACKGROUND {
+            centre_hits += 1;
+            assert_eq!(
+                img.depth(centre, j),
+                0.0,
+                "grazing pixel ({centre},{j}) has depth"
+            );
+        }
+    }
+    assert!(
+        centre_hits > 0,
+        "the plane is visible along the centre column"
+    );
+    let right = camera.intrinsics.width - 1;
+    assert!(
+        img.depth(right, camera.intrinsics.cy as u32) > 0.0,
+        "oblique but not grazing"
+    );
+    let (v, f) = plane_facing(&camera, 5.0, 40.0, 0.0);
+    let img = camera.render(&[item(&v, &f, &[])], 3).unwrap();
+    assert!(img.depth_m.iter().all(|&d| d == 0.0), "beyond max depth");
+}
+
+fn is_marker_red(c: [u8; 3]) -> bool {
+    c[0] > 50 && u16::from(c[0]) > 2 * u16::from(c[1]) && u16::from(c[0]) > 2 * u16::from(c[2])
+}
+
+/// Centroid of the red pixels within `radius_px` of `(u, v)`.
+fn red_centroid(img: &RgbdImage, u: Real, v: Real, radius_px: Real) -> Option<(Real, Real, usize)> {
+    let (mut su, mut sv, mut n) = (0.0, 0.0, 0usize);
+    for j in 0..img.height {
+        for i in 0..img.width {
+            let (du, dv) = (Real::from(i) - u, Real::from(j) - v);
+            let c = img.rgb(i, j);
+            if du * du + dv * dv <= radius_px * radius_px && is_marker_red(c) {
+                su += Real::from(i);
+                sv += Real::from(j);
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| (su / n as Real, sv / n as Real, n))
+}
+
+/// Vertices in the hand frame, faces and marker centres of one finger.
+type FingerData = (Vec<Point3>, Vec<[u32; 3]>, Vec<Point3>);
+
+fn hand_items(hand: &HandModel) -> Vec<FingerData> {
+    (0..hand.num_fingers())
+        .map(|i| {
+            let f = &hand.fingers()[i];
+            let markers = f
+                .hand_from_finger
+                .transform_points(&f.model.marker_positions());
+            (
+                hand.rest_vertices_in_hand(i),
+                f.model.mesh().faces().to_vec(),
+                markers,
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_marker_seen_head_on_is_centred_on_its_projection() {
+    let camera = ideal_camera();
+    let (v, f) = plane_facing(&camera, 0.3, 1.0, 0.0);
+    // Off-centre markers, in the hand frame, on the plane.
+    let markers: Vec<Point3> = [(0.02, -0.01), (-0.05, 0.04)]
+        .iter()
+        .map(|&(x, y)| {
+            camera
+                .hand_from_camera
+                .transform_point(&Point3::new(x, y, 0.3))
+        })
+        .collect();
+    let img = camera.render(&[item(&v, &f, &markers)], 0).unwrap();
+    let camera_from_hand = camera.hand_from_camera.inverse();
+    for m in &markers {
+        let p = camera_from_hand.transform_point(m);
+        let (u, v) = camera.intrinsics.project(&p).unwrap();
+        let r_px = 0.003 * camera.intrinsics.fx / p.z;
+        let (cu, cv, n) = red_centroid(&img, u, v, 1.5 * r_px).unwrap();
+        let area = std::f64::consts::PI * r_px * r_px;
+        assert!(
+            (n as Real / area - 1.0).abs() < 0.1,
+            "{n} pixels for a disc of {area:.0}"
+        );
+        assert!(
+            (cu - u).abs() < 0.3 && (cv - v).abs() < 0.3,
+            "({cu},{cv}) vs ({u},{v})"
+        );
+    }
+}
+
+#[test]
+fn visible_markers_project_to_their_ground_truth_positions() {
+    // The wrist camera sees the fingers' inner sides obliquely, so the visible part of a
+    // marker patch is foreshortened and partly behind the finger's curvature: its pixel
+    // centroid lies within a fraction of the marker's projected radius of the projected
+    // centre, and the centre pixel itself is red.
+    let camera = ideal_camera();
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+    let data = hand_items(&hand);
+    let camera_from_hand = camera.hand_from_camera.inverse();
+    let mut checked = 0;
+    for (f, (_, _, markers)) in data.iter().enumerate() {
+        for m in markers {
+            // Paint this marker alone: neighbouring markers can overlap it in the image.
+            let items: Vec<RenderItem<'_>> = data
+                .iter()
+                .enumerate()
+                .map(|(g, (v, fc, _))| {
+                    item(v, fc, if g == f { std::slice::from_ref(m) } else { &[] })
+                })
+                .collect();
+            let img = camera.render(&items, 0).unwrap();
+            let p = camera_from_hand.transform_point(m);
+            let (u, v) = camera.intrinsics.project(&p).unwrap();
+            assert!(
+                is_marker_red(img.rgb(u.round() as u32, v.round() as u32)),
+                "centre of marker at ({u:.1},{v:.1}) is not red"
+            );
+            let r_px = 0.003 * camera.intrinsics.fx / p.z;
+            let (cu, cv, n) = red_centroid(&img, u, v, Real::INFINITY).expect("marker visible");
+            assert!(n >= 20, "marker at ({u:.1},{v:.1}) covers {n} pixels");
+            let err = ((cu - u).powi(2) + (cv - v).powi(2)).sqrt();
+            assert!(
+                err < 0.5 * r_px,
+                "marker at ({u:.1},{v:.1}) seen at ({cu:.1},{cv:.1}), radius {r_px:.1} px"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 14, "all markers of both fingers face the camera");
+}
+
+#[test]
+fn an_object_in_front_of_a_marker_hides_it() {
+    let camera = ideal_camera();
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+    let data = hand_items(&hand);
+    let camera_from_hand = camera.hand_from_camera.inverse();
+    // A small plate on the ray to the third marker of finger 0, halfway to it, wide enough to
+    // cover the whole marker patch.
+    let m = camera_from_hand.transform_point(&data[0].2[2]);
+    let mid = Point3::from(m.coords * 0.5);
+    let s = 0.004;
+    let plate: Vec<Point3> = [(-s, -s), (s, -s), (s, s), (-s, s)]
+        .iter()
+        .map(|&(x, y)| {
+            camera
+                .hand_from_camera
+                .transform_point(&(mid + Vector3::new(x, y, 0.0)))
+        })
+        .collect();
+    let plate_faces = vec![[0, 1, 2], [0, 2, 3]];
+    let mut items: Vec<RenderItem<'_>> = data.iter().map(|(v, f, mk)| item(v, f, mk)).collect();
+    let (u, v) = camera.intrinsics.project(&m).unwrap();
+    let before = camera.render(&items, 0).unwrap();
+    assert!(
+        red_centroid(&before, u, v, 3.0).is_some(),
+        "visible without the plate"
+    );
+    items.push(item(&plate, &plate_faces, &[]));
+    let img = camera.render(&items, 0).unwrap();
+    assert!(
+        red_centroid(&img, u, v, 3.0).is_none(),
+        "hidden marker must not be red"
+    );
+    // The same marker of the other finger stays visible.
+    let m2 = camera_from_hand.transform_point(&data[1].2[2]);
+    let (u2, v2) = camera.intrinsics.project(&m2).unwrap();
+    assert!(red_centroid(&img, u2, v2, 3.0).is_some());
+}
+
+#[test]
+fn visibility_is_the_line_of_sight() {
+    let camera = RgbdCamera::default();
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+    let data = hand_items(&hand);
+    let items: Vec<RenderItem<'_>> = data.iter().map(|(v, f, mk)| item(v, f, mk)).collect();
+    let markers: Vec<Point3> = data.iter().flat_map(|d| d.2.clone()).collect();
+    // Every marker faces the camera (see the test above) ...
+    let seen = camera.visible(&items, &markers, 2e-4).unwrap();
+    assert!(seen.iter().all(|&s| s), "{seen:?}");
+    // ... and the same points moved through to the far side of their finger are hidden by
+    // it; a point behind the camera or outside the image is not seen at all.
+    let far: Vec<Point3> = hand
+        .fingers()
+        .iter()
+        .flat_map(|f| {
+            f.model.marker_positions().into_iter().map(|p| {
+                f.hand_from_finger
+                    .transform_point(&Point3::new(-p.x, -p.y, p.z))
+            })
+        })
+        .collect();
+    let seen = camera.visible(&items, &far, 2e-4).unwrap();
+    assert!(seen.iter().all(|&s| !s), "{seen:?}");
+    let outside = [Point3::new(0.0, 0.0, -0.1), Point3::new(1.0, 0.0, 0.05)];
+    assert_eq!(
+        camera.visible(&[], &outside, 0.0).unwrap(),
+        vec![false, false]
+    );
+    assert_eq!(
+        camera
+            .visible(&[], &[Point3::new(0.0, 0.0, 0.05)], 0.0)
+            .unwrap(),
+        vec![true]
+    );
+}
+
+#[test]
+fn bad_intrinsics_are_rejected() {
+    let camera = RgbdCamera {
+        intrinsics: CameraIntrinsics {
+            fx: 0.0,
+            ..CameraIntrinsics::default()
+        },
+        ..RgbdCamera::default()
+    };
+    assert!(matches!(
+        camera.render(&[], 0),
+        Err(GeomError::InvalidParameter {
+            name: "camera fx",
+            ..
+        })
+    ));
+}
