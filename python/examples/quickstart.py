@@ -1,5 +1,6 @@
 """The README's Python example: the physics pipeline over the committed demo episode (a plate
-pressing a fingertip), run from the repository's root: `python python/examples/quickstart.py`.
+pressing a fingertip), run from the repository's root: `python python/examples/quickstart.py`. It prints what the
+Rust example (`examples/quickstart`, `cargo run -p moe-touch-quickstart`) prints.
 """
 
 import moe_touch as mt
@@ -13,6 +14,6 @@ for frame in episode:
     r = pipeline.process(
         frame.color, frame.depth, frame.world_from_hand, frame.pulls, time=frame.time
     )
-    forces_mn = [round(1e3 * float(f @ f) ** 0.5, 1) for f in r.finger_force]
+    forces_mn = ", ".join(f"{1e3 * float(f @ f) ** 0.5:.1f}" for f in r.finger_force)
     print(f"{frame.time:.2f} s: {r.markers_found} markers, {r.num_contacts} contact points, "
-          f"finger forces {forces_mn} mN, {r.timings.total_ms:.0f} ms")
+          f"finger forces [{forces_mn}] mN")

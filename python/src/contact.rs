@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use moe_contact::DgcnnEstimator;
-use moe_geom::{ContactEstimator, ContactInput, HandShape};
+use moe_geom::{ContactEstimator, ContactInput, HandShape, Observation};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
@@ -85,15 +85,9 @@ impl ContactModel {
         let pulls = pulls.as_ref().map(convert::to_pulls).transpose()?;
         let estimate = py.detach(|| {
             let mut model = convert::lock(&self.model, "contact model")?;
-            model
-                .estimate(&ContactInput {
-                    shape: &shape,
-                    keypoints: None,
-                    tendon_pull_m: pulls.as_deref(),
-                    world_from_hand: None,
-                    time_secs: None,
-                })
-                .py()
+            let mut observation = Observation::new();
+            observation.tendon_pull_m = pulls.as_deref();
+            model.estimate(&ContactInput::new(&shape, observation)).py()
         })?;
         Ok(estimate
             .map

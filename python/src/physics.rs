@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-use moe_geom::WorldFromHand;
-use moe_physics::{HandMaterial, PhysicsConfig, PhysicsObservation};
+use moe_geom::{HandEstimator as _, Observation, WorldFromHand};
+use moe_physics::{HandMaterial, PhysicsConfig};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -74,14 +74,11 @@ impl PhysicsEstimator {
         });
         let estimate = py.detach(|| {
             let mut estimator = convert::lock(&self.estimator, "physics estimator")?;
-            estimator
-                .estimate(&PhysicsObservation {
-                    keypoints: &keypoints,
-                    tendon_pull_m: &pulls,
-                    world_from_hand: &world_from_hand,
-                    time_secs: time,
-                })
-                .py()
+            let mut observation = Observation::from_keypoints(&keypoints)
+                .with_tendon_pulls(&pulls)
+                .with_world_from_hand(world_from_hand);
+            observation.time_secs = time;
+            estimator.estimate(&observation).py()
         })?;
         Ok(PhysicsResult {
             vertices: estimate
@@ -99,12 +96,18 @@ impl PhysicsEstimator {
             vertex_force: estimate
                 .vertex_force_n
                 .iter()
+                .flatten()
                 .map(|f| convert::vectors(py, f).unbind())
                 .collect(),
-            finger_force: finger_forces(py, &estimate),
-            pressed_probability: pressed_probabilities(py, &estimate),
-            loads: load_dicts(py, &estimate.loads)?,
-            finger_errors: estimate.fingers.iter().map(|f| f.error.clone()).collect(),
+            finger_force: finger_forces(py, &estimate.details),
+            pressed_probability: pressed_probabilities(py, &estimate.details),
+            loads: load_dicts(py, &estimate.details.loads)?,
+            finger_errors: estimate
+                .details
+                .fingers
+                .iter()
+                .map(|f| f.error.clone())
+                .collect(),
         })
     }
 

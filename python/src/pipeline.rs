@@ -4,12 +4,10 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-use moe_arap::MultiShapeEstimator;
-use moe_contact::DgcnnEstimator;
-use moe_geom::WorldFromHand;
-use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimate};
+use moe_geom::{Observation, WorldFromHand};
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsDetails};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
-use moe_touch::{FrameEstimate, PhysicsPipeline, RgbdFrame, StreamEvent};
+use moe_touch::{FrameEstimate, PaperPipeline, PhysicsPipeline, RgbdFrame, StreamEvent};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -24,13 +22,13 @@ enum Inner {
     /// The physics estimator (the tool's default).
     Physics(Box<PhysicsPipeline>),
     /// SR-ARAP and a trained network (the paper's pipeline).
-    Dgcnn(Box<moe_touch::Pipeline<MultiShapeEstimator, DgcnnEstimator>>),
+    Dgcnn(Box<PaperPipeline>),
 }
 
-/// What one frame gives besides the [`FrameEstimate`]: the physics estimator's estimate.
+/// What one frame gives: the [`FrameEstimate`] and, with the physics estimator, its details.
 struct Processed {
     estimate: FrameEstimate,
-    physics: Option<PhysicsEstimate>,
+    physics: Option<PhysicsDetails>,
 }
 
 /// A settings file (TOML or JSON) of type `T`, or its defaults without one.
@@ -138,16 +136,7 @@ impl Pipeline {
         let options = shape_config(iterations, warm_start);
         let pipeline = py.detach(|| {
             let network = ContactModel::estimator(&model, hand)?;
-            let threshold = network.threshold();
-            let shape = MultiShapeEstimator::new(hand.model.clone(), options).py()?;
-            moe_touch::Pipeline::new(
-                hand.model.clone(),
-                marker_detector,
-                shape,
-                network,
-                threshold,
-            )
-            .py()
+            moe_touch::Pipeline::paper(hand.model.clone(), marker_detector, network, options).py()
         })?;
         Ok(Self::wrap(Inner::Dgcnn(Box::new(pipeline)), camera, hand))
     }
@@ -250,26 +239,19 @@ fn run(
     pulls: Option<&[Vec<f64>]>,
     time: Option<f64>,
 ) -> PyResult<Processed> {
-    macro_rules! process {
-        ($p:expr) => {
-            match time {
-                Some(t) => $p.process_timed(frame, world_from_hand, pulls, t),
-                None => $p.process_with_pulls(frame, world_from_hand, pulls),
-            }
-            .py()?
-        };
-    }
+    let mut observation = Observation::new().with_world_from_hand(world_from_hand);
+    observation.tendon_pull_m = pulls;
+    observation.time_secs = time;
     Ok(match inner {
         Inner::Physics(p) => {
-            let estimate = process!(p);
-            // The estimate of this frame (the stage keeps the last one it made).
-            let physics = p
-                .last_physics_estimate()
-                .filter(|e| e.shape == estimate.shape);
-            Processed { estimate, physics }
+            let (estimate, physics) = p.process(frame, &observation).py()?.into_parts();
+            Processed {
+                estimate,
+                physics: Some(physics),
+            }
         }
         Inner::Dgcnn(p) => Processed {
-            estimate: process!(p),
+            estimate: p.process(frame, &observation).py()?,
             physics: None,
         },
     })
@@ -302,12 +284,12 @@ pub(crate) fn load_dicts(
 }
 
 /// The net force the world exerts on every finger, `(fingers, 3)`.
-pub(crate) fn finger_forces(py: Python<'_>, e: &PhysicsEstimate) -> Py<PyArray2<f64>> {
+pub(crate) fn finger_forces(py: Python<'_>, e: &PhysicsDetails) -> Py<PyArray2<f64>> {
     convert::vectors(py, &e.finger_forces_n()).unbind()
 }
 
 /// The probability that each finger is pressed, `(fingers,)`.
-pub(crate) fn pressed_probabilities(py: Python<'_>, e: &PhysicsEstimate) -> Py<PyArray1<f64>> {
+pub(crate) fn pressed_probabilities(py: Python<'_>, e: &PhysicsDetails) -> Py<PyArray1<f64>> {
     convert::array1(
         py,
         e.fingers.iter().map(|f| f.pressed_probability).collect(),
@@ -321,10 +303,10 @@ pub(crate) fn pressed_probabilities(py: Python<'_>, e: &PhysicsEstimate) -> Py<P
 pub struct Timings {
     /// Marker perception.
     markers_ms: f64,
-    /// Shape estimation.
-    shape_ms: f64,
-    /// Contact estimation and contact points.
-    contact_ms: f64,
+    /// The estimator (shape and contact).
+    estimate_ms: f64,
+    /// Contact points (the threshold, the world frame).
+    points_ms: f64,
     /// The whole frame.
     total_ms: f64,
 }
@@ -333,8 +315,8 @@ pub struct Timings {
 impl Timings {
     fn __repr__(&self) -> String {
         format!(
-            "Timings(markers_ms={:.3}, shape_ms={:.3}, contact_ms={:.3}, total_ms={:.3})",
-            self.markers_ms, self.shape_ms, self.contact_ms, self.total_ms
+            "Timings(markers_ms={:.3}, estimate_ms={:.3}, points_ms={:.3}, total_ms={:.3})",
+            self.markers_ms, self.estimate_ms, self.points_ms, self.total_ms
         )
     }
 }
@@ -448,8 +430,8 @@ impl FrameResult {
             world_from_hand: convert::iso(py, e.world_from_hand.iso()).unbind(),
             timings: Timings {
                 markers_ms: e.timings.markers_ms,
-                shape_ms: e.timings.shape_ms,
-                contact_ms: e.timings.contact_ms,
+                estimate_ms: e.timings.estimate_ms,
+                points_ms: e.timings.points_ms,
                 total_ms: e.timings.total_ms,
             },
             stream,

@@ -1,8 +1,12 @@
-"""The README's Python example is python/examples/quickstart.py, and it runs."""
+"""The README's Python example is python/examples/quickstart.py, it runs, and it prints what
+the README's Rust example (examples/quickstart) prints."""
 
+import os
 import re
 import subprocess
 import sys
+
+import pytest
 
 from conftest import REPO
 
@@ -28,3 +32,19 @@ def test_the_quickstart_runs_and_finds_the_press():
     assert len(out) == 7
     contacts = [int(re.search(r"(\d+) contact points", line).group(1)) for line in out]
     assert contacts[0] == 0 and max(contacts) > 0
+
+
+def test_the_rust_and_python_examples_print_the_same_contacts():
+    given = os.environ.get("MOE_TOUCH_QUICKSTART_BIN")
+    candidates = [given] if given else [REPO / "target/debug/moe-touch-quickstart",
+                                        REPO / "target/release/moe-touch-quickstart"]
+    rust = next((c for c in map(str, candidates) if os.path.isfile(c)), None)
+    if rust is None:
+        if given or os.environ.get("CI"):
+            pytest.fail(f"the Rust example is not at {candidates}")
+        pytest.skip("no build of the Rust example (cargo build -p moe-touch-quickstart)")
+    run = lambda cmd: subprocess.run(cmd, cwd=REPO, check=True, capture_output=True,
+                                     text=True).stdout
+    python_lines = run([sys.executable, str(QUICKSTART)]).splitlines()
+    rust_lines = run([rust]).splitlines()
+    assert rust_lines == python_lines

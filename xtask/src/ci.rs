@@ -48,49 +48,80 @@ fn step(name: &str, mut cmd: Command) -> Result<()> {
     Ok(())
 }
 
-/// Crates the runtime library must not depend on (`cargo tree -p moe-touch -e normal`).
-const NOT_IN_THE_RUNTIME: [&str; 6] = [
-    "moe-tendon-sim",
-    "moe-lab",
-    "clap",
-    "anyhow",
-    "image",
-    "foxglove",
-];
+/// Crates the runtime library must never depend on, whatever its features
+/// (`cargo tree -p moe-touch -e normal`).
+const NEVER_IN_THE_RUNTIME: [&str; 6] =
+    ["moe-lab", "moe-gpis", "clap", "anyhow", "image", "foxglove"];
 
-fn runtime_tree_is_lean() -> Result<()> {
-    let out = cargo()
-        .args([
-            "tree",
-            "-p",
-            "moe-touch",
-            "-e",
-            "normal",
-            "--prefix",
-            "none",
-            "--locked",
-        ])
-        .output()
-        .context("starting cargo tree")?;
+/// Crates the runtime takes only when a feature asks for them: the simulator's mechanics with
+/// `physics`, candle with `dgcnn`.
+const ONLY_BY_FEATURE: [(&str, &str); 2] =
+    [("moe-tendon-sim", "physics"), ("candle-core", "dgcnn")];
+
+/// The runtime's tree (`cargo tree -p moe-touch -e normal`) with `features`, as names.
+fn runtime_tree(features: &str) -> Result<Vec<String>> {
+    let mut cmd = cargo();
+    cmd.args([
+        "tree",
+        "-p",
+        "moe-touch",
+        "-e",
+        "normal",
+        "--prefix",
+        "none",
+        "--locked",
+    ]);
+    if !features.is_empty() {
+        cmd.args(["--features", features]);
+    }
+    let out = cmd.output().context("starting cargo tree")?;
     if !out.status.success() {
-        bail!("cargo tree -p moe-touch failed ({})", out.status);
+        bail!(
+            "cargo tree -p moe-touch --features '{features}' failed ({})",
+            out.status
+        );
     }
-    let tree = String::from_utf8_lossy(&out.stdout);
-    let found: Vec<&str> = NOT_IN_THE_RUNTIME
-        .iter()
-        .copied()
-        .filter(|name| {
-            tree.lines()
-                .any(|l| l.split_whitespace().next() == Some(name))
-        })
-        .collect();
-    if !found.is_empty() {
-        bail!("the runtime (moe-touch) depends on {}", found.join(", "));
+    Ok(String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().next().map(str::to_owned))
+        .collect())
+}
+
+/// The runtime alone, with the physics estimator, and with everything a user may ask for: its
+/// tree holds no simulator scenes, command-line parser, image codec, anyhow or protobuf, never
+/// the experiments or surface reconstruction, and the simulator's mechanics or candle only when
+/// their feature is on.
+fn runtime_tree_is_lean() -> Result<()> {
+    for features in ["", "physics", "dgcnn", "physics,dgcnn"] {
+        let tree = runtime_tree(features)?;
+        let has = |name: &str| tree.iter().any(|n| n == name);
+        let mut found: Vec<&str> = NEVER_IN_THE_RUNTIME
+            .iter()
+            .copied()
+            .filter(|n| has(n))
+            .collect();
+        found.extend(
+            ONLY_BY_FEATURE
+                .iter()
+                .filter(|(name, feature)| has(name) && !features.split(',').any(|f| f == *feature))
+                .map(|(name, _)| *name),
+        );
+        if !found.is_empty() {
+            bail!(
+                "the runtime (moe-touch, features '{features}') depends on {}",
+                found.join(", ")
+            );
+        }
+        eprintln!(
+            "xtask ci: moe-touch's tree (features '{features}') holds none of {}{}",
+            NEVER_IN_THE_RUNTIME.join(", "),
+            ONLY_BY_FEATURE
+                .iter()
+                .filter(|(_, feature)| !features.split(',').any(|f| f == *feature))
+                .map(|(name, _)| format!(", {name}"))
+                .collect::<String>()
+        );
     }
-    eprintln!(
-        "xtask ci: moe-touch's tree holds none of {}",
-        NOT_IN_THE_RUNTIME.join(", ")
-    );
     Ok(())
 }
 
@@ -110,9 +141,16 @@ fn python_package(args: &CiArgs) -> Result<()> {
     };
     let root = workspace_root();
     let mut tool = cargo();
-    tool.args(["build", "--locked", "-p", "moe-touch-cli"]);
+    tool.args([
+        "build",
+        "--locked",
+        "-p",
+        "moe-touch-cli",
+        "-p",
+        "moe-touch-quickstart",
+    ]);
     step(
-        "cargo build -p moe-touch-cli (for the Python comparisons)",
+        "cargo build -p moe-touch-cli -p moe-touch-quickstart (for the Python comparisons)",
         tool,
     )?;
 
@@ -135,6 +173,10 @@ fn python_package(args: &CiArgs) -> Result<()> {
         .current_dir(root.join("python"))
         .args(["-m", "pytest", "-q", "tests"])
         .env("MOE_TOUCH_BIN", target_dir(&root).join("debug/moe-touch"))
+        .env(
+            "MOE_TOUCH_QUICKSTART_BIN",
+            target_dir(&root).join("debug/moe-touch-quickstart"),
+        )
         .env("CI", "true");
     step("pytest python/tests", pytest)
 }
@@ -168,19 +210,20 @@ pub(crate) fn run(args: &CiArgs) -> Result<()> {
     ]);
     step("cargo clippy -D warnings", clippy)?;
 
-    // The runtime alone (features resolved for it, not the workspace): it must build, and its
-    // tree must hold no simulator, command-line parser, image codec or anyhow.
-    let mut runtime = cargo();
-    runtime.args([
-        "clippy",
-        "-p",
-        "moe-touch",
-        "--locked",
-        "--",
-        "-D",
-        "warnings",
-    ]);
-    step("cargo clippy -p moe-touch (the runtime alone)", runtime)?;
+    // The runtime alone and with each feature (features resolved for it, not the workspace):
+    // it must build, and its tree must hold nothing it does not ask for.
+    for features in ["", "physics", "dgcnn"] {
+        let mut runtime = cargo();
+        runtime.args(["clippy", "-p", "moe-touch", "--locked"]);
+        if !features.is_empty() {
+            runtime.args(["--features", features]);
+        }
+        runtime.args(["--", "-D", "warnings"]);
+        step(
+            &format!("cargo clippy -p moe-touch --features '{features}' (the runtime alone)"),
+            runtime,
+        )?;
+    }
     runtime_tree_is_lean()?;
 
     let mut test = cargo();

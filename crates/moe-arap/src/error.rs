@@ -9,6 +9,11 @@ use moe_geom::{GeomError, Real};
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum ArapError {
+    /// The observation carries no markers, which SR-ARAP estimates the shape from.
+    #[error(
+        "the observation carries no markers (keypoints): SR-ARAP estimates the shape from them"
+    )]
+    MissingKeypoints,
     /// The mesh or hand geometry was rejected by `moe-geom` (non-manifold, degenerate, ...).
     /// Fix the input mesh.
     #[error(transparent)]

@@ -9,7 +9,7 @@
 //! then be relaxed when a marker is first seen. Missing markers are dropped for the frame without
 //! refactorising.
 
-use moe_geom::{HandKeypoints, HandModel, HandShape, Point3, PointIndex, Real};
+use moe_geom::{HandKeypoints, HandModel, HandShape, Observation, Point3, PointIndex, Real};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -380,7 +380,9 @@ impl FingerState {
 impl moe_geom::ShapeEstimator for MultiShapeEstimator {
     type Error = ArapError;
 
-    fn estimate_shape(&mut self, keypoints: &HandKeypoints) -> Result<HandShape, ArapError> {
+    /// The shape from the observation's markers (its pulls, pose and time are not used).
+    fn estimate_shape(&mut self, observation: &Observation<'_>) -> Result<HandShape, ArapError> {
+        let keypoints = observation.keypoints.ok_or(ArapError::MissingKeypoints)?;
         Ok(self.estimate(keypoints)?.shape)
     }
 

@@ -54,7 +54,7 @@ pub enum InputFeature {
     /// frame whatever [`InputSpec::frame`] says, at the route's base), `Σ p_t u_t.x`, `Σ p_t u_t.y`, and their sum `Σ p_t`. For antagonistic
     /// pairs the first two are the bending the pulls ask for and the third the co-contraction;
     /// beside the shape, they say how the finger would bend if nothing touched it. Needs the pulls
-    /// with every observation ([`moe_geom::ContactInput::tendon_pull_m`]).
+    /// with every observation ([`moe_geom::Observation::tendon_pull_m`]).
     TendonPull,
 }
 

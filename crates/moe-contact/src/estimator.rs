@@ -652,7 +652,7 @@ impl DgcnnEstimator {
         }
         for input in inputs {
             self.features.check_shape(input.shape)?;
-            self.features.check_pulls(input.tendon_pull_m)?;
+            self.features.check_pulls(input.observation.tendon_pull_m)?;
         }
         let mut maps: Vec<ContactMap> = inputs
             .iter()
@@ -675,7 +675,7 @@ impl DgcnnEstimator {
                     for &f in &plan.fingers {
                         self.features.finger_features(
                             input.shape,
-                            input.tendon_pull_m,
+                            input.observation.tendon_pull_m,
                             f,
                             &mut values,
                         );

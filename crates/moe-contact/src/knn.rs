@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use moe_geom::{
     ContactEstimate, ContactEstimator, ContactInput, ContactMap, HandKeypoints, HandShape,
-    LabelledFrame, Point3, SeededRng,
+    LabelledFrame, Observation, Point3, SeededRng,
 };
 use safetensors::tensor::Dtype;
 
@@ -267,10 +267,13 @@ impl KnnIndex {
     /// [`ContactError::InvalidBatch`] for a shape of another hand, and as
     /// [`KnnIndex::nearest`].
     pub fn estimate_map(&self, input: &ContactInput<'_>) -> Result<ContactMap, ContactError> {
-        let keypoints = input.keypoints.ok_or(ContactError::UnavailableFeatures {
-            features: "keypoints".into(),
-            given: "a hand shape without keypoints",
-        })?;
+        let keypoints = input
+            .observation
+            .keypoints
+            .ok_or(ContactError::UnavailableFeatures {
+                features: "keypoints".into(),
+                given: "a hand shape without keypoints",
+            })?;
         let v: Vec<usize> = input.shape.fingers.iter().map(Vec::len).collect();
         if v != self.vertices_per_finger {
             return Err(ContactError::InvalidBatch {
@@ -426,7 +429,14 @@ impl moe_geom::ShapeEstimator for KnnIndex {
     type Error = ContactError;
 
     /// The shape of the nearest training frame.
-    fn estimate_shape(&mut self, keypoints: &HandKeypoints) -> Result<HandShape, ContactError> {
+    /// The shape of the training frame whose keypoints are nearest to the observation's.
+    fn estimate_shape(&mut self, observation: &Observation<'_>) -> Result<HandShape, ContactError> {
+        let keypoints = observation
+            .keypoints
+            .ok_or(ContactError::UnavailableFeatures {
+                features: "keypoints".into(),
+                given: "an observation without keypoints",
+            })?;
         let m = self.nearest(keypoints)?;
         self.shape_of(m.frame)
             .ok_or_else(|| ContactError::InvalidConfig {

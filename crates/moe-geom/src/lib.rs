@@ -14,17 +14,20 @@ pub mod chamfer;
 pub mod cotan;
 /// The crate's error type.
 pub mod error;
+/// The estimator seams: observation to shape, contact and details.
+pub mod estimate;
 /// The parametric tendon-driven finger.
 pub mod finger;
 /// Multi-finger hands and their keypoints.
 pub mod hand;
-/// One instant of a hand: deformed shape, contact map, labelled frame; the shape- and
-/// contact-estimator seams.
+/// One instant of a hand: deformed shape, contact map, labelled frame.
 pub mod instant;
 /// Scalar and linear-algebra aliases, and the seam to parry's glam types.
 pub mod math;
 /// Validated triangle meshes, welding, areas, normals, bounding boxes.
 pub mod mesh;
+/// The one observation type (markers, tendon pulls, wrist pose, time) and the camera frame.
+pub mod observation;
 /// Plane fitting by RANSAC with a least-squares refit.
 pub mod plane;
 /// A small seeded random-number generator (SplitMix64).
@@ -43,16 +46,18 @@ pub use camera::CameraIntrinsics;
 pub use chamfer::{Neighbor, PointIndex, bcd, ucd};
 pub use cotan::{CotanLaplacian, cotan_weights};
 pub use error::GeomError;
+pub use estimate::{
+    ContactEstimate, ContactEstimator, ContactInput, HandEstimate, HandEstimator, ShapeEstimator,
+    StageError, Staged,
+};
 pub use finger::{
     FingerModel, FingerParams, MarkerLayout, MarkerLayoutPreset, MarkerRow, TendonRoute,
 };
 pub use hand::{HandFinger, HandKeypoints, HandModel, HandPreset};
-pub use instant::{
-    ContactEstimate, ContactEstimator, ContactInput, ContactMap, ContactPoint, HandShape,
-    LabelledFrame, ShapeEstimator, ShapeInput,
-};
+pub use instant::{ContactMap, ContactPoint, HandShape, LabelledFrame};
 pub use math::{Iso3, Matrix3, Point3, Real, Vector3};
 pub use mesh::{Aabb, TriMesh};
+pub use observation::{Observation, OwnedObservation, RgbdFrame};
 pub use plane::{PlaneFit, RansacConfig, fit_plane_ransac};
 pub use rng::SeededRng;
 pub use topology::{Topology, largest_component};

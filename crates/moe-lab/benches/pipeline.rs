@@ -8,25 +8,19 @@ use std::hint::black_box;
 use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use moe_arap::{MultiShapeEstimator, ShapeConfig};
-use moe_geom::{FingerParams, HandModel, HandPreset, WorldFromHand};
+use moe_arap::ShapeConfig;
+use moe_geom::{FingerParams, HandModel, HandPreset, Observation, WorldFromHand};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::{Pipeline, RgbdFrame};
+use moe_touch::{PaperPipeline, Pipeline};
 
-fn pipeline(
-    hand: &HandModel,
-    episode: &moe_io::Episode,
-    options: ShapeConfig,
-) -> Pipeline<MultiShapeEstimator, moe_contact::DgcnnEstimator> {
+fn pipeline(hand: &HandModel, episode: &moe_io::Episode, options: ShapeConfig) -> PaperPipeline {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
         .expect("the shipped model loads");
-    let threshold = model.threshold();
     let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())
         .expect("detector");
-    let shape = MultiShapeEstimator::new(hand.clone(), options.clone()).expect("SR-ARAP");
-    Pipeline::new(hand.clone(), detector, shape, model, threshold).expect("pipeline")
+    Pipeline::paper(hand.clone(), detector, model, options).expect("pipeline")
 }
 
 fn bench_pipeline(c: &mut Criterion) {
@@ -36,15 +30,13 @@ fn bench_pipeline(c: &mut Criterion) {
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
     // The frame with the plate pressed in.
     let frame = &episode.frames[3];
-    let input = RgbdFrame {
-        color_rgb8: &frame.color_rgb8,
-        depth_m: &frame.depth_m,
-    };
-    let pose = WorldFromHand::new(frame.world_from_hand);
+    let input = frame.rgbd();
+    // The wrist pose alone, untimed: every iteration is a frame of its own.
+    let pose = Observation::new().with_world_from_hand(WorldFromHand::new(frame.world_from_hand));
     let mut from_rest = pipeline(&hand, &episode, ShapeConfig::default());
     c.bench_function(
         "pipeline/two-finger frame, SR-ARAP 50 iterations from rest",
-        |b| b.iter(|| black_box(from_rest.process(black_box(input), pose).expect("runs"))),
+        |b| b.iter(|| black_box(from_rest.process(black_box(input), &pose).expect("runs"))),
     );
     let tracked_options = ShapeConfig {
         iterations: 10,
@@ -52,10 +44,10 @@ fn bench_pipeline(c: &mut Criterion) {
         ..ShapeConfig::default()
     };
     let mut tracked = pipeline(&hand, &episode, tracked_options);
-    tracked.process(input, pose).expect("runs");
+    tracked.process(input, &pose).expect("runs");
     c.bench_function(
         "pipeline/two-finger frame, tracked (10 iterations, warm start)",
-        |b| b.iter(|| black_box(tracked.process(black_box(input), pose).expect("runs"))),
+        |b| b.iter(|| black_box(tracked.process(black_box(input), &pose).expect("runs"))),
     );
 }
 
@@ -83,11 +75,16 @@ fn bench_physics_pipeline(c: &mut Criterion) {
     c.bench_function("pipeline/two-finger frame, physics from rest", |b| {
         b.iter(|| {
             lone.reset();
-            black_box(lone.process_episode_frame(black_box(&frame)).expect("runs"))
+            black_box(
+                lone.process(frame.rgbd(), black_box(&frame.observation()))
+                    .expect("runs"),
+            )
         })
     });
     let mut stream = physics();
-    stream.process_episode_frame(&frame).expect("runs");
+    stream
+        .process(frame.rgbd(), &frame.observation())
+        .expect("runs");
     c.bench_function(
         "pipeline/two-finger frame, physics tracked (50 ms frames)",
         |b| {
@@ -95,7 +92,7 @@ fn bench_physics_pipeline(c: &mut Criterion) {
                 frame.time_ns += 50_000_000;
                 black_box(
                     stream
-                        .process_episode_frame(black_box(&frame))
+                        .process(frame.rgbd(), black_box(&frame.observation()))
                         .expect("runs"),
                 )
             })

@@ -10,6 +10,9 @@ pub enum LabError {
     /// The runtime (pipeline, perception, files, estimators) failed; its error unchanged.
     #[error(transparent)]
     Touch(#[from] TouchError),
+    /// Surface reconstruction failed.
+    #[error(transparent)]
+    Surface(#[from] moe_gpis::GpisError),
     /// A generation plan is inconsistent (zero trajectories, a machine index out of range, a
     /// malformed `--shard` split, ...).
     #[error("invalid generation plan: {reason}")]
@@ -112,8 +115,7 @@ through_touch!(
     moe_arap::ArapError,
     moe_contact::ContactError,
     moe_physics::PhysicsError,
-    moe_geom::GeomError,
-    moe_gpis::GpisError
+    moe_geom::GeomError
 );
 
 #[cfg(test)]

@@ -25,8 +25,8 @@
 
 use moe_geom::math::UnitQuat;
 use moe_geom::{
-    ContactEstimator, ContactPoint, HandModel, HandShape, Point3, RansacConfig, Real, SeededRng,
-    ShapeEstimator, Vector3, fit_plane_ransac,
+    ContactEstimator, ContactPoint, HandEstimator, HandModel, HandShape, Point3, RansacConfig,
+    Real, SeededRng, Staged, Vector3, fit_plane_ransac,
 };
 use moe_tendon_sim::paper_scenes::{PLATE_PRESS_TIMES_SECS, inclined_plate_press};
 use moe_tendon_sim::{Scene, SimFrame, run_saving};
@@ -510,7 +510,12 @@ impl HoldView<'_> {
     ) -> Result<(), LabError> {
         let (recorder, detector) = self.camera()?;
         let shape = MultiShapeEstimator::new(self.hand.clone(), ShapeConfig::default())?;
-        let mut pipeline = Pipeline::new(self.hand.clone(), detector, shape, contact, threshold)?;
+        let mut pipeline = Pipeline::new(
+            self.hand.clone(),
+            detector,
+            Staged::new(shape, contact),
+            threshold,
+        )?;
         self.estimate(&mut pipeline, &recorder, labels_only, shapes, plane_points)
     }
 
@@ -518,9 +523,9 @@ impl HoldView<'_> {
     /// each frame), appending each frame's finger states to `shapes` and its contact points
     /// (world frame) to `plane_points`: the pipeline's own, or with `labels_only` the
     /// simulator's contact vertices placed on the estimated shape.
-    fn estimate<S: ShapeEstimator, C: ContactEstimator>(
+    fn estimate<E: HandEstimator>(
         &self,
-        pipeline: &mut Pipeline<S, C>,
+        pipeline: &mut Pipeline<E>,
         recorder: &EpisodeRecorder,
         labels_only: bool,
         shapes: &mut Vec<Vec<FingerState>>,
@@ -530,7 +535,7 @@ impl HoldView<'_> {
         for (k, f) in self.hold {
             let episode_frame = recorder.frame(self.scene, f, *k as u64)?;
             pipeline.reset();
-            let estimate = pipeline.process_episode_frame(&episode_frame)?;
+            let estimate = pipeline.process(episode_frame.rgbd(), &episode_frame.observation())?;
             let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
             shapes.push(
                 (0..hand.num_fingers())

@@ -13,7 +13,7 @@
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::bodies::{ArmParams, HeadParams};
-use moe_geom::{ContactEstimator, HandModel, Iso3, Point3, Real, ShapeEstimator, TriMesh};
+use moe_geom::{ContactEstimator, HandEstimator, HandModel, Iso3, Point3, Real, Staged, TriMesh};
 use moe_gpis::bench_scene::SceneKind;
 use moe_io::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
@@ -139,18 +139,14 @@ impl PatContacts {
 ///
 /// # Errors
 /// As [`Pipeline::process`].
-pub fn estimate_pat_contacts<S, C>(
-    pipeline: &mut Pipeline<S, C>,
+pub fn estimate_pat_contacts<E: HandEstimator>(
+    pipeline: &mut Pipeline<E>,
     episode: &PattingEpisode,
-) -> Result<PatContacts, LabError>
-where
-    S: ShapeEstimator,
-    C: ContactEstimator,
-{
+) -> Result<PatContacts, LabError> {
     let mut out = PatContacts::default();
     for frame in &episode.frames {
         pipeline.reset();
-        let estimate = pipeline.process_episode_frame(frame)?;
+        let estimate = pipeline.process(frame.rgbd(), &frame.observation())?;
         out.per_pat.push(estimate.contacts_in_world.len());
         out.points_in_world
             .extend(estimate.contacts_in_world.iter().map(|c| c.point));
@@ -162,10 +158,10 @@ where
 ///
 /// # Errors
 /// A detector for another hand than the episode's, and as [`estimate_pat_contacts`].
-pub fn pat_contacts<S: ShapeEstimator, C: ContactEstimator>(
+pub fn pat_contacts<E: HandEstimator>(
     hand: &HandModel,
     episode: &PattingEpisode,
-    build: impl FnOnce(MarkerDetector) -> Result<Pipeline<S, C>, TouchError>,
+    build: impl FnOnce(MarkerDetector) -> Result<Pipeline<E>, TouchError>,
 ) -> Result<PatContacts, LabError> {
     let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
     estimate_pat_contacts(&mut build(detector)?, episode)
@@ -184,7 +180,12 @@ pub fn paper_pat_contacts<C: ContactEstimator>(
 ) -> Result<PatContacts, LabError> {
     pat_contacts(hand, episode, |detector| {
         let shape = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default())?;
-        Pipeline::new(hand.clone(), detector, shape, contact, threshold)
+        Pipeline::new(
+            hand.clone(),
+            detector,
+            Staged::new(shape, contact),
+            threshold,
+        )
     })
 }
 
@@ -248,8 +249,8 @@ mod tests {
     use super::*;
     use moe_contact::ContactError;
     use moe_geom::{
-        ContactEstimate, ContactInput, ContactMap, FingerParams, HandKeypoints, HandModel,
-        HandPreset, HandShape,
+        ContactEstimate, ContactInput, ContactMap, FingerParams, HandModel, HandPreset, HandShape,
+        Observation, ShapeEstimator,
     };
     use moe_touch::perception::{DetectorConfig, MarkerDetector};
 
@@ -258,7 +259,7 @@ mod tests {
 
     impl ShapeEstimator for TrueShape {
         type Error = ContactError;
-        fn estimate_shape(&mut self, _: &HandKeypoints) -> Result<HandShape, ContactError> {
+        fn estimate_shape(&mut self, _: &Observation<'_>) -> Result<HandShape, ContactError> {
             Ok(self.0.clone())
         }
     }
@@ -299,10 +300,12 @@ mod tests {
             let mut pipeline = Pipeline::new(
                 hand.clone(),
                 detector,
-                TrueShape(HandShape {
-                    fingers: frame.finger_vertices_in_hand.clone(),
-                }),
-                TrueContact(ContactMap::from_labels(&labels)),
+                Staged::new(
+                    TrueShape(HandShape {
+                        fingers: frame.finger_vertices_in_hand.clone(),
+                    }),
+                    TrueContact(ContactMap::from_labels(&labels)),
+                ),
                 0.5,
             )
             .unwrap();

@@ -13,11 +13,12 @@ use std::time::Instant;
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_contact::{ContactMetrics, ContactReport, DgcnnEstimator};
+use moe_geom::HandEstimator as _;
 use moe_geom::{
     ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng,
     Vector3, WorldFromHand, bcd,
 };
-use moe_physics::{PhysicsEstimate, PhysicsEstimator, PhysicsObservation};
+use moe_physics::{PhysicsEstimate, PhysicsEstimator};
 use moe_tendon_sim::{Scene, SceneConfig, SimFrame, run_saving};
 use serde::Serialize;
 
@@ -281,7 +282,12 @@ fn finger_outcome(
     let rest = hf.model.mesh().vertices();
     let weights = &frame.vertex_force_n[f];
     let total: Real = weights.iter().sum();
-    let loads: Vec<_> = estimate.loads.iter().filter(|l| l.finger == f).collect();
+    let loads: Vec<_> = estimate
+        .details
+        .loads
+        .iter()
+        .filter(|l| l.finger == f)
+        .collect();
     let detected = !loads.is_empty();
     let (mut location_m, mut along_m, mut force_error_n) = (Real::NAN, Real::NAN, Real::NAN);
     if detected && total > 0.0 {
@@ -500,12 +506,12 @@ pub fn with_physics_shapes(
                             }
                             None => frame.markers.clone(),
                         };
-                        let est = estimator.estimate(&PhysicsObservation {
-                            keypoints: &markers,
-                            tendon_pull_m: &frame.tendon_pull_m,
-                            world_from_hand: &frame.world_from_hand,
-                            time_secs: Some(f64::from(frame.frame_index) * frame_secs),
-                        })?;
+                        let est = estimator.estimate(
+                            &frame
+                                .observation()
+                                .with_keypoints(&markers)
+                                .with_time(f64::from(frame.frame_index) * frame_secs),
+                        )?;
                         Ok(LabelledFrame {
                             shape: est.shape,
                             ..frame.clone()
@@ -578,14 +584,15 @@ pub fn evaluate_physics(
         }
         let markers = source.markers(k, frame)?;
         let start = Instant::now();
-        let est = estimator.estimate(&PhysicsObservation {
-            keypoints: &markers,
-            tendon_pull_m: &frame.tendon_pull_m,
-            world_from_hand: &frame.world_from_hand,
-            time_secs: Some(sf.time_secs),
-        })?;
+        let observation = frame.observation().with_keypoints(&markers);
+        let est = estimator.estimate(&observation.with_time(sf.time_secs))?;
         times.push(start.elapsed().as_secs_f64() * 1e3);
-        failed += est.fingers.iter().filter(|f| f.error.is_some()).count() as u64;
+        failed += est
+            .details
+            .fingers
+            .iter()
+            .filter(|f| f.error.is_some())
+            .count() as u64;
         let physics_labels = est.contact.labels_at(moe_physics::CONTACT_THRESHOLD);
         physics.add(&frame.shape, &frame.contact, &physics_labels)?;
         physics_bcd += bcd_of(&est.shape, &frame.shape)?;
@@ -593,8 +600,7 @@ pub fn evaluate_physics(
             outcomes.push(finger_outcome(hand, sf, &est, f));
         }
         if let (Some(dgcnn), Some(arap)) = (comparison.dgcnn, arap.as_mut()) {
-            let input = ContactInput::of_frame(frame, &est.shape).with_keypoints(&markers);
-            let p = dgcnn.estimate_map(&input)?;
+            let p = dgcnn.estimate_map(&ContactInput::new(&est.shape, observation))?;
             let network_labels = p.labels_at(dgcnn.threshold());
             on_physics.add(&frame.shape, &frame.contact, &network_labels)?;
             let together: Vec<Vec<bool>> = physics_labels
@@ -613,8 +619,7 @@ pub fn evaluate_physics(
             placed.add(&frame.shape, &frame.contact, &together)?;
             let shape = arap.estimate(&markers)?.shape;
             arap_bcd += bcd_of(&shape, &frame.shape)?;
-            let input = ContactInput::of_frame(frame, &shape).with_keypoints(&markers);
-            let p = dgcnn.estimate_map(&input)?;
+            let p = dgcnn.estimate_map(&ContactInput::new(&shape, observation))?;
             on_arap.add(
                 &frame.shape,
                 &frame.contact,
@@ -735,12 +740,7 @@ pub fn evaluate_plates_physics(
         let mut contact_frames = 0;
         for sf in &frames {
             let frame = &sf.frame;
-            let est = estimator.estimate(&PhysicsObservation {
-                keypoints: &frame.markers,
-                tendon_pull_m: &frame.tendon_pull_m,
-                world_from_hand: &frame.world_from_hand,
-                time_secs: Some(sf.time_secs),
-            })?;
+            let est = estimator.estimate(&frame.observation().with_time(sf.time_secs))?;
             if frame.contact_count() == 0 {
                 continue;
             }

@@ -2,9 +2,9 @@
 //! the figures against the ground truth where the episode has it.
 
 use moe_contact::{ContactMetrics, ContactReport};
-use moe_geom::{ContactEstimator, HandShape, Point3, Real, ShapeEstimator, Vector3, bcd};
+use moe_geom::{HandEstimator, HandShape, Point3, Real, Vector3, bcd};
 use moe_io::{EpisodeFrame, EpisodeInfo, RunForces, RunFrame, RunLoad, RunTruth};
-use moe_physics::{ContactLoad, PhysicsContactStage, PhysicsEstimate};
+use moe_physics::{ContactLoad, PhysicsDetails};
 use serde::Serialize;
 
 use crate::LabError;
@@ -101,7 +101,7 @@ impl From<&ContactLoad> for LoadRecord {
 
 /// Per finger, the estimated forces of a physics estimate: net force, pressed probability,
 /// loads and failure.
-pub fn finger_force_records(e: &PhysicsEstimate) -> Vec<FingerForceRecord> {
+pub fn finger_force_records(e: &PhysicsDetails) -> Vec<FingerForceRecord> {
     e.finger_forces_n()
         .into_iter()
         .zip(&e.fingers)
@@ -216,10 +216,10 @@ pub struct RunReport {
     pub contact: Option<ContactReport>,
     /// Per stage over the frames.
     pub markers_ms: TimingSummary,
-    /// Shape estimation.
-    pub shape_ms: TimingSummary,
-    /// Contact estimation.
-    pub contact_ms: TimingSummary,
+    /// The estimator (shape and contact).
+    pub estimate_ms: TimingSummary,
+    /// Contact points (smoothing, threshold, world frame).
+    pub points_ms: TimingSummary,
     /// The whole frame.
     pub total_ms: TimingSummary,
     /// Frames per second from the mean frame time.
@@ -237,37 +237,20 @@ pub struct RunReport {
 ///
 /// # Errors
 /// A stage's failure on a frame, or ground truth that does not fit the hand.
-pub fn run_episode<S, C>(
-    pipeline: &mut Pipeline<S, C>,
-    info: &EpisodeInfo,
-    frames: &[EpisodeFrame],
-    truncated: Option<String>,
-) -> Result<(Vec<RunFrame>, RunReport), LabError>
-where
-    S: ShapeEstimator,
-    C: ContactEstimator,
-{
-    run_episode_with(pipeline, info, frames, truncated, None)
-}
-
-/// [`run_episode`] with the physics estimator's contact stage `physics` (a handle on the
-/// pipeline's own, from [`moe_physics::PhysicsEstimator::stages`]): every frame then carries
-/// the loads it found and the force on every finger, in the report and in the result frames.
-/// A contact estimator that estimates per-vertex force without being the physics estimator
-/// gives each finger's force (the sum over its vertices) without loads.
 ///
-/// # Errors
-/// As [`run_episode`].
-pub fn run_episode_with<S, C>(
-    pipeline: &mut Pipeline<S, C>,
+/// Every frame carries the force on each finger where the estimator estimates per-vertex force
+/// (the sum over its vertices), and the estimator's details add what they know
+/// ([`RunDetails`]: the physics estimator's loads, pressed probabilities and failures), in the
+/// report and in the result frames.
+pub fn run_episode<E>(
+    pipeline: &mut Pipeline<E>,
     info: &EpisodeInfo,
     frames: &[EpisodeFrame],
     truncated: Option<String>,
-    physics: Option<&PhysicsContactStage>,
 ) -> Result<(Vec<RunFrame>, RunReport), LabError>
 where
-    S: ShapeEstimator,
-    C: ContactEstimator,
+    E: HandEstimator,
+    E::Details: RunDetails,
 {
     crate::markers::check_hand(pipeline.hand(), info)?;
     pipeline.reset();
@@ -278,7 +261,7 @@ where
     let mut out = Vec::with_capacity(frames.len());
     let mut per_frame = Vec::with_capacity(frames.len());
     for frame in frames {
-        let est = pipeline.process_episode_frame(frame)?;
+        let est = pipeline.process(frame.rgbd(), &frame.observation())?;
         let mut shape_bcd_mm = None;
         let mut true_contact_vertices = None;
         let run_truth = if truth {
@@ -318,7 +301,7 @@ where
         } else {
             None
         };
-        let (finger_forces, loads) = frame_forces(&est, physics, frame.time_ns)?;
+        let (finger_forces, loads) = frame_forces(&est);
         let forces = finger_forces.as_ref().map(|fingers| RunForces {
             finger_force_n: fingers.iter().map(|f| f.force_n).collect(),
             pressed_probability: fingers
@@ -370,8 +353,8 @@ where
         shape_bcd_mm: truth.then(|| 1e3 * bcd_sum / frames.len() as Real),
         contact: truth.then(|| contact.report()),
         markers_ms: stage(|t| t.markers_ms),
-        shape_ms: stage(|t| t.shape_ms),
-        contact_ms: stage(|t| t.contact_ms),
+        estimate_ms: stage(|t| t.estimate_ms),
+        points_ms: stage(|t| t.points_ms),
         frames_per_second: if total_ms.mean_ms > 0.0 {
             1e3 / total_ms.mean_ms
         } else {
@@ -384,31 +367,40 @@ where
     Ok((out, report))
 }
 
-/// A frame's forces: from the physics estimator's estimate of the frame where there is one
-/// (per finger and its loads), else from the contact estimator's per-vertex forces (per finger
-/// only), else none.
-#[allow(clippy::type_complexity)]
-fn frame_forces(
-    est: &moe_touch::FrameEstimate,
-    physics: Option<&PhysicsContactStage>,
-    time_ns: u64,
-) -> Result<(Option<Vec<FingerForceRecord>>, Option<Vec<LoadRecord>>), LabError> {
-    if let Some(stage) = physics {
-        let e = stage
-            .last_estimate()
-            .filter(|e| e.shape == est.shape)
-            .ok_or_else(|| LabError::InvalidEvaluation {
-                reason: format!(
-                    "frame at {time_ns} ns: the physics contact stage holds no estimate of the \
-                     frame (is it the pipeline's own?)"
-                ),
-            })?;
-        return Ok((
-            Some(finger_force_records(&e)),
-            Some(e.loads.iter().map(LoadRecord::from).collect()),
-        ));
+/// What an estimator's details add to a run's report and result frames.
+pub trait RunDetails {
+    /// Per finger, the estimated force with what the estimator knows of it, and the loads it
+    /// found; `None` for an estimator whose details say nothing of forces.
+    fn forces(&self) -> Option<(Vec<FingerForceRecord>, Vec<LoadRecord>)>;
+}
+
+/// The paper's chain says nothing beyond shape and contact.
+impl RunDetails for () {
+    fn forces(&self) -> Option<(Vec<FingerForceRecord>, Vec<LoadRecord>)> {
+        None
     }
-    Ok((
+}
+
+/// The physics estimator: per finger its force, pressed probability, loads and failure; every
+/// load with its place, force and uncertainty.
+impl RunDetails for PhysicsDetails {
+    fn forces(&self) -> Option<(Vec<FingerForceRecord>, Vec<LoadRecord>)> {
+        Some((
+            finger_force_records(self),
+            self.loads.iter().map(LoadRecord::from).collect(),
+        ))
+    }
+}
+
+/// A frame's forces: from the estimator's details where they give them (per finger and its
+/// loads), else from the per-vertex forces (per finger only), else none.
+fn frame_forces<D: RunDetails>(
+    est: &moe_touch::FrameEstimate<D>,
+) -> (Option<Vec<FingerForceRecord>>, Option<Vec<LoadRecord>>) {
+    if let Some((fingers, loads)) = est.details.forces() {
+        return (Some(fingers), Some(loads));
+    }
+    (
         est.vertex_force_n.as_ref().map(|fingers| {
             fingers
                 .iter()
@@ -425,7 +417,7 @@ fn frame_forces(
                 .collect()
         }),
         None,
-    ))
+    )
 }
 
 /// The run file's fixed information for an episode and a model (a run without forces; set

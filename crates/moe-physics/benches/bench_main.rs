@@ -8,8 +8,9 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, Real, WorldFromHand};
+use moe_geom::{HandEstimator as _, Observation};
 use moe_physics::testing::{PointLoad, static_markers};
-use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator, PhysicsObservation};
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator};
 
 /// Static markers of `hand` (held fingers-up) under `pulls`, with `load` (newtons, along the
 /// inward normal) at the vertex of finger 0 nearest `at` (finger frame), by the data
@@ -45,14 +46,13 @@ fn physics(c: &mut Criterion) {
         b.iter(|| {
             est.reset();
             let e = est
-                .estimate(&PhysicsObservation {
-                    keypoints: &pressed,
-                    tendon_pull_m: &pulls,
-                    world_from_hand: &pose,
-                    time_secs: None,
-                })
+                .estimate(
+                    &Observation::from_keypoints(&pressed)
+                        .with_tendon_pulls(&pulls)
+                        .with_world_from_hand(pose),
+                )
                 .unwrap();
-            black_box(e.loads.len())
+            black_box(e.details.loads.len())
         })
     });
     // A held press in a stream: every iteration is the next frame, 50 ms later.
@@ -60,26 +60,26 @@ fn physics(c: &mut Criterion) {
     est.reset();
     for _ in 0..3 {
         t += 0.05;
-        est.estimate(&PhysicsObservation {
-            keypoints: &pressed,
-            tendon_pull_m: &pulls,
-            world_from_hand: &pose,
-            time_secs: Some(t),
-        })
+        est.estimate(
+            &Observation::from_keypoints(&pressed)
+                .with_tendon_pulls(&pulls)
+                .with_world_from_hand(pose)
+                .with_time(t),
+        )
         .unwrap();
     }
     group.bench_function("two-finger frame tracked", |b| {
         b.iter(|| {
             t += 0.05;
             let e = est
-                .estimate(&PhysicsObservation {
-                    keypoints: &pressed,
-                    tendon_pull_m: &pulls,
-                    world_from_hand: &pose,
-                    time_secs: Some(t),
-                })
+                .estimate(
+                    &Observation::from_keypoints(&pressed)
+                        .with_tendon_pulls(&pulls)
+                        .with_world_from_hand(pose)
+                        .with_time(t),
+                )
                 .unwrap();
-            black_box(e.loads.len())
+            black_box(e.details.loads.len())
         })
     });
     est.reset();
@@ -87,14 +87,14 @@ fn physics(c: &mut Criterion) {
         b.iter(|| {
             t += 0.05;
             let e = est
-                .estimate(&PhysicsObservation {
-                    keypoints: &free,
-                    tendon_pull_m: &pulls,
-                    world_from_hand: &pose,
-                    time_secs: Some(t),
-                })
+                .estimate(
+                    &Observation::from_keypoints(&free)
+                        .with_tendon_pulls(&pulls)
+                        .with_world_from_hand(pose)
+                        .with_time(t),
+                )
                 .unwrap();
-            black_box(e.loads.len())
+            black_box(e.details.loads.len())
         })
     });
     group.finish();

@@ -12,25 +12,13 @@
 //! simulated through each stream as the estimator simulates it; it is minimised over
 //! `(log E, log β)` by Nelder–Mead from the initial material.
 
-use moe_geom::{HandKeypoints, HandModel, Iso3, Point3, Real, Vector3, WorldFromHand};
+use moe_geom::{HandModel, Iso3, OwnedObservation, Point3, Real, Vector3};
 use serde::Serialize;
 
 use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
+use crate::estimator::FullObservation;
 use crate::finger::{FingerInverse, FingerObservation};
-
-/// One contact-free observation of a calibration stream (hand frame).
-#[derive(Debug, Clone, PartialEq)]
-pub struct CalibrationFrame {
-    /// Time in its stream, seconds.
-    pub time_secs: Real,
-    /// The observed markers (`None` where unseen).
-    pub keypoints: HandKeypoints,
-    /// `tendon_pull_m[f][t]`, metres.
-    pub tendon_pull_m: Vec<Vec<Real>>,
-    /// Where the hand is.
-    pub world_from_hand: WorldFromHand,
-}
 
 /// How to calibrate.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,7 +66,7 @@ pub struct CalibrationReport {
 struct Problem<'a> {
     hand: &'a HandModel,
     fingers: Vec<FingerInverse>,
-    streams: &'a [Vec<CalibrationFrame>],
+    streams: Vec<Vec<FullObservation<'a>>>,
     initial: HandMaterial,
     /// Whether β is fitted (else the initial material's is kept).
     fit_damping: bool,
@@ -108,7 +96,7 @@ impl Problem<'_> {
             let hf = &self.hand.fingers()[f];
             let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
             let finger_from_hand = hand_from_finger.inverse();
-            for stream in self.streams {
+            for stream in &self.streams {
                 finger.reset();
                 for frame in stream {
                     let markers: Vec<Option<Point3>> = frame.keypoints.fingers[f]
@@ -122,7 +110,7 @@ impl Problem<'_> {
                         gravity: finger_from_hand * gravity,
                         world_from_finger: world_from_hand * hand_from_finger,
                         pulls: &frame.tendon_pull_m[f],
-                        time_secs: Some(frame.time_secs),
+                        time_secs: frame.time_secs,
                     };
                     let (s, n) = finger.free_residual(&obs)?;
                     sum += s;
@@ -134,15 +122,16 @@ impl Problem<'_> {
     }
 }
 
-/// Fits `E` (and `β`) of `initial` to contact-free `streams` of `hand` (each stream in time
-/// order; a stream's first frame is taken at rest in its static shape).
+/// Fits `E` (and `β`) of `initial` to contact-free `streams` of `hand`: each stream in time
+/// order, each observation with its markers, tendon pulls, wrist pose and time (a stream's first
+/// frame is taken at rest in its static shape).
 ///
 /// # Errors
-/// No frames, observations that do not fit the hand, invalid material or settings, or a
-/// static solve that fails for every material tried.
+/// No frames, observations that lack one of those or do not fit the hand, invalid material or
+/// settings, or a static solve that fails for every material tried.
 pub fn calibrate(
     hand: &HandModel,
-    streams: &[Vec<CalibrationFrame>],
+    streams: &[Vec<OwnedObservation>],
     initial: &HandMaterial,
     config: &PhysicsConfig,
     options: &CalibrationOptions,
@@ -156,7 +145,8 @@ pub fn calibrate(
             what: "contact-free frames to calibrate from",
         });
     }
-    check_frames(hand, streams)?;
+    let stream_count = streams.len();
+    let streams = check_frames(hand, streams)?;
     if !(options.range_factor.is_finite() && options.range_factor > 1.0) {
         return Err(PhysicsError::InvalidParameter {
             name: "range_factor",
@@ -214,7 +204,7 @@ pub fn calibrate(
     material.hand = Some(crate::config::HandSignature::of(hand));
     Ok(CalibrationReport {
         material,
-        streams: streams.len(),
+        streams: stream_count,
         frames,
         rms_initial_m: (ss0 / count.max(1) as Real).sqrt(),
         rms_fitted_m: (ss_best / count.max(1) as Real).sqrt(),
@@ -223,27 +213,35 @@ pub fn calibrate(
     })
 }
 
-/// Checks that every frame fits the hand.
-fn check_frames(hand: &HandModel, streams: &[Vec<CalibrationFrame>]) -> Result<(), PhysicsError> {
-    for frame in streams.iter().flatten() {
-        crate::estimator::check_observation(
-            hand,
-            &crate::estimator::PhysicsObservation {
-                keypoints: &frame.keypoints,
-                tendon_pull_m: &frame.tendon_pull_m,
-                world_from_hand: &frame.world_from_hand,
-                time_secs: Some(frame.time_secs),
-            },
-        )?;
-        if !frame.time_secs.is_finite() {
-            return Err(PhysicsError::InvalidParameter {
-                name: "calibration frame time_secs",
-                value: frame.time_secs,
-                reason: "must be finite",
-            });
-        }
-    }
-    Ok(())
+/// Every frame with what calibration needs of it (markers, pulls, pose and a finite time),
+/// checked against the hand.
+fn check_frames<'a>(
+    hand: &HandModel,
+    streams: &'a [Vec<OwnedObservation>],
+) -> Result<Vec<Vec<FullObservation<'a>>>, PhysicsError> {
+    streams
+        .iter()
+        .map(|stream| {
+            stream
+                .iter()
+                .map(|frame| {
+                    let full = FullObservation::of(&frame.view())?;
+                    crate::estimator::check_observation(hand, &full)?;
+                    match full.time_secs {
+                        Some(t) if t.is_finite() => Ok(full),
+                        Some(t) => Err(PhysicsError::InvalidParameter {
+                            name: "calibration frame time_secs",
+                            value: t,
+                            reason: "must be finite",
+                        }),
+                        None => Err(PhysicsError::Missing {
+                            what: "the time of a calibration frame",
+                        }),
+                    }
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// Nelder–Mead on the first `dims` coordinates of `x0` (the others fixed), from a simplex of

@@ -1,7 +1,8 @@
 //! The hand-level physics estimator: every finger read backwards, in the hand frame.
 
 use moe_geom::{
-    ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3, WorldFromHand,
+    ContactMap, HandEstimate, HandEstimator, HandKeypoints, HandModel, HandShape, Iso3,
+    Observation, Point3, Real, Vector3, WorldFromHand,
 };
 use rayon::prelude::*;
 use serde::Serialize;
@@ -10,19 +11,41 @@ use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
 use crate::finger::{FingerEstimate, FingerInverse, FingerObservation};
 
-/// One instant of the hand as the physics estimator sees it (hand frame).
+/// An observation with everything the physics estimator needs (hand frame).
 #[derive(Debug, Clone, Copy)]
-pub struct PhysicsObservation<'a> {
+pub(crate) struct FullObservation<'a> {
     /// The observed markers, hand frame (`None` where unseen).
-    pub keypoints: &'a HandKeypoints,
+    pub(crate) keypoints: &'a HandKeypoints,
     /// `tendon_pull_m[f][t]`: pulled length of tendon `t` of finger `f`, metres.
-    pub tendon_pull_m: &'a [Vec<Real>],
+    pub(crate) tendon_pull_m: &'a [Vec<Real>],
     /// Where the hand is: gravity's direction in the hand and, in a stream, the wrist's motion
     /// the free finger is simulated with.
-    pub world_from_hand: &'a WorldFromHand,
+    pub(crate) world_from_hand: WorldFromHand,
     /// Time of the observation, seconds: observations close in time form a stream (see
     /// [`PhysicsConfig::stream_horizon_secs`]); `None` for a lone frame.
-    pub time_secs: Option<Real>,
+    pub(crate) time_secs: Option<Real>,
+}
+
+impl<'a> FullObservation<'a> {
+    /// What the physics estimator needs of an observation: the markers, the tendon pulls and
+    /// the wrist pose (the time where the frame is part of a stream).
+    ///
+    /// # Errors
+    /// [`PhysicsError::Missing`] naming what is missing.
+    pub(crate) fn of(obs: &Observation<'a>) -> Result<Self, PhysicsError> {
+        Ok(Self {
+            keypoints: obs.keypoints.ok_or(PhysicsError::Missing {
+                what: "the observed markers (keypoints)",
+            })?,
+            tendon_pull_m: obs.tendon_pull_m.ok_or(PhysicsError::Missing {
+                what: "the tendon pulls",
+            })?,
+            world_from_hand: obs.world_from_hand.ok_or(PhysicsError::Missing {
+                what: "the hand's pose (world_from_hand), for the direction of gravity",
+            })?,
+            time_secs: obs.time_secs,
+        })
+    }
 }
 
 /// The contact probability at or above which a vertex is in contact: where the logistic of the
@@ -75,23 +98,18 @@ pub struct FingerReport {
     pub error: Option<String>,
 }
 
-/// Everything the physics estimator estimates about one instant.
+/// What the physics estimator says beyond shape and contact: the loads it found and, per
+/// finger, the decision's figures (its [`HandEstimator::Details`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct PhysicsEstimate {
+pub struct PhysicsDetails {
     /// The loads found, finger by finger.
     pub loads: Vec<ContactLoad>,
-    /// The estimated surface of every finger, hand frame (dented where loaded).
-    pub shape: HandShape,
-    /// Per-vertex contact probability.
-    pub contact: ContactMap,
-    /// `force_n[f][v]`: the force on vertex `v` of finger `f`, hand frame, newtons.
-    pub vertex_force_n: Vec<Vec<Vector3>>,
     /// Per finger: the decision's figures.
     pub fingers: Vec<FingerReport>,
 }
 
-impl PhysicsEstimate {
-    /// The total force on each finger, hand frame, newtons.
+impl PhysicsDetails {
+    /// The total force on each finger (the sum of its loads), hand frame, newtons.
     pub fn finger_forces_n(&self) -> Vec<Vector3> {
         let mut out = vec![Vector3::zeros(); self.fingers.len()];
         for l in &self.loads {
@@ -100,6 +118,10 @@ impl PhysicsEstimate {
         out
     }
 }
+
+/// Everything the physics estimator estimates about one instant: the dented shape, contact
+/// probability and force per vertex (always given), and the loads and finger reports.
+pub type PhysicsEstimate = HandEstimate<PhysicsDetails>;
 
 /// Checks that an observation fits `hand`: one marker list and one pull list per finger, of
 /// the finger's lengths, finite, and a finite pose.
@@ -110,7 +132,7 @@ impl PhysicsEstimate {
 /// [`PhysicsError::InvalidParameter`] for the pose.
 pub(crate) fn check_observation(
     hand: &HandModel,
-    obs: &PhysicsObservation<'_>,
+    obs: &FullObservation<'_>,
 ) -> Result<(), PhysicsError> {
     let n = hand.num_fingers();
     for (what, got) in [
@@ -234,33 +256,18 @@ impl PhysicsEstimator {
     }
 
     /// Checks an observation against the hand.
-    fn check(&self, obs: &PhysicsObservation<'_>) -> Result<(), PhysicsError> {
+    fn check(&self, obs: &FullObservation<'_>) -> Result<(), PhysicsError> {
         check_observation(&self.hand, obs)
     }
 
-    /// Estimates the loads and the shape of every finger. A finger whose estimate fails (too
-    /// few markers, a static solve that does not converge) is reported in its
-    /// [`FingerReport::error`] with the rest shape and no contact; the others go on.
-    ///
-    /// # Errors
-    /// An observation that does not fit the hand (counts, non-finite values).
-    pub fn estimate(
+    /// The estimate of an observation with everything the estimator needs.
+    fn estimate_full(
         &mut self,
-        obs: &PhysicsObservation<'_>,
+        obs: &FullObservation<'_>,
     ) -> Result<PhysicsEstimate, PhysicsError> {
         self.check(obs)?;
         let (keypoints, pulls) = (obs.keypoints, obs.tendon_pull_m);
-        let mut out = PhysicsEstimate {
-            loads: Vec::new(),
-            shape: HandShape {
-                fingers: Vec::new(),
-            },
-            contact: ContactMap {
-                fingers: Vec::new(),
-            },
-            vertex_force_n: Vec::new(),
-            fingers: Vec::new(),
-        };
+        let mut out = Parts::default();
         let world_from_hand: Iso3 = *obs.world_from_hand.iso();
         let gravity_in_hand =
             world_from_hand.inverse_transform_vector(&Vector3::from(self.config.gravity_m_s2));
@@ -297,8 +304,8 @@ impl PhysicsEstimator {
             match result {
                 Ok(est) => self.push_finger(&mut out, f, &hand_from_finger, hf, est),
                 Err(e) => {
-                    out.shape.fingers.push(self.hand.rest_vertices_in_hand(f));
-                    out.contact.fingers.push(vec![0.0; nv]);
+                    out.shape.push(self.hand.rest_vertices_in_hand(f));
+                    out.contact.push(vec![0.0; nv]);
                     out.vertex_force_n.push(vec![Vector3::zeros(); nv]);
                     out.fingers.push(FingerReport {
                         pressed_probability: 0.0,
@@ -312,12 +319,22 @@ impl PhysicsEstimator {
                 }
             }
         }
-        Ok(out)
+        Ok(PhysicsEstimate {
+            shape: HandShape { fingers: out.shape },
+            contact: ContactMap {
+                fingers: out.contact,
+            },
+            vertex_force_n: Some(out.vertex_force_n),
+            details: PhysicsDetails {
+                loads: out.loads,
+                fingers: out.fingers,
+            },
+        })
     }
 
     fn push_finger(
         &self,
-        out: &mut PhysicsEstimate,
+        out: &mut Parts,
         f: usize,
         hand_from_finger: &Iso3,
         hf: &moe_geom::HandFinger,
@@ -339,8 +356,8 @@ impl PhysicsEstimator {
                 patch: l.patch.clone(),
             });
         }
-        out.shape.fingers.push(surface);
-        out.contact.fingers.push(est.probability);
+        out.shape.push(surface);
+        out.contact.push(est.probability);
         out.vertex_force_n.push(
             est.vertex_force
                 .iter()
@@ -357,6 +374,38 @@ impl PhysicsEstimator {
             error: None,
         });
     }
+}
+
+impl HandEstimator for PhysicsEstimator {
+    type Details = PhysicsDetails;
+    type Error = PhysicsError;
+
+    /// Estimates the loads and the shape of every finger from the observation's markers,
+    /// tendon pulls, wrist pose and time. A finger whose estimate fails (too few markers, a
+    /// static solve that does not converge) is reported in its [`FingerReport::error`] with the
+    /// rest shape and no contact; the others go on.
+    ///
+    /// # Errors
+    /// [`PhysicsError::Missing`] for an observation without markers, pulls or pose, and an
+    /// observation that does not fit the hand (counts, non-finite values).
+    fn estimate(&mut self, observation: &Observation<'_>) -> Result<PhysicsEstimate, PhysicsError> {
+        self.estimate_full(&FullObservation::of(observation)?)
+    }
+
+    /// Forgets the stream (warm starts and the previous observation).
+    fn reset(&mut self) {
+        PhysicsEstimator::reset(self);
+    }
+}
+
+/// An estimate's values, finger by finger, as they are gathered.
+#[derive(Debug, Default)]
+struct Parts {
+    loads: Vec<ContactLoad>,
+    shape: Vec<Vec<Point3>>,
+    contact: Vec<Vec<Real>>,
+    vertex_force_n: Vec<Vec<Vector3>>,
+    fingers: Vec<FingerReport>,
 }
 
 /// The point `Σ w·points[v]` of a place's vertices and weights.

@@ -4,7 +4,7 @@
 //!
 //! Each finger is modelled with `moe-tendon-sim`'s corotational FEM on its own voxel mesh (not
 //! the data generator's) and a material that calibration fits ([`HandMaterial`]). Per finger
-//! and frame ([`PhysicsEstimator::estimate`]):
+//! and frame ([`moe_geom::HandEstimator::estimate`] on a [`PhysicsEstimator`]):
 //!
 //! 1. **Free finger.** In a stream of observations the finger is simulated from one to the next
 //!    under the commanded pulls and gravity, without loads: the shape an untouched finger
@@ -29,8 +29,9 @@
 //!    and of its place along and around the finger (the posterior over candidates).
 //!
 //! Architecture invariant: depends on `moe-geom` and `moe-tendon-sim` (no candle, no file IO).
-//! The estimator implements `moe_geom::ContactEstimator` (per-vertex contact probability and
-//! force) and `moe_geom::ShapeEstimator` (the dented surface).
+//! The estimator implements `moe_geom::HandEstimator`: an `Observation` (markers, tendon pulls,
+//! wrist pose, time) in; the dented shape, per-vertex contact probability and force, and the
+//! loads with their finger reports ([`PhysicsDetails`]) out.
 
 /// Fitting the hand's material to contact-free observations.
 mod calibration;
@@ -48,18 +49,14 @@ mod mechanics;
 mod nnls;
 /// The Cramér–Rao bound of a press's place.
 mod observability;
-/// The estimator behind the shape and contact seams.
-mod stages;
 pub mod testing;
 
-pub use calibration::{CalibrationFrame, CalibrationOptions, CalibrationReport, calibrate};
+pub use calibration::{CalibrationOptions, CalibrationReport, calibrate};
 pub use config::{HandMaterial, HandSignature, PhysicsConfig};
 pub use error::PhysicsError;
 pub use estimator::{
-    CONTACT_THRESHOLD, ContactLoad, FingerReport, PhysicsEstimate, PhysicsEstimator,
-    PhysicsObservation,
+    CONTACT_THRESHOLD, ContactLoad, FingerReport, PhysicsDetails, PhysicsEstimate, PhysicsEstimator,
 };
 pub use observability::{
     BOUND_REGIONS, BoundOptions, PlaceBound, RegionBound, Spread, quantile, region_bounds,
 };
-pub use stages::{PhysicsContactStage, PhysicsShapeStage};

@@ -1,5 +1,6 @@
 //! The error type of the `moe-touch` runtime library.
 
+use moe_geom::StageError;
 use moe_io::IoError;
 
 /// Everything that can go wrong in the pipeline library.
@@ -18,18 +19,35 @@ pub enum TouchError {
         /// Where the card was looked for.
         path: std::path::PathBuf,
     },
-    /// A shape estimator that is neither SR-ARAP nor the physics estimator failed (their
-    /// errors are `Shape` and `Physics`, inside a pipeline too: `from_shape_stage`).
+    /// The shape stage of a staged estimator failed, and it is not SR-ARAP (whose errors are
+    /// `Shape`, inside a pipeline too: [`TouchError::from_estimator`]).
     #[error("shape estimation: {0}")]
     ShapeEstimation(Box<dyn std::error::Error + Send + Sync>),
     /// Contact estimation failed.
     #[error(transparent)]
+    #[cfg(feature = "dgcnn")]
     Contact(#[from] moe_contact::ContactError),
-    /// The contact estimator of a pipeline failed: its own error, boxed. Errors of this
+    /// The contact stage of a staged estimator failed: its own error, boxed. Errors of this
     /// workspace's estimators do not come this way: the DGCNN's and the KNN baseline's are
-    /// [`TouchError::Contact`], the physics estimator's [`TouchError::Physics`].
+    /// [`TouchError::Contact`].
     #[error("contact estimation: {0}")]
     ContactEstimation(Box<dyn std::error::Error + Send + Sync>),
+    /// A pipeline's estimator of another crate failed: its own error, boxed (the physics
+    /// estimator's is [`TouchError::Physics`]).
+    #[error("estimation: {0}")]
+    Estimation(Box<dyn std::error::Error + Send + Sync>),
+    /// An observation lacks what the pipeline needs.
+    #[error("the observation lacks {what}")]
+    MissingObservation {
+        /// What is missing.
+        what: &'static str,
+    },
+    /// An observation the pipeline cannot take as it is.
+    #[error("the observation is refused: {reason}")]
+    InvalidObservation {
+        /// Why.
+        reason: &'static str,
+    },
     /// The physics estimator refused its input or failed.
     #[error(transparent)]
     #[cfg(feature = "physics")]
@@ -37,9 +55,6 @@ pub enum TouchError {
     /// A geometric input is malformed.
     #[error(transparent)]
     Geometry(#[from] moe_geom::GeomError),
-    /// Surface reconstruction failed.
-    #[error(transparent)]
-    Surface(#[from] moe_gpis::GpisError),
     /// An image does not have the size the camera intrinsics give.
     #[error("{what}: expected {expected}, got {got}")]
     ImageSize {
@@ -84,31 +99,34 @@ pub enum TouchError {
 }
 
 impl TouchError {
-    /// A pipeline's shape stage failed: SR-ARAP's error as [`TouchError::Shape`], the physics
-    /// estimator's as [`TouchError::Physics`], any other estimator's boxed
-    /// ([`TouchError::ShapeEstimation`]) — one path per failure whatever the stage's type.
-    pub fn from_shape_stage<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
-        Self::from_stage(e, Self::ShapeEstimation)
+    /// A pipeline's estimator failed: SR-ARAP's error as [`TouchError::Shape`], the DGCNN's and
+    /// the KNN baseline's as [`TouchError::Contact`], the physics estimator's as
+    /// [`TouchError::Physics`] — whether they come alone or from a stage of a
+    /// [`moe_geom::Staged`] estimator — and any other estimator's boxed, by stage
+    /// ([`TouchError::ShapeEstimation`], [`TouchError::ContactEstimation`]) or whole
+    /// ([`TouchError::Estimation`]).
+    pub fn from_estimator<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
+        let boxed: Box<dyn std::error::Error + Send + Sync> = Box::new(e);
+        match boxed.downcast::<StageError>() {
+            Ok(staged) => match *staged {
+                StageError::Shape(e) => Self::from_boxed(e, Self::ShapeEstimation),
+                StageError::Contact(e) => Self::from_boxed(e, Self::ContactEstimation),
+            },
+            Err(e) => Self::from_boxed(e, Self::Estimation),
+        }
     }
 
-    /// A pipeline's contact stage failed: the DGCNN's and the KNN baseline's error as
-    /// [`TouchError::Contact`], the physics estimator's as [`TouchError::Physics`], any other
-    /// estimator's boxed ([`TouchError::ContactEstimation`]).
-    pub fn from_contact_stage<E: std::error::Error + Send + Sync + 'static>(e: E) -> Self {
-        Self::from_stage(e, Self::ContactEstimation)
-    }
-
-    /// The variant of this workspace's own error types, whichever stage raised them; `other`
-    /// boxes an estimator's error of another type.
-    fn from_stage<E: std::error::Error + Send + Sync + 'static>(
-        e: E,
+    /// The variant of this workspace's own error types; `other` boxes an estimator's error of
+    /// another type.
+    fn from_boxed(
+        boxed: Box<dyn std::error::Error + Send + Sync>,
         other: fn(Box<dyn std::error::Error + Send + Sync>) -> Self,
     ) -> Self {
-        let boxed: Box<dyn std::error::Error + Send + Sync> = Box::new(e);
         let boxed = match boxed.downcast::<moe_arap::ArapError>() {
             Ok(e) => return Self::Shape(*e),
             Err(b) => b,
         };
+        #[cfg(feature = "dgcnn")]
         let boxed = match boxed.downcast::<moe_contact::ContactError>() {
             Ok(e) => return Self::Contact(*e),
             Err(b) => b,
@@ -148,24 +166,41 @@ mod tests {
     struct Outer(#[source] TouchError);
 
     /// An SR-ARAP failure reaches the caller as `Shape` whether it came from the estimator
-    /// directly (`?`) or through a pipeline's shape stage; another estimator's error is boxed.
+    /// directly (`?`) or through a pipeline's staged estimator; another estimator's error is
+    /// boxed, by stage or whole.
     #[test]
-    fn a_stage_error_takes_one_path() {
+    #[cfg(feature = "dgcnn")]
+    fn an_estimator_error_takes_one_path() {
         let arap = || moe_arap::ArapError::InvalidConfig {
             name: "alpha",
             value: -1.0,
             reason: "must be non-negative",
         };
         let direct: TouchError = arap().into();
-        let staged = TouchError::from_shape_stage(arap());
-        assert!(matches!(staged, TouchError::Shape(_)), "{staged:?}");
-        assert_eq!(staged.to_string(), direct.to_string());
-        let net = TouchError::from_contact_stage(moe_contact::ContactError::InvalidBatch {
-            message: "empty".into(),
-        });
+        for staged in [
+            TouchError::from_estimator(arap()),
+            TouchError::from_estimator(StageError::Shape(Box::new(arap()))),
+        ] {
+            assert!(matches!(staged, TouchError::Shape(_)), "{staged:?}");
+            assert_eq!(staged.to_string(), direct.to_string());
+        }
+        let net = TouchError::from_estimator(StageError::Contact(Box::new(
+            moe_contact::ContactError::InvalidBatch {
+                message: "empty".into(),
+            },
+        )));
         assert!(matches!(net, TouchError::Contact(_)), "{net:?}");
-        let other = TouchError::from_shape_stage(std::io::Error::other("a custom estimator"));
-        assert!(matches!(other, TouchError::ShapeEstimation(_)), "{other:?}");
+        let custom = || std::io::Error::other("a custom estimator");
+        let shape = TouchError::from_estimator(StageError::Shape(Box::new(custom())));
+        assert!(matches!(shape, TouchError::ShapeEstimation(_)), "{shape:?}");
+        assert_eq!(shape.to_string(), "shape estimation: a custom estimator");
+        let contact = TouchError::from_estimator(StageError::Contact(Box::new(custom())));
+        assert!(
+            matches!(contact, TouchError::ContactEstimation(_)),
+            "{contact:?}"
+        );
+        let whole = TouchError::from_estimator(custom());
+        assert!(matches!(whole, TouchError::Estimation(_)), "{whole:?}");
     }
 
     #[test]

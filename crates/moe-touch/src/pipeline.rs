@@ -1,13 +1,17 @@
 //! The pipeline a robot runs on every wrist-camera frame (paper Fig. 1): markers → keypoints →
 //! hand shape → contact map → contact points in the hand and the world.
 
-use std::path::Path;
 use std::time::Instant;
 
+#[cfg(feature = "dgcnn")]
+use moe_arap::{MultiShapeEstimator, ShapeConfig};
+#[cfg(feature = "dgcnn")]
 use moe_contact::DgcnnEstimator;
+#[cfg(feature = "dgcnn")]
+use moe_geom::Staged;
 use moe_geom::{
-    ContactEstimator, ContactInput, ContactMap, ContactPoint, HandKeypoints, HandModel, HandShape,
-    Real, ShapeEstimator, ShapeInput, Vector3, WorldFromHand,
+    ContactMap, ContactPoint, HandEstimate, HandEstimator, HandKeypoints, HandModel, HandShape,
+    Observation, Real, RgbdFrame, Vector3, WorldFromHand,
 };
 use serde::Serialize;
 
@@ -15,32 +19,23 @@ use crate::TouchError;
 use crate::filter::{ContactSmoother, KeypointFilter};
 use crate::perception::{MarkerDetector, MarkerDiagnostics};
 
-/// One wrist-camera frame: colour (RGB8, row-major) and depth (metres along the optical axis,
-/// row-major, 0 or NaN where missing), both of the detector's image size.
-#[derive(Debug, Clone, Copy)]
-pub struct RgbdFrame<'a> {
-    /// RGB8, three bytes per pixel.
-    pub color_rgb8: &'a [u8],
-    /// Depth, metres.
-    pub depth_m: &'a [f32],
-}
-
 /// Wall time of each stage of one frame, milliseconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct StageTimings {
     /// Marker perception.
     pub markers_ms: Real,
-    /// Shape estimation.
-    pub shape_ms: Real,
-    /// Contact estimation and contact points.
-    pub contact_ms: Real,
+    /// The estimator: shape and contact (and, for the physics estimator, the loads).
+    pub estimate_ms: Real,
+    /// Contact points: smoothing, the threshold, the world frame.
+    pub points_ms: Real,
     /// The whole frame.
     pub total_ms: Real,
 }
 
-/// Everything the pipeline estimates about one frame.
+/// Everything the pipeline estimates about one frame, with the estimator's own details `D`
+/// (the physics estimator's loads and finger reports; nothing for the paper's chain).
 #[derive(Debug, Clone, PartialEq)]
-pub struct FrameEstimate {
+pub struct FrameEstimate<D = ()> {
     /// Every marker in the hand frame, `None` where it was not seen (filtered, when the
     /// pipeline filters keypoints).
     pub keypoints: HandKeypoints,
@@ -49,7 +44,7 @@ pub struct FrameEstimate {
     /// Contact probability of every vertex.
     pub contact: ContactMap,
     /// `vertex_force_n[f][v]`: the force on vertex `v` of finger `f`, hand frame, newtons, from
-    /// a contact estimator that estimates force (the physics estimator); `None` otherwise.
+    /// an estimator that estimates force (the physics estimator); `None` otherwise.
     pub vertex_force_n: Option<Vec<Vec<Vector3>>>,
     /// Vertices at or above the contact threshold, positions in the hand frame.
     pub contacts_in_hand: Vec<ContactPoint>,
@@ -65,6 +60,45 @@ pub struct FrameEstimate {
     pub timings: StageTimings,
     /// Where the frame stands in the stream (whether the memory of earlier frames was kept).
     pub stream: StreamEvent,
+    /// What the estimator says beyond shape and contact.
+    pub details: D,
+}
+
+impl<D> FrameEstimate<D> {
+    /// The estimate without the estimator's details, and the details.
+    pub fn into_parts(self) -> (FrameEstimate, D) {
+        let Self {
+            keypoints,
+            shape,
+            contact,
+            vertex_force_n,
+            contacts_in_hand,
+            contacts_in_world,
+            world_from_hand,
+            fingers_without_markers,
+            markers,
+            timings,
+            stream,
+            details,
+        } = self;
+        (
+            FrameEstimate {
+                keypoints,
+                shape,
+                contact,
+                vertex_force_n,
+                contacts_in_hand,
+                contacts_in_world,
+                world_from_hand,
+                fingers_without_markers,
+                markers,
+                timings,
+                stream,
+                details: (),
+            },
+            details,
+        )
+    }
 }
 
 /// How far apart two frames of one stream may be by default, seconds: further apart, the
@@ -109,22 +143,31 @@ pub fn check_contact_threshold(threshold: Real) -> Result<(), TouchError> {
     }
 }
 
-/// The pipeline on the physics estimator (the default of `moe-touch run` and `demo`): one
-/// estimate per frame serves as its shape and contact stages. Needs the `physics` feature (the
-/// estimator simulates the finger with the FEM model of `moe-tendon-sim`).
+/// The paper's estimator: SR-ARAP from the markers, then the DGCNN on that shape.
+#[cfg(feature = "dgcnn")]
+pub type PaperEstimator = Staged<MultiShapeEstimator, DgcnnEstimator>;
+
+/// The paper's pipeline (`Pipeline::paper`).
+#[cfg(feature = "dgcnn")]
+pub type PaperPipeline = Pipeline<PaperEstimator>;
+
+/// The pipeline on the physics estimator (`Pipeline::physics`, the default of `moe-touch run`
+/// and `demo`). Needs the `physics` feature (the estimator simulates the finger with the FEM
+/// model of `moe-tendon-sim`).
 #[cfg(feature = "physics")]
-pub type PhysicsPipeline =
-    Pipeline<moe_physics::PhysicsShapeStage, moe_physics::PhysicsContactStage>;
+pub type PhysicsPipeline = Pipeline<moe_physics::PhysicsEstimator>;
 
 #[cfg(feature = "physics")]
-impl PhysicsPipeline {
+impl Pipeline<moe_physics::PhysicsEstimator> {
     /// The physics estimator of `hand` with `material` and `config` behind `detector`, contact
     /// points where its probability reaches [`moe_physics::CONTACT_THRESHOLD`]. Its memory
     /// across frames (the free finger simulated through the stream, warm starts, and whatever
     /// memory the settings turn on) lasts while frames are timed and no further apart than the
     /// estimator's stream reaches ([`moe_physics::PhysicsConfig::stream_reach_secs`], the
     /// pipeline's memory horizon, so that a frame's [`StreamEvent`] says when it was
-    /// forgotten); [`Pipeline::reset`] forgets it.
+    /// forgotten); [`Pipeline::reset`] forgets it. Each frame's details are the loads with
+    /// their force, place and uncertainty, and the finger reports
+    /// ([`moe_physics::PhysicsDetails`]).
     ///
     /// # Errors
     /// [`TouchError::Physics`] for an invalid material or settings, a material fitted to
@@ -136,32 +179,51 @@ impl PhysicsPipeline {
         config: &moe_physics::PhysicsConfig,
     ) -> Result<Self, TouchError> {
         let estimator = moe_physics::PhysicsEstimator::new(&hand, material, config)?;
-        let (shape, contact) = estimator.stages();
-        Self::new(
-            hand,
-            detector,
-            shape,
-            contact,
-            moe_physics::CONTACT_THRESHOLD,
-        )?
-        .with_memory_horizon(config.stream_reach_secs())
+        Self::new(hand, detector, estimator, moe_physics::CONTACT_THRESHOLD)?
+            .with_memory_horizon(config.stream_reach_secs())
     }
 
-    /// The physics estimator's full estimate of the last frame (loads with their places,
-    /// forces and uncertainties, per-finger reports), when there is one.
-    pub fn last_physics_estimate(&self) -> Option<moe_physics::PhysicsEstimate> {
-        self.contact.last_estimate()
+    /// [`Pipeline::physics`] with the nominal material and the default settings.
+    ///
+    /// # Errors
+    /// As [`Pipeline::physics`].
+    pub fn physics_default(hand: HandModel, detector: MarkerDetector) -> Result<Self, TouchError> {
+        Self::physics(
+            hand,
+            detector,
+            &moe_physics::HandMaterial::default(),
+            &moe_physics::PhysicsConfig::default(),
+        )
     }
 }
 
-/// The stages, and the state a stream of frames needs (marker tracks, the shape estimator's
-/// warm start, whatever the contact estimator carries); see the module documentation.
+#[cfg(feature = "dgcnn")]
+impl Pipeline<PaperEstimator> {
+    /// The paper's pipeline: SR-ARAP with `shape` settings from the markers `detector` finds,
+    /// then `model` on that shape, contact points where its probability reaches the model
+    /// card's threshold.
+    ///
+    /// # Errors
+    /// SR-ARAP settings out of range or a hand it cannot solve ([`TouchError::Shape`]).
+    pub fn paper(
+        hand: HandModel,
+        detector: MarkerDetector,
+        model: DgcnnEstimator,
+        shape: ShapeConfig,
+    ) -> Result<Self, TouchError> {
+        let threshold = model.threshold();
+        let estimator = Staged::new(MultiShapeEstimator::new(hand.clone(), shape)?, model);
+        Self::new(hand, detector, estimator, threshold)
+    }
+}
+
+/// The detector, the estimator, and the state a stream of frames needs (marker tracks, the
+/// estimator's warm start and memory, the filters); see the module documentation.
 #[derive(Debug)]
-pub struct Pipeline<S, C> {
+pub struct Pipeline<E> {
     hand: HandModel,
     detector: MarkerDetector,
-    shape: S,
-    contact: C,
+    estimator: E,
     threshold: Real,
     keypoint_filter: Option<KeypointFilter>,
     contact_smoother: Option<ContactSmoother>,
@@ -170,13 +232,9 @@ pub struct Pipeline<S, C> {
     last_time_secs: Option<Real>,
 }
 
-impl<S, C> Pipeline<S, C>
-where
-    S: ShapeEstimator,
-    C: ContactEstimator,
-{
-    /// Puts the stages together: `detector` finds the markers of `hand`, `shape` turns them into
-    /// the hand's surface, `contact` scores every vertex, and vertices at or above `threshold`
+impl<E: HandEstimator> Pipeline<E> {
+    /// Puts the stages together: `detector` finds the markers of `hand`, `estimator` turns the
+    /// observation into the hand's shape and contact, and vertices at or above `threshold`
     /// (the model card's, for a trained model) are contact points.
     ///
     /// # Errors
@@ -185,16 +243,14 @@ where
     pub fn new(
         hand: HandModel,
         detector: MarkerDetector,
-        shape: S,
-        contact: C,
+        estimator: E,
         threshold: Real,
     ) -> Result<Self, TouchError> {
         check_contact_threshold(threshold)?;
         Ok(Self {
             hand,
             detector,
-            shape,
-            contact,
+            estimator,
             threshold,
             keypoint_filter: None,
             contact_smoother: None,
@@ -202,7 +258,6 @@ where
             last_time_secs: None,
         })
     }
-
     /// Sets how far apart, in seconds, two timed frames may be and still be one stream
     /// (default [`DEFAULT_MEMORY_HORIZON_SECS`]); further apart, the stages forget the earlier
     /// frames and the frame's [`FrameEstimate::stream`] says so.
@@ -244,9 +299,9 @@ where
         &self.detector
     }
 
-    /// The contact stage.
-    pub fn contact_estimator(&self) -> &C {
-        &self.contact
+    /// The estimator.
+    pub fn estimator(&self) -> &E {
+        &self.estimator
     }
 
     /// The contact threshold.
@@ -254,12 +309,10 @@ where
         self.threshold
     }
 
-    /// Forgets the stream: marker tracks, the shape estimator's warm start and what the contact
-    /// estimator carried from frame to frame.
+    /// Forgets the stream: marker tracks and what the estimator carried from frame to frame.
     pub fn reset(&mut self) {
         self.detector.reset();
-        self.shape.reset();
-        self.contact.reset();
+        self.estimator.reset();
         if let Some(f) = &mut self.keypoint_filter {
             f.reset();
         }
@@ -305,115 +358,62 @@ where
         Ok(event)
     }
 
-    /// Runs every stage on a recorded episode frame: its images, its wrist pose, its tendon
-    /// pulls and its time.
+    /// Runs every stage on one camera frame: finds the markers in `frame`, adds them to
+    /// `observation` (what the robot knows: the wrist pose, which the pipeline needs for contact
+    /// points in the world; the tendon pulls, which the physics estimator and models that take
+    /// them need; the time, for a stream), and estimates.
+    ///
+    /// With a time (seconds on any clock that only moves forward, such as the camera's stamps)
+    /// the stream's memory (marker tracks, the physics estimator's simulation of the free
+    /// finger) carries over from the previous frame when it is at most the memory's horizon
+    /// earlier, and is forgotten after a longer gap, as [`FrameEstimate::stream`] reports.
+    /// Without one the frame is [`StreamEvent::Untimed`]. A recorded frame gives both halves:
+    /// `pipeline.process(frame.rgbd(), &frame.observation())`.
     ///
     /// # Errors
-    /// As [`Pipeline::process_with_pulls`].
-    pub fn process_episode_frame(
-        &mut self,
-        frame: &moe_io::EpisodeFrame,
-    ) -> Result<FrameEstimate, TouchError> {
-        self.process_timed(
-            RgbdFrame {
-                color_rgb8: &frame.color_rgb8,
-                depth_m: &frame.depth_m,
-            },
-            WorldFromHand::new(frame.world_from_hand),
-            Some(&frame.tendon_pull_m),
-            1e-9 * frame.time_ns as f64,
-        )
-    }
-
-    /// Runs every stage on one frame of a hand at `world_from_hand`, without the tendon pulls
-    /// (for contact models that do not take them).
-    ///
-    /// # Errors
-    /// As [`Pipeline::process_with_pulls`].
+    /// [`TouchError::MissingObservation`] without the wrist pose,
+    /// [`TouchError::InvalidObservation`] for an observation that already carries markers (the
+    /// pipeline finds them in the frame), [`TouchError::StreamOutOfOrder`] for a time not after
+    /// the previous frame's (nothing changes), images that do not fit the camera, an
+    /// observation that does not fit the hand, or a failing estimator.
     pub fn process(
         &mut self,
         frame: RgbdFrame<'_>,
-        world_from_hand: WorldFromHand,
-    ) -> Result<FrameEstimate, TouchError> {
-        self.process_with_pulls(frame, world_from_hand, None)
-    }
-
-    /// Runs every stage on one frame of a hand at `world_from_hand` whose tendons the robot
-    /// pulled by `tendon_pull_m[f][t]` metres (what a contact model with the `tendon-pull`
-    /// feature needs; others ignore it).
-    ///
-    /// # Errors
-    /// Images that do not fit the camera, pulls that do not fit the hand (or missing where the
-    /// contact model needs them), or a failing stage.
-    pub fn process_with_pulls(
-        &mut self,
-        frame: RgbdFrame<'_>,
-        world_from_hand: WorldFromHand,
-        tendon_pull_m: Option<&[Vec<f64>]>,
-    ) -> Result<FrameEstimate, TouchError> {
-        self.process_observation(frame, world_from_hand, tendon_pull_m, None)
-    }
-
-    /// Runs every stage on one frame taken at `time_secs` (seconds on any clock that only
-    /// moves forward, such as the camera's timestamps): the stream's memory (marker tracks,
-    /// the physics estimator's simulation of the free finger) carries over from the previous
-    /// frame when it is at most the memory's horizon earlier, and is forgotten after a longer
-    /// gap, as [`FrameEstimate::stream`] reports. This is the call for a live stream.
-    ///
-    /// # Errors
-    /// [`TouchError::StreamOutOfOrder`] for a time not after the previous frame's (nothing
-    /// changes), and as [`Pipeline::process_with_pulls`].
-    pub fn process_timed(
-        &mut self,
-        frame: RgbdFrame<'_>,
-        world_from_hand: WorldFromHand,
-        tendon_pull_m: Option<&[Vec<f64>]>,
-        time_secs: f64,
-    ) -> Result<FrameEstimate, TouchError> {
-        self.process_observation(frame, world_from_hand, tendon_pull_m, Some(time_secs))
-    }
-
-    /// [`Pipeline::process_with_pulls`], with the frame's time in seconds where the caller has
-    /// one (for estimators that carry state between frames).
-    fn process_observation(
-        &mut self,
-        frame: RgbdFrame<'_>,
-        world_from_hand: WorldFromHand,
-        tendon_pull_m: Option<&[Vec<f64>]>,
-        time_secs: Option<f64>,
-    ) -> Result<FrameEstimate, TouchError> {
-        let stream = self.enter_stream(time_secs)?;
+        observation: &Observation<'_>,
+    ) -> Result<FrameEstimate<E::Details>, TouchError> {
+        if observation.keypoints.is_some() {
+            return Err(TouchError::InvalidObservation {
+                reason: "it already carries markers; the pipeline finds them in the frame \
+                         (give the keypoints to the estimator itself instead)",
+            });
+        }
+        let world_from_hand =
+            observation
+                .world_from_hand
+                .ok_or(TouchError::MissingObservation {
+                    what: "the wrist pose (world_from_hand), for contact points in the world",
+                })?;
+        let stream = self.enter_stream(observation.time_secs)?;
         let start = Instant::now();
         let mut detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
         if let Some(f) = &mut self.keypoint_filter {
             detection.keypoints = f.filter(&detection.keypoints);
         }
         let t_markers = Instant::now();
-        let shape = self
-            .shape
-            .estimate_shape_with(&ShapeInput {
-                keypoints: &detection.keypoints,
-                tendon_pull_m,
-                world_from_hand: Some(&world_from_hand),
-                time_secs,
-            })
-            .map_err(TouchError::from_shape_stage)?;
-        let t_shape = Instant::now();
-        let estimate = self
-            .contact
-            .estimate(&ContactInput {
-                shape: &shape,
-                keypoints: Some(&detection.keypoints),
-                tendon_pull_m,
-                world_from_hand: Some(&world_from_hand),
-                time_secs,
-            })
-            .map_err(TouchError::from_contact_stage)?;
-        let vertex_force_n = estimate.vertex_force_n;
-        let mut contact = estimate.map;
-        if let Some(s) = &mut self.contact_smoother {
-            contact = s.smooth(&contact);
-        }
+        let HandEstimate {
+            shape,
+            contact,
+            vertex_force_n,
+            details,
+        } = self
+            .estimator
+            .estimate(&observation.with_keypoints(&detection.keypoints))
+            .map_err(TouchError::from_estimator)?;
+        let t_estimate = Instant::now();
+        let contact = match &mut self.contact_smoother {
+            Some(s) => s.smooth(&contact),
+            None => contact,
+        };
         let contacts_in_hand = contact.contacts_above(self.threshold, &shape)?;
         let contacts_in_world = contacts_in_hand
             .iter()
@@ -444,11 +444,12 @@ where
             markers: detection.diagnostics,
             timings: StageTimings {
                 markers_ms: ms(start, t_markers),
-                shape_ms: ms(t_markers, t_shape),
-                contact_ms: ms(t_shape, end),
+                estimate_ms: ms(t_markers, t_estimate),
+                points_ms: ms(t_estimate, end),
                 total_ms: ms(start, end),
             },
             stream,
+            details,
         })
     }
 }
@@ -460,7 +461,11 @@ where
 /// Unreadable or malformed files, a missing card ([`TouchError::MissingModelCard`]: the card
 /// carries the input features, their normalisation and the threshold), or a model trained for
 /// another hand.
-pub fn load_contact_model(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator, TouchError> {
+#[cfg(feature = "dgcnn")]
+pub fn load_contact_model(
+    path: &std::path::Path,
+    hand: &HandModel,
+) -> Result<DgcnnEstimator, TouchError> {
     let files = moe_io::read_model_files(path)?;
     let card = files.card.ok_or_else(|| TouchError::MissingModelCard {
         path: files.card_path.clone(),

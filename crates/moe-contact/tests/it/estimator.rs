@@ -7,7 +7,7 @@ use moe_contact::{
 };
 use moe_geom::{
     ContactEstimator, ContactInput, FingerParams, GeomError, HandModel, HandPreset, HandShape,
-    Vector3,
+    Observation, Vector3,
 };
 
 use crate::common::small_config;
@@ -503,7 +503,7 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
         .unwrap();
     let widened = build(&with_pulls, &base.with_input_channels(6).unwrap());
     let p = pulls([0.004, -0.004, 0.0, 0.0], [0.0, 0.0, -0.005, 0.005]);
-    let input = ContactInput::shape(&shape).with_tendon_pulls(&p);
+    let input = ContactInput::new(&shape, Observation::new().with_tendon_pulls(&p));
     let after = widened.estimate_map(&input).unwrap();
     let moved = largest_difference(&after, &before);
     assert!(moved < 1e-12, "{moved:e}");
@@ -522,7 +522,12 @@ fn widened_weights_compute_what_they_computed_and_pulls_reach_the_network() {
     );
     let a = full.estimate_map(&input).unwrap();
     let none = pulls([0.0; 4], [0.0; 4]);
-    let b = full.estimate_map(&input.with_tendon_pulls(&none)).unwrap();
+    let b = full
+        .estimate_map(&ContactInput::new(
+            &shape,
+            Observation::new().with_tendon_pulls(&none),
+        ))
+        .unwrap();
     let diff = largest_difference(&a, &b);
     assert!(diff > 1e-6, "{diff:e}");
 }

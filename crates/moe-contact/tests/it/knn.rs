@@ -4,7 +4,7 @@
 use moe_contact::{ContactError, KnnIndex};
 use moe_geom::{
     ContactEstimator, ContactInput, FingerParams, HandModel, HandPreset, HandShape, LabelledFrame,
-    SeededRng, ShapeEstimator, Vector3, WorldFromHand,
+    Observation, SeededRng, ShapeEstimator, Vector3, WorldFromHand,
 };
 
 /// Frames of a small two-finger hand: every vertex moved by a random bend, markers at their
@@ -53,7 +53,10 @@ fn a_training_frame_finds_itself_with_its_exact_labels() {
         let m = index.nearest(&f.markers).unwrap();
         assert_eq!((m.frame, m.distance_m), (i, 0.0), "frame {i}");
         let estimate = index
-            .estimate(&ContactInput::shape(&f.shape).with_keypoints(&f.markers))
+            .estimate(&ContactInput::new(
+                &f.shape,
+                Observation::from_keypoints(&f.markers),
+            ))
             .unwrap();
         assert_eq!(estimate.vertex_force_n, None);
         let map = estimate.map;
@@ -62,7 +65,9 @@ fn a_training_frame_finds_itself_with_its_exact_labels() {
                 assert_eq!(p, if l { 1.0 } else { 0.0 });
             }
         }
-        let shape = index.estimate_shape(&f.markers).unwrap();
+        let shape = index
+            .estimate_shape(&moe_geom::Observation::from_keypoints(&f.markers))
+            .unwrap();
         for (a, b) in shape
             .fingers
             .iter()

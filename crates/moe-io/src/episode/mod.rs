@@ -226,6 +226,30 @@ pub struct EpisodeFrame {
     pub obstacles: Vec<ObstacleMesh>,
 }
 
+impl EpisodeFrame {
+    /// The frame's time, seconds.
+    pub fn time_secs(&self) -> f64 {
+        1e-9 * self.time_ns as f64
+    }
+
+    /// The frame's images, as the pipeline takes them.
+    pub fn rgbd(&self) -> moe_geom::RgbdFrame<'_> {
+        moe_geom::RgbdFrame {
+            color_rgb8: &self.color_rgb8,
+            depth_m: &self.depth_m,
+        }
+    }
+
+    /// What the robot knows of the frame besides its images: the tendon pulls, the wrist pose
+    /// and the time (the markers are found in the images).
+    pub fn observation(&self) -> moe_geom::Observation<'_> {
+        moe_geom::Observation::new()
+            .with_tendon_pulls(&self.tendon_pull_m)
+            .with_world_from_hand(moe_geom::WorldFromHand::new(self.world_from_hand))
+            .with_time(self.time_secs())
+    }
+}
+
 /// A whole episode as read back.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Episode {

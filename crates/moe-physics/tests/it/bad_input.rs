@@ -1,9 +1,8 @@
 //! Bad input: refused with the item named, or reported for one finger while the rest goes on.
 
+use moe_geom::{HandEstimator as _, Observation};
 use moe_geom::{Point3, Real, WorldFromHand, assert_err};
-use moe_physics::{
-    HandMaterial, HandSignature, PhysicsConfig, PhysicsError, PhysicsEstimator, PhysicsObservation,
-};
+use moe_physics::{HandMaterial, HandSignature, PhysicsConfig, PhysicsError, PhysicsEstimator};
 
 use crate::common::{hand, no_pulls, press, simulate, vertex_near};
 
@@ -11,13 +10,10 @@ fn observe<'a>(
     keypoints: &'a moe_geom::HandKeypoints,
     pulls: &'a [Vec<Real>],
     pose: &'a WorldFromHand,
-) -> PhysicsObservation<'a> {
-    PhysicsObservation {
-        keypoints,
-        tendon_pull_m: pulls,
-        world_from_hand: pose,
-        time_secs: None,
-    }
+) -> Observation<'a> {
+    Observation::from_keypoints(keypoints)
+        .with_tendon_pulls(pulls)
+        .with_world_from_hand(*pose)
 }
 
 #[test]
@@ -34,14 +30,14 @@ fn a_finger_with_too_few_markers_is_reported_and_the_others_estimated() {
     let mut est =
         PhysicsEstimator::new(&hand, &HandMaterial::default(), &PhysicsConfig::default()).unwrap();
     let e = est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
-    let message = e.fingers[1].error.as_deref().unwrap();
+    let message = e.details.fingers[1].error.as_deref().unwrap();
     assert!(
         message.contains("finger 1") && message.contains("2 observed markers"),
         "{message}"
     );
-    assert!(e.fingers[0].error.is_none());
-    assert_eq!(e.loads.len(), 1);
-    assert_eq!(e.loads[0].finger, 0);
+    assert!(e.details.fingers[0].error.is_none());
+    assert_eq!(e.details.loads.len(), 1);
+    assert_eq!(e.details.loads[0].finger, 0);
     // Its shape is the rest shape, its map zero.
     assert_eq!(e.shape.fingers[1], hand.rest_vertices_in_hand(1));
     assert!(e.contact.fingers[1].iter().all(|&p| p == 0.0));
@@ -169,7 +165,7 @@ fn a_static_solve_that_does_not_converge_is_reported_and_the_stream_goes_on() {
     )
     .unwrap();
     let e = est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
-    let message = e.fingers[0].error.as_deref().unwrap();
+    let message = e.details.fingers[0].error.as_deref().unwrap();
     assert!(
         message.contains("finger 0") && message.contains("did not converge"),
         "{message}"

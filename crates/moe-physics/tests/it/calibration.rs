@@ -1,7 +1,7 @@
 //! Calibration recovers the material of a hand whose markers the data generator made.
 
-use moe_geom::{HandKeypoints, Real};
-use moe_physics::{CalibrationFrame, CalibrationOptions, HandMaterial, PhysicsConfig, calibrate};
+use moe_geom::{HandKeypoints, OwnedObservation, Real};
+use moe_physics::{CalibrationOptions, HandMaterial, PhysicsConfig, calibrate};
 use moe_tendon_sim::{Material, SceneConfig, run_saving};
 
 use crate::common::hand;
@@ -16,7 +16,7 @@ fn calibration_scene(material: Material) -> SceneConfig {
 }
 
 /// The contact-free stream of a simulated calibration recording with exact markers.
-fn recording(material: Material, seconds: Real) -> Vec<CalibrationFrame> {
+fn recording(material: Material, seconds: Real) -> Vec<OwnedObservation> {
     let mut config = calibration_scene(material);
     config.duration_secs = seconds;
     let hand = hand();
@@ -25,24 +25,25 @@ fn recording(material: Material, seconds: Real) -> Vec<CalibrationFrame> {
     run_saving(&mut scene, steps)
         .unwrap()
         .iter()
-        .map(|f| CalibrationFrame {
-            time_secs: f.time_secs,
-            keypoints: HandKeypoints {
-                fingers: hand
-                    .fingers()
-                    .iter()
-                    .zip(&f.fingers)
-                    .map(|(hf, g)| {
-                        hf.model
-                            .marker_vertices()
-                            .iter()
-                            .map(|&v| Some(g.vertices_in_hand[v as usize]))
-                            .collect()
-                    })
-                    .collect(),
-            },
-            tendon_pull_m: f.tendon_pulls_m().unwrap(),
-            world_from_hand: moe_geom::WorldFromHand::new(f.world_from_hand),
+        .map(|f| {
+            OwnedObservation::new()
+                .with_time(f.time_secs)
+                .with_keypoints(HandKeypoints {
+                    fingers: hand
+                        .fingers()
+                        .iter()
+                        .zip(&f.fingers)
+                        .map(|(hf, g)| {
+                            hf.model
+                                .marker_vertices()
+                                .iter()
+                                .map(|&v| Some(g.vertices_in_hand[v as usize]))
+                                .collect()
+                        })
+                        .collect(),
+                })
+                .with_tendon_pulls(f.tendon_pulls_m().unwrap())
+                .with_world_from_hand(moe_geom::WorldFromHand::new(f.world_from_hand))
         })
         .collect()
 }
@@ -91,14 +92,13 @@ fn calibration_refuses_what_it_cannot_use() {
     );
     let mut bad = HandMaterial::default();
     bad.material.youngs_modulus_pa = -1.0;
-    let frame = CalibrationFrame {
-        time_secs: 0.0,
-        keypoints: HandKeypoints {
+    let frame = OwnedObservation::new()
+        .with_time(0.0)
+        .with_keypoints(HandKeypoints {
             fingers: vec![vec![None; 7]; 2],
-        },
-        tendon_pull_m: vec![vec![0.0; 4]; 2],
-        world_from_hand: moe_geom::WorldFromHand::identity(),
-    };
+        })
+        .with_tendon_pulls(vec![vec![0.0; 4]; 2])
+        .with_world_from_hand(moe_geom::WorldFromHand::identity());
     moe_geom::assert_err!(
         calibrate(&hand, &[vec![frame.clone()]], &bad, &config, &options),
         moe_physics::PhysicsError::InvalidParameter {
@@ -107,7 +107,7 @@ fn calibration_refuses_what_it_cannot_use() {
         }
     );
     let mut short = frame.clone();
-    short.tendon_pull_m[1].pop();
+    short.tendon_pull_m.as_mut().unwrap()[1].pop();
     moe_geom::assert_err!(
         calibrate(
             &hand,
@@ -118,8 +118,9 @@ fn calibration_refuses_what_it_cannot_use() {
         ),
         moe_physics::PhysicsError::FingerLengthMismatch { finger: 1, .. }
     );
-    let mut nan = frame;
-    nan.keypoints.fingers[0][3] = Some(moe_geom::Point3::new(Real::NAN, 0.0, 0.0));
+    let mut nan = frame.clone();
+    nan.keypoints.as_mut().unwrap().fingers[0][3] =
+        Some(moe_geom::Point3::new(Real::NAN, 0.0, 0.0));
     moe_geom::assert_err!(
         calibrate(
             &hand,
@@ -133,5 +134,18 @@ fn calibration_refuses_what_it_cannot_use() {
             index: 3,
             ..
         }
+    );
+    // A calibration frame is part of a stream: it needs its time.
+    let mut untimed = frame;
+    untimed.time_secs = None;
+    moe_geom::assert_err!(
+        calibrate(
+            &hand,
+            &[vec![untimed]],
+            &HandMaterial::default(),
+            &config,
+            &options
+        ),
+        moe_physics::PhysicsError::Missing { what } if what.contains("time")
     );
 }

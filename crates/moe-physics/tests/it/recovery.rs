@@ -1,7 +1,8 @@
 //! Known loads recovered from the markers they produce.
 
+use moe_geom::{HandEstimator as _, Observation};
 use moe_geom::{Point3, Real};
-use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator, PhysicsObservation};
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator};
 
 use crate::common::{hand, no_pulls, press, ring, simulate, vertex_near};
 
@@ -14,12 +15,11 @@ fn observe(
     keypoints: &moe_geom::HandKeypoints,
     pulls: &[Vec<Real>],
 ) -> moe_physics::PhysicsEstimate {
-    est.estimate(&PhysicsObservation {
-        keypoints,
-        tendon_pull_m: pulls,
-        world_from_hand: &moe_geom::WorldFromHand::identity(),
-        time_secs: None,
-    })
+    est.estimate(
+        &Observation::from_keypoints(keypoints)
+            .with_tendon_pulls(pulls)
+            .with_world_from_hand(moe_geom::WorldFromHand::identity()),
+    )
     .unwrap()
 }
 
@@ -39,7 +39,7 @@ fn a_point_load_is_found_within_a_vertex_ring_and_weighed_within_five_percent() 
         let keypoints = simulate(&hand, &pulls, &[press(&hand, v, magnitude)]);
         est.reset();
         let e = observe(&mut est, &keypoints, &pulls);
-        let loads: Vec<_> = e.loads.iter().filter(|l| l.finger == 0).collect();
+        let loads: Vec<_> = e.details.loads.iter().filter(|l| l.finger == 0).collect();
         assert_eq!(loads.len(), 1, "one load at {p:?}: {loads:?}");
         let found = loads[0];
         let rest = hand.fingers()[0].model.mesh().vertices();
@@ -61,7 +61,10 @@ fn a_point_load_is_found_within_a_vertex_ring_and_weighed_within_five_percent() 
             "press of {magnitude} N at {v}: {} N",
             found.magnitude_n
         );
-        assert!(e.loads.iter().all(|l| l.finger == 0), "finger 1 is free");
+        assert!(
+            e.details.loads.iter().all(|l| l.finger == 0),
+            "finger 1 is free"
+        );
     }
 }
 
@@ -73,9 +76,9 @@ fn without_a_load_none_is_reported_and_the_shape_is_the_free_one() {
     let keypoints = simulate(&hand, &pulls, &[]);
     let mut est = estimator(&PhysicsConfig::default());
     let e = observe(&mut est, &keypoints, &pulls);
-    assert!(e.loads.is_empty(), "{:?}", e.loads);
+    assert!(e.details.loads.is_empty(), "{:?}", e.details.loads);
     assert!(e.contact.fingers.iter().flatten().all(|&p| p == 0.0));
-    for (f, report) in e.fingers.iter().enumerate() {
+    for (f, report) in e.details.fingers.iter().enumerate() {
         assert_eq!(report.pressed_probability, 0.0);
         // The model explains the bent markers to a fraction of a millimetre.
         assert!(report.free_rms_m < 2e-4, "finger {f}: {report:?}");
@@ -107,7 +110,7 @@ fn two_separated_loads_are_told_apart() {
     });
     let e = observe(&mut est, &keypoints, &pulls);
     let rest = hand.fingers()[0].model.mesh().vertices();
-    let found: Vec<_> = e.loads.iter().filter(|l| l.finger == 0).collect();
+    let found: Vec<_> = e.details.loads.iter().filter(|l| l.finger == 0).collect();
     for l in &found {
         eprintln!(
             "found {} {:?} {:.4} N",
@@ -154,8 +157,8 @@ fn the_posterior_place_is_off_the_mesh_vertices_and_near_the_press() {
             ..PhysicsConfig::default()
         });
         let e = observe(&mut est, &keypoints, &pulls);
-        assert_eq!(e.loads.len(), 1, "{:?}", e.loads);
-        e.loads[0].clone()
+        assert_eq!(e.details.loads.len(), 1, "{:?}", e.details.loads);
+        e.details.loads[0].clone()
     };
     // With no radius the place is the centre vertex of the best patch.
     let at_vertex = place_of(0.0);
@@ -201,14 +204,14 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
         for k in 0..8 {
             let kp = keypoints.with_noise(2e-4, &mut rng);
             let e = est
-                .estimate(&PhysicsObservation {
-                    keypoints: &kp,
-                    tendon_pull_m: &pulls,
-                    world_from_hand: &pose,
-                    time_secs: Some(spacing * k as Real),
-                })
+                .estimate(
+                    &Observation::from_keypoints(&kp)
+                        .with_tendon_pulls(&pulls)
+                        .with_world_from_hand(pose)
+                        .with_time(spacing * k as Real),
+                )
                 .unwrap();
-            if let Some(l) = e.loads.iter().find(|l| l.finger == 0) {
+            if let Some(l) = e.details.loads.iter().find(|l| l.finger == 0) {
                 out.push(l.location_rest);
             }
         }
@@ -246,12 +249,12 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
         .map(|k| (keypoints.with_noise(2e-4, &mut rng), 0.05 * k as Real))
         .collect();
     let run = |est: &mut PhysicsEstimator, kp: &moe_geom::HandKeypoints, t: Real| {
-        est.estimate(&PhysicsObservation {
-            keypoints: kp,
-            tendon_pull_m: &pulls,
-            world_from_hand: &pose,
-            time_secs: Some(t),
-        })
+        est.estimate(
+            &Observation::from_keypoints(kp)
+                .with_tendon_pulls(&pulls)
+                .with_world_from_hand(pose)
+                .with_time(t),
+        )
         .unwrap()
     };
     for (kp, t) in &frames[..2] {
@@ -260,7 +263,7 @@ fn memory_steadies_a_held_press_and_reset_forgets_it() {
     est.reset();
     let after_reset = run(&mut est, &frames[2].0, frames[2].1);
     let fresh = run(&mut estimator(&memory), &frames[2].0, frames[2].1);
-    assert_eq!(after_reset.loads, fresh.loads);
+    assert_eq!(after_reset.details.loads, fresh.details.loads);
     assert_eq!(after_reset.shape, fresh.shape);
 }
 
@@ -283,8 +286,8 @@ fn press_memory_holds_a_press_through_a_weak_frame_and_lets_it_go_at_release() {
     let statistic_alone = |kp: &moe_geom::HandKeypoints| {
         let e = observe(&mut estimator(&PhysicsConfig::default()), kp, &pulls);
         (
-            e.loads.iter().any(|l| l.finger == 0),
-            e.fingers[0].statistic,
+            e.details.loads.iter().any(|l| l.finger == 0),
+            e.details.fingers[0].statistic,
         )
     };
     let light = simulate(&hand, &pulls, &[press(&hand, v, 0.04)]);
@@ -306,14 +309,14 @@ fn press_memory_holds_a_press_through_a_weak_frame_and_lets_it_go_at_release() {
             .enumerate()
             .map(|(k, kp)| {
                 let e = est
-                    .estimate(&PhysicsObservation {
-                        keypoints: kp,
-                        tendon_pull_m: &pulls,
-                        world_from_hand: &pose,
-                        time_secs: Some(0.05 * k as Real),
-                    })
+                    .estimate(
+                        &Observation::from_keypoints(kp)
+                            .with_tendon_pulls(&pulls)
+                            .with_world_from_hand(pose)
+                            .with_time(0.05 * k as Real),
+                    )
                     .unwrap();
-                e.loads.iter().any(|l| l.finger == 0)
+                e.details.loads.iter().any(|l| l.finger == 0)
             })
             .collect()
     };
@@ -325,8 +328,11 @@ fn press_memory_holds_a_press_through_a_weak_frame_and_lets_it_go_at_release() {
     // A lone observation (the stream's first) is the same with and without memory.
     let lone = |config: &PhysicsConfig| observe(&mut estimator(config), &dip, &pulls);
     let (a, b) = (lone(&PhysicsConfig::default()), lone(&memory));
-    assert_eq!(a.loads, b.loads);
-    assert_eq!(a.fingers[0].statistic, b.fingers[0].statistic);
+    assert_eq!(a.details.loads, b.details.loads);
+    assert_eq!(
+        a.details.fingers[0].statistic,
+        b.details.fingers[0].statistic
+    );
 }
 
 /// A marker taken for another (moved millimetres away from where the finger puts it): by
@@ -349,16 +355,17 @@ fn a_misidentified_marker_is_left_out_instead_of_read_as_a_press() {
     };
     // A free finger.
     let free = stray(&simulate(&hand, &pulls, &[]));
-    let on_finger_0 = |e: &moe_physics::PhysicsEstimate| e.loads.iter().any(|l| l.finger == 0);
+    let on_finger_0 =
+        |e: &moe_physics::PhysicsEstimate| e.details.loads.iter().any(|l| l.finger == 0);
     assert!(on_finger_0(&observe(&mut estimator(&off), &free, &pulls)));
     let kept = observe(&mut estimator(&PhysicsConfig::default()), &free, &pulls);
-    assert!(!on_finger_0(&kept), "{:?}", kept.loads);
-    assert_eq!(kept.fingers[0].observed_markers, 6);
+    assert!(!on_finger_0(&kept), "{:?}", kept.details.loads);
+    assert_eq!(kept.details.fingers[0].observed_markers, 6);
     // A press near the tip, seen with the same stray marker.
     let v = vertex_near(&hand, 0, Point3::new(-0.006, -0.005, 0.068));
     let pressed = stray(&simulate(&hand, &pulls, &[press(&hand, v, 0.2)]));
     let e = observe(&mut estimator(&PhysicsConfig::default()), &pressed, &pulls);
-    let loads: Vec<_> = e.loads.iter().filter(|l| l.finger == 0).collect();
+    let loads: Vec<_> = e.details.loads.iter().filter(|l| l.finger == 0).collect();
     assert_eq!(loads.len(), 1, "{loads:?}");
     let rest = hand.fingers()[0].model.mesh().vertices();
     let miss = (rest[loads[0].vertex as usize] - rest[v as usize]).norm();
@@ -420,14 +427,14 @@ fn lost_markers_draw_the_place_toward_them_and_markers_never_seen_do_not() {
                 kp.clone()
             };
             let e = est
-                .estimate(&PhysicsObservation {
-                    keypoints: &kp,
-                    tendon_pull_m: &pulls,
-                    world_from_hand: &pose,
-                    time_secs: Some(0.05 * k as Real),
-                })
+                .estimate(
+                    &Observation::from_keypoints(&kp)
+                        .with_tendon_pulls(&pulls)
+                        .with_world_from_hand(pose)
+                        .with_time(0.05 * k as Real),
+                )
                 .unwrap();
-            for l in e.loads.iter().filter(|l| l.finger == 0) {
+            for l in e.details.loads.iter().filter(|l| l.finger == 0) {
                 total += (l.location_rest - rest[v as usize]).norm();
                 n += 1;
             }
@@ -457,5 +464,5 @@ fn lost_markers_draw_the_place_toward_them_and_markers_never_seen_do_not() {
     let lone = hide(&frames[0]);
     let a = observe(&mut estimator(&PhysicsConfig::default()), &lone, &pulls);
     let b = observe(&mut estimator(&prior), &lone, &pulls);
-    assert_eq!(a.loads, b.loads);
+    assert_eq!(a.details.loads, b.details.loads);
 }

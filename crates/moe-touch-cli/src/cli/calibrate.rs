@@ -8,10 +8,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_geom::{HandKeypoints, HandModel, Real, WorldFromHand};
+use moe_geom::{HandKeypoints, HandModel, OwnedObservation, Real};
 use moe_io::{DatasetReader, SplitFractions};
 use moe_lab::markers::{check_hand, has_ground_truth};
-use moe_physics::{CalibrationFrame, CalibrationOptions, HandMaterial, calibrate};
+use moe_physics::{CalibrationOptions, HandMaterial, calibrate};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use serde::Serialize;
 
@@ -143,7 +143,7 @@ struct Streams {
     frames_read: usize,
     frames_with_contact: usize,
     trajectories: Option<usize>,
-    streams: Vec<Vec<CalibrationFrame>>,
+    streams: Vec<Vec<OwnedObservation>>,
 }
 
 pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
@@ -361,12 +361,12 @@ fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
             }
             continue;
         }
-        current.push(CalibrationFrame {
-            time_secs: 1e-9 * frame.time_ns as Real,
-            keypoints,
-            tendon_pull_m: frame.tendon_pull_m.clone(),
-            world_from_hand: WorldFromHand::new(frame.world_from_hand),
-        });
+        current.push(
+            frame
+                .observation()
+                .to_owned_observation()
+                .with_keypoints(keypoints),
+        );
     }
     if !current.is_empty() {
         streams.push(current);
@@ -457,7 +457,7 @@ fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
     };
     let frame_secs = params.dt_secs * params.save_every_steps as Real;
     let layout = card.layout.clone();
-    let mut streams: Vec<Vec<CalibrationFrame>> = Vec::new();
+    let mut streams: Vec<Vec<OwnedObservation>> = Vec::new();
     let mut current_id = None;
     let mut touched = false;
     let (mut frames_read, mut frames_with_contact, mut trajectories) = (0, 0, 0usize);
@@ -490,12 +490,12 @@ fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
             )
         })?;
         if let Some(stream) = streams.last_mut() {
-            stream.push(CalibrationFrame {
-                time_secs: Real::from(f.frame_index) * frame_secs,
-                keypoints: labelled.markers,
-                tendon_pull_m: labelled.tendon_pull_m,
-                world_from_hand: labelled.world_from_hand,
-            });
+            stream.push(
+                labelled
+                    .observation()
+                    .with_time(Real::from(f.frame_index) * frame_secs)
+                    .to_owned_observation(),
+            );
         }
     }
     streams.retain(|s| !s.is_empty());

@@ -15,8 +15,9 @@ use moe_geom::{
     ContactInput, ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3,
     WorldFromHand,
 };
+use moe_geom::{HandEstimator as _, Observation};
 use moe_lab::run::{LoadRecord, finger_force_records};
-use moe_physics::{PhysicsEstimator, PhysicsObservation};
+use moe_physics::PhysicsEstimator;
 use serde::{Deserialize, Serialize};
 
 use super::ContactMethod;
@@ -402,10 +403,11 @@ fn run_shape(
         );
     }
     let (mut maps, timings) = estimator
-        .estimate_inputs(&[ContactInput {
-            tendon_pull_m: pulls.as_deref(),
-            ..ContactInput::shape(&shape)
-        }])
+        .estimate_inputs(&[ContactInput::new(&shape, {
+            let mut observation = Observation::new();
+            observation.tendon_pull_m = pulls.as_deref();
+            observation
+        })])
         .with_context(|| format!("shape {}", dir.display()))?;
     let map: ContactMap = maps.pop().context("no contact map")?;
     // Everything in memory first, so that a failure leaves nothing half-written.
@@ -666,12 +668,11 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
         .with_context(|| format!("the physics estimator of hand '{hand_spec}'"))?;
     let t_setup = Instant::now();
     let estimate = estimator
-        .estimate(&PhysicsObservation {
-            keypoints: &keypoints,
-            tendon_pull_m: &pulls,
-            world_from_hand: &world_from_hand,
-            time_secs: None,
-        })
+        .estimate(
+            &Observation::from_keypoints(&keypoints)
+                .with_tendon_pulls(&pulls)
+                .with_world_from_hand(world_from_hand),
+        )
         .with_context(|| format!("keypoints {}", kp_path.display()))?;
     let t_estimate = Instant::now();
     // Everything in memory first, so that a failure leaves nothing half-written.
@@ -680,7 +681,12 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
         .contact
         .contacts_above(threshold, &estimate.shape)?;
     let rows = contact_rows(&contacts);
-    let loads: Vec<LoadRecord> = estimate.loads.iter().map(LoadRecord::from).collect();
+    let loads: Vec<LoadRecord> = estimate
+        .details
+        .loads
+        .iter()
+        .map(LoadRecord::from)
+        .collect();
     let loads_text = serde_json::to_string_pretty(&LoadsFile {
         frame: "hand",
         units: "metres, newtons",
@@ -736,19 +742,23 @@ fn physics_fingers(
     estimate: &moe_physics::PhysicsEstimate,
     threshold: f64,
 ) -> Result<(NamedPlys, Vec<PhysicsFingerRecord>)> {
-    let forces = finger_force_records(estimate);
+    let forces = finger_force_records(&estimate.details);
     let mut plys = Vec::with_capacity(hand.num_fingers());
     let mut fingers = Vec::with_capacity(hand.num_fingers());
     for (i, probs) in estimate.contact.fingers.iter().enumerate() {
         let vertices = &estimate.shape.fingers[i];
-        let force_magnitudes: Vec<f64> = estimate.vertex_force_n[i]
-            .iter()
-            .map(|v| v.norm())
-            .collect();
+        let force_magnitudes: Vec<f64> = estimate
+            .vertex_force_n
+            .as_ref()
+            .and_then(|f| f.get(i))
+            .map_or_else(
+                || vec![0.0; vertices.len()],
+                |f| f.iter().map(|v| v.norm()).collect(),
+            );
         let ply = moe_lab::contact_eval::contact_ply(hand, i, vertices, probs)?
             .with_scalar("force_n", force_magnitudes.iter().copied());
         let name = format!("finger_{i}.ply");
-        let report = &estimate.fingers[i];
+        let report = &estimate.details.fingers[i];
         let finite = |x: f64| x.is_finite().then_some(x);
         fingers.push(PhysicsFingerRecord {
             mesh: name.clone(),

@@ -9,25 +9,34 @@ use crate::draw::{OrthoView, ShadedMesh, arrow, render_meshes, text};
 use crate::overlay::draw_keypoints;
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::{MultiShapeEstimator, ShapeConfig};
-use moe_geom::{ContactEstimator, HandModel, Point3, ShapeEstimator};
+use moe_arap::ShapeConfig;
+use moe_contact::DgcnnEstimator;
+use moe_geom::{HandEstimator, HandModel, Point3};
 use moe_lab::contact_eval::contact_ply;
 use moe_lab::markers::check_hand;
-use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunReport, run_episode_with, run_info};
-use moe_physics::PhysicsContactStage;
+use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunDetails, RunReport, run_episode, run_info};
 use moe_touch::Pipeline;
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 
 use super::ContactMethod;
 
-/// The physics settings of the demo's episode (relative to the workspace).
-const OCCLUDING_SETTINGS: &str = "fixtures/physics/occluding-contact.toml";
-
-/// The workspace this binary was built from (where the example episode and the model are).
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+/// The committed example episode, built into the binary so that an installed `moe-touch` runs
+/// `demo` from any directory.
+const DEMO_EPISODE: &[u8] =
+    include_bytes!("../../../../fixtures/episodes/plate_tip_front_small.mcap");
+/// Its name in messages.
+const DEMO_EPISODE_NAME: &str = "fixtures/episodes/plate_tip_front_small.mcap (built in)";
+/// The shipped contact model and its card, built in likewise.
+const DEMO_MODEL: &[u8] = include_bytes!("../../../../models/contact-two-finger.safetensors");
+const DEMO_MODEL_CARD: &str = include_str!("../../../../models/contact-two-finger.json");
+/// Its name in messages and the result.
+const DEMO_MODEL_NAME: &str = "contact-two-finger.safetensors";
+/// The physics settings for the demo's episode, whose plate hides the pressed tip.
+const OCCLUDING_SETTINGS: &str =
+    include_str!("../../../../fixtures/physics/occluding-contact.toml");
+/// Their name in messages and the result.
+const OCCLUDING_SETTINGS_NAME: &str = "fixtures/physics/occluding-contact.toml (built in)";
 
 /// Arguments of `moe-touch demo`.
 #[derive(Debug, Args)]
@@ -43,65 +52,81 @@ pub(crate) struct DemoArgs {
     estimator: super::run::EstimatorArgs,
 }
 
-pub(crate) fn run(mut args: DemoArgs) -> Result<()> {
+pub(crate) fn run(args: DemoArgs) -> Result<()> {
     args.estimator.check(&[], &[])?;
-    // The committed episode's plate stands between the camera and the pressed tip: the physics
-    // estimator runs with the settings for an occluding object unless told otherwise.
-    if args.episode.is_none() {
-        args.estimator
-            .or_physics_config(workspace().join(OCCLUDING_SETTINGS));
-    }
-    let episode_path = args
+    let episode = match &args.episode {
+        Some(path) => moe_io::read_episode(path)?,
+        None => moe_io::parse_episode(Path::new(DEMO_EPISODE_NAME), DEMO_EPISODE)?,
+    };
+    let episode_name = args
         .episode
-        .clone()
-        .unwrap_or_else(|| workspace().join("fixtures/episodes/plate_tip_front_small.mcap"));
-    let model_path = args
-        .estimator
-        .model
-        .clone()
-        .unwrap_or_else(|| workspace().join("models/contact-two-finger.safetensors"));
-    let episode = moe_io::read_episode(&episode_path)?;
+        .as_ref()
+        .map_or_else(|| DEMO_EPISODE_NAME.to_owned(), |p| p.display().to_string());
     let hand = HandModel::preset(
         moe_geom::HandPreset::TwoFinger,
         &moe_geom::FingerParams::default(),
     )?;
     check_hand(&hand, &episode.info)
-        .with_context(|| format!("the demo's two-finger hand for {}", episode_path.display()))?;
+        .with_context(|| format!("the demo's two-finger hand for {episode_name}"))?;
     let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())?;
     match args.estimator.contact {
         ContactMethod::Dgcnn => {
-            let model = load_contact_model(&model_path, &hand)
-                .with_context(|| format!("model {}", model_path.display()))?;
-            let threshold = model.threshold();
-            let shape = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default())?;
-            let pipeline = Pipeline::new(hand.clone(), detector, shape, model, threshold)?;
-            let model_name = model_path
-                .file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-            demo(&args, &hand, &episode, pipeline, None, &model_name)
+            let (model, model_name) = match &args.estimator.model {
+                Some(path) => (
+                    load_contact_model(path, &hand)
+                        .with_context(|| format!("model {}", path.display()))?,
+                    path.file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                ),
+                None => (
+                    DgcnnEstimator::from_bytes(DEMO_MODEL, DEMO_MODEL_CARD, &hand)
+                        .with_context(|| format!("model {DEMO_MODEL_NAME} (built in)"))?,
+                    DEMO_MODEL_NAME.to_owned(),
+                ),
+            };
+            let pipeline = Pipeline::paper(hand.clone(), detector, model, ShapeConfig::default())?;
+            demo(&args, &hand, &episode, pipeline, &model_name)
         }
         ContactMethod::Physics => {
-            let (pipeline, stage, name) =
-                args.estimator.physics_pipeline(hand.clone(), detector)?;
-            demo(&args, &hand, &episode, pipeline, Some(&stage), &name)
+            // The committed episode's plate stands between the camera and the pressed tip: the
+            // physics estimator runs with the settings for an occluding object unless told
+            // otherwise.
+            let built_in = if args.episode.is_none() && args.estimator.physics_config().is_none() {
+                let config: moe_physics::PhysicsConfig = moe_io::parse_toml(
+                    OCCLUDING_SETTINGS.as_bytes(),
+                    Path::new(OCCLUDING_SETTINGS_NAME),
+                )?;
+                config
+                    .validate()
+                    .with_context(|| OCCLUDING_SETTINGS_NAME.to_owned())?;
+                Some(config)
+            } else {
+                None
+            };
+            let (pipeline, name) =
+                args.estimator
+                    .physics_pipeline_with(hand.clone(), detector, built_in)?;
+            demo(&args, &hand, &episode, pipeline, &name)
         }
     }
 }
 
 /// Runs the demo's pipeline over the episode and writes and prints its outputs.
-fn demo<S: ShapeEstimator, C: ContactEstimator>(
+fn demo<E>(
     args: &DemoArgs,
     hand: &HandModel,
     episode: &moe_io::Episode,
-    mut pipeline: Pipeline<S, C>,
-    physics: Option<&PhysicsContactStage>,
+    mut pipeline: Pipeline<E>,
     model_name: &str,
-) -> Result<()> {
+) -> Result<()>
+where
+    E: HandEstimator,
+    E::Details: RunDetails,
+{
     let intrinsics = *pipeline.detector().intrinsics();
     let hand_from_camera = pipeline.detector().hand_from_camera();
     let threshold = pipeline.threshold();
-    let (frames, report) =
-        run_episode_with(&mut pipeline, &episode.info, &episode.frames, None, physics)?;
+    let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, None)?;
 
     // The frame with the most estimated contact (the first of equals).
     let best = (0..frames.len())
@@ -143,7 +168,7 @@ fn demo<S: ShapeEstimator, C: ContactEstimator>(
     )?;
     let report_text = serde_json::to_string_pretty(&report)?;
     let mut info = run_info(&episode.info, model_name, threshold);
-    info.force_arrow_m_per_n = physics.map(|_| DEFAULT_FORCE_ARROW_M_PER_N);
+    info.force_arrow_m_per_n = report.forces.as_ref().map(|_| DEFAULT_FORCE_ARROW_M_PER_N);
 
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -376,12 +401,12 @@ fn print_table(r: &RunReport, best: usize, out: &Path, estimator: &super::run::E
         );
     }
     super::outln!(
-        "  frames per second           {:.1} (median frame {:.1} ms: markers {:.2}, shape {:.2}, contact {:.2})",
+        "  frames per second           {:.1} (median frame {:.1} ms: markers {:.2}, estimate {:.2}, contact points {:.2})",
         r.frames_per_second,
         r.total_ms.median_ms,
         r.markers_ms.median_ms,
-        r.shape_ms.median_ms,
-        r.contact_ms.median_ms
+        r.estimate_ms.median_ms,
+        r.points_ms.median_ms
     );
     if let Some(forces) = &r.forces {
         let cells: Vec<String> = forces

@@ -7,11 +7,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use moe_arap::{MultiShapeEstimator, ShapeConfig};
-use moe_geom::{ContactEstimator, HandModel, ShapeEstimator};
+use moe_arap::ShapeConfig;
+use moe_geom::{HandEstimator, HandModel};
 use moe_lab::markers::check_hand;
-use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunReport, run_episode_with, run_info};
-use moe_physics::PhysicsContactStage;
+use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunDetails, RunReport, run_episode, run_info};
 use moe_touch::PhysicsPipeline;
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
@@ -77,31 +76,36 @@ impl EstimatorArgs {
         Ok(())
     }
 
-    /// `--physics-config` when none was given (physics only).
-    pub(crate) fn or_physics_config(&mut self, path: PathBuf) {
-        if self.contact == ContactMethod::Physics && self.physics_config.is_none() {
-            self.physics_config = Some(path);
-        }
-    }
-
     /// The settings file of the physics estimator, when one is used.
     pub(crate) fn physics_config(&self) -> Option<&Path> {
         self.physics_config.as_deref()
     }
 
     /// The physics pipeline for `hand` behind `detector` from `--material` and
-    /// `--physics-config`, a handle on its contact stage (for the loads of each frame), and its
-    /// name for the result (with the material file's name).
+    /// `--physics-config`, and its name for the result (with the material file's name).
     pub(crate) fn physics_pipeline(
         &self,
         hand: HandModel,
         detector: moe_touch::perception::MarkerDetector,
-    ) -> Result<(PhysicsPipeline, PhysicsContactStage, String)> {
+    ) -> Result<(PhysicsPipeline, String)> {
+        self.physics_pipeline_with(hand, detector, None)
+    }
+
+    /// [`EstimatorArgs::physics_pipeline`] with `settings` in place of the defaults when
+    /// `--physics-config` is not given.
+    pub(crate) fn physics_pipeline_with(
+        &self,
+        hand: HandModel,
+        detector: moe_touch::perception::MarkerDetector,
+        settings: Option<moe_physics::PhysicsConfig>,
+    ) -> Result<(PhysicsPipeline, String)> {
         let (material, material_name) = super::load_material(self.material.as_deref())?;
-        let (config, _) = super::load_physics_config(self.physics_config.as_deref())?;
+        let config = match (self.physics_config.as_deref(), settings) {
+            (None, Some(settings)) => settings,
+            (path, _) => super::load_physics_config(path)?.0,
+        };
         let pipeline = PhysicsPipeline::physics(hand, detector, &material, &config)
             .context("the physics estimator")?;
-        let stage = pipeline.contact_estimator().clone();
         let name = match material_name.as_str() {
             "nominal" => "physics (nominal material)".to_owned(),
             _ => format!(
@@ -111,7 +115,7 @@ impl EstimatorArgs {
                     .map_or(material_name.clone(), |n| n.to_string_lossy().into_owned())
             ),
         };
-        Ok((pipeline, stage, name))
+        Ok((pipeline, name))
     }
 }
 
@@ -219,35 +223,23 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             let model = load_contact_model(&model_path, &hand).with_context(|| {
                 format!("model {} on hand '{}'", model_path.display(), args.hand)
             })?;
-            let threshold = model.threshold();
             let options = ShapeConfig {
                 iterations: args.iterations.unwrap_or(ShapeConfig::default().iterations),
                 warm_start: args.warm_start,
                 ..ShapeConfig::default()
             };
-            let shape = MultiShapeEstimator::new(hand.clone(), options.clone())?;
-            let pipeline = Pipeline::new(hand, detector, shape, model, threshold)?;
+            let pipeline = Pipeline::paper(hand, detector, model, options)?;
             let model_name = model_path
                 .file_name()
                 .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-            finish(
-                &args,
-                &ros,
-                pipeline,
-                None,
-                &episode,
-                cut,
-                &model_name,
-                None,
-            )
+            finish(&args, &ros, pipeline, &episode, cut, &model_name, None)
         }
         ContactMethod::Physics => {
-            let (pipeline, stage, name) = args.estimator.physics_pipeline(hand, detector)?;
+            let (pipeline, name) = args.estimator.physics_pipeline(hand, detector)?;
             finish(
                 &args,
                 &ros,
                 pipeline,
-                Some(&stage),
                 &episode,
                 cut,
                 &name,
@@ -288,17 +280,19 @@ fn ros_config(args: &RunArgs) -> Result<moe_io::ros2::RosConfig> {
 }
 
 /// Runs the pipeline over the episode, writes the result and the report, prints the summary.
-#[allow(clippy::too_many_arguments)]
-fn finish<S: ShapeEstimator, C: ContactEstimator>(
+fn finish<E>(
     args: &RunArgs,
     ros: &moe_io::ros2::RosConfig,
-    mut pipeline: Pipeline<S, C>,
-    physics: Option<&PhysicsContactStage>,
+    mut pipeline: Pipeline<E>,
     episode: &moe_io::Episode,
     cut: Option<moe_io::IoError>,
     model_name: &str,
     force_scale: Option<f64>,
-) -> Result<()> {
+) -> Result<()>
+where
+    E: HandEstimator,
+    E::Details: RunDetails,
+{
     if args.kalman {
         pipeline = pipeline.with_keypoint_filter(KeypointFilter::new(KalmanConfig::default())?);
     }
@@ -312,14 +306,8 @@ fn finish<S: ShapeEstimator, C: ContactEstimator>(
         );
         err.to_string()
     });
-    let (frames, report) = run_episode_with(
-        &mut pipeline,
-        &episode.info,
-        &episode.frames,
-        truncated,
-        physics,
-    )
-    .with_context(|| format!("episode {}", args.episode.display()))?;
+    let (frames, report) = run_episode(&mut pipeline, &episode.info, &episode.frames, truncated)
+        .with_context(|| format!("episode {}", args.episode.display()))?;
     let mut info = run_info(&episode.info, model_name, pipeline.threshold());
     info.force_arrow_m_per_n = force_scale;
     // The report is built before anything is written; the result file is written whole.
@@ -353,7 +341,7 @@ fn finish<S: ShapeEstimator, C: ContactEstimator>(
 
 pub(crate) fn print_summary(r: &RunReport, out: &Path) {
     super::outln!(
-        "{} frames{}: {:.1} frames/s (per frame: markers {:.2} ms, shape {:.2} ms, contact {:.2} ms, total {:.2} ms median); wrote {}",
+        "{} frames{}: {:.1} frames/s (per frame: markers {:.2} ms, estimate {:.2} ms, contact points {:.2} ms, total {:.2} ms median); wrote {}",
         r.frames,
         if r.truncated.is_some() {
             " (episode cut short)"
@@ -362,8 +350,8 @@ pub(crate) fn print_summary(r: &RunReport, out: &Path) {
         },
         r.frames_per_second,
         r.markers_ms.median_ms,
-        r.shape_ms.median_ms,
-        r.contact_ms.median_ms,
+        r.estimate_ms.median_ms,
+        r.points_ms.median_ms,
         r.total_ms.median_ms,
         out.display()
     );

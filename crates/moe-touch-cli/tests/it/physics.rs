@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use moe_geom::{FingerParams, HandModel, HandPreset, Point3};
+use moe_geom::{HandEstimator as _, Observation};
 use moe_io::{DatasetFrame, EpisodeFrame};
 
 use crate::common::{assert_one_line_error, fixtures, run, run_json, scratch};
@@ -780,15 +781,15 @@ fn physics_shapes_for_training_are_each_trajectorys_stream() {
             previous = Some(b.trajectory_id);
         }
         let e = estimator
-            .estimate(&moe_physics::PhysicsObservation {
-                keypoints: &b.markers,
-                tendon_pull_m: &b.tendon_pull_m,
-                world_from_hand: &b.world_from_hand,
-                time_secs: Some(f64::from(b.frame_index) * frame_secs),
-            })
+            .estimate(
+                &Observation::from_keypoints(&b.markers)
+                    .with_tendon_pulls(&b.tendon_pull_m)
+                    .with_world_from_hand(b.world_from_hand)
+                    .with_time(f64::from(b.frame_index) * frame_secs),
+            )
             .unwrap();
         assert_eq!(a.shape, e.shape);
-        dented += usize::from(!e.loads.is_empty());
+        dented += usize::from(!e.details.loads.is_empty());
     }
     assert!(dented > 0, "the held-out frames have presses");
     let err = with_physics_shapes(&hand, &frames, 0.0, &material, &config, None).unwrap_err();

@@ -2,7 +2,10 @@
 
 use moe_arap::MultiShapeEstimator;
 use moe_arap::ShapeConfig;
-use moe_geom::{ContactInput, FingerParams, HandModel, HandPreset, WorldFromHand};
+use moe_geom::{
+    ContactInput, FingerParams, HandEstimator, HandModel, HandPreset, Observation, Staged,
+    WorldFromHand,
+};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::{FrameEstimate, PhysicsPipeline, Pipeline, RgbdFrame, StreamEvent, TouchError};
@@ -40,8 +43,10 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
     let mut pipeline = Pipeline::new(
         hand.clone(),
         detector(&hand, &episode),
-        MultiShapeEstimator::new(hand.clone(), options.clone()).unwrap(),
-        load_contact_model(&model_path(), &hand).unwrap(),
+        Staged::new(
+            MultiShapeEstimator::new(hand.clone(), options.clone()).unwrap(),
+            load_contact_model(&model_path(), &hand).unwrap(),
+        ),
         threshold,
     )
     .unwrap();
@@ -51,18 +56,15 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
     for frame in &episode.frames {
         let pose = WorldFromHand::new(frame.world_from_hand);
         let est = pipeline
-            .process(
-                RgbdFrame {
-                    color_rgb8: &frame.color_rgb8,
-                    depth_m: &frame.depth_m,
-                },
-                pose,
-            )
+            .process(frame.rgbd(), &Observation::new().with_world_from_hand(pose))
             .unwrap();
         let det = d.detect(&frame.color_rgb8, &frame.depth_m).unwrap();
         let shape = arap.estimate(&det.keypoints).unwrap().shape;
         let map = model
-            .estimate_map(&ContactInput::shape(&shape).with_keypoints(&det.keypoints))
+            .estimate_map(&ContactInput::new(
+                &shape,
+                Observation::from_keypoints(&det.keypoints),
+            ))
             .unwrap();
         assert_eq!(est.keypoints, det.keypoints);
         assert_eq!(est.shape, shape);
@@ -76,7 +78,7 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
         }
         contact_frames += usize::from(!points.is_empty());
         let t = est.timings;
-        assert!(t.total_ms >= t.markers_ms + t.shape_ms + t.contact_ms - 1e-9);
+        assert!(t.total_ms >= t.markers_ms + t.estimate_ms + t.points_ms - 1e-9);
         assert!(est.fingers_without_markers.is_empty());
     }
     assert!(
@@ -86,7 +88,9 @@ fn the_pipeline_equals_the_stages_run_one_by_one() {
 }
 
 /// What a frame's estimate says apart from its wall times.
-fn same_estimate(a: &FrameEstimate, b: &FrameEstimate) {
+fn same_estimate<D: PartialEq + std::fmt::Debug>(a: &FrameEstimate<D>, b: &FrameEstimate<D>) {
+    assert_eq!(a.details, b.details);
+    assert_eq!(a.vertex_force_n, b.vertex_force_n);
     assert_eq!(a.keypoints, b.keypoints);
     assert_eq!(a.shape, b.shape);
     assert_eq!(a.contact, b.contact);
@@ -104,8 +108,10 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
         Pipeline::new(
             hand.clone(),
             detector(&hand, &episode),
-            MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
-            load_contact_model(&model_path(), &hand).unwrap(),
+            Staged::new(
+                MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
+                load_contact_model(&model_path(), &hand).unwrap(),
+            ),
             CHAIN_THRESHOLD,
         )
         .unwrap()
@@ -116,10 +122,10 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
     // pipeline's.
     let f = &episode.frames;
     let mut p = physics_pipeline(&hand, &episode);
-    p.process_episode_frame(&f[1]).unwrap();
+    p.process(f[1].rgbd(), &f[1].observation()).unwrap();
     let mut late = f[2].clone();
     late.time_ns = f[1].time_ns + 500_000_000;
-    let after_gap = p.process_episode_frame(&late).unwrap();
+    let after_gap = p.process(late.rgbd(), &late.observation()).unwrap();
     assert!(
         matches!(after_gap.stream, StreamEvent::Restarted { gap_secs } if (gap_secs - 0.5).abs() < 1e-9),
         "{:?}",
@@ -128,7 +134,7 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
     same_estimate(
         &after_gap,
         &physics_pipeline(&hand, &episode)
-            .process_episode_frame(&late)
+            .process(late.rgbd(), &late.observation())
             .unwrap(),
     );
 }
@@ -146,25 +152,25 @@ fn physics_pipeline(hand: &HandModel, episode: &moe_io::Episode) -> PhysicsPipel
 
 /// Out-of-order frames are refused and change nothing; a gap beyond the memory's horizon and
 /// `reset()` each start a stream whose estimate is a fresh pipeline's, bit for bit.
-fn stream_contract<S, C>(episode: &moe_io::Episode, make: impl Fn() -> Pipeline<S, C>)
+fn stream_contract<E>(episode: &moe_io::Episode, make: impl Fn() -> Pipeline<E>)
 where
-    S: moe_geom::ShapeEstimator + std::fmt::Debug,
-    C: moe_geom::ContactEstimator + std::fmt::Debug,
+    E: HandEstimator + std::fmt::Debug,
+    E::Details: PartialEq + std::fmt::Debug,
 {
     let f = &episode.frames;
     let mut p = make();
     assert_eq!(
-        p.process_episode_frame(&f[0]).unwrap().stream,
+        p.process(f[0].rgbd(), &f[0].observation()).unwrap().stream,
         StreamEvent::Started
     );
-    let gap = match p.process_episode_frame(&f[1]).unwrap().stream {
+    let gap = match p.process(f[1].rgbd(), &f[1].observation()).unwrap().stream {
         StreamEvent::Continued { gap_secs } => gap_secs,
         other => panic!("{other:?}"),
     };
     assert!((gap - 0.2).abs() < 1e-9, "{gap}");
     // A repeated time and a time back in the stream are refused, naming both times.
     for k in [1, 0] {
-        let err = p.process_episode_frame(&f[k]).unwrap_err();
+        let err = p.process(f[k].rgbd(), &f[k].observation()).unwrap_err();
         assert!(
             matches!(err, TouchError::StreamOutOfOrder { time_secs, previous_secs }
                 if time_secs == 1e-9 * f[k].time_ns as f64 && previous_secs == 0.2),
@@ -178,36 +184,41 @@ where
     }
     // The refused frames changed nothing: the next frame is an undisturbed stream's.
     let mut undisturbed = make();
-    undisturbed.process_episode_frame(&f[0]).unwrap();
-    undisturbed.process_episode_frame(&f[1]).unwrap();
+    undisturbed
+        .process(f[0].rgbd(), &f[0].observation())
+        .unwrap();
+    undisturbed
+        .process(f[1].rgbd(), &f[1].observation())
+        .unwrap();
     same_estimate(
-        &p.process_episode_frame(&f[2]).unwrap(),
-        &undisturbed.process_episode_frame(&f[2]).unwrap(),
+        &p.process(f[2].rgbd(), &f[2].observation()).unwrap(),
+        &undisturbed
+            .process(f[2].rgbd(), &f[2].observation())
+            .unwrap(),
     );
     // A gap beyond the horizon: the stream restarts, and says so, as a fresh pipeline.
     let mut late = f[3].clone();
     late.time_ns += 5_000_000_000;
-    let after_gap = p.process_episode_frame(&late).unwrap();
+    let after_gap = p.process(late.rgbd(), &late.observation()).unwrap();
     match after_gap.stream {
         StreamEvent::Restarted { gap_secs } => assert!((gap_secs - 5.2).abs() < 1e-9),
         other => panic!("{other:?}"),
     }
-    same_estimate(&after_gap, &make().process_episode_frame(&late).unwrap());
+    same_estimate(
+        &after_gap,
+        &make().process(late.rgbd(), &late.observation()).unwrap(),
+    );
     // reset: the next frame starts a stream, whatever its time, as in a fresh pipeline.
     p.reset();
-    let again = p.process_episode_frame(&f[4]).unwrap();
+    let again = p.process(f[4].rgbd(), &f[4].observation()).unwrap();
     assert_eq!(again.stream, StreamEvent::Started);
-    same_estimate(&again, &make().process_episode_frame(&f[4]).unwrap());
+    same_estimate(
+        &again,
+        &make().process(f[4].rgbd(), &f[4].observation()).unwrap(),
+    );
     // Frames without a time carry the stream over and say so.
     let untimed = p
-        .process_with_pulls(
-            RgbdFrame {
-                color_rgb8: &f[5].color_rgb8,
-                depth_m: &f[5].depth_m,
-            },
-            WorldFromHand::new(f[5].world_from_hand),
-            Some(&f[5].tendon_pull_m),
-        )
+        .process(f[5].rgbd(), &f[5].observation().untimed())
         .unwrap();
     assert_eq!(untimed.stream, StreamEvent::Untimed);
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
@@ -225,7 +236,7 @@ fn the_physics_pipeline_reports_a_held_press_in_every_frame_after_its_onset() {
     let mut onset = None;
     let mut held = 0;
     for (k, frame) in episode.frames.iter().enumerate() {
-        let est = p.process_episode_frame(frame).unwrap();
+        let est = p.process(frame.rgbd(), &frame.observation()).unwrap();
         let pressed = !frame.contact_vertices[0].is_empty();
         let on_finger = |f: usize| est.contacts_in_hand.iter().any(|c| c.finger == f);
         if pressed && onset.is_none() && on_finger(0) {
@@ -236,8 +247,8 @@ fn the_physics_pipeline_reports_a_held_press_in_every_frame_after_its_onset() {
             // a force, and nothing on the free finger.
             assert!(on_finger(0), "frame {k}: the held press was dropped");
             assert!(!on_finger(1), "frame {k}: contact on the free finger");
-            let e = p.last_physics_estimate().unwrap();
-            assert!(e.loads.iter().any(|l| l.finger == 0 && l.magnitude_n > 0.0));
+            let loads = &est.details.loads;
+            assert!(loads.iter().any(|l| l.finger == 0 && l.magnitude_n > 0.0));
             held += 1;
         }
     }
@@ -254,8 +265,10 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
     let mut pipeline = Pipeline::new(
         hand.clone(),
         detector(&hand, &episode),
-        MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
-        model,
+        Staged::new(
+            MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
+            model,
+        ),
         threshold,
     )
     .unwrap();
@@ -276,7 +289,7 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
                     color_rgb8: &frame.color_rgb8,
                     depth_m: &depth,
                 },
-                WorldFromHand::new(frame.world_from_hand),
+                &Observation::new().with_world_from_hand(WorldFromHand::new(frame.world_from_hand)),
             )
             .unwrap();
         if (2..5).contains(&k) {
@@ -297,7 +310,7 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
                 color_rgb8: &[],
                 depth_m: &[],
             },
-            WorldFromHand::identity(),
+            &Observation::new().with_world_from_hand(WorldFromHand::identity()),
         )
         .unwrap_err();
     assert!(matches!(err, TouchError::ImageSize { .. }), "{err}");
@@ -573,8 +586,10 @@ fn a_contact_threshold_outside_the_unit_interval_is_refused() {
         let err = Pipeline::new(
             hand.clone(),
             detector(&hand, &episode),
-            MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
-            load_contact_model(&model_path(), &hand).unwrap(),
+            Staged::new(
+                MultiShapeEstimator::new(hand.clone(), ShapeConfig::default()).unwrap(),
+                load_contact_model(&model_path(), &hand).unwrap(),
+            ),
             threshold,
         )
         .unwrap_err();

@@ -9,15 +9,14 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use moe_arap::ShapeConfig;
+use moe_geom::{HandEstimator as _, OwnedObservation};
 use moe_geom::{HandKeypoints, HandModel, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_lab::physics_eval::{
     Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame, evaluate_physics,
     evaluate_plates_physics, simulate_perceived,
 };
-use moe_physics::{
-    CalibrationFrame, CalibrationOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, calibrate,
-};
+use moe_physics::{CalibrationOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, calibrate};
 use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
 
 use crate::cli::eval::contact::load_estimator;
@@ -204,13 +203,13 @@ fn calibrated(
     scene_config.voxel = params.voxel.clone();
     let stream = moe_lab::physics_eval::simulate_stream(&scene_config, hand, 0)
         .with_context(|| format!("calibration scene {}", scene.display()))?;
-    let frames: Vec<CalibrationFrame> = stream
+    let frames: Vec<OwnedObservation> = stream
         .iter()
-        .map(|s| CalibrationFrame {
-            time_secs: s.time_secs,
-            keypoints: s.frame.markers.clone(),
-            tendon_pull_m: s.frame.tendon_pull_m.clone(),
-            world_from_hand: s.frame.world_from_hand,
+        .map(|s| {
+            s.frame
+                .observation()
+                .with_time(s.time_secs)
+                .to_owned_observation()
         })
         .collect();
     let report = calibrate(
@@ -541,19 +540,14 @@ fn golden_physics_with(config: &PhysicsConfig) -> Result<serde_json::Value> {
             estimator.reset();
             previous = Some(sf.frame.trajectory_id);
         }
-        let est = estimator.estimate(&moe_physics::PhysicsObservation {
-            keypoints: &sf.frame.markers,
-            tendon_pull_m: &sf.frame.tendon_pull_m,
-            world_from_hand: &sf.frame.world_from_hand,
-            time_secs: Some(sf.time_secs),
-        })?;
+        let est = estimator.estimate(&sf.frame.observation().with_time(sf.time_secs))?;
         per_frame.push(serde_json::json!({
-            "loads": est.loads.iter().map(|l| serde_json::json!({
+            "loads": est.details.loads.iter().map(|l| serde_json::json!({
                 "finger": l.finger,
                 "vertex": l.vertex,
                 "force_n": [l.force_n.x, l.force_n.y, l.force_n.z],
             })).collect::<Vec<_>>(),
-            "statistic": est.fingers.iter().map(|f| f.statistic).collect::<Vec<_>>(),
+            "statistic": est.details.fingers.iter().map(|f| f.statistic).collect::<Vec<_>>(),
         }));
     }
     value["per_frame"] = serde_json::Value::Array(per_frame);
