@@ -19,16 +19,6 @@ pub mod golden;
 /// Marker detections drawn over camera frames.
 pub mod overlay;
 
-/// The README's Rust example, compiled by `cargo test` so that it stays true.
-#[doc = include_str!("../../../README.md")]
-#[cfg(doctest)]
-pub struct ReadmeExample;
-
-/// The pipeline guide's Rust example, compiled by `cargo test`.
-#[doc = include_str!("../../../docs/guide-pipeline.md")]
-#[cfg(doctest)]
-pub struct PipelineGuideExample;
-
 /// Shape and contact estimation for soft tendon-driven hands, from deformation alone.
 #[derive(Debug, Parser)]
 #[command(

@@ -75,6 +75,14 @@ pub enum TouchError {
         /// What is wrong.
         reason: &'static str,
     },
+    /// A settings file parsed but holds a value out of range.
+    #[error("{}: {source}", path.display())]
+    InvalidSettings {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What its settings' own check said.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// A marker-detector parameter is out of range.
     #[error("marker detector: {name} = {value}: {reason}")]
     InvalidDetector {

@@ -36,6 +36,8 @@ pub mod filter;
 pub mod perception;
 /// The per-frame pipeline: markers, shape, contact, contact points in the world.
 pub mod pipeline;
+/// The one loader of each settings file: detector parameters, material, physics settings.
+pub mod settings;
 
 pub use error::TouchError;
 pub use moe_geom::{Observation, RgbdFrame};
@@ -53,6 +55,12 @@ pub use moe_geom;
 pub use moe_io;
 #[cfg(feature = "physics")]
 pub use moe_physics;
+
+/// The pipeline guide's Rust example, compiled by `cargo test` in the runtime's own crate (the
+/// README's is the `moe-touch-quickstart` crate, which depends on `moe-touch` alone).
+#[doc = include_str!("../../../docs/guide-pipeline.md")]
+#[cfg(all(doctest, feature = "physics", feature = "dgcnn"))]
+pub struct PipelineGuideExample;
 
 /// What a program that runs the pipeline names, in one `use moe_touch::prelude::*;`: the
 /// pipeline and its frame estimate, the observation and the camera frame, the hand, its
@@ -72,8 +80,9 @@ pub mod prelude {
     pub use moe_contact::DgcnnEstimator;
     pub use moe_geom::{
         CameraIntrinsics, ContactEstimator, ContactMap, ContactPoint, FingerParams, HandEstimate,
-        HandEstimator, HandKeypoints, HandModel, HandPreset, HandShape, Observation,
-        OwnedObservation, Point3, Real, RgbdFrame, ShapeEstimator, Staged, Vector3, WorldFromHand,
+        HandEstimator, HandFromCamera, HandKeypoints, HandModel, HandPreset, HandShape,
+        Observation, OwnedObservation, Point3, Real, RgbdFrame, ShapeEstimator, Staged, Vector3,
+        WorldFromHand,
     };
     pub use moe_io::{Episode, EpisodeFrame, EpisodeInfo};
     #[cfg(feature = "physics")]

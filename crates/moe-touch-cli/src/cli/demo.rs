@@ -85,7 +85,8 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
                 ),
             };
             let pipeline = Pipeline::paper(hand.clone(), detector, model, ShapeConfig::default())?;
-            demo(&args, &hand, &episode, pipeline, &model_name)
+            let settings = "the paper's pipeline: SR-ARAP and the contact model";
+            demo(&args, &hand, &episode, pipeline, &model_name, settings)
         }
         ContactMethod::Physics => {
             // The committed episode's plate stands between the camera and the pressed tip: the
@@ -103,10 +104,18 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
             } else {
                 None
             };
+            let settings = match (&built_in, args.estimator.physics_config()) {
+                (Some(_), _) => format!(
+                    "the physics estimator with {OCCLUDING_SETTINGS_NAME} (the plate hides the \
+                     pressed tip's markers; --physics-config FILE for others)"
+                ),
+                (None, Some(p)) => format!("the physics estimator with {}", p.display()),
+                (None, None) => "the physics estimator, default settings".to_owned(),
+            };
             let (pipeline, name) =
                 args.estimator
                     .physics_pipeline_with(hand.clone(), detector, built_in)?;
-            demo(&args, &hand, &episode, pipeline, &name)
+            demo(&args, &hand, &episode, pipeline, &name, &settings)
         }
     }
 }
@@ -118,6 +127,7 @@ fn demo<E>(
     episode: &moe_io::Episode,
     mut pipeline: Pipeline<E>,
     model_name: &str,
+    settings: &str,
 ) -> Result<()>
 where
     E: HandEstimator,
@@ -178,7 +188,7 @@ where
         moe_io::write_ply(&args.out.join(name), ply)?;
     }
     moe_io::write_atomic(&args.out.join("figure.png"), &png)?;
-    print_table(&report, best, &args.out, &args.estimator);
+    print_table(&report, best, &args.out, settings);
     Ok(())
 }
 
@@ -361,20 +371,10 @@ fn meshes<'a>(
         .collect()
 }
 
-fn print_table(r: &RunReport, best: usize, out: &Path, estimator: &super::run::EstimatorArgs) {
+/// The demo's table: `settings` says how contact was estimated.
+fn print_table(r: &RunReport, best: usize, out: &Path, settings: &str) {
     let opt = |v: Option<f64>, unit: &str| v.map_or("—".to_owned(), |v| format!("{v:.2} {unit}"));
     super::outln!("MOE-Touch demo: plate pressing the tip of finger 0, seen by the wrist camera");
-    let settings = match (estimator.contact, estimator.physics_config()) {
-        (ContactMethod::Dgcnn, _) => {
-            "the paper's pipeline: SR-ARAP and the contact model".to_owned()
-        }
-        (ContactMethod::Physics, None) => "the physics estimator, default settings".to_owned(),
-        (ContactMethod::Physics, Some(p)) if p.ends_with(OCCLUDING_SETTINGS) => format!(
-            "the physics estimator with {OCCLUDING_SETTINGS} (the plate hides the pressed tip's \
-             markers; --physics-config FILE for others)"
-        ),
-        (ContactMethod::Physics, Some(p)) => format!("the physics estimator with {}", p.display()),
-    };
     super::outln!("  contact estimation          {settings}");
     super::outln!("  frames                      {}", r.frames);
     if let Some(m) = &r.markers {

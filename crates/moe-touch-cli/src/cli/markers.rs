@@ -62,8 +62,8 @@ struct MarkersRecord {
 }
 
 pub(crate) fn run(args: MarkersArgs) -> Result<()> {
-    let config: DetectorConfig = match &args.config {
-        Some(path) => moe_io::read_config(path)?,
+    let config = match &args.config {
+        Some(path) => moe_touch::settings::load_detector_config(path)?,
         None => DetectorConfig::default(),
     };
     let episode = moe_io::read_episode(&args.episode)?;

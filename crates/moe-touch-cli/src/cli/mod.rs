@@ -55,10 +55,7 @@ pub(crate) fn load_material(
     let Some(path) = path else {
         return Ok((moe_physics::HandMaterial::default(), "nominal".to_owned()));
     };
-    let material: moe_physics::HandMaterial = moe_io::read_config(path)?;
-    material
-        .validate()
-        .with_context(|| format!("--material {}", path.display()))?;
+    let material = moe_touch::settings::load_material(path).context("--material")?;
     Ok((material, path.display().to_string()))
 }
 
@@ -71,10 +68,7 @@ pub(crate) fn load_physics_config(
     let Some(path) = path else {
         return Ok((moe_physics::PhysicsConfig::default(), "default".to_owned()));
     };
-    let config: moe_physics::PhysicsConfig = moe_io::read_config(path)?;
-    config
-        .validate()
-        .with_context(|| format!("--physics-config {}", path.display()))?;
+    let config = moe_touch::settings::load_physics_config(path).context("--physics-config")?;
     Ok((config, path.display().to_string()))
 }
 

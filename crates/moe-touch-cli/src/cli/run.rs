@@ -201,8 +201,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             dir.display()
         );
     }
-    let config: DetectorConfig = match &args.config {
-        Some(path) => moe_io::read_config(path)?,
+    let config = match &args.config {
+        Some(path) => moe_touch::settings::load_detector_config(path)?,
         None => DetectorConfig::default(),
     };
     let hand = super::load_hand(&args.hand)?;

@@ -12,6 +12,16 @@ pub(crate) fn run(args: &[&str]) -> Output {
         .expect("the moe-touch binary runs")
 }
 
+/// Runs the `moe-touch` binary with `args` in the working directory `dir`.
+pub(crate) fn run_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_moe-touch"))
+        .args(args)
+        .current_dir(dir)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("the moe-touch binary runs")
+}
+
 /// A fresh, empty scratch directory for one test.
 pub(crate) fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("moe-touch-it-{}-{name}", std::process::id()));

@@ -478,6 +478,24 @@ fn the_foxglove_layout_shows_only_topics_a_run_writes() {
     assert!(panels.contains_key("Plot!force"));
 }
 
+/// The demo's episode, model and settings are built into the binary: run from a directory far
+/// from the checkout (as an installed tool is), it writes its outputs where a relative `--out`
+/// says, against the working directory.
+#[test]
+fn the_demo_runs_from_any_directory() {
+    use crate::common::{run_in, scratch};
+    let dir = scratch("demo-elsewhere");
+    for method in ["physics", "dgcnn"] {
+        let o = run_in(&dir, &["demo", "--contact", method, "--out", method]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for file in ["result.mcap", "report.json", "figure.png"] {
+            assert!(dir.join(method).join(file).is_file(), "{method}: {file}");
+        }
+        let table = String::from_utf8_lossy(&o.stdout);
+        assert!(table.contains("(built in)") || method == "dgcnn", "{table}");
+    }
+}
+
 #[test]
 fn the_demo_needs_no_arguments_and_writes_its_outputs() {
     use crate::common::{run_ok, scratch};
@@ -576,6 +594,65 @@ fn the_demo_needs_no_arguments_and_writes_its_outputs() {
         "{err}"
     );
     assert!(!refused.exists());
+}
+
+/// The pipeline finds the markers itself and needs the wrist pose: an observation that carries
+/// markers, or lacks the pose, is refused before anything changes, and the stream goes on.
+#[test]
+fn an_observation_with_markers_or_without_a_pose_is_refused() {
+    let hand = hand();
+    let episode = episode();
+    let mut p = physics_pipeline(&hand, &episode);
+    let f = &episode.frames;
+    let keypoints = hand.rest_keypoints();
+    let err = p
+        .process(f[0].rgbd(), &f[0].observation().with_keypoints(&keypoints))
+        .unwrap_err();
+    assert!(
+        matches!(err, TouchError::InvalidObservation { .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("already carries markers"), "{err}");
+    let mut no_pose = Observation::new().with_tendon_pulls(&f[0].tendon_pull_m);
+    no_pose = no_pose.with_time(f[0].time_secs());
+    let err = p.process(f[0].rgbd(), &no_pose).unwrap_err();
+    assert!(
+        matches!(err, TouchError::MissingObservation { what } if what.contains("world_from_hand")),
+        "{err}"
+    );
+    // The physics estimator needs the pulls: its own error, through the pipeline.
+    let no_pulls = Observation::new()
+        .with_world_from_hand(WorldFromHand::new(f[0].world_from_hand))
+        .with_time(f[0].time_secs());
+    let err = p.process(f[0].rgbd(), &no_pulls).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            TouchError::Physics(moe_physics::PhysicsError::Missing { .. })
+        ),
+        "{err}"
+    );
+    // The stream goes on: the estimator's refusal came after the frame had entered the stream
+    // at frame 0's time, so the next frame continues it.
+    let next = p.process(f[1].rgbd(), &f[1].observation()).unwrap();
+    assert!(
+        matches!(next.stream, StreamEvent::Continued { .. }),
+        "{:?}",
+        next.stream
+    );
+    // The paper's pipeline is the staged SR-ARAP and network, and says nothing more.
+    let model = load_contact_model(&model_path(), &hand).unwrap();
+    let mut paper = Pipeline::paper(
+        hand.clone(),
+        detector(&hand, &episode),
+        model,
+        ShapeConfig::default(),
+    )
+    .unwrap();
+    let est = paper.process(f[3].rgbd(), &f[3].observation()).unwrap();
+    assert_eq!(est.details, ());
+    assert_eq!(est.vertex_force_n, None);
+    assert_eq!(est.shape.fingers.len(), hand.num_fingers());
 }
 
 #[test]
