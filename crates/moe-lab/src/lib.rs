@@ -29,6 +29,8 @@ pub mod patting;
 /// Contact from physics evaluated as tactile sensors are specified (detection, location and
 /// force by the finger's true force), beside the paper's metrics.
 pub mod physics_eval;
+/// The contact network on a bare point cloud (no hand), to check a model file.
+pub mod point_cloud;
 /// Running the pipeline over a recorded episode, scored against its ground truth.
 pub mod run;
 /// Training a contact model on generated data sets.

@@ -17,6 +17,7 @@
 //! the frames that have contact, for the DGCNN on SR-ARAP shapes and for `KNN[All]`.
 
 mod augmentation;
+mod knn;
 mod plates;
 mod table;
 #[cfg(test)]
@@ -26,9 +27,10 @@ pub use augmentation::{
     MAX_MARKER_NOISE_M, MarkerAugmentation, distal_marker_order, marker_subset,
     with_estimated_shapes,
 };
+pub use knn::{KnnIndexSource, build_knn_index, knn_index, read_knn_index};
 pub use plates::{
-    PLATE_OFFSET_M, PLATE_TILT_DEG, PlateScene, PlateTrial, PlateTrialScene, evaluate_plates,
-    perturbed_plate, plate_trials, simulate_labelled,
+    PLATE_OFFSET_M, PLATE_SCENES, PLATE_TILT_DEG, PlateScene, PlateTrial, PlateTrialScene,
+    evaluate_plates, perturbed_plate, plate_scenes, plate_trials, simulate_labelled,
 };
 pub use table::{
     ContactEvalOptions, ContactRow, ContactTable, Estimators, FramePrediction, ShapeRow,

@@ -21,6 +21,48 @@ pub struct PlateScene {
     pub config: SceneConfig,
 }
 
+/// The paper's plate scenes of Table 2 (Fig. 5), in the paper's order: name and region
+/// pressed. Their scene files, `fixtures/scenes/<name>.toml`, are hand-written and built into
+/// this crate, so that every study finds the same scenes wherever it runs.
+pub const PLATE_SCENES: [(&str, &str); 6] = [
+    ("plate_tip_front", "tip"),
+    ("plate_tip_side", "tip"),
+    ("plate_middle_front", "middle"),
+    ("plate_middle_side", "middle"),
+    ("plate_base_front", "base"),
+    ("plate_base_side", "base"),
+];
+
+/// The text of each of [`PLATE_SCENES`]' files, in its order.
+const PLATE_SCENE_FILES: [&str; 6] = [
+    include_str!("../../../../fixtures/scenes/plate_tip_front.toml"),
+    include_str!("../../../../fixtures/scenes/plate_tip_side.toml"),
+    include_str!("../../../../fixtures/scenes/plate_middle_front.toml"),
+    include_str!("../../../../fixtures/scenes/plate_middle_side.toml"),
+    include_str!("../../../../fixtures/scenes/plate_base_front.toml"),
+    include_str!("../../../../fixtures/scenes/plate_base_side.toml"),
+];
+
+/// The one registry of the paper's plate scenes: [`PLATE_SCENES`] with their configurations, in
+/// the paper's order (the scenes of [`evaluate_plates`] and the physics study's Table 2).
+///
+/// # Errors
+/// A scene file that does not parse (a build from an edited checkout).
+pub fn plate_scenes() -> Result<Vec<PlateScene>, LabError> {
+    PLATE_SCENES
+        .iter()
+        .zip(PLATE_SCENE_FILES)
+        .map(|(&(name, region), text)| {
+            let path = std::path::PathBuf::from(format!("fixtures/scenes/{name}.toml"));
+            Ok(PlateScene {
+                name: name.to_owned(),
+                region: region.to_owned(),
+                config: moe_io::parse_toml(text.as_bytes(), &path)?,
+            })
+        })
+        .collect()
+}
+
 /// One trial of one plate scene.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PlateTrial {

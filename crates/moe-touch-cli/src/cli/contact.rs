@@ -6,16 +6,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_contact::candle_core::{DType, Tensor};
-use moe_contact::{
-    Aggregation, DeviceKind, Dgcnn, DgcnnEstimator, ForwardTimings, InputFeature, Mode, ModelCard,
-    contact_probability, open_device,
-};
+use moe_contact::{Aggregation, DeviceKind, ForwardTimings, InputFeature};
 use moe_geom::{
     ContactInput, ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3,
     WorldFromHand,
 };
 use moe_geom::{HandEstimator as _, Observation};
+use moe_lab::point_cloud::{NetworkPrecision, PointCloudModel, PointCloudOptions};
 use moe_lab::run::{LoadRecord, finger_force_records};
 use moe_physics::PhysicsEstimator;
 use serde::{Deserialize, Serialize};
@@ -86,14 +83,15 @@ pub(crate) struct ContactArgs {
     /// dgcnn: the model, `NAME.safetensors`, with its card `NAME.json` beside it if there is one.
     #[arg(long, value_name = "M.safetensors")]
     model: Option<PathBuf>,
-    /// dgcnn: edge aggregation, max or sum, overriding the card's (the weights do not depend on
-    /// it).
+    /// dgcnn with --points: edge aggregation, max or sum, overriding the card's (the weights do
+    /// not depend on it). A hand shape runs the model as the runtime does.
     #[arg(long)]
     aggregation: Option<Aggregation>,
-    /// dgcnn: float type of the computation [default: f32].
+    /// dgcnn with --points: float type of the computation [default: f32].
     #[arg(long, value_enum)]
     dtype: Option<Precision>,
-    /// dgcnn: device, cpu or cuda in a build with the `cuda` feature [default: cpu].
+    /// dgcnn with --points: device, cpu or cuda in a build with the `cuda` feature [default:
+    /// cpu].
     #[arg(long)]
     device: Option<DeviceKind>,
     /// Contact threshold on the probability (default: the model card's, else 0.5; physics:
@@ -106,48 +104,6 @@ pub(crate) struct ContactArgs {
     /// Print the report as one JSON object.
     #[arg(long)]
     json: bool,
-}
-
-/// A loaded model: the network and its card (the defaults, widened to the weights, without one).
-pub(crate) struct LoadedModel {
-    pub(crate) net: Dgcnn,
-    pub(crate) card: ModelCard,
-    pub(crate) has_card: bool,
-}
-
-/// Reads and checks `NAME.safetensors` and its card.
-pub(crate) fn load_model(
-    path: &Path,
-    dtype: Precision,
-    device: DeviceKind,
-    aggregation: Option<Aggregation>,
-) -> Result<LoadedModel> {
-    let device = open_device(device)?;
-    let files = moe_io::read_model_files(path)?;
-    let card = match &files.card {
-        Some(text) => Some(
-            ModelCard::from_json(text)
-                .with_context(|| format!("model card {}", files.card_path.display()))?,
-        ),
-        None => None,
-    };
-    let dtype = match dtype {
-        Precision::F32 => DType::F32,
-        Precision::F64 => DType::F64,
-    };
-    let mut net = Dgcnn::from_safetensors(&files.weights, card.as_ref(), dtype, &device)
-        .with_context(|| format!("model {}", path.display()))?;
-    if let Some(a) = aggregation {
-        net.set_aggregation(a);
-    }
-    let has_card = card.is_some();
-    let mut card = card.unwrap_or_else(|| ModelCard::new(net.config().clone()));
-    card.architecture.aggregation = net.config().aggregation;
-    Ok(LoadedModel {
-        net,
-        card,
-        has_card,
-    })
 }
 
 /// The `--points` report.
@@ -243,34 +199,46 @@ fn run_dgcnn(args: ContactArgs) -> Result<()> {
     let Some(model_path) = &args.model else {
         bail!("--method dgcnn needs --model M.safetensors (or use --method physics)");
     };
-    let dtype = args.dtype.unwrap_or(Precision::F32);
-    let device = args.device.unwrap_or(DeviceKind::Cpu);
-    let model = load_model(model_path, dtype, device, args.aggregation)?;
-    let threshold = check_threshold(args.threshold.unwrap_or(model.card.threshold))?;
     match (&args.points, &args.hand, &args.shape) {
         (Some(points), None, None) => {
             if args.tendon_pulls.is_some() {
                 bail!("--tendon-pulls needs --hand with --shape (a point cloud has no fingers)");
             }
-            run_points(&args, model_path, dtype, points, &model, threshold, t0)
+            run_points(&args, model_path, points, t0)
         }
         (None, Some(hand), Some(shape)) => {
-            run_shape(&args, model_path, dtype, hand, shape, model, threshold, t0)
+            for (given, flag) in [
+                (args.aggregation.is_some(), "--aggregation"),
+                (args.dtype.is_some(), "--dtype"),
+                (args.device.is_some(), "--device"),
+            ] {
+                if given {
+                    bail!(
+                        "{flag} is for --points; a hand shape runs the model as the runtime \
+                         does (f32 on the CPU, the card's aggregation)"
+                    );
+                }
+            }
+            run_shape(&args, model_path, hand, shape, t0)
         }
         _ => bail!("give either --points, or --hand with --shape"),
     }
 }
 
-fn run_points(
-    args: &ContactArgs,
-    model_path: &Path,
-    dtype: Precision,
-    points: &Path,
-    model: &LoadedModel,
-    threshold: f64,
-    t0: Instant,
-) -> Result<()> {
-    let spec = &model.card.architecture.input;
+fn run_points(args: &ContactArgs, model_path: &Path, points: &Path, t0: Instant) -> Result<()> {
+    let dtype = args.dtype.unwrap_or(Precision::F32);
+    let options = PointCloudOptions {
+        precision: match dtype {
+            Precision::F32 => NetworkPrecision::F32,
+            Precision::F64 => NetworkPrecision::F64,
+        },
+        device: args.device.unwrap_or(DeviceKind::Cpu),
+        aggregation: args.aggregation,
+    };
+    let model = PointCloudModel::load(model_path, &options)
+        .with_context(|| format!("model {}", model_path.display()))?;
+    let threshold = check_threshold(args.threshold.unwrap_or(model.card().threshold))?;
+    let spec = &model.card().architecture.input;
     if spec.features != [InputFeature::Xyz] {
         bail!(
             "model {}: its input features ({}) cannot be made from a point cloud; use --hand \
@@ -289,36 +257,25 @@ fn run_points(
         );
     }
     let n = rows.len();
-    let mut values: Vec<f64> = rows.into_iter().flatten().collect();
-    spec.normalise(&mut values);
-    let x = Tensor::from_vec(values, (1, n, 3), &moe_contact::candle_core::Device::Cpu)?;
+    let cloud: Vec<[f64; 3]> = rows.iter().map(|r| [r[0], r[1], r[2]]).collect();
     let out = model
-        .net
-        .forward_with(&x, Mode::Eval)
+        .estimate(&cloud)
         .with_context(|| format!("points {}", points.display()))?;
-    let logits = out
+    let table: Vec<Vec<f64>> = out
         .logits
-        .to_dtype(DType::F64)?
-        .flatten_all()?
-        .to_vec1::<f64>()?;
-    let prob = contact_probability(&out.logits)?
-        .to_dtype(DType::F64)?
-        .flatten_all()?
-        .to_vec1::<f64>()?;
-    let table: Vec<Vec<f64>> = logits
-        .chunks_exact(2)
-        .zip(&prob)
+        .iter()
+        .zip(&out.probability)
         .map(|(l, &p)| vec![l[0], l[1], p])
         .collect();
     moe_io::write_csv(&args.out, &["logit0", "logit1", "probability"], &table)?;
     let report = PointsReport {
         points: n,
         model: model_path.display().to_string(),
-        card: model.has_card,
-        aggregation: model.net.config().aggregation,
+        card: model.has_card(),
+        aggregation: model.aggregation(),
         dtype,
         threshold,
-        contact_points: prob.iter().filter(|&&p| p >= threshold).count(),
+        contact_points: out.probability.iter().filter(|&&p| p >= threshold).count(),
         timings_ms: TimingsMs::new(out.timings, t0.elapsed().as_secs_f64()),
         out: args.out.display().to_string(),
     };
@@ -373,23 +330,18 @@ fn read_shape(hand: &HandModel, dir: &Path) -> Result<HandShape> {
     Ok(HandShape { fingers })
 }
 
-#[allow(clippy::too_many_arguments)]
 fn run_shape(
     args: &ContactArgs,
     model_path: &Path,
-    dtype: Precision,
     hand_spec: &str,
     dir: &Path,
-    model: LoadedModel,
-    threshold: f64,
     t0: Instant,
 ) -> Result<()> {
     let hand = super::load_hand(hand_spec)?;
-    let shape = read_shape(&hand, dir)?;
-    let has_card = model.has_card;
-    let aggregation = model.net.config().aggregation;
-    let estimator = DgcnnEstimator::new(model.net, model.card, &hand)
+    let estimator = moe_touch::pipeline::load_contact_model(model_path, &hand)
         .with_context(|| format!("model {} on hand '{hand_spec}'", model_path.display()))?;
+    let threshold = check_threshold(args.threshold.unwrap_or(estimator.threshold()))?;
+    let shape = read_shape(&hand, dir)?;
     let pulls = args
         .tendon_pulls
         .as_deref()
@@ -402,12 +354,10 @@ fn run_shape(
             estimator.features().spec().describe()
         );
     }
+    let mut observation = Observation::new();
+    observation.tendon_pull_m = pulls.as_deref();
     let (mut maps, timings) = estimator
-        .estimate_inputs(&[ContactInput::new(&shape, {
-            let mut observation = Observation::new();
-            observation.tendon_pull_m = pulls.as_deref();
-            observation
-        })])
+        .estimate_inputs(&[ContactInput::new(&shape, observation)])
         .with_context(|| format!("shape {}", dir.display()))?;
     let map: ContactMap = maps.pop().context("no contact map")?;
     // Everything in memory first, so that a failure leaves nothing half-written.
@@ -430,9 +380,9 @@ fn run_shape(
         hand: hand_spec.to_string(),
         shape: dir.display().to_string(),
         model: model_path.display().to_string(),
-        card: has_card,
-        aggregation,
-        dtype,
+        card: true,
+        aggregation: estimator.network().config().aggregation,
+        dtype: Precision::F32,
         threshold,
         frame: "hand",
         contact_vertices: contacts.len(),

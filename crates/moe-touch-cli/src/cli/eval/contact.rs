@@ -11,10 +11,9 @@ use moe_contact::{DgcnnEstimator, KnnIndex};
 use moe_geom::{ContactInput, HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_lab::contact_eval::{
-    ContactEvalOptions, ContactTable, Estimators, PlateScene, PlateTrial, TruthLabels, contact_ply,
-    evaluate_plates, evaluate_table1,
+    ContactEvalOptions, ContactTable, Estimators, KnnIndexSource, PlateTrial, TruthLabels,
+    contact_ply, evaluate_plates, evaluate_table1,
 };
-use moe_tendon_sim::SceneConfig;
 use serde_json::json;
 
 use crate::golden::workspace_root;
@@ -78,16 +77,6 @@ pub(crate) enum FrameSet {
     All,
 }
 
-/// The six plate scenes of Table 2, in the paper's order.
-const PLATES: [(&str, &str); 6] = [
-    ("plate_tip_front", "tip"),
-    ("plate_tip_side", "tip"),
-    ("plate_middle_front", "middle"),
-    ("plate_middle_side", "middle"),
-    ("plate_base_front", "base"),
-    ("plate_base_side", "base"),
-];
-
 /// Frames whose estimates `--out` writes.
 const SHOWN_FRAMES: usize = 4;
 
@@ -107,46 +96,22 @@ pub(crate) fn load_estimator(path: &Path, hand: &HandModel) -> Result<DgcnnEstim
     })
 }
 
+/// The `KNN[All]` index of `--knn-index` or of the data set's training frames, saying which.
 fn knn_index(args: &ContactEvalArgs, reader: &DatasetReader) -> Result<KnnIndex> {
-    if let Some(path) = &args.knn_index
-        && path.exists()
-    {
-        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        let index = KnnIndex::from_bytes(&bytes)
-            .with_context(|| format!("KNN index {}", path.display()))?;
-        if index.vertices_per_finger() != reader.card().layout.finger_num_vertices.as_slice() {
-            bail!(
-                "KNN index {} is of a hand with {:?} vertices per finger, the data set's has {:?}",
-                path.display(),
-                index.vertices_per_finger(),
-                reader.card().layout.finger_num_vertices
-            );
-        }
-        eprintln!(
-            "eval contact: KNN index of {} frames from {}",
-            index.len(),
-            path.display()
-        );
-        return Ok(index);
-    }
-    let mut frames = Vec::new();
-    for f in reader.labelled_frames(Some(Split::Train), SplitFractions::default()) {
-        frames.push(f?);
-    }
-    if frames.is_empty() {
-        bail!(
-            "{}: no training frames for the KNN index",
-            args.data.display()
-        );
-    }
-    let index = KnnIndex::new(&frames, true)?;
-    if let Some(path) = &args.knn_index {
-        moe_io::write_atomic(path, &index.to_bytes()?)?;
-        eprintln!(
-            "eval contact: built the KNN index of {} training frames, wrote {}",
-            index.len(),
-            path.display()
-        );
+    let path = args.knn_index.as_deref();
+    let (index, source) = moe_lab::contact_eval::knn_index(reader, path)
+        .with_context(|| format!("data set {}", args.data.display()))?;
+    let shown = path.map_or_else(String::new, |p| p.display().to_string());
+    match source {
+        KnnIndexSource::Read => eprintln!(
+            "eval contact: KNN index of {} frames from {shown}",
+            index.len()
+        ),
+        KnnIndexSource::BuiltAndWritten => eprintln!(
+            "eval contact: built the KNN index of {} training frames, wrote {shown}",
+            index.len()
+        ),
+        KnnIndexSource::Built => {}
     }
     Ok(index)
 }
@@ -244,7 +209,7 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
             shown.contains(&k)
         })?;
     let plates = if let (true, Some(knn_all)) = (args.trials > 0, &knn_all) {
-        let scenes = plate_scenes()?;
+        let scenes = moe_lab::contact_eval::plate_scenes()?;
         eprintln!(
             "eval contact: {} plate scenes × {} trials",
             scenes.len(),
@@ -351,7 +316,7 @@ fn physics_rows(
     let plates = if args.trials > 0 {
         moe_lab::physics_eval::evaluate_plates_physics(
             hand,
-            &plate_scenes()?,
+            &moe_lab::contact_eval::plate_scenes()?,
             args.trials,
             args.seed,
             estimator,
@@ -361,25 +326,6 @@ fn physics_rows(
         Vec::new()
     };
     Ok((eval, plates))
-}
-
-pub(crate) fn plate_scenes() -> Result<Vec<PlateScene>> {
-    let dir = workspace_root().join("fixtures/scenes");
-    PLATES
-        .iter()
-        .map(|(name, region)| {
-            let path = dir.join(format!("{name}.toml"));
-            let text = std::fs::read_to_string(&path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            let config: SceneConfig =
-                toml::from_str(&text).with_context(|| format!("scene {}", path.display()))?;
-            Ok(PlateScene {
-                name: (*name).to_owned(),
-                region: (*region).to_owned(),
-                config,
-            })
-        })
-        .collect()
 }
 
 /// Mean ± sd of the trials' UCD per region, for DGCNN and `KNN[All]` (mm); trials whose every

@@ -289,7 +289,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
     let plates = if args.plates > 0 {
         evaluate_plates_physics(
             &hand,
-            &crate::cli::eval::contact::plate_scenes()?,
+            &moe_lab::contact_eval::plate_scenes()?,
             args.plates,
             args.seed,
             &mut estimator,
