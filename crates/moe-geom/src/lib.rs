@@ -34,6 +34,8 @@ pub mod plane;
 pub mod rng;
 /// Procedural closed meshes: icospheres, star-shaped surfaces, superquadrics.
 pub mod shapes;
+/// "Is this the same hand?": hand signatures and differences.
+pub mod signature;
 /// Edges, one-rings, boundary loops, connected components.
 pub mod topology;
 /// Rigid transforms named by frame.
@@ -60,6 +62,7 @@ pub use mesh::{Aabb, TriMesh};
 pub use observation::{Observation, OwnedObservation, RgbdFrame};
 pub use plane::{PlaneFit, RansacConfig, fit_plane_ransac};
 pub use rng::SeededRng;
+pub use signature::{HandDifference, HandSignature};
 pub use topology::{Topology, largest_component};
 pub use transform::{
     CameraFromHand, HandFromCamera, HandFromFinger, Transform, WorldFromHand, frame,

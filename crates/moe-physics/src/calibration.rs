@@ -201,7 +201,7 @@ pub fn calibrate(
         Real::INFINITY
     };
     let mut material = problem.material(&best);
-    material.hand = Some(crate::config::HandSignature::of(hand));
+    material.hand = Some(moe_geom::HandSignature::counts_of(hand));
     Ok(CalibrationReport {
         material,
         streams: stream_count,

@@ -1,6 +1,6 @@
 //! The estimator's settings and the hand's material.
 
-use moe_geom::Real;
+use moe_geom::{HandSignature, Real};
 use moe_tendon_sim::{Material, TendonParams, VoxelParams};
 use serde::{Deserialize, Serialize};
 
@@ -21,30 +21,6 @@ pub struct HandMaterial {
     /// fits any hand).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hand: Option<HandSignature>,
-}
-
-/// What identifies a hand to a material file: its fingers' vertex, marker and tendon counts.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HandSignature {
-    /// Surface vertices of each finger.
-    pub vertices_per_finger: Vec<usize>,
-    /// Markers of each finger.
-    pub markers_per_finger: Vec<usize>,
-    /// Tendons of each finger.
-    pub tendons_per_finger: Vec<usize>,
-}
-
-impl HandSignature {
-    /// The signature of `hand`.
-    pub fn of(hand: &moe_geom::HandModel) -> Self {
-        let f = hand.fingers();
-        Self {
-            vertices_per_finger: f.iter().map(|f| f.model.mesh().num_vertices()).collect(),
-            markers_per_finger: f.iter().map(|f| f.model.marker_vertices().len()).collect(),
-            tendons_per_finger: f.iter().map(|f| f.model.tendon_routes().len()).collect(),
-        }
-    }
 }
 
 impl HandMaterial {
@@ -78,15 +54,15 @@ impl HandMaterial {
     /// Checks that the material describes `hand` (when it records a hand).
     ///
     /// # Errors
-    /// [`PhysicsError::MaterialOfAnotherHand`] with both signatures.
+    /// [`PhysicsError::MaterialOfAnotherHand`] with the first difference.
     pub fn check_hand(&self, hand: &moe_geom::HandModel) -> Result<(), PhysicsError> {
-        let ours = HandSignature::of(hand);
-        match &self.hand {
-            Some(recorded) if *recorded != ours => Err(PhysicsError::MaterialOfAnotherHand {
-                recorded: format!("{recorded:?}"),
-                hand: format!("{ours:?}"),
-            }),
-            _ => Ok(()),
+        match self
+            .hand
+            .as_ref()
+            .and_then(|recorded| hand.differs_from(recorded))
+        {
+            Some(difference) => Err(PhysicsError::MaterialOfAnotherHand { difference }),
+            None => Ok(()),
         }
     }
 }

@@ -92,14 +92,12 @@ pub enum PhysicsError {
     /// The material file was fitted to another hand: recalibrate on this hand
     /// (`moe-touch calibrate`), or remove its `hand` section to use it anyway.
     #[error(
-        "the material was fitted to another hand ({recorded}), not this one ({hand}): \
-         calibrate on this hand with `moe-touch calibrate`"
+        "the material was fitted to another hand (this hand's {difference}): calibrate on this \
+         hand with `moe-touch calibrate`"
     )]
     MaterialOfAnotherHand {
-        /// The hand the material records.
-        recorded: String,
-        /// The hand it was used with.
-        hand: String,
+        /// How this hand differs from the one the material records.
+        difference: moe_geom::HandDifference,
     },
     /// A value the estimator needs was not given.
     #[error("the physics estimator needs {what}")]

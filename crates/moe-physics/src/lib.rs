@@ -52,11 +52,13 @@ mod observability;
 pub mod testing;
 
 pub use calibration::{CalibrationOptions, CalibrationReport, calibrate};
-pub use config::{HandMaterial, HandSignature, PhysicsConfig};
+pub use config::{HandMaterial, PhysicsConfig};
 pub use error::PhysicsError;
 pub use estimator::{
     CONTACT_THRESHOLD, ContactLoad, FingerReport, PhysicsDetails, PhysicsEstimate, PhysicsEstimator,
 };
+/// What a fitted material records of its hand (the one signature type, `moe_geom`'s).
+pub use moe_geom::HandSignature;
 pub use observability::{
     BOUND_REGIONS, BoundOptions, PlaceBound, RegionBound, Spread, quantile, region_bounds,
 };

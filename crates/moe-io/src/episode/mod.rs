@@ -122,12 +122,9 @@ impl EpisodeInfo {
     /// Whether `hand` is the episode's hand (as many fingers, as many vertices each): `None`
     /// when it is, else the first difference in words.
     pub fn hand_mismatch(&self, hand: &moe_geom::HandModel) -> Option<String> {
-        let ours: Vec<usize> = hand
-            .fingers()
-            .iter()
-            .map(|f| f.model.mesh().num_vertices())
-            .collect();
-        (ours != self.finger_num_vertices).then(|| {
+        let recorded = moe_geom::HandSignature::of_vertex_counts(self.finger_num_vertices.clone());
+        hand.differs_from(&recorded).map(|_| {
+            let ours = hand.signature().vertices_per_finger;
             format!(
                 "the hand has fingers of {ours:?} vertices, the episode '{}' of {:?}",
                 self.scene, self.finger_num_vertices

@@ -137,7 +137,7 @@ fn non_physical_materials_and_materials_of_another_hand_are_refused() {
     )
     .unwrap();
     let fitted = HandMaterial {
-        hand: Some(HandSignature::of(&three)),
+        hand: Some(HandSignature::counts_of(&three)),
         ..HandMaterial::default()
     };
     let e = assert_err!(
