@@ -1,5 +1,5 @@
 """What the Python binding costs per frame: the wall time of `Pipeline.process` from Python
-against the Rust pipeline's own time for the same call (`FrameResult.timings.total_ms`, taken
+against the Rust pipeline's own time for the same call (`FrameEstimate.timings.total_ms`, taken
 inside Rust around every stage). The difference is the binding: argument checks, the GIL
 released and taken back, the result converted to numpy.
 
@@ -42,7 +42,7 @@ def main():
     hand = mt.Hand.preset("two-finger")
     pipelines = {
         "physics": mt.Pipeline.physics(hand, episode.camera, config=SETTINGS),
-        "dgcnn": mt.Pipeline.dgcnn(hand, episode.camera, MODEL),
+        "dgcnn": mt.Pipeline.paper(hand, episode.camera, MODEL),
     }
     print("pipeline  frames  median Python ms  median Rust ms  median binding ms  total overhead")
     for name, pipeline in pipelines.items():

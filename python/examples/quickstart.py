@@ -14,6 +14,6 @@ for frame in episode:
     r = pipeline.process(
         frame.color, frame.depth, frame.world_from_hand, frame.pulls, time=frame.time
     )
-    forces_mn = ", ".join(f"{1e3 * float(f @ f) ** 0.5:.1f}" for f in r.finger_force)
+    forces_mn = ", ".join(f"{1e3 * float(f @ f) ** 0.5:.1f}" for f in r.finger_force_n)
     print(f"{frame.time:.2f} s: {r.markers_found} markers, {r.num_contacts} contact points, "
           f"finger forces [{forces_mn}] mN")

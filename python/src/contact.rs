@@ -9,6 +9,7 @@ use moe_geom::{ContactEstimator, ContactInput, HandShape, Observation};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
+use crate::card::ModelCard;
 use crate::convert::{self, OrRaise, invalid};
 use crate::hand::Hand;
 
@@ -19,8 +20,8 @@ pub struct ContactModel {
     pub(crate) model: Mutex<DgcnnEstimator>,
     threshold: f64,
     num_fingers: usize,
-    /// The card, JSON (read once, so that asking for it never waits on an estimate).
-    card: String,
+    /// The card (read once, so that asking for it never waits on an estimate).
+    card: Py<ModelCard>,
 }
 
 impl ContactModel {
@@ -37,7 +38,7 @@ impl ContactModel {
     #[new]
     fn new(py: Python<'_>, path: PathBuf, hand: &Hand) -> PyResult<Self> {
         let model = py.detach(|| Self::estimator(&path, hand))?;
-        let card = serde_json::to_string(model.card()).map_err(|e| invalid(e.to_string()))?;
+        let card = Py::new(py, ModelCard::new(py, model.card())?)?;
         Ok(Self {
             card,
             threshold: model.threshold(),
@@ -52,10 +53,11 @@ impl ContactModel {
         self.threshold
     }
 
-    /// The model card as a dict (features, normalisation, training, metrics).
+    /// The model card (threshold, features, architecture, hand, training, data set, metrics;
+    /// `to_dict()` for the raw form).
     #[getter]
-    fn card<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("json")?.call_method1("loads", (&self.card,))
+    fn card(&self, py: Python<'_>) -> Py<ModelCard> {
+        self.card.clone_ref(py)
     }
 
     /// Contact probability of every vertex of `vertices`, one `(n, 3)` array per finger (hand

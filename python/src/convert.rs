@@ -6,21 +6,22 @@ use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::MoeTouchError;
+use crate::errors::{Kind, kind_of, raise_kind};
 
-/// Raises a Rust error as [`MoeTouchError`] with the one line the `moe-touch` tool prints.
+/// Raises a Rust error as the `MoeTouchError` of its kind (`MoeTouchFileNotFoundError`,
+/// `MoeTouchOSError` or `MoeTouchValueError`) with the one line the `moe-touch` tool prints.
 pub(crate) fn raise(err: &(dyn std::error::Error + 'static)) -> PyErr {
-    MoeTouchError::new_err(moe_touch::error::one_line(err))
+    raise_kind(kind_of(err), moe_touch::error::one_line(err))
 }
 
-/// Raises [`MoeTouchError`] with `message` (bad input caught before the Rust code sees it).
+/// Raises `MoeTouchValueError` with `message` (bad input caught before the Rust code sees it).
 pub(crate) fn invalid(message: impl Into<String>) -> PyErr {
-    MoeTouchError::new_err(message.into())
+    raise_kind(Kind::Value, message.into())
 }
 
-/// `.py()?` turns any of the workspace's errors into [`MoeTouchError`].
+/// `.py()?` turns any of the workspace's errors into the `MoeTouchError` of its kind.
 pub(crate) trait OrRaise<T> {
-    /// The value, or the error raised as [`MoeTouchError`].
+    /// The value, or the error raised as the `MoeTouchError` of its kind.
     fn py(self) -> PyResult<T>;
 }
 

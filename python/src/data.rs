@@ -1,16 +1,18 @@
 //! Reading episodes (the simulator's MCAP and ROS 2 recordings) and data sets, as numpy arrays.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use moe_io::ros2::RosConfig;
 use moe_io::{DatasetFrame, DatasetReader, Split, SplitFractions};
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::PyDict;
 
+use crate::card::DatasetCard;
 use crate::convert::{self, OrRaise, invalid};
 use crate::hand::{Camera, Hand};
+use crate::settings::settings;
 
 /// One frame of an episode: the camera's images, the hand's pose, the tendon pulls and, for a
 /// simulated episode, the ground truth.
@@ -190,25 +192,6 @@ impl Episode {
     }
 }
 
-/// A `RosConfig` from a TOML or JSON file, or from a dict of its fields.
-fn ros_config(config: Option<&Bound<'_, PyAny>>) -> PyResult<RosConfig> {
-    let Some(config) = config else {
-        return Ok(RosConfig::default());
-    };
-    if config.is_instance_of::<PyDict>() {
-        let json: String = config
-            .py()
-            .import("json")?
-            .call_method1("dumps", (config,))?
-            .extract()?;
-        return moe_io::parse_json::<RosConfig>(json.as_bytes(), Path::new("<ros dict>")).py();
-    }
-    let path: PathBuf = config.extract().map_err(|_| {
-        invalid("ros: expected a path to a TOML or JSON RosConfig, or a dict of its fields")
-    })?;
-    moe_io::read_config(&path).py()
-}
-
 /// Reads an episode: the simulator's MCAP (`moe-touch sim --out`), or a ROS 2 recording (a
 /// rosbag2 directory with MCAP storage, or an MCAP file of CDR messages) of `hand` (default:
 /// the two-finger preset) with the topics, frames and joint names of `ros` (a TOML or JSON
@@ -255,7 +238,7 @@ pub(crate) fn read_ros2_bag(
     hand: Option<&Hand>,
     ros: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Episode> {
-    let config = ros_config(ros)?;
+    let config: RosConfig = settings(ros, "ros")?;
     let hand = match hand {
         Some(h) => h.clone(),
         None => Hand::from_spec("two-finger")?,
@@ -276,6 +259,8 @@ pub(crate) fn is_ros2_recording(path: PathBuf) -> bool {
 #[pyclass(module = "moe_touch", frozen)]
 pub struct Dataset {
     reader: DatasetReader,
+    /// The card (made once).
+    card: Py<DatasetCard>,
 }
 
 /// The split named `split` ("train", "validation", "test"), or every frame for None.
@@ -398,17 +383,16 @@ impl Dataset {
     /// Opens the data set directory `path` (reads its card; shards are read when asked for).
     #[new]
     fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        Ok(Self {
-            reader: py.detach(|| DatasetReader::open(&path).py())?,
-        })
+        let reader = py.detach(|| DatasetReader::open(&path).py())?;
+        let card = Py::new(py, DatasetCard::new(py, reader.card())?)?;
+        Ok(Self { reader, card })
     }
 
-    /// The card as a dict (layout, seed, generator, shards, totals).
+    /// The card (layout, seed, generator, shards, totals, families; `to_dict()` for the raw
+    /// form).
     #[getter]
-    fn card<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let json = serde_json::to_string(self.reader.card()).map_err(|e| invalid(e.to_string()))?;
-        py.import("json")?
-            .call_method1("loads", (PyString::new(py, &json),))
+    fn card(&self, py: Python<'_>) -> Py<DatasetCard> {
+        self.card.clone_ref(py)
     }
 
     /// Number of shards.

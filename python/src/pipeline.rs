@@ -7,14 +7,15 @@ use std::sync::Mutex;
 use moe_geom::{Observation, WorldFromHand};
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsDetails};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
-use moe_touch::{FrameEstimate, PaperPipeline, PhysicsPipeline, RgbdFrame, StreamEvent};
+use moe_touch::{PaperPipeline, PhysicsPipeline, RgbdFrame, StreamEvent};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use crate::contact::ContactModel;
 use crate::convert::{self, OrRaise, invalid};
 use crate::hand::{Camera, Hand};
+use crate::physics::ContactLoad;
+use crate::settings::settings;
 use crate::shape::shape_config;
 
 /// The two pipelines the tool runs.
@@ -22,26 +23,24 @@ enum Inner {
     /// The physics estimator (the tool's default).
     Physics(Box<PhysicsPipeline>),
     /// SR-ARAP and a trained network (the paper's pipeline).
-    Dgcnn(Box<PaperPipeline>),
+    Paper(Box<PaperPipeline>),
 }
 
-/// What one frame gives: the [`FrameEstimate`] and, with the physics estimator, its details.
+/// What one frame gives: the runtime's `FrameEstimate` and, with the physics estimator, its
+/// details.
 struct Processed {
-    estimate: FrameEstimate,
+    estimate: moe_touch::FrameEstimate,
     physics: Option<PhysicsDetails>,
 }
 
-/// A settings file (TOML or JSON) of type `T`, or its defaults without one.
-pub(crate) fn settings<T: serde::de::DeserializeOwned + Default>(
-    path: Option<&PathBuf>,
-) -> PyResult<T> {
-    path.map_or_else(|| Ok(T::default()), |p| moe_io::read_config(p).py())
-}
-
 /// The marker detector for `camera` and `hand`, with parameters from `detector` (a TOML or JSON
-/// `DetectorConfig` file) or the defaults.
-fn detector(camera: &Camera, hand: &Hand, config: Option<&PathBuf>) -> PyResult<MarkerDetector> {
-    let config: DetectorConfig = settings(config)?;
+/// `DetectorConfig` file, or a dict of its fields) or the defaults.
+fn detector(
+    camera: &Camera,
+    hand: &Hand,
+    config: Option<&Bound<'_, PyAny>>,
+) -> PyResult<MarkerDetector> {
+    let config: DetectorConfig = settings(config, "detector")?;
     MarkerDetector::new(
         camera.intrinsics,
         camera.hand_from_camera,
@@ -61,7 +60,7 @@ pub struct Pipeline {
     num_fingers: usize,
     /// Tendons of every finger (`None` for a hand whose fingers differ: no pulls from Python).
     tendons: Option<usize>,
-    /// `"physics"` or `"dgcnn"`.
+    /// `"physics"` or `"dgcnn"` (the tool's `--contact`).
     method: &'static str,
     threshold: f64,
 }
@@ -71,7 +70,7 @@ impl Pipeline {
         // Read once here, so that asking for them never waits on a frame being processed.
         let (method, threshold) = match &inner {
             Inner::Physics(p) => ("physics", p.threshold()),
-            Inner::Dgcnn(p) => ("dgcnn", p.threshold()),
+            Inner::Paper(p) => ("dgcnn", p.threshold()),
         };
         Self {
             inner: Mutex::new(inner),
@@ -94,23 +93,24 @@ impl Pipeline {
 #[pymethods]
 impl Pipeline {
     /// The physics estimator's pipeline (the `moe-touch` tool's default): the finger's FEM model
-    /// read backwards from the markers, the tendon pulls and the hand's pose. `material` and
-    /// `config` are TOML or JSON files (`moe-touch calibrate` writes the material); `detector`
-    /// the marker detector's parameters.
+    /// read backwards from the markers, the tendon pulls and the hand's pose. `material`
+    /// (`HandMaterial`; `moe-touch calibrate` writes it), `config` (`PhysicsConfig`) and
+    /// `detector` (the marker detector's `DetectorConfig`) are each a TOML or JSON file or a
+    /// dict of the settings (unknown keys are refused); the defaults without.
     #[staticmethod]
     #[pyo3(signature = (hand, camera, *, material=None, config=None, detector=None))]
     fn physics(
         py: Python<'_>,
         hand: &Hand,
         camera: &Camera,
-        material: Option<PathBuf>,
-        config: Option<PathBuf>,
-        detector: Option<PathBuf>,
+        material: Option<&Bound<'_, PyAny>>,
+        config: Option<&Bound<'_, PyAny>>,
+        detector: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let marker_detector = self::detector(camera, hand, detector.as_ref())?;
+        let marker_detector = self::detector(camera, hand, detector)?;
         // The estimator validates both.
-        let material: HandMaterial = settings(material.as_ref())?;
-        let config: PhysicsConfig = settings(config.as_ref())?;
+        let material: HandMaterial = settings(material, "material")?;
+        let config: PhysicsConfig = settings(config, "config")?;
         let pipeline = py.detach(|| {
             PhysicsPipeline::physics(hand.model.clone(), marker_detector, &material, &config).py()
         })?;
@@ -120,25 +120,25 @@ impl Pipeline {
     /// The paper's pipeline: SR-ARAP shape (`iterations` per frame, default 50;
     /// `warm_start` starts each frame from the previous shape), then the trained network at
     /// `model` (`NAME.safetensors` with its card), contact where it reaches the card's
-    /// threshold.
+    /// threshold (the tool's `--contact dgcnn`). `detector` as for `physics`.
     #[staticmethod]
     #[pyo3(signature = (hand, camera, model, *, iterations=None, warm_start=false, detector=None))]
-    fn dgcnn(
+    fn paper(
         py: Python<'_>,
         hand: &Hand,
         camera: &Camera,
         model: PathBuf,
         iterations: Option<usize>,
         warm_start: bool,
-        detector: Option<PathBuf>,
+        detector: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let marker_detector = self::detector(camera, hand, detector.as_ref())?;
+        let marker_detector = self::detector(camera, hand, detector)?;
         let options = shape_config(iterations, warm_start);
         let pipeline = py.detach(|| {
             let network = ContactModel::estimator(&model, hand)?;
             moe_touch::Pipeline::paper(hand.model.clone(), marker_detector, network, options).py()
         })?;
-        Ok(Self::wrap(Inner::Dgcnn(Box::new(pipeline)), camera, hand))
+        Ok(Self::wrap(Inner::Paper(Box::new(pipeline)), camera, hand))
     }
 
     /// Runs every stage on one frame. `color` is `(height, width, 3)` uint8 RGB, `depth`
@@ -157,7 +157,7 @@ impl Pipeline {
         world_from_hand: PyReadonlyArray2<'py, f64>,
         pulls: Option<PyReadonlyArray2<'py, f64>>,
         time: Option<f64>,
-    ) -> PyResult<FrameResult> {
+    ) -> PyResult<FrameEstimate> {
         let (h, w) = self.size;
         if color.shape() != [h, w, 3] {
             return Err(invalid(format!(
@@ -203,7 +203,7 @@ impl Pipeline {
             };
             run(&mut inner, frame, world_from_hand, pulls.as_deref(), time)
         })?;
-        FrameResult::new(py, processed)
+        FrameEstimate::new(py, processed)
     }
 
     /// Forgets the stream (marker tracks, warm starts, the physics estimator's memory).
@@ -212,7 +212,7 @@ impl Pipeline {
         py.detach(|| {
             match &mut *self.lock()? {
                 Inner::Physics(p) => p.reset(),
-                Inner::Dgcnn(p) => p.reset(),
+                Inner::Paper(p) => p.reset(),
             }
             Ok(())
         })
@@ -224,7 +224,7 @@ impl Pipeline {
         self.threshold
     }
 
-    /// `"physics"` or `"dgcnn"`.
+    /// `"physics"` or `"dgcnn"` (the tool's `--contact` for this pipeline).
     #[getter]
     fn method(&self) -> &'static str {
         self.method
@@ -250,36 +250,21 @@ fn run(
                 physics: Some(physics),
             }
         }
-        Inner::Dgcnn(p) => Processed {
+        Inner::Paper(p) => Processed {
             estimate: p.process(frame, &observation).py()?,
             physics: None,
         },
     })
 }
 
-/// The physics estimator's loads as dicts: finger, vertex, location_rest, location, force,
-/// magnitude, magnitude_sd, location_sd_along, location_sd_around (None where not estimated).
-pub(crate) fn load_dicts(
+/// The physics estimator's loads as `ContactLoad` objects.
+pub(crate) fn loads(
     py: Python<'_>,
     loads: &[moe_physics::ContactLoad],
-) -> PyResult<Vec<Py<PyDict>>> {
-    let xyz = |v: &nalgebra::Vector3<f64>| convert::array1(py, vec![v.x, v.y, v.z]);
+) -> PyResult<Vec<Py<ContactLoad>>> {
     loads
         .iter()
-        .map(|l| {
-            let d = PyDict::new(py);
-            d.set_item("finger", l.finger)?;
-            d.set_item("vertex", l.vertex)?;
-            d.set_item("location_rest", xyz(&l.location_rest.coords))?;
-            d.set_item("location", xyz(&l.location.coords))?;
-            d.set_item("force", xyz(&l.force_n))?;
-            d.set_item("magnitude", l.magnitude_n)?;
-            d.set_item("magnitude_sd", l.magnitude_sd_n)?;
-            let finite = |x: f64| x.is_finite().then_some(x);
-            d.set_item("location_sd_along", finite(l.location_sd_m[0]))?;
-            d.set_item("location_sd_around", finite(l.location_sd_m[1]))?;
-            Ok(d.unbind())
-        })
+        .map(|l| Py::new(py, ContactLoad::new(py, l)))
         .collect()
 }
 
@@ -300,7 +285,7 @@ pub(crate) fn pressed_probabilities(py: Python<'_>, e: &PhysicsDetails) -> Py<Py
 /// Wall time of each stage of one frame, milliseconds.
 #[pyclass(module = "moe_touch", frozen, get_all)]
 #[derive(Debug, Clone, Copy)]
-pub struct Timings {
+pub struct StageTimings {
     /// Marker perception.
     markers_ms: f64,
     /// The estimator (shape and contact).
@@ -312,10 +297,10 @@ pub struct Timings {
 }
 
 #[pymethods]
-impl Timings {
+impl StageTimings {
     fn __repr__(&self) -> String {
         format!(
-            "Timings(markers_ms={:.3}, estimate_ms={:.3}, points_ms={:.3}, total_ms={:.3})",
+            "StageTimings(markers_ms={:.3}, estimate_ms={:.3}, points_ms={:.3}, total_ms={:.3})",
             self.markers_ms, self.estimate_ms, self.points_ms, self.total_ms
         )
     }
@@ -324,28 +309,26 @@ impl Timings {
 /// Everything the pipeline estimated about one frame. Arrays are float64 in metres and
 /// newtons; per-finger values are lists with one array per finger.
 #[pyclass(module = "moe_touch", frozen, get_all)]
-pub struct FrameResult {
+pub struct FrameEstimate {
     /// Every marker in the hand frame, `(markers, 3)` per finger, NaN where not seen.
     keypoints: Vec<Py<PyArray2<f64>>>,
     /// The estimated surface, hand frame, `(n, 3)` per finger.
-    vertices: Vec<Py<PyArray2<f64>>>,
+    shape: Vec<Py<PyArray2<f64>>>,
     /// Contact probability of every vertex, `(n,)` per finger.
-    contact_probability: Vec<Py<PyArray1<f64>>>,
-    /// Force on every vertex, hand frame, `(n, 3)` per finger (physics), else None.
-    vertex_force: Option<Vec<Py<PyArray2<f64>>>>,
-    /// Net force the world exerts on every finger, hand frame, `(fingers, 3)` (physics), else
-    /// None.
-    finger_force: Option<Py<PyArray2<f64>>>,
+    contact: Vec<Py<PyArray1<f64>>>,
+    /// Force on every vertex, hand frame, newtons, `(n, 3)` per finger (physics), else None.
+    vertex_force_n: Option<Vec<Py<PyArray2<f64>>>>,
+    /// Net force the world exerts on every finger, hand frame, newtons, `(fingers, 3)`
+    /// (physics), else None.
+    finger_force_n: Option<Py<PyArray2<f64>>>,
     /// Probability that each finger is pressed, `(fingers,)` (physics), else None.
     pressed_probability: Option<Py<PyArray1<f64>>>,
-    /// The loads found (physics): dicts with finger, vertex, location (hand frame), force,
-    /// magnitude and its standard deviation, location standard deviations along and around
-    /// the finger.
-    loads: Vec<Py<PyDict>>,
+    /// The loads found (physics; empty otherwise).
+    loads: Vec<Py<ContactLoad>>,
     /// Contact points (vertices at or above the threshold), hand frame, `(k, 3)`.
-    contacts_hand: Py<PyArray2<f64>>,
+    contacts_in_hand: Py<PyArray2<f64>>,
     /// The same points in the world frame, `(k, 3)`.
-    contacts_world: Py<PyArray2<f64>>,
+    contacts_in_world: Py<PyArray2<f64>>,
     /// Finger of each contact point, `(k,)`.
     contact_finger: Py<PyArray1<u32>>,
     /// Vertex of each contact point on its finger, `(k,)`.
@@ -359,14 +342,14 @@ pub struct FrameResult {
     /// Where the hand was, world-from-hand 4 × 4.
     world_from_hand: Py<PyArray2<f64>>,
     /// Per-stage wall time.
-    timings: Timings,
+    timings: StageTimings,
     /// Where the frame stands in the stream: "untimed", "started", "continued" or "restarted".
     stream: &'static str,
     /// Seconds since the previous frame ("continued", "restarted"), else None.
     gap_secs: Option<f64>,
 }
 
-impl FrameResult {
+impl FrameEstimate {
     fn new(py: Python<'_>, p: Processed) -> PyResult<Self> {
         let e = p.estimate;
         let points = |f: &[moe_geom::ContactPoint]| {
@@ -379,7 +362,7 @@ impl FrameResult {
             StreamEvent::Restarted { gap_secs } => ("restarted", Some(gap_secs)),
         };
         let physics = p.physics.as_ref();
-        let loads = physics.map_or_else(|| Ok(Vec::new()), |e| load_dicts(py, &e.loads))?;
+        let loads = physics.map_or_else(|| Ok(Vec::new()), |e| loads(py, &e.loads))?;
         Ok(Self {
             keypoints: e
                 .keypoints
@@ -387,29 +370,29 @@ impl FrameResult {
                 .iter()
                 .map(|k| convert::optional_points(py, k).unbind())
                 .collect(),
-            vertices: e
+            shape: e
                 .shape
                 .fingers
                 .iter()
                 .map(|v| convert::points(py, v).unbind())
                 .collect(),
-            contact_probability: e
+            contact: e
                 .contact
                 .fingers
                 .into_iter()
                 .map(|p| convert::array1(py, p).unbind())
                 .collect(),
-            vertex_force: e.vertex_force_n.as_ref().map(|fingers| {
+            vertex_force_n: e.vertex_force_n.as_ref().map(|fingers| {
                 fingers
                     .iter()
                     .map(|f| convert::vectors(py, f).unbind())
                     .collect()
             }),
-            finger_force: physics.map(|e| finger_forces(py, e)),
+            finger_force_n: physics.map(|e| finger_forces(py, e)),
             pressed_probability: physics.map(|e| pressed_probabilities(py, e)),
             loads,
-            contacts_hand: points(&e.contacts_in_hand),
-            contacts_world: points(&e.contacts_in_world),
+            contacts_in_hand: points(&e.contacts_in_hand),
+            contacts_in_world: points(&e.contacts_in_world),
             contact_finger: convert::array1(
                 py,
                 e.contacts_in_hand.iter().map(|c| c.finger as u32).collect(),
@@ -428,7 +411,7 @@ impl FrameResult {
             markers_found: e.markers.found,
             fingers_without_markers: e.fingers_without_markers,
             world_from_hand: convert::iso(py, e.world_from_hand.iso()).unbind(),
-            timings: Timings {
+            timings: StageTimings {
                 markers_ms: e.timings.markers_ms,
                 estimate_ms: e.timings.estimate_ms,
                 points_ms: e.timings.points_ms,
@@ -441,16 +424,16 @@ impl FrameResult {
 }
 
 #[pymethods]
-impl FrameResult {
+impl FrameEstimate {
     /// Number of contact points.
     #[getter]
     fn num_contacts(&self, py: Python<'_>) -> usize {
-        self.contacts_hand.bind(py).shape()[0]
+        self.contacts_in_hand.bind(py).shape()[0]
     }
 
     fn __repr__(&self, py: Python<'_>) -> String {
         format!(
-            "FrameResult({} markers, {} contact points, {:.1} ms)",
+            "FrameEstimate({} markers, {} contact points, {:.1} ms)",
             self.markers_found,
             self.num_contacts(py),
             self.timings.total_ms

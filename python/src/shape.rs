@@ -1,7 +1,7 @@
 //! SR-ARAP: a mesh deformed by fixed and handle vertices, and the hand's shape from its
 //! markers.
 
-use moe_arap::{ArapConfig, MultiShapeEstimator, ShapeConfig, Start};
+use moe_arap::{ArapConfig, ShapeConfig, Start};
 use moe_geom::{HandKeypoints, TriMesh};
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike1, PyArrayLike2, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -124,23 +124,25 @@ impl ArapSolver {
     }
 }
 
-/// The hand's shape from its markers by SR-ARAP (the paper's shape stage): the markers are
-/// handles, the finger bases fixed.
+/// The hand's shape from its markers by SR-ARAP (the paper's shape stage, Rust's
+/// `moe_arap::MultiShapeEstimator`): the markers are handles, the finger bases fixed.
 #[pyclass(module = "moe_touch")]
-pub struct ShapeEstimator {
-    estimator: std::sync::Mutex<MultiShapeEstimator>,
+pub struct MultiShapeEstimator {
+    estimator: std::sync::Mutex<moe_arap::MultiShapeEstimator>,
 }
 
 #[pymethods]
-impl ShapeEstimator {
+impl MultiShapeEstimator {
     /// SR-ARAP for `hand` with `iterations` per frame (default 50) and, with `warm_start`,
     /// each frame starting from the previous shape (the paper starts from rest).
     #[new]
     #[pyo3(signature = (hand, *, iterations=None, warm_start=false))]
     fn new(hand: &Hand, iterations: Option<usize>, warm_start: bool) -> PyResult<Self> {
-        let estimator =
-            MultiShapeEstimator::new(hand.model.clone(), shape_config(iterations, warm_start))
-                .py()?;
+        let estimator = moe_arap::MultiShapeEstimator::new(
+            hand.model.clone(),
+            shape_config(iterations, warm_start),
+        )
+        .py()?;
         Ok(Self {
             estimator: std::sync::Mutex::new(estimator),
         })

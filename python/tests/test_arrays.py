@@ -62,7 +62,7 @@ def test_sr_arap_holds_rest_and_follows_a_rigid_motion(hand):
 
 
 def test_the_shape_of_markers_at_rest_is_the_rest_surface(hand):
-    estimator = mt.ShapeEstimator(hand)
+    estimator = mt.MultiShapeEstimator(hand)
     shape = estimator.estimate(hand.rest_keypoints())
     for f, vertices in enumerate(shape):
         np.testing.assert_allclose(vertices, hand.rest_vertices(f), atol=1e-9)
@@ -82,7 +82,7 @@ def test_episode_frames_are_c_contiguous_arrays_and_other_layouts_give_the_same_
     rb = b.process(np.asfortranarray(f.color), np.asfortranarray(f.depth),
                    np.asfortranarray(f.world_from_hand), np.asfortranarray(f.pulls))
     assert ra.num_contacts == rb.num_contacts and ra.markers_found == rb.markers_found
-    for x, y in zip(ra.vertices, rb.vertices):
+    for x, y in zip(ra.shape, rb.shape):
         np.testing.assert_array_equal(x, y)
     assert ra.stream == "untimed"
     assert ra.timings.total_ms >= ra.timings.markers_ms >= 0
@@ -91,7 +91,15 @@ def test_episode_frames_are_c_contiguous_arrays_and_other_layouts_give_the_same_
 def test_a_data_set_reads_as_stacked_shards_and_as_frames():
     ds = mt.Dataset(DATASET)
     card = ds.card
-    assert ds.num_shards == len(card["shards"]) and len(ds) == card["totals"]["frames"]
+    assert isinstance(card, mt.DatasetCard)
+    assert ds.num_shards == len(card.shards) and len(ds) == card.totals.frames
+    raw = card.to_dict()
+    assert raw["totals"]["frames"] == card.totals.frames and raw["seed"] == card.seed
+    assert [s["file"] for s in raw["shards"]] == [s.file for s in card.shards]
+    assert sum(s.stats.frames for s in card.shards) == card.totals.frames
+    assert set(card.families) == set(raw["families"])
+    assert card.layout.finger_num_vertices == raw["layout"]["finger_num_vertices"]
+    assert card.generator == raw["generator"]
     shard = ds.shard(0)
     n = shard["vertices"].shape[0]
     assert shard["vertices"].dtype == np.float32 and shard["contact"].dtype == np.uint8

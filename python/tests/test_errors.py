@@ -1,6 +1,8 @@
-"""Bad input raises MoeTouchError (a ValueError) with the line the tool prints, and writes
-nothing."""
+"""Bad input raises a MoeTouchError with the line the tool prints, and writes nothing: a missing
+file is a FileNotFoundError, another failure to read one an OSError, bad values and malformed
+input a ValueError; wrong types stay TypeError."""
 
+import errno
 import subprocess
 
 import numpy as np
@@ -17,12 +19,107 @@ def frame():
     return pipeline, episode[2]
 
 
-def test_an_error_is_a_value_error():
-    assert issubclass(mt.MoeTouchError, ValueError)
-    with pytest.raises(ValueError, match="unknown hand preset 'four-finger'"):
+def test_the_exception_classes_derive_from_one_base_and_a_builtin():
+    for cls, builtin in [(mt.MoeTouchFileNotFoundError, FileNotFoundError),
+                         (mt.MoeTouchOSError, OSError),
+                         (mt.MoeTouchValueError, ValueError)]:
+        assert issubclass(cls, mt.MoeTouchError) and issubclass(cls, builtin), cls
+        assert cls.__module__ == "moe_touch" and cls.__doc__
+    assert issubclass(mt.MoeTouchError, Exception)
+    assert not issubclass(mt.MoeTouchError, (ValueError, OSError))
+    assert not issubclass(mt.MoeTouchValueError, OSError)
+    assert not issubclass(mt.MoeTouchOSError, ValueError)
+    # As FileNotFoundError is an OSError, a missing file is a MoeTouchOSError too.
+    assert issubclass(mt.MoeTouchFileNotFoundError, mt.MoeTouchOSError)
+
+
+def test_a_bad_value_is_a_value_error():
+    with pytest.raises(mt.MoeTouchValueError, match="unknown hand preset 'four-finger'"):
         mt.Hand.preset("four-finger")
-    with pytest.raises(ValueError, match="neither a preset"):
+    # Neither a preset nor a file: a bad value (it may be a misspelt preset), not a missing file.
+    with pytest.raises(mt.MoeTouchValueError, match="neither a preset"):
         mt.Hand.load("no/such/hand.toml")
+
+
+def missing_file_calls(tmp_path):
+    """(what, call, the file the message names) for files that do not exist."""
+    hand = mt.Hand.preset("two-finger")
+    camera = mt.read_episode(EPISODE).camera
+    missing = tmp_path / "missing"
+    return [
+        ("episode", lambda: mt.read_episode(missing / "nope.mcap"), "nope.mcap"),
+        ("model", lambda: mt.ContactModel(missing / "nope.safetensors", hand), "nope.safetensors"),
+        ("paper model", lambda: mt.Pipeline.paper(hand, camera, missing / "nope.safetensors"),
+         "nope.safetensors"),
+        ("data set", lambda: mt.Dataset(tmp_path), "card.json"),
+        ("hand", lambda: mt.Hand.from_file(missing / "hand.toml"), "hand.toml"),
+        ("physics config", lambda: mt.Pipeline.physics(hand, camera, config=missing / "c.toml"),
+         "c.toml"),
+        ("material", lambda: mt.PhysicsEstimator(hand, material=str(missing / "m.json")),
+         "m.json"),
+        ("detector", lambda: mt.Pipeline.physics(hand, camera, detector=missing / "d.toml"),
+         "d.toml"),
+        ("ros config", lambda: mt.read_episode(EPISODE, ros=missing / "ros.toml"), "ros.toml"),
+    ]
+
+
+def test_a_missing_file_is_a_file_not_found_error(tmp_path):
+    for what, call, name in missing_file_calls(tmp_path):
+        with pytest.raises(FileNotFoundError) as raised:
+            call()
+        e = raised.value
+        assert isinstance(e, mt.MoeTouchFileNotFoundError), what
+        assert isinstance(e, mt.MoeTouchError) and not isinstance(e, ValueError), what
+        assert name in str(e), (what, str(e))
+        assert e.errno == errno.ENOENT, (what, e.errno)
+
+
+def test_a_directory_where_a_file_belongs_is_an_os_error(tmp_path):
+    folder = tmp_path / "hand.toml"
+    folder.mkdir()
+    with pytest.raises(mt.MoeTouchOSError, match="hand.toml") as raised:
+        mt.Hand.from_file(folder)
+    assert isinstance(raised.value, OSError) and not isinstance(raised.value, FileNotFoundError)
+    assert raised.value.errno == errno.EISDIR
+
+
+def test_a_malformed_file_is_a_value_error(tmp_path):
+    bad_toml = tmp_path / "bad.toml"
+    bad_toml.write_text("hidden_marker_prior = [\n")
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text("no_such_setting = 1\n")
+    bad_mcap = tmp_path / "bad.mcap"
+    bad_mcap.write_bytes(b"\x89MCAP0\r\n" + b"\xff" * 40)
+    bad_card = tmp_path / "set"
+    bad_card.mkdir()
+    (bad_card / "card.json").write_text("{")
+    hand = mt.Hand.preset("two-finger")
+    for call, says in [
+        (lambda: mt.PhysicsEstimator(hand, config=bad_toml), "bad.toml"),
+        (lambda: mt.PhysicsEstimator(hand, config=unknown), "unknown field `no_such_setting`"),
+        (lambda: mt.PhysicsEstimator(hand, config=tmp_path / "c.yaml"), "unsupported extension"),
+        (lambda: mt.read_episode(bad_mcap), "bad.mcap"),
+        (lambda: mt.Dataset(bad_card), "card.json"),
+        (lambda: mt.Hand.from_file(bad_toml), "bad.toml"),
+    ]:
+        with pytest.raises(ValueError, match=says) as raised:
+            call()
+        assert isinstance(raised.value, mt.MoeTouchValueError), says
+        assert not isinstance(raised.value, OSError), says
+
+
+def test_wrong_types_stay_type_errors():
+    hand = mt.Hand.preset("two-finger")
+    with pytest.raises(TypeError):
+        mt.Hand.preset(2)
+    with pytest.raises(TypeError, match="config: expected a path to a TOML or JSON file or a dict"):
+        mt.PhysicsEstimator(hand, config=42)
+    with pytest.raises(TypeError, match=r'material\["material"\]: a set is not a setting'):
+        mt.PhysicsEstimator(hand, material={"material": {1, 2}})
+    with pytest.raises(TypeError, match="key 3 is not a string"):
+        mt.PhysicsEstimator(hand, config={3: 1.0})
+    with pytest.raises(TypeError):
+        mt.PhysicsEstimator(hand).estimate(hand.rest_keypoints(), np.zeros((2, 4), np.int64))
 
 
 @pytest.mark.parametrize("change, message", [

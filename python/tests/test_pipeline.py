@@ -44,37 +44,37 @@ def test_the_demo_episode_through_the_physics_pipeline_equals_the_tools_run(moe_
     assert sum(r.num_contacts for r in ours) > 0, "the demo presses a finger"
     for r, rep in zip(ours, theirs):
         forces = np.array([f["force_n"] for f in rep["finger_forces"]])
-        np.testing.assert_allclose(r.finger_force, forces, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(r.finger_force_n, forces, rtol=0, atol=1e-9)
         np.testing.assert_allclose(
             r.pressed_probability, [f["pressed_probability"] for f in rep["finger_forces"]],
             rtol=0, atol=1e-12)
         assert len(r.loads) == len(rep["loads"])
         for load, expected in zip(r.loads, rep["loads"]):
-            assert load["finger"] == expected["finger"] and load["vertex"] == expected["vertex"]
-            np.testing.assert_allclose(load["force"], expected["force_n"], rtol=0, atol=1e-9)
+            assert load.finger == expected["finger"] and load.vertex == expected["vertex"]
+            np.testing.assert_allclose(load.force, expected["force_n"], rtol=0, atol=1e-9)
         # Per-vertex forces sum to the finger's force; contact points sit on the surface.
-        for f, vf in enumerate(r.vertex_force):
-            np.testing.assert_allclose(vf.sum(axis=0), r.finger_force[f], atol=1e-9)
-        for p, f, v in zip(r.contacts_hand, r.contact_finger, r.contact_vertex):
-            np.testing.assert_array_equal(p, r.vertices[f][v])
+        for f, vf in enumerate(r.vertex_force_n):
+            np.testing.assert_allclose(vf.sum(axis=0), r.finger_force_n[f], atol=1e-9)
+        for p, f, v in zip(r.contacts_in_hand, r.contact_finger, r.contact_vertex):
+            np.testing.assert_array_equal(p, r.shape[f][v])
 
 
 def test_the_demo_episode_through_the_paper_pipeline_equals_the_tools_run(moe_touch_bin, tmp_path):
     theirs = rust_report(moe_touch_bin, tmp_path, "--contact", "dgcnn", "--model", str(MODEL))
     episode = mt.read_episode(EPISODE)
-    pipeline = mt.Pipeline.dgcnn(mt.Hand.preset("two-finger"), episode.camera, MODEL)
+    pipeline = mt.Pipeline.paper(mt.Hand.preset("two-finger"), episode.camera, MODEL)
     assert pipeline.method == "dgcnn" and 0 < pipeline.threshold < 1
     ours = python_run(pipeline, episode)
     assert_frames_equal(ours, theirs, episode)
     for r in ours:
-        assert r.vertex_force is None and r.finger_force is None and r.loads == []
-        for p in r.contact_probability:
+        assert r.vertex_force_n is None and r.finger_force_n is None and r.loads == []
+        for p in r.contact:
             assert p.shape == (1024,) and ((0 <= p) & (p <= 1)).all()
         # Contact points are the vertices at or above the threshold, in the world too.
-        expected = sum(int((p >= pipeline.threshold).sum()) for p in r.contact_probability)
+        expected = sum(int((p >= pipeline.threshold).sum()) for p in r.contact)
         assert r.num_contacts == expected
         R, t = r.world_from_hand[:3, :3], r.world_from_hand[:3, 3]
-        np.testing.assert_allclose(r.contacts_hand @ R.T + t, r.contacts_world, atol=1e-12)
+        np.testing.assert_allclose(r.contacts_in_hand @ R.T + t, r.contacts_in_world, atol=1e-12)
 
 
 def test_a_rosbags_recording_decodes_to_its_source_episode():
@@ -118,11 +118,11 @@ def test_the_physics_estimator_alone_gives_the_pipelines_estimate():
     for f in episode:
         r = pipeline.process(f.color, f.depth, f.world_from_hand, f.pulls, time=f.time)
         e = alone.estimate(r.keypoints, f.pulls, f.world_from_hand, time=f.time)
-        for a, b in zip(e.vertices, r.vertices):
+        for a, b in zip(e.shape, r.shape):
             np.testing.assert_array_equal(a, b)
-        for a, b in zip(e.contact_probability, r.contact_probability):
+        for a, b in zip(e.contact, r.contact):
             np.testing.assert_array_equal(a, b)
-        np.testing.assert_array_equal(e.finger_force, r.finger_force)
+        np.testing.assert_array_equal(e.finger_force_n, r.finger_force_n)
         assert len(e.loads) == len(r.loads)
 
 
@@ -131,7 +131,7 @@ def test_the_physics_estimator_at_rest_finds_no_press():
     estimator = mt.PhysicsEstimator(hand)
     e = estimator.estimate(hand.rest_keypoints(), np.zeros((2, 4)))
     assert e.loads == [] and e.finger_errors == [None, None]
-    np.testing.assert_array_equal(e.finger_force, np.zeros((2, 3)))
+    np.testing.assert_array_equal(e.finger_force_n, np.zeros((2, 3)))
     assert (e.pressed_probability < 0.5).all()
     with pytest.raises(mt.MoeTouchError, match=r"pulls: expected shape \[2, 4\]"):
         estimator.estimate(hand.rest_keypoints(), np.zeros((2, 3)))
