@@ -27,11 +27,11 @@ _Settings = Union[_Path, dict[str, Any], None]
 class MoeTouchError(Exception):
     """A failure of MOE-Touch; raised as one of the three subclasses below."""
 
-class MoeTouchFileNotFoundError(MoeTouchError, FileNotFoundError):
-    """A file MOE-Touch was asked to read does not exist."""
-
 class MoeTouchOSError(MoeTouchError, OSError):
     """The operating system refused to read a file."""
+
+class MoeTouchFileNotFoundError(MoeTouchOSError, FileNotFoundError):
+    """A file MOE-Touch was asked to read does not exist."""
 
 class MoeTouchValueError(MoeTouchError, ValueError):
     """Bad values or malformed input (a file that does not parse, an unknown setting) or a

@@ -35,6 +35,17 @@ def test_the_stubs_match_the_module():
         assert real <= members, (name, real - members)
 
 
+def test_the_stub_classes_name_the_real_bases():
+    checked = 0
+    for node in ast.parse(STUB.read_text()).body:
+        if isinstance(node, ast.ClassDef):
+            real = [b.__name__ for b in getattr(mt, node.name).__bases__]
+            assert [ast.unparse(b) for b in node.bases] == ([] if real == ["object"] else real), (
+                node.name, real)
+            checked += bool(node.bases)
+    assert checked == 4, checked
+
+
 def stub_parameters(fn):
     args = fn.args
     names = [a.arg for a in args.posonlyargs + args.args + args.kwonlyargs]
