@@ -71,13 +71,15 @@ pub(crate) fn run_json(args: &[&str]) -> serde_json::Value {
 }
 
 /// Keys of the JSON reports whose values are wall-clock timings or rates.
-const TIMING_KEYS: [&str; 14] = [
+const TIMING_KEYS: [&str; 16] = [
     "contact_ms",
     "detect_ms",
+    "estimate_ms",
     "fit_secs",
     "frames_per_second",
     "markers_ms",
     "mesh_secs",
+    "points_ms",
     "poisson_secs",
     "query_secs",
     "shape_ms",
