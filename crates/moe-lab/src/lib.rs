@@ -29,10 +29,14 @@ pub mod patting;
 /// Contact from physics evaluated as tactile sensors are specified (detection, location and
 /// force by the finger's true force), beside the paper's metrics.
 pub mod physics_eval;
+/// `eval physics` as one call: frames, calibration, the physics study and its typed report.
+pub mod physics_study;
 /// The contact network on a bare point cloud (no hand), to check a model file.
 pub mod point_cloud;
 /// Running the pipeline over a recorded episode, scored against its ground truth.
 pub mod run;
+/// The occluded-surface reconstruction benchmark (paper Table 3) with its typed report.
+pub mod surface_eval;
 /// Training a contact model on generated data sets.
 pub mod training;
 

@@ -19,6 +19,7 @@
 mod augmentation;
 mod knn;
 mod plates;
+mod study;
 mod table;
 #[cfg(test)]
 mod tests;
@@ -32,6 +33,11 @@ pub use plates::{
     PLATE_OFFSET_M, PLATE_SCENES, PLATE_TILT_DEG, PlateScene, PlateTrial, PlateTrialScene,
     evaluate_plates, perturbed_plate, plate_scenes, plate_trials, simulate_labelled,
 };
+pub use study::{
+    ContactStudy, ContactStudyOptions, ContactStudyPhysics, ContactStudyPhysicsTables,
+    ContactStudyProgress, ContactStudyReport, PlateRegion, PlateRegionStat, PlateRegions,
+    PlateTable, contact_study,
+};
 pub use table::{
     ContactEvalOptions, ContactRow, ContactTable, Estimators, FramePrediction, ShapeRow,
     TruthLabels, evaluate_table1,
@@ -40,6 +46,25 @@ pub use table::{
 use moe_geom::{HandModel, Point3, Real};
 
 use crate::error::LabError;
+
+/// Which frames of a data set a study evaluates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameSet {
+    /// The test trajectories.
+    Test,
+    /// Every frame.
+    All,
+}
+
+impl FrameSet {
+    /// The data set split of these frames (`None`: every frame).
+    pub fn split(self) -> Option<moe_io::Split> {
+        match self {
+            Self::Test => Some(moe_io::Split::Test),
+            Self::All => None,
+        }
+    }
+}
 
 /// Blue (0) to red (1) colour of a contact probability, for meshes a person looks at (the
 /// colours of the `run` output's meshes too).

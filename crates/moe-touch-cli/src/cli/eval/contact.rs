@@ -7,17 +7,17 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use moe_arap::MultiShapeEstimator;
-use moe_contact::{DgcnnEstimator, KnnIndex};
+use moe_contact::DgcnnEstimator;
 use moe_geom::{ContactInput, HandModel, LabelledFrame, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_lab::contact_eval::{
-    ContactEvalOptions, ContactTable, Estimators, KnnIndexSource, PlateTrial, TruthLabels,
-    contact_ply, evaluate_plates, evaluate_table1,
+    ContactEvalOptions, ContactStudyOptions, ContactStudyPhysics, ContactStudyProgress,
+    ContactTable, Estimators, KnnIndexSource, PlateTable, contact_study, evaluate_table1,
 };
 use serde_json::json;
 
 use crate::golden::workspace_root;
-use moe_lab::datagen::{dataset_hand, dataset_params, label_rule};
+use moe_lab::datagen::{dataset_hand, label_rule};
 
 /// Arguments of `moe-touch eval contact`.
 #[derive(Debug, Args)]
@@ -77,284 +77,114 @@ pub(crate) enum FrameSet {
     All,
 }
 
-/// Frames whose estimates `--out` writes.
-const SHOWN_FRAMES: usize = 4;
-
-/// Distance of the proximity rule the first data sets used, metres.
-const PROXIMITY_M: f32 = 1e-3;
-
-pub(crate) fn load_estimator(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator> {
-    moe_touch::pipeline::load_contact_model(path, hand).with_context(|| {
-        format!(
-            "model {} on the data set's hand ({:?} vertices per finger)",
-            path.display(),
-            hand.fingers()
-                .iter()
-                .map(|f| f.model.mesh().num_vertices())
-                .collect::<Vec<_>>()
-        )
-    })
+impl From<FrameSet> for moe_lab::contact_eval::FrameSet {
+    fn from(f: FrameSet) -> Self {
+        match f {
+            FrameSet::Test => Self::Test,
+            FrameSet::All => Self::All,
+        }
+    }
 }
 
-/// The `KNN[All]` index of `--knn-index` or of the data set's training frames, saying which.
-fn knn_index(args: &ContactEvalArgs, reader: &DatasetReader) -> Result<KnnIndex> {
-    let path = args.knn_index.as_deref();
-    let (index, source) = moe_lab::contact_eval::knn_index(reader, path)
-        .with_context(|| format!("data set {}", args.data.display()))?;
-    let shown = path.map_or_else(String::new, |p| p.display().to_string());
-    match source {
-        KnnIndexSource::Read => eprintln!(
-            "eval contact: KNN index of {} frames from {shown}",
-            index.len()
-        ),
-        KnnIndexSource::BuiltAndWritten => eprintln!(
-            "eval contact: built the KNN index of {} training frames, wrote {shown}",
-            index.len()
-        ),
-        KnnIndexSource::Built => {}
-    }
-    Ok(index)
+/// The contact model at `path` on `hand`, by the runtime's loader.
+pub(crate) fn load_estimator(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator> {
+    Ok(moe_lab::physics_study::load_model_on(path, hand)?)
 }
 
 pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
-    let reader = DatasetReader::open(&args.data)?;
-    if reader.card().totals.frames == 0 {
-        bail!("{}: the data set has no frames", args.data.display());
-    }
-    let hand = dataset_hand(&reader)?;
-    let rule = label_rule(reader.card());
-    let dgcnn = load_estimator(&args.model, &hand)?;
-    let mut physics_estimator = if args.physics {
-        Some(physics_estimator(args, &hand)?)
+    // The physics files are read before any evaluation, so that a bad file is refused at once.
+    let physics = if args.physics {
+        Some(ContactStudyPhysics {
+            material: match &args.material {
+                Some(p) => moe_io::read_config(p)?,
+                None => moe_physics::HandMaterial::default(),
+            },
+            config: match &args.physics_config {
+                Some(p) => moe_io::read_config(p)?,
+                None => moe_physics::PhysicsConfig::default(),
+            },
+        })
     } else {
         None
     };
-    let layout = reader.card().layout.clone();
-    let mut frames: Vec<LabelledFrame> = Vec::new();
-    let mut streams: Vec<moe_lab::physics_eval::StreamFrame> = Vec::new();
-    let params = dataset_params(reader.card())?;
-    let frame_secs = params.dt_secs * params.save_every_steps as Real;
-    let mut proximity: Vec<Vec<Vec<bool>>> = Vec::new();
-    let split = match args.frames {
-        FrameSet::Test => Some(Split::Test),
-        FrameSet::All => None,
-    };
-    for f in reader.frames(split, SplitFractions::default()) {
-        let f = f?;
-        let labelled = f.to_labelled(&layout)?;
-        frames.push(labelled);
-        if args.physics {
-            streams.push(moe_lab::physics_eval::StreamFrame::from_dataset(
-                &f, &layout, frame_secs,
-            )?);
-        }
-        proximity.push(layout.per_finger(&f.obstacle_distance_m, |&d| d < PROXIMITY_M));
-        if args.max_frames.is_some_and(|m| frames.len() as u64 >= m) {
-            break;
-        }
-    }
-    if frames.is_empty() {
-        bail!(
-            "{}: no frames to evaluate (too few trajectories for a test split?)",
-            args.data.display()
-        );
-    }
-    // On all frames, an index built from the data set's own training frames would find them.
-    let with_knn =
-        args.frames == FrameSet::Test || args.knn_index.as_ref().is_some_and(|p| p.exists());
-    let knn_all = if with_knn {
-        Some(knn_index(args, &reader)?)
-    } else {
-        None
-    };
-    let knn_sub = knn_all
-        .as_ref()
-        .map(|k| k.subset(0.1, args.seed))
-        .transpose()?;
-    let options = ContactEvalOptions {
+    let options = ContactStudyOptions {
+        data: args.data.clone(),
+        model: args.model.clone(),
+        knn_index: args.knn_index.clone(),
+        frames: args.frames.into(),
+        max_frames: args.max_frames,
+        trials: args.trials,
         seed: args.seed,
-        ..ContactEvalOptions::default()
+        physics,
+        meshes: args.out.is_some(),
     };
-    // Show the first frames with the most contact, spread over the set.
-    let mut by_contact: Vec<(usize, usize)> = frames
-        .iter()
-        .enumerate()
-        .map(|(k, f)| (f.contact_count(), k))
-        .filter(|(c, _)| *c > 0)
-        .collect();
-    by_contact.sort_unstable_by(|a, b| b.cmp(a));
-    let shown: Vec<usize> = by_contact
-        .iter()
-        .step_by((by_contact.len() / SHOWN_FRAMES).max(1))
-        .take(SHOWN_FRAMES)
-        .map(|&(_, k)| k)
-        .collect();
-    let other = (rule != "proximity").then_some(TruthLabels {
-        rule: "proximity",
-        labels: &proximity,
-    });
-    eprintln!(
-        "eval contact: {} frames; SR-ARAP, DGCNN, KNN[All] ({} frames), KNN[Sub] ({})",
-        frames.len(),
-        knn_all.as_ref().map_or(0, KnnIndex::len),
-        knn_sub.as_ref().map_or(0, KnnIndex::len)
-    );
-    let estimators = Estimators {
-        dgcnn: &dgcnn,
-        knn_all: knn_all.as_ref(),
-        knn_sub: knn_sub.as_ref(),
-    };
-    let (table, kept) =
-        evaluate_table1(&hand, &frames, &rule, other, estimators, &options, &|k| {
-            shown.contains(&k)
-        })?;
-    let plates = if let (true, Some(knn_all)) = (args.trials > 0, &knn_all) {
-        let scenes = moe_lab::contact_eval::plate_scenes()?;
-        eprintln!(
-            "eval contact: {} plate scenes × {} trials",
-            scenes.len(),
-            args.trials
-        );
-        evaluate_plates(
-            &hand,
-            &scenes,
-            args.trials,
-            args.seed,
-            &dgcnn,
-            knn_all,
-            &options.shape,
-        )?
-    } else {
-        Vec::new()
-    };
-    let physics = match physics_estimator.as_mut() {
-        Some(estimator) => Some(physics_rows(args, &hand, &streams, &dgcnn, estimator)?),
-        None => None,
-    };
+    let study = contact_study(&options, &mut print_progress)?;
+    let report = &study.report;
     if let Some(dir) = &args.out {
-        write_out(dir, &hand, &frames, &kept, &plates)?;
+        write_out(dir, &study.meshes, &report.table2)?;
     }
     if args.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&json!({
-                "data": args.data.display().to_string(),
-                "model": args.model.display().to_string(),
-                "label_rule": rule,
-                "table1": table,
-                "table2": { "trials": plates, "regions": region_summary(&plates) },
-                "physics": physics.as_ref().map(|(e, p)| json!({
-                    "table1": e,
-                    "table2": { "trials": p, "regions": crate::cli::eval::physics::plate_regions(p) },
-                })),
-            }))?
+            serde_json::to_string_pretty(&crate::cli::eval::sorted_json(report)?)?
         );
     } else {
-        print!("{}", format_table1(&table));
-        if !plates.is_empty() {
-            print!("{}", format_table2(&plates));
+        print!("{}", format_table1(&report.table1));
+        if !report.table2.trials.is_empty() {
+            print!("{}", format_table2(&report.table2));
         }
-        if let Some((e, p)) = &physics {
+        if let Some(p) = &report.physics {
             print!(
                 "\nContact from physics on the same frames:\n{}",
-                crate::cli::eval::physics::table(e)
+                crate::cli::eval::physics::table(&p.table1)
             );
-            if !p.is_empty() {
-                print!("{}", crate::cli::eval::physics::plate_table(p));
+            if !p.table2.trials.is_empty() {
+                print!(
+                    "{}",
+                    crate::cli::eval::physics::plate_table(&p.table2.regions)
+                );
             }
         }
     }
     Ok(())
 }
 
-/// The physics estimator of `--physics`, from `--material` and `--physics-config` (read before
-/// any evaluation, so that a bad file is refused at once).
-fn physics_estimator(
-    args: &ContactEvalArgs,
-    hand: &HandModel,
-) -> Result<moe_physics::PhysicsEstimator> {
-    let material: moe_physics::HandMaterial = match &args.material {
-        Some(p) => moe_io::read_config(p)?,
-        None => moe_physics::HandMaterial::default(),
-    };
-    let config: moe_physics::PhysicsConfig = match &args.physics_config {
-        Some(p) => moe_io::read_config(p)?,
-        None => moe_physics::PhysicsConfig::default(),
-    };
-    Ok(moe_physics::PhysicsEstimator::new(
-        hand, &material, &config,
-    )?)
-}
-
-/// The physics estimator's rows on the same frames (streams) and plate trials.
-fn physics_rows(
-    args: &ContactEvalArgs,
-    hand: &HandModel,
-    streams: &[moe_lab::physics_eval::StreamFrame],
-    dgcnn: &DgcnnEstimator,
-    estimator: &mut moe_physics::PhysicsEstimator,
-) -> Result<(
-    moe_lab::physics_eval::PhysicsEvaluation,
-    Vec<moe_lab::physics_eval::PhysicsPlateTrial>,
-)> {
-    eprintln!(
-        "eval contact: the physics estimator on {} frames",
-        streams.len()
-    );
-    let shape = moe_arap::ShapeConfig::default();
-    let eval = moe_lab::physics_eval::evaluate_physics(
-        hand,
-        streams,
-        moe_lab::physics_eval::MarkerSource::Exact,
-        estimator,
-        moe_lab::physics_eval::Comparison {
-            dgcnn: Some(dgcnn),
-            shape: &shape,
-            forget_between_frames: false,
-        },
-    )?;
-    let plates = if args.trials > 0 {
-        moe_lab::physics_eval::evaluate_plates_physics(
-            hand,
-            &moe_lab::contact_eval::plate_scenes()?,
-            args.trials,
-            args.seed,
-            estimator,
-            Some(dgcnn),
-        )?
-    } else {
-        Vec::new()
-    };
-    Ok((eval, plates))
-}
-
-/// Mean ± sd of the trials' UCD per region, for DGCNN and `KNN[All]` (mm); trials whose every
-/// contact frame was missed are left out of the mean and counted.
-fn region_summary(plates: &[PlateTrial]) -> serde_json::Value {
-    let mut out = serde_json::Map::new();
-    for region in ["tip", "middle", "base"] {
-        let trials: Vec<&PlateTrial> = plates.iter().filter(|t| t.region == region).collect();
-        let stat = |f: &dyn Fn(&PlateTrial) -> Real| {
-            let v: Vec<Real> = trials
-                .iter()
-                .map(|t| f(t))
-                .filter(|x| x.is_finite())
-                .collect();
-            let n = v.len() as Real;
-            let mean = v.iter().sum::<Real>() / n.max(1.0);
-            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<Real>() / n.max(1.0)).sqrt();
-            json!({ "mean_mm": mean, "sd_mm": sd, "trials": v.len(),
-                    "trials_all_missed": trials.len() - v.len() })
-        };
-        out.insert(
-            region.to_owned(),
-            json!({
-                "dgcnn": stat(&|t| t.dgcnn.ucd_mm),
-                "knn_all": stat(&|t| t.knn_all.ucd_mm),
-            }),
-        );
+/// The study's progress on stderr.
+fn print_progress(p: ContactStudyProgress<'_>) {
+    let shown = |path: Option<&Path>| path.map_or_else(String::new, |p| p.display().to_string());
+    match p {
+        ContactStudyProgress::KnnIndex {
+            frames,
+            source: KnnIndexSource::Read,
+            path,
+        } => eprintln!(
+            "eval contact: KNN index of {frames} frames from {}",
+            shown(path)
+        ),
+        ContactStudyProgress::KnnIndex {
+            frames,
+            source: KnnIndexSource::BuiltAndWritten,
+            path,
+        } => eprintln!(
+            "eval contact: built the KNN index of {frames} training frames, wrote {}",
+            shown(path)
+        ),
+        ContactStudyProgress::Table1 {
+            frames,
+            knn_all,
+            knn_sub,
+        } => eprintln!(
+            "eval contact: {frames} frames; SR-ARAP, DGCNN, KNN[All] ({knn_all} frames), \
+             KNN[Sub] ({knn_sub})"
+        ),
+        ContactStudyProgress::Plates { scenes, trials } => {
+            eprintln!("eval contact: {scenes} plate scenes × {trials} trials");
+        }
+        ContactStudyProgress::Physics { frames } => {
+            eprintln!("eval contact: the physics estimator on {frames} frames");
+        }
+        _ => {}
     }
-    serde_json::Value::Object(out)
 }
 
 fn format_table1(t: &ContactTable) -> String {
@@ -418,7 +248,7 @@ fn format_table1(t: &ContactTable) -> String {
     s
 }
 
-fn format_table2(plates: &[PlateTrial]) -> String {
+fn format_table2(table: &PlateTable) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -429,7 +259,7 @@ fn format_table2(plates: &[PlateTrial]) -> String {
         "{:<20} {:>5} {:>9} {:>8} {:>10} {:>8} {:>10} {:>8}",
         "scene", "trial", "contact", "DGCNN", "missed", "KNN[All]", "missed", "tilt°"
     );
-    for t in plates {
+    for t in &table.trials {
         let _ = writeln!(
             s,
             "{:<20} {:>5} {:>9} {:>8.2} {:>9.0}% {:>8.2} {:>9.0}% {:>8.2}",
@@ -443,66 +273,29 @@ fn format_table2(plates: &[PlateTrial]) -> String {
             t.tilt_deg
         );
     }
-    let summary = region_summary(plates);
-    for region in ["tip", "middle", "base"] {
-        let r = &summary[region];
+    for (region, r) in table.regions.in_order() {
         let _ = writeln!(
             s,
             "{region:<8} DGCNN {:.2} ± {:.2} mm   KNN[All] {:.2} ± {:.2} mm",
-            r["dgcnn"]["mean_mm"].as_f64().unwrap_or(f64::NAN),
-            r["dgcnn"]["sd_mm"].as_f64().unwrap_or(f64::NAN),
-            r["knn_all"]["mean_mm"].as_f64().unwrap_or(f64::NAN),
-            r["knn_all"]["sd_mm"].as_f64().unwrap_or(f64::NAN),
+            r.dgcnn.mean_mm, r.dgcnn.sd_mm, r.knn_all.mean_mm, r.knn_all.sd_mm,
         );
     }
     s
 }
 
-fn write_out(
-    dir: &Path,
-    hand: &HandModel,
-    frames: &[LabelledFrame],
-    kept: &[moe_lab::contact_eval::FramePrediction],
-    plates: &[PlateTrial],
-) -> Result<()> {
-    // Everything in memory first, so that a failure leaves nothing half-written.
-    let mut files: Vec<(PathBuf, moe_io::PlyData)> = Vec::new();
-    for k in kept {
-        let f = &frames[k.frame];
-        let name = format!("traj{}_frame{}", f.trajectory_id, f.frame_index);
-        for i in 0..hand.num_fingers() {
-            let truth: Vec<Real> = f.contact[i]
-                .iter()
-                .map(|&c| Real::from(u8::from(c)))
-                .collect();
-            files.push((
-                dir.join(format!("{name}_true_finger{i}.ply")),
-                contact_ply(hand, i, &f.shape.fingers[i], &truth)?,
-            ));
-            files.push((
-                dir.join(format!("{name}_dgcnn_on_srarap_finger{i}.ply")),
-                contact_ply(hand, i, &k.arap_shape.fingers[i], &k.dgcnn_on_arap[i])?,
-            ));
-            if let Some(labels) = k.knn_all.get(i) {
-                let knn: Vec<Real> = labels.iter().map(|&c| Real::from(u8::from(c))).collect();
-                files.push((
-                    dir.join(format!("{name}_knn_all_finger{i}.ply")),
-                    contact_ply(hand, i, &f.shape.fingers[i], &knn)?,
-                ));
-            }
-        }
-    }
+/// Writes the kept meshes and, with plate trials, the figure of the per-region errors.
+fn write_out(dir: &Path, meshes: &[(String, moe_io::PlyData)], plates: &PlateTable) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (path, ply) in &files {
-        moe_io::write_ply(path, ply)?;
+    for (name, ply) in meshes {
+        moe_io::write_ply(&dir.join(name), ply)?;
     }
-    if !plates.is_empty() {
-        let svg = crate::figure::region_bars(&region_summary(plates));
+    if !plates.trials.is_empty() {
+        let svg = crate::figure::region_bars(&serde_json::to_value(&plates.regions)?);
         moe_io::write_atomic(&dir.join("plate_regions.svg"), svg.as_bytes())?;
     }
     eprintln!(
         "eval contact: wrote {} meshes to {}",
-        files.len(),
+        meshes.len(),
         dir.display()
     );
     Ok(())

@@ -1,6 +1,6 @@
 //! `moe-touch eval <target>`: evaluation benchmarks as thin commands over library code.
 //!
-//! `surface`: the occluded-surface reconstruction benchmark of `moe_gpis::bench_scene` (paper
+//! `surface`: the occluded-surface reconstruction benchmark of `moe_lab::surface_eval` (paper
 //! §6.1, Table 3) on the procedural head and the 2:20:1 arm: UCD from each reconstruction to the
 //! ground truth for GP + prior, GP + sphere, the non-probabilistic baseline and the prior itself,
 //! plus runtimes. Each scene family is evaluated on several truth/prior/contact seed triples
@@ -20,12 +20,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use moe_gpis::ReconstructOptions;
-use moe_gpis::bench_scene::{
-    BenchSceneConfig, FamilyReport, SceneReport, build_scene, evaluate_family, evaluate_scene_with,
+use moe_gpis::bench_scene::{FamilyReport, SceneReport};
+use moe_lab::surface_eval::{
+    SurfaceBenchSize, SurfaceEvalOptions, evaluate_surfaces, surface_meshes,
 };
-use moe_io::PlyData;
-use serde_json::{Value, json};
 
 /// Arguments of `moe-touch eval`.
 #[derive(Debug, Args)]
@@ -107,9 +105,6 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
     }
 }
 
-/// Offset of the ±d points along the mean's normals at each contact (metres).
-const NORMAL_OFFSET_M: f64 = 0.005;
-
 fn parse_noise_mm(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && (0.0..=50.0).contains(&v) => Ok(v),
@@ -119,84 +114,25 @@ fn parse_noise_mm(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The scene and surface configurations of a benchmark size, with the contact noise (metres)
-/// overridden when given.
-fn configs(size: Size, noise_m: Option<f64>) -> Vec<(BenchSceneConfig, ReconstructOptions)> {
-    [BenchSceneConfig::head(), BenchSceneConfig::arm()]
-        .into_iter()
-        .map(|base| BenchSceneConfig {
-            noise_m: noise_m.unwrap_or(base.noise_m),
-            ..base
-        })
-        .map(|base| match size {
-            Size::Full => (base, ReconstructOptions::default()),
-            Size::Small => (
-                BenchSceneConfig {
-                    mesh_level: 4,
-                    contacts_per_patch: 20,
-                    ..base
-                },
-                ReconstructOptions {
-                    max_grid_nodes: 32 * 32 * 32,
-                    vertex_variance: false,
-                    ..ReconstructOptions::default()
-                },
-            ),
-        })
-        .collect()
-}
-
-fn surface_reports(size: Size, pairs: usize, noise_m: Option<f64>) -> Result<Vec<FamilyReport>> {
-    configs(size, noise_m)
-        .iter()
-        .map(|(scene, surface)| {
-            Ok(evaluate_family(
-                scene,
-                pairs,
-                surface,
-                Some(NORMAL_OFFSET_M),
-            )?)
-        })
-        .collect()
+/// The benchmark size of `--size`.
+fn bench_size(size: Size) -> SurfaceBenchSize {
+    match size {
+        Size::Small => SurfaceBenchSize::Small,
+        Size::Full => SurfaceBenchSize::Full,
+    }
 }
 
 /// Writes each family's first scene and every method's surface under `dir`; returns the files.
 fn write_surfaces(size: Size, noise_m: Option<f64>, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
-    for (config, surface) in configs(size, noise_m) {
-        let scene = build_scene(&config)?;
-        let sub = dir.join(format!("{:?}", config.kind).to_lowercase());
-        std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
-        let mut put = |name: &str, ply: &PlyData| -> Result<()> {
-            let path = sub.join(format!("{name}.ply"));
-            moe_io::write_ply(&path, ply)?;
-            written.push(path);
-            Ok(())
-        };
-        put("truth", &PlyData::from_mesh(&scene.truth))?;
-        put("contacts", &PlyData::from_points(&scene.contacts))?;
-        // The written surfaces carry their variance whatever the size.
-        let surface = ReconstructOptions {
-            vertex_variance: true,
-            ..surface
-        };
-        let mut failure = None;
-        evaluate_scene_with(
-            config.kind,
-            &scene,
-            &surface,
-            Some(NORMAL_OFFSET_M),
-            None,
-            &mut |name, mesh, variance| {
-                let ply = PlyData::with_variance(mesh, variance);
-                if let Err(e) = put(name, &ply) {
-                    failure.get_or_insert(e);
-                }
-            },
-        )?;
-        if let Some(e) = failure {
-            return Err(e);
+    let meshes = surface_meshes(bench_size(size), noise_m)?;
+    let mut written = Vec::with_capacity(meshes.len());
+    for (name, ply) in &meshes {
+        let path = dir.join(name);
+        if let Some(sub) = path.parent() {
+            std::fs::create_dir_all(sub).with_context(|| format!("creating {}", sub.display()))?;
         }
+        moe_io::write_ply(&path, ply)?;
+        written.push(path);
     }
     Ok(written)
 }
@@ -253,15 +189,12 @@ fn print_family(f: &FamilyReport) {
 }
 
 fn run_surface(args: &SurfaceEvalArgs) -> Result<()> {
-    let pairs = args.pairs.map_or(
-        match args.size {
-            Size::Full => 8,
-            Size::Small => 1,
-        },
-        |p| p as usize,
-    );
     let noise_m = args.noise_mm.map(|mm| 1e-3 * mm);
-    let families = surface_reports(args.size, pairs, noise_m)?;
+    let report = evaluate_surfaces(&SurfaceEvalOptions {
+        size: bench_size(args.size),
+        pairs: args.pairs.map(|p| p as usize),
+        noise_m,
+    })?;
     if let Some(dir) = &args.out {
         let files = write_surfaces(args.size, noise_m, dir)?;
         eprintln!(
@@ -271,15 +204,10 @@ fn run_surface(args: &SurfaceEvalArgs) -> Result<()> {
         );
     }
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string(
-                &json!({ "size": format!("{:?}", args.size).to_lowercase(), "families": families })
-            )?
-        );
+        println!("{}", serde_json::to_string(&sorted_json(&report)?)?);
         return Ok(());
     }
-    for f in &families {
+    for f in &report.families {
         print_scene(&f.scenes[0]);
         if f.scenes.len() > 1 {
             print_family(f);
@@ -289,34 +217,16 @@ fn run_surface(args: &SurfaceEvalArgs) -> Result<()> {
     Ok(())
 }
 
-fn round3(v: f64) -> f64 {
-    (v * 1e3).round() / 1e3
+/// `report` as JSON with every object's keys in order, as the commands have always printed them
+/// (`serde_json::Value` keeps its maps sorted).
+pub(crate) fn sorted_json(report: &impl serde::Serialize) -> Result<serde_json::Value> {
+    Ok(serde_json::to_value(report)?)
 }
 
 /// The golden content of `eval surface --size small`: Chamfer figures rounded to µm (timings and
 /// vertex counts are left out: they depend on the machine).
-pub(crate) fn surface_fixture() -> Result<Value> {
-    let families = surface_reports(Size::Small, 1, None)?;
-    let scenes: Vec<Value> = families
-        .iter()
-        .map(|f| {
-            let r = &f.scenes[0];
-            let methods: Vec<Value> = r
-                .methods
-                .iter()
-                .map(|m| {
-                    json!({
-                        "method": m.method,
-                        "ucd_mm": round3(m.ucd_mm),
-                        "ucd_truth_to_recon_mm": round3(m.ucd_truth_to_recon_mm),
-                        "bcd_mm": round3(m.bcd_mm),
-                    })
-                })
-                .collect();
-            json!({ "scene": r.scene, "contacts": r.contacts, "grid_nodes": r.grid_nodes, "methods": methods })
-        })
-        .collect();
-    Ok(json!({ "scenes": scenes }))
+pub(crate) fn surface_fixture() -> Result<serde_json::Value> {
+    sorted_json(&moe_lab::surface_eval::surface_fixture()?)
 }
 
 #[cfg(test)]

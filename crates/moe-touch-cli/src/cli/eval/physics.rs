@@ -6,21 +6,18 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use moe_arap::ShapeConfig;
-use moe_geom::{HandEstimator as _, OwnedObservation};
-use moe_geom::{HandKeypoints, HandModel, Real};
-use moe_io::{DatasetReader, Split, SplitFractions};
-use moe_lab::physics_eval::{
-    Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame, evaluate_physics,
-    evaluate_plates_physics, simulate_perceived,
+use moe_geom::HandEstimator as _;
+use moe_geom::Real;
+use moe_lab::physics_eval::{Comparison, MarkerSource, PhysicsEvaluation, evaluate_physics};
+use moe_lab::physics_study::{
+    PhysicsFrames, PhysicsPlateRegions, PhysicsRegionStat, PhysicsStudyOptions, Streams,
+    dataset_streams, physics_study,
 };
-use moe_physics::{CalibrationOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, calibrate};
-use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
-
-use crate::cli::eval::contact::load_estimator;
-use moe_lab::datagen::{dataset_hand, dataset_params};
+use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator};
+use moe_tendon_sim::randomize::RandomSceneParams;
 
 /// Arguments of `moe-touch eval physics`.
 #[derive(Debug, Args)]
@@ -86,293 +83,94 @@ pub(crate) struct PhysicsEvalArgs {
     json: bool,
 }
 
-/// Frames of the data set, as streams.
-fn dataset_streams(
-    dir: &std::path::Path,
-    marker_layout: Option<moe_geom::MarkerLayoutPreset>,
-    split: Option<Split>,
-    max_trajectories: Option<u64>,
-) -> Result<Streams> {
-    let reader = DatasetReader::open(dir)?;
-    let data_hand = dataset_hand(&reader)?;
-    let layout = reader.card().layout.clone();
-    let mut params = dataset_params(reader.card())?;
-    // Another marker layout on the same fingers: its markers are read off the true surface.
-    let hand = match marker_layout {
-        Some(preset) => {
-            params.finger.marker_layout = preset.layout();
-            let hand = HandModel::preset(params.preset, &params.finger)?;
-            for (a, b) in hand.fingers().iter().zip(data_hand.fingers()) {
-                if a.model.mesh().vertices() != b.model.mesh().vertices() {
-                    bail!(
-                        "--marker-layout {preset}: the fingers' meshes differ from the data set's"
-                    );
-                }
-            }
-            hand
-        }
-        None => data_hand,
-    };
-    let frame_secs = params.dt_secs * params.save_every_steps as Real;
-    let mut out: Vec<StreamFrame> = Vec::new();
-    let mut trajectories = 0u64;
-    for f in reader.frames(split, SplitFractions::default()) {
-        let f = f?;
-        let new = out
-            .last()
-            .is_none_or(|l| l.frame.trajectory_id != f.trajectory_id);
-        if new {
-            if max_trajectories.is_some_and(|m| trajectories >= m) {
-                break;
-            }
-            trajectories += 1;
-        }
-        let mut stream = StreamFrame::from_dataset(&f, &layout, frame_secs)?;
-        if marker_layout.is_some() {
-            stream.frame.markers = hand.keypoints_on(&stream.frame.shape.fingers);
-        }
-        out.push(stream);
-    }
-    if out.is_empty() {
-        bail!("{}: no frames to evaluate", dir.display());
-    }
-    Ok(Streams {
-        hand,
-        frames: out,
-        perceived: None,
-        params,
-    })
-}
-
-/// The frames to evaluate and what they were made with.
-struct Streams {
-    hand: HandModel,
-    frames: Vec<StreamFrame>,
-    /// Per frame, the markers detected in the rendered images (`--perceived`).
-    perceived: Option<Vec<HandKeypoints>>,
-    params: RandomSceneParams,
-}
-
-/// Trajectories simulated afresh (rendered and perceived with `--perceived`).
-fn simulated_streams(args: &PhysicsEvalArgs) -> Result<Streams> {
-    let mut params: RandomSceneParams = match &args.params {
-        Some(p) => moe_io::read_config(p)?,
-        None => RandomSceneParams::default(),
-    };
-    if let Some(preset) = args.marker_layout {
-        params.finger.marker_layout = preset.layout();
-    }
-    let hand = HandModel::preset(params.preset, &params.finger)?;
-    let n = args.max_trajectories.unwrap_or(args.trajectories);
-    let mut frames = Vec::new();
-    let mut seen = Vec::new();
-    for t in 0..n {
-        let sampled = sample_scene(&params, args.seed, t)?;
-        if args.perceived {
-            let (s, k) = simulate_perceived(&sampled.config, &hand, t, args.seed ^ t)
-                .with_context(|| format!("trajectory {t}"))?;
-            frames.extend(s);
-            seen.extend(k);
-        } else {
-            frames.extend(
-                moe_lab::physics_eval::simulate_stream(&sampled.config, &hand, t)
-                    .with_context(|| format!("trajectory {t}"))?,
-            );
-        }
-        eprintln!("eval physics: simulated trajectory {} of {n}", t + 1);
-    }
-    Ok(Streams {
-        hand,
-        frames,
-        perceived: args.perceived.then_some(seen),
-        params,
-    })
-}
-
-/// The material fitted to the calibration scene simulated with the hand's own material and
-/// mesh (`params`), from `initial`.
-fn calibrated(
-    scene: &std::path::Path,
-    hand: &HandModel,
-    params: &RandomSceneParams,
-    initial: &HandMaterial,
-    config: &PhysicsConfig,
-) -> Result<HandMaterial> {
-    let mut scene_config: moe_tendon_sim::SceneConfig = moe_io::read_config(scene)?;
-    scene_config.material = params.material.clone();
-    scene_config.voxel = params.voxel.clone();
-    let stream = moe_lab::physics_eval::simulate_stream(&scene_config, hand, 0)
-        .with_context(|| format!("calibration scene {}", scene.display()))?;
-    let frames: Vec<OwnedObservation> = stream
-        .iter()
-        .map(|s| {
-            s.frame
-                .observation()
-                .with_time(s.time_secs)
-                .to_owned_observation()
-        })
-        .collect();
-    let report = calibrate(
-        hand,
-        &[frames],
-        initial,
-        config,
-        &CalibrationOptions::default(),
-    )?;
-    eprintln!(
-        "eval physics: calibrated on {} frames: E {:.0} Pa (resolution {:.1} %), damping {:.4} s, \
-         RMS {:.4} -> {:.4} mm ({} evaluations)",
-        report.frames,
-        report.material.material.youngs_modulus_pa,
-        100.0 * report.youngs_modulus_resolution,
-        report.material.material.rayleigh_stiffness,
-        report.rms_initial_m * 1e3,
-        report.rms_fitted_m * 1e3,
-        report.evaluations
-    );
-    Ok(report.material)
-}
-
 pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
-    let Streams {
-        hand,
+    let frames = match &args.data {
+        Some(dir) => PhysicsFrames::Dataset {
+            dir: dir.clone(),
+            frames: args.frames.into(),
+        },
+        None => PhysicsFrames::Simulated {
+            trajectories: args.trajectories,
+            params: Box::new(match &args.params {
+                Some(p) => moe_io::read_config(p)?,
+                None => RandomSceneParams::default(),
+            }),
+            perceived: args.perceived,
+        },
+    };
+    let options = PhysicsStudyOptions {
         frames,
-        perceived,
-        params,
-    } = match &args.data {
-        Some(dir) => {
-            let split = match args.frames {
-                crate::cli::eval::contact::FrameSet::Test => Some(Split::Test),
-                crate::cli::eval::contact::FrameSet::All => None,
-            };
-            dataset_streams(dir, args.marker_layout, split, args.max_trajectories)?
-        }
-        None => simulated_streams(args)?,
-    };
-    let mut material: HandMaterial = match &args.material {
-        Some(p) => moe_io::read_config(p)?,
-        None => HandMaterial::default(),
-    };
-    let config: PhysicsConfig = match &args.config {
-        Some(p) => moe_io::read_config(p)?,
-        None => PhysicsConfig::default(),
-    };
-    if let Some(scene) = &args.calibrate {
-        material = calibrated(scene, &hand, &params, &material, &config)?;
-    }
-    let mut estimator = PhysicsEstimator::new(&hand, &material, &config)?;
-    let dgcnn = args
-        .model
-        .as_ref()
-        .map(|m| load_estimator(m, &hand))
-        .transpose()?;
-    let source = match (&perceived, args.marker_noise) {
-        (Some(seen), _) => MarkerSource::Given(seen),
-        (None, Some(sigma_m)) => MarkerSource::Noisy {
-            sigma_m,
-            seed: args.seed,
+        max_trajectories: args.max_trajectories,
+        seed: args.seed,
+        marker_layout: args.marker_layout,
+        marker_noise_m: args.marker_noise,
+        material: match &args.material {
+            Some(p) => moe_io::read_config(p)?,
+            None => HandMaterial::default(),
         },
-        (None, None) => MarkerSource::Exact,
-    };
-    let shape = ShapeConfig::default();
-    let eval = evaluate_physics(
-        &hand,
-        &frames,
-        source,
-        &mut estimator,
-        Comparison {
-            dgcnn: dgcnn.as_ref(),
-            shape: &shape,
-            forget_between_frames: args.no_memory,
+        calibration_scene: match &args.calibrate {
+            Some(p) => Some(
+                moe_io::read_config(p)
+                    .with_context(|| format!("calibration scene {}", p.display()))?,
+            ),
+            None => None,
         },
-    )?;
-    let plates = if args.plates > 0 {
-        evaluate_plates_physics(
-            &hand,
-            &moe_lab::contact_eval::plate_scenes()?,
-            args.plates,
-            args.seed,
-            &mut estimator,
-            dgcnn.as_ref(),
-        )?
-    } else {
-        Vec::new()
+        config: match &args.config {
+            Some(p) => moe_io::read_config(p)?,
+            None => PhysicsConfig::default(),
+        },
+        model: args.model.clone(),
+        plates: args.plates,
+        no_memory: args.no_memory,
     };
-    if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "evaluation": eval,
-                "plates": { "trials": plates, "regions": plate_regions(&plates) },
-            })
+    let study = physics_study(&options, &mut |t, n| {
+        eprintln!("eval physics: simulated trajectory {t} of {n}");
+    })?;
+    if let Some(report) = &study.calibration {
+        eprintln!(
+            "eval physics: calibrated on {} frames: E {:.0} Pa (resolution {:.1} %), damping \
+             {:.4} s, RMS {:.4} -> {:.4} mm ({} evaluations)",
+            report.frames,
+            report.material.material.youngs_modulus_pa,
+            100.0 * report.youngs_modulus_resolution,
+            report.material.material.rayleigh_stiffness,
+            report.rms_initial_m * 1e3,
+            report.rms_fitted_m * 1e3,
+            report.evaluations
         );
+    }
+    let report = &study.report;
+    if args.json {
+        println!("{}", crate::cli::eval::sorted_json(report)?);
     } else {
-        print!("{}", table(&eval));
-        if !plates.is_empty() {
-            print!("{}", plate_table(&plates));
+        print!("{}", table(&report.evaluation));
+        if !report.plates.trials.is_empty() {
+            print!("{}", plate_table(&report.plates.regions));
         }
     }
     Ok(())
 }
 
-/// Per region: mean ± sd over the trials of the UCD (mm) of the physics estimator and of the
-/// DGCNN on its shapes, with the share of contact frames missed.
-pub(crate) fn plate_regions(plates: &[PhysicsPlateTrial]) -> serde_json::Value {
-    let mut out = serde_json::Map::new();
-    for region in ["tip", "middle", "base"] {
-        let trials: Vec<&PhysicsPlateTrial> =
-            plates.iter().filter(|t| t.region == region).collect();
-        let stat = |f: &dyn Fn(&PhysicsPlateTrial) -> Option<&moe_contact::ContactReport>| {
-            let reports: Vec<&moe_contact::ContactReport> =
-                trials.iter().filter_map(|t| f(t)).collect();
-            let v: Vec<Real> = reports
-                .iter()
-                .map(|r| r.ucd_mm)
-                .filter(|x| x.is_finite())
-                .collect();
-            let n = v.len() as Real;
-            let mean = v.iter().sum::<Real>() / n.max(1.0);
-            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<Real>() / n.max(1.0)).sqrt();
-            let frames: u64 = reports.iter().map(|r| r.contact_frames).sum();
-            let misses: u64 = reports.iter().map(|r| r.misses).sum();
-            serde_json::json!({
-                "ucd_mean_mm": mean, "ucd_sd_mm": sd, "trials": v.len(),
-                "missed_fraction": misses as Real / frames.max(1) as Real,
-            })
-        };
-        out.insert(
-            region.to_owned(),
-            serde_json::json!({
-                "physics": stat(&|t| Some(&t.physics)),
-                "dgcnn_on_physics": stat(&|t| t.dgcnn_on_physics.as_ref()),
-            }),
-        );
-    }
-    serde_json::Value::Object(out)
-}
-
 /// Table 2 as Markdown.
-pub(crate) fn plate_table(plates: &[PhysicsPlateTrial]) -> String {
+pub(crate) fn plate_table(regions: &PhysicsPlateRegions) -> String {
     use std::fmt::Write as _;
-    let regions = plate_regions(plates);
     let mut s = String::from(
         "\n| region | physics UCD mm (missed) | DGCNN on the physics shape UCD mm (missed) |\n|---|---|---|\n",
     );
-    for region in ["tip", "middle", "base"] {
-        let cell = |k: &str| {
-            let r = &regions[region][k];
-            format!(
-                "{:.2} ± {:.2} ({:.0} %)",
-                r["ucd_mean_mm"].as_f64().unwrap_or(Real::NAN),
-                r["ucd_sd_mm"].as_f64().unwrap_or(Real::NAN),
-                100.0 * r["missed_fraction"].as_f64().unwrap_or(Real::NAN)
-            )
-        };
+    let cell = |r: &PhysicsRegionStat| {
+        format!(
+            "{:.2} ± {:.2} ({:.0} %)",
+            r.ucd_mean_mm,
+            r.ucd_sd_mm,
+            100.0 * r.missed_fraction
+        )
+    };
+    for (name, region) in regions.in_order() {
         let _ = writeln!(
             s,
-            "| {region} | {} | {} |",
-            cell("physics"),
-            cell("dgcnn_on_physics")
+            "| {name} | {} | {} |",
+            cell(&region.physics),
+            cell(&region.dgcnn_on_physics)
         );
     }
     s

@@ -1,0 +1,444 @@
+//! `moe-touch eval physics` as one library call: the frames (a data set's, or trajectories
+//! simulated afresh, perceived or not), the material (calibrated first if asked), the physics
+//! estimator scored by [`crate::physics_eval`] on them and, if asked, on the plate scenes.
+
+use std::path::{Path, PathBuf};
+
+use moe_arap::ShapeConfig;
+use moe_contact::{ContactReport, DgcnnEstimator};
+use moe_geom::{HandKeypoints, HandModel, MarkerLayoutPreset, OwnedObservation, Real};
+use moe_io::{DatasetReader, Split, SplitFractions};
+use moe_physics::{
+    CalibrationOptions, CalibrationReport, HandMaterial, PhysicsConfig, PhysicsEstimator, calibrate,
+};
+use moe_tendon_sim::SceneConfig;
+use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
+use serde::Serialize;
+
+use crate::contact_eval::FrameSet;
+use crate::datagen::{dataset_hand, dataset_params};
+use crate::error::LabError;
+use crate::physics_eval::{
+    Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame, evaluate_physics,
+    evaluate_plates_physics, simulate_perceived, simulate_stream,
+};
+
+/// Where the frames of [`physics_study`] come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PhysicsFrames {
+    /// A data set's frames, exact (or with noise, [`PhysicsStudyOptions::marker_noise_m`]).
+    Dataset {
+        /// The data set's directory.
+        dir: PathBuf,
+        /// Which of its frames.
+        frames: FrameSet,
+    },
+    /// Trajectories `0..trajectories` of the seed simulated afresh.
+    Simulated {
+        /// How many.
+        trajectories: u64,
+        /// Their randomisation.
+        params: Box<RandomSceneParams>,
+        /// Markers detected in the rendered frames rather than read off the surface.
+        perceived: bool,
+    },
+}
+
+/// Options of [`physics_study`].
+#[derive(Debug, Clone)]
+pub struct PhysicsStudyOptions {
+    /// The frames.
+    pub frames: PhysicsFrames,
+    /// At most this many trajectories (the first ones).
+    pub max_trajectories: Option<u64>,
+    /// Seed of the simulated trajectories, the marker noise and the plate perturbations.
+    pub seed: u64,
+    /// Another marker layout on the same fingers.
+    pub marker_layout: Option<MarkerLayoutPreset>,
+    /// Gaussian noise on every marker coordinate, metres.
+    pub marker_noise_m: Option<Real>,
+    /// The hand's material (the start of the calibration when there is one).
+    pub material: HandMaterial,
+    /// A contact-free scene to calibrate the material on first (simulated with the evaluated
+    /// hand's material and mesh).
+    pub calibration_scene: Option<SceneConfig>,
+    /// The estimator's settings.
+    pub config: PhysicsConfig,
+    /// A contact model for the comparison rows.
+    pub model: Option<PathBuf>,
+    /// Trials per plate scene (0: no Table 2).
+    pub plates: u64,
+    /// Every frame on its own (the estimator reset before each frame).
+    pub no_memory: bool,
+}
+
+/// Mean ± sd over a region's trials of one estimator's UCD, with the share of contact frames
+/// missed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsRegionStat {
+    /// Share of the contact frames missed.
+    pub missed_fraction: Real,
+    /// Trials with a finite UCD.
+    pub trials: usize,
+    /// Mean UCD, mm.
+    pub ucd_mean_mm: Real,
+    /// Standard deviation of the UCD, mm.
+    pub ucd_sd_mm: Real,
+}
+
+/// One region of the physics estimator's Table 2.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsRegion {
+    /// The DGCNN on the physics shapes.
+    pub dgcnn_on_physics: PhysicsRegionStat,
+    /// The physics estimator.
+    pub physics: PhysicsRegionStat,
+}
+
+/// The physics estimator's Table 2 per region.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsPlateRegions {
+    /// Plates at the base.
+    pub base: PhysicsRegion,
+    /// Plates at the middle.
+    pub middle: PhysicsRegion,
+    /// Plates at the tip.
+    pub tip: PhysicsRegion,
+}
+
+impl PhysicsPlateRegions {
+    /// The regions in the paper's order, by name.
+    pub fn in_order(&self) -> [(&'static str, &PhysicsRegion); 3] {
+        [
+            ("tip", &self.tip),
+            ("middle", &self.middle),
+            ("base", &self.base),
+        ]
+    }
+}
+
+/// The physics estimator's Table 2: the trials and their summary per region.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsPlateTable {
+    /// Per region.
+    pub regions: PhysicsPlateRegions,
+    /// Every trial.
+    pub trials: Vec<PhysicsPlateTrial>,
+}
+
+impl PhysicsPlateTable {
+    /// The trials with their summary per region.
+    pub fn new(trials: Vec<PhysicsPlateTrial>) -> Self {
+        let region = |name: &str| {
+            let of: Vec<&PhysicsPlateTrial> = trials.iter().filter(|t| t.region == name).collect();
+            let stat = |f: &dyn Fn(&PhysicsPlateTrial) -> Option<&ContactReport>| {
+                let reports: Vec<&ContactReport> = of.iter().filter_map(|t| f(t)).collect();
+                let v: Vec<Real> = reports
+                    .iter()
+                    .map(|r| r.ucd_mm)
+                    .filter(|x| x.is_finite())
+                    .collect();
+                let n = v.len() as Real;
+                let mean = v.iter().sum::<Real>() / n.max(1.0);
+                let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<Real>() / n.max(1.0)).sqrt();
+                let frames: u64 = reports.iter().map(|r| r.contact_frames).sum();
+                let misses: u64 = reports.iter().map(|r| r.misses).sum();
+                PhysicsRegionStat {
+                    missed_fraction: misses as Real / frames.max(1) as Real,
+                    trials: v.len(),
+                    ucd_mean_mm: mean,
+                    ucd_sd_mm: sd,
+                }
+            };
+            PhysicsRegion {
+                dgcnn_on_physics: stat(&|t| t.dgcnn_on_physics.as_ref()),
+                physics: stat(&|t| Some(&t.physics)),
+            }
+        };
+        Self {
+            regions: PhysicsPlateRegions {
+                base: region("base"),
+                middle: region("middle"),
+                tip: region("tip"),
+            },
+            trials,
+        }
+    }
+}
+
+/// The report of [`physics_study`] (`moe-touch eval physics --json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsStudyReport {
+    /// Table 1 and the force table.
+    pub evaluation: PhysicsEvaluation,
+    /// Table 2 (no trials without plates).
+    pub plates: PhysicsPlateTable,
+}
+
+/// What [`physics_study`] found: the report, and the calibration when there was one.
+#[derive(Debug, Clone)]
+pub struct PhysicsStudy {
+    /// The report.
+    pub report: PhysicsStudyReport,
+    /// The calibration of the material.
+    pub calibration: Option<CalibrationReport>,
+}
+
+/// The frames to evaluate and what they were made with.
+#[derive(Debug, Clone)]
+pub struct Streams {
+    /// The hand (with the study's marker layout).
+    pub hand: HandModel,
+    /// The frames, trajectory after trajectory.
+    pub frames: Vec<StreamFrame>,
+    /// Per frame, the markers detected in the rendered images (perceived frames).
+    pub perceived: Option<Vec<HandKeypoints>>,
+    /// The randomisation the frames were made with.
+    pub params: RandomSceneParams,
+}
+
+/// A data set's frames as streams; with `marker_layout`, that layout's markers read off each
+/// frame's true surface.
+///
+/// # Errors
+/// An unreadable data set, a layout whose fingers' meshes differ from the data set's, or no
+/// frames.
+pub fn dataset_streams(
+    dir: &Path,
+    marker_layout: Option<MarkerLayoutPreset>,
+    split: Option<Split>,
+    max_trajectories: Option<u64>,
+) -> Result<Streams, LabError> {
+    let reader = DatasetReader::open(dir)?;
+    let data_hand = dataset_hand(&reader)?;
+    let layout = reader.card().layout.clone();
+    let mut params = dataset_params(reader.card())?;
+    let hand = match marker_layout {
+        Some(preset) => {
+            params.finger.marker_layout = preset.layout();
+            let hand = HandModel::preset(params.preset, &params.finger)?;
+            for (a, b) in hand.fingers().iter().zip(data_hand.fingers()) {
+                if a.model.mesh().vertices() != b.model.mesh().vertices() {
+                    return Err(LabError::InvalidEvaluation {
+                        reason: format!(
+                            "marker layout {preset}: the fingers' meshes differ from the data \
+                             set's"
+                        ),
+                    });
+                }
+            }
+            hand
+        }
+        None => data_hand,
+    };
+    let frame_secs = params.dt_secs * params.save_every_steps as Real;
+    let mut out: Vec<StreamFrame> = Vec::new();
+    let mut trajectories = 0u64;
+    for f in reader.frames(split, SplitFractions::default()) {
+        let f = f?;
+        let new = out
+            .last()
+            .is_none_or(|l| l.frame.trajectory_id != f.trajectory_id);
+        if new {
+            if max_trajectories.is_some_and(|m| trajectories >= m) {
+                break;
+            }
+            trajectories += 1;
+        }
+        let mut stream = StreamFrame::from_dataset(&f, &layout, frame_secs)?;
+        if marker_layout.is_some() {
+            stream.frame.markers = hand.keypoints_on(&stream.frame.shape.fingers);
+        }
+        out.push(stream);
+    }
+    if out.is_empty() {
+        return Err(LabError::InvalidEvaluation {
+            reason: format!("{}: no frames to evaluate", dir.display()),
+        });
+    }
+    Ok(Streams {
+        hand,
+        frames: out,
+        perceived: None,
+        params,
+    })
+}
+
+/// Trajectories `0..n` of `seed` simulated afresh (rendered and perceived when `perceived`);
+/// `progress(t, n)` after each.
+fn simulated_streams(
+    mut params: RandomSceneParams,
+    marker_layout: Option<MarkerLayoutPreset>,
+    n: u64,
+    seed: u64,
+    perceived: bool,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Streams, LabError> {
+    if let Some(preset) = marker_layout {
+        params.finger.marker_layout = preset.layout();
+    }
+    let hand = HandModel::preset(params.preset, &params.finger)?;
+    let mut frames = Vec::new();
+    let mut seen = Vec::new();
+    for t in 0..n {
+        let sampled = sample_scene(&params, seed, t)?;
+        if perceived {
+            let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t)?;
+            frames.extend(s);
+            seen.extend(k);
+        } else {
+            frames.extend(simulate_stream(&sampled.config, &hand, t)?);
+        }
+        progress(t + 1, n);
+    }
+    Ok(Streams {
+        hand,
+        frames,
+        perceived: perceived.then_some(seen),
+        params,
+    })
+}
+
+/// The material fitted to `scene` simulated with the hand's own material and mesh (`params`),
+/// from `initial`.
+fn calibrated(
+    scene: &SceneConfig,
+    hand: &HandModel,
+    params: &RandomSceneParams,
+    initial: &HandMaterial,
+    config: &PhysicsConfig,
+) -> Result<CalibrationReport, LabError> {
+    let mut scene = scene.clone();
+    scene.material = params.material.clone();
+    scene.voxel = params.voxel.clone();
+    let stream = simulate_stream(&scene, hand, 0)?;
+    let frames: Vec<OwnedObservation> = stream
+        .iter()
+        .map(|s| {
+            s.frame
+                .observation()
+                .with_time(s.time_secs)
+                .to_owned_observation()
+        })
+        .collect();
+    Ok(calibrate(
+        hand,
+        &[frames],
+        initial,
+        config,
+        &CalibrationOptions::default(),
+    )?)
+}
+
+/// A contact model on `hand` by the runtime's loader, the model's path in its error.
+///
+/// # Errors
+/// [`LabError::InvalidEvaluation`] naming the model and why it does not load on `hand`.
+pub fn load_model_on(path: &Path, hand: &HandModel) -> Result<DgcnnEstimator, LabError> {
+    moe_touch::pipeline::load_contact_model(path, hand).map_err(|e| LabError::InvalidEvaluation {
+        reason: format!(
+            "model {} on the data set's hand ({:?} vertices per finger): {}",
+            path.display(),
+            hand.fingers()
+                .iter()
+                .map(|f| f.model.mesh().num_vertices())
+                .collect::<Vec<_>>(),
+            moe_touch::error::one_line(&e)
+        ),
+    })
+}
+
+/// `moe-touch eval physics`: contact from physics on the frames of `options`, as tactile sensors
+/// are specified, beside the paper's metrics; `progress(t, n)` after each simulated trajectory.
+///
+/// # Errors
+/// Unreadable or unfit data, a model that does not fit the hand, a failing simulation,
+/// calibration or estimate.
+pub fn physics_study(
+    options: &PhysicsStudyOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<PhysicsStudy, LabError> {
+    let Streams {
+        hand,
+        frames,
+        perceived,
+        params,
+    } = match &options.frames {
+        PhysicsFrames::Dataset { dir, frames } => dataset_streams(
+            dir,
+            options.marker_layout,
+            frames.split(),
+            options.max_trajectories,
+        )?,
+        PhysicsFrames::Simulated {
+            trajectories,
+            params,
+            perceived,
+        } => simulated_streams(
+            (**params).clone(),
+            options.marker_layout,
+            options.max_trajectories.unwrap_or(*trajectories),
+            options.seed,
+            *perceived,
+            progress,
+        )?,
+    };
+    let calibration = match &options.calibration_scene {
+        Some(scene) => Some(calibrated(
+            scene,
+            &hand,
+            &params,
+            &options.material,
+            &options.config,
+        )?),
+        None => None,
+    };
+    let material = calibration
+        .as_ref()
+        .map_or(&options.material, |c| &c.material);
+    let mut estimator = PhysicsEstimator::new(&hand, material, &options.config)?;
+    let dgcnn = options
+        .model
+        .as_deref()
+        .map(|m| load_model_on(m, &hand))
+        .transpose()?;
+    let source = match (&perceived, options.marker_noise_m) {
+        (Some(seen), _) => MarkerSource::Given(seen),
+        (None, Some(sigma_m)) => MarkerSource::Noisy {
+            sigma_m,
+            seed: options.seed,
+        },
+        (None, None) => MarkerSource::Exact,
+    };
+    let shape = ShapeConfig::default();
+    let evaluation = evaluate_physics(
+        &hand,
+        &frames,
+        source,
+        &mut estimator,
+        Comparison {
+            dgcnn: dgcnn.as_ref(),
+            shape: &shape,
+            forget_between_frames: options.no_memory,
+        },
+    )?;
+    let trials = if options.plates > 0 {
+        evaluate_plates_physics(
+            &hand,
+            &crate::contact_eval::plate_scenes()?,
+            options.plates,
+            options.seed,
+            &mut estimator,
+            dgcnn.as_ref(),
+        )?
+    } else {
+        Vec::new()
+    };
+    Ok(PhysicsStudy {
+        report: PhysicsStudyReport {
+            evaluation,
+            plates: PhysicsPlateTable::new(trials),
+        },
+        calibration,
+    })
+}
