@@ -22,8 +22,12 @@ pub mod episode;
 pub mod error;
 /// Grasping paper on an unknown incline: press, fit the plane, reorient, press again.
 pub mod grasp;
+/// What each contact-label rule labels, and whether the finger's deformation can show it.
+pub mod labels;
 /// Marker perception scored against an episode's ground truth.
 pub mod markers;
+/// The Cramér–Rao bound of a press's place and force for each marker layout of the study.
+pub mod observability;
 /// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
 pub mod patting;
 /// Contact from physics evaluated as tactile sensors are specified (detection, location and

@@ -26,6 +26,7 @@
 
 mod plane;
 mod press;
+mod study;
 mod trial;
 
 pub use plane::{
@@ -33,6 +34,10 @@ pub use plane::{
     fit_grasp_plane,
 };
 pub use press::plate_normal;
+pub use study::{
+    GraspInclineRow, GraspStudyOptions, GraspStudyReport, GraspStudySource, PAPER_INCLINES,
+    run_grasp_study,
+};
 pub use trial::run_grasp_trial;
 
 use moe_geom::{ContactPoint, RansacConfig, Real};

@@ -34,6 +34,19 @@ pub enum PlaneSource {
     LoadedFingersAxis,
 }
 
+impl PlaneSource {
+    /// Its name, as serialised: `contact-points`, `loaded-fingertips`,
+    /// `two-fingertips-and-axis`, `loaded-fingers-axis`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::ContactPoints => "contact-points",
+            Self::LoadedFingertips => "loaded-fingertips",
+            Self::TwoFingertipsAndAxis => "two-fingertips-and-axis",
+            Self::LoadedFingersAxis => "loaded-fingers-axis",
+        }
+    }
+}
+
 /// One finger in one frame of a hold, as the plane rule reads it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FingerView {

@@ -2,24 +2,24 @@
 //! three-finger hand presses the inclined plates (0°, 30°, 45°) from a perturbed level start;
 //! with MOE-Touch the pipeline's contacts give a RANSAC plane, the hand turns onto its normal
 //! and presses again; without, it keeps its orientation. The simulator judges the final press
-//! (`moe_lab::grasp`). Seeded trials per angle; the table beside the paper's, and the
-//! estimated incline against the true one per trial.
+//! (`moe_lab::grasp::run_grasp_study`). Seeded trials per angle; the table beside the
+//! paper's, and the estimated incline against the true one per trial.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_geom::{FingerParams, HandModel, HandPreset, Real};
+use moe_geom::Real;
 use moe_io::PlyData;
-use moe_lab::grasp::{GraspContacts, GraspOptions, GraspTrial, run_grasp_trial};
-use moe_touch::pipeline::{check_contact_threshold, load_contact_model};
-use serde_json::{Value, json};
+use moe_lab::grasp::{
+    GraspInclineRow, GraspOptions, GraspStudyOptions, GraspStudyReport, GraspStudySource,
+    GraspTrial, PlaneSource, PressOutcome, run_grasp_study,
+};
+use moe_touch::pipeline::check_contact_threshold;
+use serde_json::Value;
 
 use crate::cli::eval::contact::SHIPPED_MODEL;
 use crate::golden::workspace_root;
-
-/// The paper's inclines and its Table 4 (successes of 5 with and without MOE-Touch).
-const INCLINES: [(Real, usize, usize); 3] = [(0.0, 5, 5), (30.0, 5, 1), (45.0, 4, 0)];
 
 /// Arguments of `moe-touch eval grasp`.
 #[derive(Debug, Args)]
@@ -107,188 +107,101 @@ pub(crate) enum GraspMethod {
     Dgcnn,
 }
 
-/// Where the plane's points come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Source {
-    /// The pipeline's contacts with the physics estimator.
-    Physics,
-    /// The pipeline's contacts with SR-ARAP and the DGCNN.
-    Pipeline,
-    /// The simulator's labels on the pipeline's shape.
-    TrueLabels,
-    /// The simulator's contact vertices.
-    TrueContacts,
-}
-
-impl Source {
-    fn name(self) -> &'static str {
-        match self {
-            Self::Physics => "physics",
-            Self::Pipeline => "pipeline",
-            Self::TrueLabels => "true-labels",
-            Self::TrueContacts => "true-contacts",
+/// Runs the study with the flags' errors named: `threshold` and `ransac` are checked before any
+/// trial runs; with `out`, every trial's points are written there (see [`GraspEvalArgs::out`]).
+fn evaluate(options: &GraspStudyOptions, out: Option<&Path>) -> Result<GraspStudyReport> {
+    if let Some(t) = options.threshold {
+        check_contact_threshold(t).context("--threshold")?;
+        if options.source == GraspStudySource::Physics {
+            anyhow::bail!("--threshold is for --contact dgcnn");
         }
     }
-}
-
-fn evaluate(
-    trials: u64,
-    model: &Path,
-    seed: u64,
-    source: Source,
-    options: &GraspOptions,
-    threshold: Option<Real>,
-    out: Option<&Path>,
-) -> Result<Value> {
-    if let Some(t) = threshold {
-        check_contact_threshold(t).context("--threshold")?;
-    }
-    options.ransac.validate().context("--plane-threshold")?;
-    let hand = HandModel::preset(HandPreset::ThreeFinger, &FingerParams::default())?;
-    let estimator = load_contact_model(&workspace_root().join(model), &hand)?;
-    if source == Source::Physics && threshold.is_some() {
-        anyhow::bail!("--threshold is for --contact dgcnn");
-    }
-    let threshold = match source {
-        Source::Physics => moe_physics::CONTACT_THRESHOLD,
-        _ => threshold.unwrap_or_else(|| estimator.threshold()),
-    };
-    let mut rows = Vec::new();
-    for (incline, paper_with, paper_without) in INCLINES {
-        let t = std::time::Instant::now();
-        let results: Vec<GraspTrial> = (0..trials)
-            .map(|k| {
-                let contacts = match source {
-                    Source::Physics => GraspContacts::Physics {
-                        material: moe_physics::HandMaterial::default(),
-                        config: moe_physics::PhysicsConfig::default(),
-                    },
-                    Source::Pipeline => GraspContacts::Pipeline {
-                        contact: &estimator,
-                        threshold,
-                    },
-                    Source::TrueLabels => GraspContacts::SimulatorLabelsOnEstimatedShape {
-                        contact: &estimator,
-                    },
-                    Source::TrueContacts => GraspContacts::Simulator,
-                };
-                run_grasp_trial(&hand, contacts, incline, k, seed, options)
-            })
-            .collect::<Result<_, _>>()?;
+    options
+        .grasp
+        .ransac
+        .validate()
+        .context("--plane-threshold")?;
+    let mut started = std::time::Instant::now();
+    run_grasp_study(options, |row: &GraspInclineRow| -> Result<()> {
         if let Some(dir) = out {
-            for r in &results {
-                write_trial(dir, r)?;
+            for trial in &row.trials_detail {
+                write_trial(dir, trial)?;
             }
         }
         eprintln!(
-            "eval grasp: {incline}°: {trials} trials in {:.1} s",
-            t.elapsed().as_secs_f64()
+            "eval grasp: {}°: {} trials in {:.1} s",
+            row.incline_deg,
+            row.trials,
+            started.elapsed().as_secs_f64()
         );
-        let with = results.iter().filter(|r| r.success_with).count();
-        let without = results.iter().filter(|r| r.success_without).count();
-        let errors: Vec<Real> = results
-            .iter()
-            .filter_map(|r| r.estimated_incline_deg.map(|e| (e - incline).abs()))
-            .collect();
-        rows.push(json!({
-            "incline_deg": incline,
-            "trials": trials,
-            "success_with": with,
-            "success_without": without,
-            "paper_with_of_5": paper_with,
-            "paper_without_of_5": paper_without,
-            "max_incline_error_deg": errors.iter().copied().fold(None, |m: Option<Real>, e| Some(m.map_or(e, |m| m.max(e)))),
-            "fits_failed": results.iter().filter(|r| r.fits.iter().any(|f| f.source.is_none())).count(),
-            "without_judged_press": results.iter().filter(|r| r.final_press.is_none()).count(),
-            "trials_detail": results,
-        }));
-    }
-    Ok(
-        json!({ "options": options, "threshold": threshold, "contacts": source.name(), "rows": rows }),
-    )
+        started = std::time::Instant::now();
+        Ok(())
+    })
 }
 
-fn print_table(v: &Value) {
-    println!("plane from: {}", v["contacts"].as_str().unwrap_or("?"));
+/// The study's tables: successes per incline beside the paper's, then every trial's planes.
+fn print_table(r: &GraspStudyReport) {
+    println!("plane from: {}", r.contacts.name());
     println!(
         "incline   with MOE-Touch  (paper)   without  (paper)   incline error max   fits failed"
     );
-    for r in v["rows"].as_array().into_iter().flatten() {
+    for row in &r.rows {
         println!(
-            "{:>5}°    {:>3} / {:<3}      ({} / 5)    {:>3} / {:<3} ({} / 5)    {:>8}          {}",
-            r["incline_deg"],
-            r["success_with"],
-            r["trials"],
-            r["paper_with_of_5"],
-            r["success_without"],
-            r["trials"],
-            r["paper_without_of_5"],
-            r["max_incline_error_deg"]
-                .as_f64()
+            "{:?}°    {} / {}      ({} / 5)    {} / {} ({} / 5)    {:>8}          {}",
+            row.incline_deg,
+            row.success_with,
+            row.trials,
+            row.paper_with_of_5,
+            row.success_without,
+            row.trials,
+            row.paper_without_of_5,
+            row.max_incline_error_deg
                 .map_or("—".to_owned(), |e| format!("{e:.2}°")),
-            r["fits_failed"],
+            row.fits_failed,
         );
     }
     println!(
         "\nper trial: true incline → estimated incline (per fit: plane through, error of the normal; \
          fingers touching at each press)"
     );
-    let press_m = v["options"]["press_m"].as_f64().unwrap_or(0.0);
-    let min_vertices = v["options"]["min_contact_vertices"].as_u64().unwrap_or(0);
-    for r in v["rows"].as_array().into_iter().flatten() {
-        for t in r["trials_detail"].as_array().into_iter().flatten() {
-            let fits: Vec<String> = t["fits"]
-                .as_array()
-                .into_iter()
-                .flatten()
+    let touching = |p: &PressOutcome| {
+        p.contact_vertices
+            .iter()
+            .filter(|&&n| n >= r.options.min_contact_vertices)
+            .count()
+    };
+    for row in &r.rows {
+        for t in &row.trials_detail {
+            let fits: Vec<String> = t
+                .fits
+                .iter()
                 .map(|f| {
-                    let depth = f["press_depth_m"].as_f64().unwrap_or(0.0);
                     format!(
                         "{} {}{}",
-                        f["source"].as_str().unwrap_or("no fit"),
-                        f["normal_error_deg"]
-                            .as_f64()
+                        f.source.map_or("no fit", PlaneSource::name),
+                        f.normal_error_deg
                             .map_or("—".to_owned(), |e| format!("{e:.1}°")),
-                        if depth > press_m + 1e-9 {
-                            format!(" (pressed {:.0} mm)", depth * 1e3)
+                        if f.press_depth_m > r.options.press_m + 1e-9 {
+                            format!(" (pressed {:.0} mm)", f.press_depth_m * 1e3)
                         } else {
                             String::new()
                         }
                     )
                 })
                 .collect();
-            let touching = |p: &Value| {
-                p["contact_vertices"].as_array().map_or(0, |c| {
-                    c.iter()
-                        .filter(|n| n.as_u64().unwrap_or(0) >= min_vertices)
-                        .count()
-                })
-            };
-            let presses: Vec<String> = std::iter::once(&t["first_press"])
-                .chain(
-                    t["fits"]
-                        .as_array()
-                        .into_iter()
-                        .flatten()
-                        .map(|f| &f["press"]),
-                )
-                .filter(|p| !p.is_null())
+            let presses: Vec<String> = std::iter::once(&t.first_press)
+                .chain(t.fits.iter().filter_map(|f| f.press.as_ref()))
                 .map(|p| touching(p).to_string())
                 .collect();
             println!(
-                "  {:>4}° trial {}: {:>7}  ({}; presses {}) {}",
-                t["incline_deg"],
-                t["trial"],
-                t["estimated_incline_deg"]
-                    .as_f64()
+                "  {:?}° trial {}: {:>7}  ({}; presses {}) {}",
+                t.incline_deg,
+                t.trial,
+                t.estimated_incline_deg
                     .map_or("no fit".to_owned(), |e| format!("{e:.2}°")),
                 fits.join(", "),
                 presses.join(" → "),
-                if t["success_with"].as_bool() == Some(true) {
-                    "success"
-                } else {
-                    "failed"
-                }
+                if t.success_with { "success" } else { "failed" }
             );
         }
     }
@@ -296,51 +209,56 @@ fn print_table(v: &Value) {
 
 pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     let source = if args.true_contacts {
-        Source::TrueContacts
+        GraspStudySource::TrueContacts
     } else if args.true_labels {
-        Source::TrueLabels
+        GraspStudySource::TrueLabels
     } else {
         match args.contact {
-            GraspMethod::Physics => Source::Physics,
-            GraspMethod::Dgcnn => Source::Pipeline,
+            GraspMethod::Physics => GraspStudySource::Physics,
+            GraspMethod::Dgcnn => GraspStudySource::Pipeline,
         }
     };
-    let mut options = GraspOptions {
+    let mut grasp = GraspOptions {
         refinements: usize::try_from(args.refinements)?,
         fingertip_plane: !args.contact_plane_only,
         ..GraspOptions::default()
     };
     if let Some(m) = args.plane_threshold {
-        options.ransac.distance_threshold_m = m;
+        grasp.ransac.distance_threshold_m = m;
     }
-    let v = evaluate(
-        args.trials,
-        &args.model,
-        args.seed,
+    let options = GraspStudyOptions {
+        trials: args.trials,
+        model: workspace_root().join(&args.model),
+        camera_seed: args.seed,
         source,
-        &options,
-        args.threshold,
-        args.out.as_deref(),
-    )?;
+        threshold: args.threshold,
+        grasp,
+    };
+    let report = evaluate(&options, args.out.as_deref())?;
     if args.json {
-        println!("{}", serde_json::to_string(&v)?);
+        // Keys sorted, as the report has always been printed.
+        println!("{}", serde_json::to_value(&report)?);
     } else {
-        print_table(&v);
+        print_table(&report);
     }
     Ok(())
 }
 
+/// The study of the golden fixture: one trial per incline, the paper's pipeline, defaults.
+fn fixture_options() -> GraspStudyOptions {
+    GraspStudyOptions {
+        trials: 1,
+        model: workspace_root().join(SHIPPED_MODEL),
+        camera_seed: 0,
+        source: GraspStudySource::Pipeline,
+        threshold: None,
+        grasp: GraspOptions::default(),
+    }
+}
+
 /// The golden content of one trial per incline, rounded to 1e-3.
 pub(crate) fn grasp_fixture() -> Result<Value> {
-    let mut v = evaluate(
-        1,
-        Path::new(SHIPPED_MODEL),
-        0,
-        Source::Pipeline,
-        &GraspOptions::default(),
-        None,
-        None,
-    )?;
+    let mut v = serde_json::to_value(evaluate(&fixture_options(), None)?)?;
     crate::cli::eval::patting::round3(&mut v);
     Ok(v)
 }
@@ -350,7 +268,6 @@ mod tests {
     use super::*;
     use clap::Parser;
     use moe_geom::{ContactPoint, Point3};
-    use moe_lab::grasp::PressOutcome;
 
     /// `--out` writes a trial's plane points with their finger, probability and inlier flag,
     /// and the simulator's contacts, and they read back as written.
@@ -405,13 +322,12 @@ mod tests {
     /// more than five refinements, are refused when parsed.
     #[test]
     fn bad_thresholds_are_refused_before_any_trial() {
-        let model = Path::new(SHIPPED_MODEL);
-        let defaults = GraspOptions::default();
         for t in [-0.5, 1.5, Real::NAN] {
-            let e = format!(
-                "{:#}",
-                evaluate(1, model, 0, Source::Pipeline, &defaults, Some(t), None).unwrap_err()
-            );
+            let options = GraspStudyOptions {
+                threshold: Some(t),
+                ..fixture_options()
+            };
+            let e = format!("{:#}", evaluate(&options, None).unwrap_err());
             assert!(e.contains("--threshold") && e.contains("[0, 1]"), "{e}");
         }
         let parse = |args: &[&str]| {
@@ -432,12 +348,9 @@ mod tests {
             );
         }
         for m in [0.0, -0.001, Real::NAN] {
-            let mut options = GraspOptions::default();
-            options.ransac.distance_threshold_m = m;
-            let e = format!(
-                "{:#}",
-                evaluate(1, model, 0, Source::Pipeline, &options, None, None).unwrap_err()
-            );
+            let mut options = fixture_options();
+            options.grasp.ransac.distance_threshold_m = m;
+            let e = format!("{:#}", evaluate(&options, None).unwrap_err());
             assert!(e.contains("--plane-threshold"), "{e}");
         }
     }

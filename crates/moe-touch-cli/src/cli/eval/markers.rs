@@ -2,37 +2,20 @@
 //! simulator's wrist camera with its noise model — the six plate scenes of Table 2, head and
 //! arm patting and the three inclined plates. Per scene: detection rate of the markers visible in
 //! the ground truth, position error, false detections, identity swaps, and SR-ARAP shape BCD
-//! from the detected keypoints against from every true marker.
+//! from the detected keypoints against from every true marker (`moe_lab::markers::run_marker_study`).
 
 use std::path::PathBuf;
 
 use crate::overlay::draw_detection;
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::ShapeConfig;
-use moe_lab::episode::EpisodeRecorder;
-use moe_lab::markers::{EpisodeMarkerReport, MarkerScore, evaluate_episode};
-use moe_tendon_sim::camera::NoiseModel;
-use moe_tendon_sim::{Scene, SceneConfig, run_saving};
-use moe_touch::perception::{DetectorConfig, MarkerDetector};
-use serde_json::json;
+use moe_lab::markers::{
+    MARKER_SCENES, MarkerSceneView, MarkerStudyOptions, MarkerStudyReport, PooledPlateMarkers,
+    run_marker_study,
+};
+use moe_touch::perception::DetectorConfig;
 
 use crate::golden::workspace_root;
-
-/// The scenes, in the order of the report: Table 2's plates, head and arm patting, the inclines.
-const SCENES: [&str; 11] = [
-    "plate_tip_front",
-    "plate_tip_side",
-    "plate_middle_front",
-    "plate_middle_side",
-    "plate_base_front",
-    "plate_base_side",
-    "head_patting",
-    "arm_patting",
-    "inclined_plate_00",
-    "inclined_plate_30",
-    "inclined_plate_45",
-];
 
 /// Arguments of `moe-touch eval markers`.
 #[derive(Debug, Args)]
@@ -59,126 +42,68 @@ pub(crate) struct MarkersEvalArgs {
 }
 
 pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
-    let names: Vec<&str> = if args.scenes.is_empty() {
-        SCENES.to_vec()
-    } else {
-        for s in &args.scenes {
-            anyhow::ensure!(
-                SCENES.contains(&s.as_str()),
-                "--scene {s}: not one of {}",
-                SCENES.join(", ")
-            );
-        }
-        args.scenes.iter().map(String::as_str).collect()
-    };
-    let config: DetectorConfig = match &args.config {
+    for s in &args.scenes {
+        anyhow::ensure!(
+            MARKER_SCENES.contains(&s.as_str()),
+            "--scene {s}: not one of {}",
+            MARKER_SCENES.join(", ")
+        );
+    }
+    let detector: DetectorConfig = match &args.config {
         Some(path) => moe_io::read_config(path)?,
         None => DetectorConfig::default(),
     };
-    let dir = workspace_root().join("fixtures/scenes");
-    let mut reports: Vec<EpisodeMarkerReport> = Vec::new();
-    for name in &names {
-        let path = dir.join(format!("{name}.toml"));
-        let mut scene_config: SceneConfig =
-            moe_io::read_config(&path).with_context(|| format!("scene {}", path.display()))?;
-        if args.ideal {
-            scene_config.camera.noise = NoiseModel::ideal();
-        }
-        let t = std::time::Instant::now();
-        let mut scene = Scene::new(scene_config)?;
-        let steps = scene.num_steps();
-        let saved = run_saving(&mut scene, steps)?;
-        let recorder = EpisodeRecorder::new(&scene, name, args.seed)?;
-        let frames = saved
-            .iter()
-            .enumerate()
-            .map(|(k, f)| recorder.frame(&scene, f, k as u64))
-            .collect::<Result<Vec<_>, _>>()?;
-        let camera = scene.config().camera;
-        let mut detector = MarkerDetector::new(
-            camera.intrinsics,
-            camera.hand_from_camera,
-            scene.hand(),
-            config,
-        )?;
-        let (detections, report) = evaluate_episode(
-            scene.hand(),
-            recorder.info(),
-            &frames,
-            &mut detector,
-            &ShapeConfig::default(),
-        )?;
-        let report = report.context("simulated frames carry ground truth")?;
+    let options = MarkerStudyOptions {
+        scenes: args.scenes.clone(),
+        scene_dir: workspace_root().join("fixtures/scenes"),
+        camera_seed: args.seed,
+        ideal: args.ideal,
+        detector,
+    };
+    let mut started = std::time::Instant::now();
+    let report = run_marker_study(&options, |scene: &MarkerSceneView<'_>| -> Result<()> {
         eprintln!(
-            "eval markers: {name}: {} frames in {:.1} s",
-            frames.len(),
-            t.elapsed().as_secs_f64()
+            "eval markers: {}: {} frames in {:.1} s",
+            scene.name,
+            scene.frames.len(),
+            started.elapsed().as_secs_f64()
         );
         if let Some(out) = &args.out {
-            std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-            for k in [0, frames.len() / 2] {
-                if let (Some(frame), Some(det)) = (frames.get(k), detections.get(k)) {
-                    let img = draw_detection(&detector, &frame.color_rgb8, det)?;
-                    let file = out.join(format!("{name}_{k:03}.png"));
-                    img.save(&file)
-                        .with_context(|| format!("writing {}", file.display()))?;
-                }
-            }
+            write_overlays(out, scene)?;
         }
-        reports.push(report);
-    }
-    let plates: Vec<&EpisodeMarkerReport> = reports
-        .iter()
-        .filter(|r| r.scene.starts_with("plate_"))
-        .collect();
-    let summary = summary_of(&plates);
+        started = std::time::Instant::now();
+        Ok(())
+    })?;
     if args.json {
-        println!(
-            "{}",
-            json!({"seed": args.seed, "ideal": args.ideal, "config": config,
-                   "scenes": reports, "plates": summary})
-        );
+        // Keys sorted, as the report has always been printed.
+        println!("{}", serde_json::to_value(&report)?);
     } else {
-        println!("{}", format_table(&reports, &summary));
+        println!("{}", format_table(&report));
     }
     Ok(())
 }
 
-/// The plate scenes pooled: the figures the targets are stated on.
-fn summary_of(plates: &[&EpisodeMarkerReport]) -> serde_json::Value {
-    if plates.is_empty() {
-        return serde_json::Value::Null;
+/// The first and middle frame of a scene with its detections drawn, as
+/// `out/<scene>_<frame>.png`.
+fn write_overlays(out: &std::path::Path, scene: &MarkerSceneView<'_>) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    for k in [0, scene.frames.len() / 2] {
+        if let (Some(frame), Some(det)) = (scene.frames.get(k), scene.detections.get(k)) {
+            let img = draw_detection(scene.detector, &frame.color_rgb8, det)?;
+            let file = out.join(format!("{}_{k:03}.png", scene.name));
+            img.save(&file)
+                .with_context(|| format!("writing {}", file.display()))?;
+        }
     }
-    let n = plates.len() as f64;
-    let mut pooled = MarkerScore::default();
-    for r in plates {
-        pooled.merge(&r.score);
-    }
-    let m = pooled.report();
-    json!({
-        "scenes": plates.len(),
-        "frames": m.frames,
-        "visible": m.visible,
-        "detected": m.detected,
-        "detection_rate": m.detection_rate,
-        "mean_error_mm": m.mean_error_mm,
-        "p95_error_mm": m.p95_error_mm,
-        "max_error_mm": m.max_error_mm,
-        "false_detections": m.false_detections,
-        "identity_swaps": m.identity_swaps,
-        "shape_bcd_detected_mm": plates.iter().map(|r| r.shape_bcd_detected_mm).sum::<f64>() / n,
-        "shape_bcd_truth_mm": plates.iter().map(|r| r.shape_bcd_truth_mm).sum::<f64>() / n,
-        "shape_bcd_truth_visible_mm": plates.iter().map(|r| r.shape_bcd_truth_visible_mm).sum::<f64>() / n,
-        "shape_bcd_worst_excess_mm": plates.iter().map(|r| r.shape_bcd_worst_excess_mm).fold(f64::NEG_INFINITY, f64::max),
-    })
+    Ok(())
 }
 
-fn format_table(reports: &[EpisodeMarkerReport], plates: &serde_json::Value) -> String {
+fn format_table(report: &MarkerStudyReport) -> String {
     let mut s = String::new();
     s.push_str(
         "scene                frames  visible  detected   err mean/p95/max mm  false  swaps  BCD det / seen / all mm  ms/frame\n",
     );
-    for r in reports {
+    for r in &report.scenes {
         let m = &r.markers;
         s.push_str(&format!(
             "{:<20} {:>6} {:>8} {:>8.2} %   {:>5.2} / {:>4.2} / {:>4.2}   {:>5} {:>6}     {:>5.3} / {:>5.3} / {:>5.3}   {:>7.2}\n",
@@ -197,22 +122,25 @@ fn format_table(reports: &[EpisodeMarkerReport], plates: &serde_json::Value) -> 
             r.detect_ms,
         ));
     }
-    if !plates.is_null() {
-        let f = |k: &str| plates[k].as_f64().unwrap_or(f64::NAN);
-        s.push_str(&format!(
-            "plates pooled: {:.2} % of {} visible markers detected, error mean {:.2} / p95 {:.2} / max {:.2} mm, {} false, {} swaps; shape BCD {:.3} mm from detections, {:.3} mm from the visible true markers, {:.3} mm from every true marker (worst frame +{:.3} mm)",
-            100.0 * f("detection_rate"),
-            f("visible"),
-            f("mean_error_mm"),
-            f("p95_error_mm"),
-            f("max_error_mm"),
-            f("false_detections"),
-            f("identity_swaps"),
-            f("shape_bcd_detected_mm"),
-            f("shape_bcd_truth_visible_mm"),
-            f("shape_bcd_truth_mm"),
-            f("shape_bcd_worst_excess_mm"),
-        ));
+    if let Some(p) = &report.plates {
+        s.push_str(&plates_line(p));
     }
     s
+}
+
+fn plates_line(p: &PooledPlateMarkers) -> String {
+    format!(
+        "plates pooled: {:.2} % of {} visible markers detected, error mean {:.2} / p95 {:.2} / max {:.2} mm, {} false, {} swaps; shape BCD {:.3} mm from detections, {:.3} mm from the visible true markers, {:.3} mm from every true marker (worst frame +{:.3} mm)",
+        100.0 * p.detection_rate,
+        p.visible,
+        p.mean_error_mm,
+        p.p95_error_mm,
+        p.max_error_mm,
+        p.false_detections,
+        p.identity_swaps,
+        p.shape_bcd_detected_mm,
+        p.shape_bcd_truth_visible_mm,
+        p.shape_bcd_truth_mm,
+        p.shape_bcd_worst_excess_mm,
+    )
 }

@@ -10,21 +10,19 @@
 //! noise per frame: the bound over √N). With `--out DIR`: `DIR/bound_map.svg`, each layout's
 //! surface unrolled (angle around the axis, camera side at 0°, against height) with every
 //! vertex coloured by its along-axis bound on a shared log scale and the markers as black
-//! rings, and `DIR/observability.json`, the summary.
+//! rings, and `DIR/observability.json`, the summary (`moe_lab::observability`).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_geom::{
-    FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,
+use moe_geom::Real;
+use moe_lab::observability::{
+    LayoutBounds, ObservabilityOptions, ObservabilityReport, angle_around_axis_deg,
+    run_observability_study,
 };
-use moe_physics::{
-    BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound, RegionBound, quantile,
-    region_bounds,
-};
-use serde::Serialize;
+use moe_physics::{BoundOptions, quantile};
 
 /// Arguments of `moe-touch eval observability`.
 #[derive(Debug, Args)]
@@ -47,179 +45,20 @@ pub(crate) struct ObservabilityEvalArgs {
     json: bool,
 }
 
-/// Sides of the finger at mid height (40–70 % of the length): name and the range of the
-/// angle's magnitude around the axis from the camera side, degrees.
-const SIDES: [(&str, Real, Real); 3] = [
-    ("camera", 0.0, 45.0),
-    ("flanks", 45.0, 135.0),
-    ("back", 135.0, 180.0),
-];
-
-/// One layout's bound for one number of frames.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub(crate) struct LayoutSummary {
-    pub(crate) layout: &'static str,
-    pub(crate) markers: usize,
-    pub(crate) frames: usize,
-    pub(crate) regions: Vec<RegionBound>,
-    /// At mid height, by side: median along and around bounds, mm.
-    pub(crate) mid_height_by_side: Vec<SideSummary>,
-}
-
-/// The median bound on one side of the finger at mid height.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub(crate) struct SideSummary {
-    pub(crate) side: &'static str,
-    pub(crate) vertices: usize,
-    pub(crate) along_mm_median: Real,
-    pub(crate) around_mm_median: Real,
-}
-
-/// A layout's finger and its bound at every movable vertex.
-pub(crate) struct LayoutBounds {
-    pub(crate) layout: MarkerLayoutPreset,
-    pub(crate) finger: FingerModel,
-    pub(crate) bounds: Vec<PlaceBound>,
-}
-
-/// The finger of the study with `layout`.
-pub(crate) fn study_params(layout: MarkerLayoutPreset) -> FingerParams {
-    FingerParams {
-        marker_layout: layout.layout(),
-        ..FingerParams::default()
-    }
-}
-
-/// The bound of every movable vertex of finger 0 of the two-finger hand with `layout`.
-pub(crate) fn layout_bounds(
-    layout: MarkerLayoutPreset,
-    options: &BoundOptions,
-) -> Result<LayoutBounds> {
-    let hand = HandModel::preset(HandPreset::TwoFinger, &study_params(layout))?;
-    let one = HandModel::new(vec![hand.fingers()[0].clone()])?;
-    let config = PhysicsConfig::default();
-    let mut estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config)?;
-    let gravity = Vector3::new(0.0, 0.0, -Vector3::from(config.gravity_m_s2).norm());
-    let finger = one.fingers()[0].model.clone();
-    let pulls = vec![0.0; finger.tendon_routes().len()];
-    let bounds = estimator
-        .location_bounds(0, &pulls, gravity, options)
-        .with_context(|| format!("the bound of the {layout} layout"))?;
-    Ok(LayoutBounds {
-        layout,
-        finger,
-        bounds,
-    })
-}
-
-/// Angle of a point around the finger's axis from the camera side (+x), degrees, −180 to 180.
-fn angle_deg(p: &Point3) -> Real {
-    p.y.atan2(p.x).to_degrees()
-}
-
-impl LayoutBounds {
-    /// The finger's length (its highest rest vertex).
-    fn length(&self) -> Real {
-        self.finger
-            .mesh()
-            .vertices()
-            .iter()
-            .map(|p| p.z)
-            .fold(Real::MIN, Real::max)
-    }
-
-    /// The bounds whose vertex lies between heights `lo` and `hi` (fractions of the length).
-    fn in_band(&self, lo: Real, hi: Real) -> impl Iterator<Item = &PlaceBound> {
-        let length = self.length();
-        self.bounds
-            .iter()
-            .filter(move |b| (lo..=hi).contains(&(b.rest_in_finger.z / length)))
-    }
-
-    /// The summary per region and, at mid height, per side.
-    pub(crate) fn summary(&self, frames: usize) -> LayoutSummary {
-        let regions = region_bounds(&self.bounds, self.length());
-        let mid_height_by_side = SIDES
-            .iter()
-            .map(|&(side, lo, hi)| {
-                let on: Vec<&PlaceBound> = self
-                    .in_band(0.4, 0.7)
-                    .filter(|b| (lo..=hi).contains(&angle_deg(&b.rest_in_finger).abs()))
-                    .collect();
-                let med = |f: fn(&PlaceBound) -> Real| {
-                    quantile(&on.iter().map(|b| f(b)).collect::<Vec<_>>(), 0.5)
-                };
-                SideSummary {
-                    side,
-                    vertices: on.len(),
-                    along_mm_median: med(|b| b.along_m * 1e3),
-                    around_mm_median: med(|b| b.around_m * 1e3),
-                }
-            })
-            .collect();
-        LayoutSummary {
-            layout: self.layout.name(),
-            markers: self.finger.marker_vertices().len(),
-            frames,
-            regions,
-            mid_height_by_side,
-        }
-    }
-}
-
-/// The whole report.
-#[derive(Debug, Serialize)]
-struct Report {
-    force_n: Real,
-    marker_sigma_m: Real,
-    pulls: &'static str,
-    gravity: &'static str,
-    summaries: Vec<LayoutSummary>,
-}
-
 pub(crate) fn run(args: &ObservabilityEvalArgs) -> Result<()> {
-    let one = BoundOptions {
+    let options = ObservabilityOptions {
         force_n: args.force,
         marker_sigma_m: args.sigma,
-        frames: 1,
+        held_frames: usize::try_from(args.frames)?,
     };
-    one.validate()?;
-    let held_frames = args.frames as usize;
-    BoundOptions {
-        frames: held_frames,
-        ..one.clone()
-    }
-    .validate()?;
-    let mut layouts = Vec::new();
-    let mut summaries = Vec::new();
-    for layout in MarkerLayoutPreset::ALL {
-        let single = layout_bounds(layout, &one)?;
-        summaries.push(single.summary(1));
-        let held = LayoutBounds {
-            layout,
-            finger: single.finger.clone(),
-            bounds: single
-                .bounds
-                .iter()
-                .map(|b| b.over_frames(args.frames as usize))
-                .collect(),
-        };
-        summaries.push(held.summary(held_frames));
+    let report = run_observability_study(&options, |layout| {
         eprintln!("eval observability: {layout} done");
-        layouts.push(single);
-    }
-    let report = Report {
-        force_n: one.force_n,
-        marker_sigma_m: one.marker_sigma_m,
-        pulls: "zero",
-        gravity: "along the hand's -z",
-        summaries,
-    };
+    })?;
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         moe_io::write_atomic(
             &dir.join("bound_map.svg"),
-            bound_map_svg(&layouts).as_bytes(),
+            bound_map_svg(&report.layouts).as_bytes(),
         )?;
         moe_io::write_json(&dir.join("observability.json"), &report)?;
         eprintln!(
@@ -236,7 +75,7 @@ pub(crate) fn run(args: &ObservabilityEvalArgs) -> Result<()> {
 }
 
 /// The report as Markdown tables.
-fn table(r: &Report) -> String {
+fn table(r: &ObservabilityReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -475,7 +314,7 @@ fn bound_panel(s: &mut String, (ox, oy): (Real, Real), l: &LayoutBounds, scale: 
         let _ = writeln!(
             s,
             r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
-            x(angle_deg(&p)),
+            x(angle_around_axis_deg(&p)),
             y(p.z),
             ramp(scale.t(b.along_m * 1e3))
         );
@@ -484,7 +323,7 @@ fn bound_panel(s: &mut String, (ox, oy): (Real, Real), l: &LayoutBounds, scale: 
         let _ = writeln!(
             s,
             r#"<circle class="marker" cx="{:.1}" cy="{:.1}" r="4.5" fill="none" stroke="black" stroke-width="1.6"/>"#,
-            x(angle_deg(&p)),
+            x(angle_around_axis_deg(&p)),
             y(p.z)
         );
     }
@@ -534,94 +373,8 @@ fn bound_legend(s: &mut String, w: Real, h: Real, scale: &BoundScale) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The bound is finite everywhere on the paper's finger; at mid height it is larger on the
-    /// flanks (±90°, away from the camera row's bending plane) than on the camera side, and
-    /// rows on the flanks bring it down there; it shrinks as one over the square root of the
-    /// frames of a held press. (The back is not worse than the camera side: a press there bends
-    /// the finger in the same plane, which the row sees stretch and shorten.)
-    #[test]
-    fn the_bound_is_finite_worse_far_from_the_markers_and_falls_with_frames() {
-        let one = BoundOptions::default();
-        let row = layout_bounds(MarkerLayoutPreset::CameraRow, &one).unwrap();
-        assert!(
-            row.bounds.len() > 800,
-            "{} movable vertices",
-            row.bounds.len()
-        );
-        for b in &row.bounds {
-            assert!(
-                b.along_m.is_finite() && b.around_m.is_finite() && b.force_sd_n.is_finite(),
-                "{b:?}"
-            );
-            assert!(b.along_m > 0.0 && b.around_m > 0.0 && b.force_sd_n > 0.0);
-        }
-        let s = row.summary(1);
-        let side = |k: usize| &s.mid_height_by_side[k];
-        assert!(side(0).vertices > 20 && side(1).vertices > 20);
-        for (flank, camera, what) in [
-            (side(1).along_mm_median, side(0).along_mm_median, "along"),
-            (side(1).around_mm_median, side(0).around_mm_median, "around"),
-        ] {
-            assert!(
-                flank > 1.3 * camera,
-                "{what}: flanks {flank} mm vs camera side {camera} mm"
-            );
-        }
-        let sides = layout_bounds(MarkerLayoutPreset::Sides, &one)
-            .unwrap()
-            .summary(1);
-        assert!(
-            sides.mid_height_by_side[1].along_mm_median < 0.5 * side(1).along_mm_median,
-            "rows on the flanks: {} mm, the camera row alone: {} mm",
-            sides.mid_height_by_side[1].along_mm_median,
-            side(1).along_mm_median
-        );
-        let five = layout_bounds(
-            MarkerLayoutPreset::CameraRow,
-            &BoundOptions {
-                frames: 5,
-                ..one.clone()
-            },
-        )
-        .unwrap();
-        for (a, b) in row.bounds.iter().zip(&five.bounds) {
-            assert_eq!(a.vertex, b.vertex);
-            for (x1, x5) in [
-                (a.along_m, b.along_m),
-                (a.around_m, b.around_m),
-                (a.force_sd_n, b.force_sd_n),
-            ] {
-                // Exactly √5 but for the rounding of the Fisher matrices' inverses, which are
-                // ill-conditioned next to the clamped base.
-                let ratio = x1 / x5;
-                assert!((ratio / 5f64.sqrt() - 1.0).abs() < 1e-4, "{ratio}");
-            }
-            // What the study reports for five frames, scaled without solving again.
-            let scaled = a.over_frames(5);
-            assert_eq!(scaled.vertex, b.vertex);
-            for (s5, x5) in [
-                (scaled.along_m, b.along_m),
-                (scaled.around_m, b.around_m),
-                (scaled.force_sd_n, b.force_sd_n),
-            ] {
-                assert!((s5 / x5 - 1.0).abs() < 1e-4, "{s5} vs {x5}");
-            }
-        }
-        // More markers around the finger: two rows locate a press around it better.
-        let two = layout_bounds(MarkerLayoutPreset::TwoRows, &one)
-            .unwrap()
-            .summary(1);
-        for (r2, r1) in two.regions.iter().zip(&s.regions) {
-            assert!(
-                r2.around_mm.median < r1.around_mm.median,
-                "{}: two rows {} mm, one row {} mm",
-                r1.region,
-                r2.around_mm.median,
-                r1.around_mm.median
-            );
-        }
-    }
+    use moe_geom::MarkerLayoutPreset;
+    use moe_lab::observability::layout_bounds;
 
     #[test]
     fn the_figure_has_a_panel_per_layout_and_a_ring_per_marker() {

@@ -9,7 +9,8 @@
 //! [`physics_pat_contacts`](crate::patting::physics_pat_contacts) build it), and
 //! [`true_pat_contacts`](crate::patting::true_pat_contacts)
 //! gives the simulator's own contact vertices (the upper bound a perfect estimator would
-//! reach).
+//! reach). [`run_patting_study`](crate::patting::run_patting_study) is the paper's study over
+//! them: contact points and reconstructed surfaces against the truth, per body and pair.
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::bodies::{ArmParams, HeadParams};
@@ -21,10 +22,19 @@ use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use serde::Serialize;
 
 use crate::LabError;
+
+mod study;
+
 use crate::episode::{EpisodeRecorder, saved_frame_at};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::Pipeline;
 use moe_touch::{PhysicsPipeline, TouchError};
+pub use study::{
+    DEFAULT_ESTIMATED_NOISE_FLOOR_M, DEFAULT_PRIOR_GATE_M, PatContactResult, PatPairReport,
+    PattingBodyReport, PattingSize, PattingStudyOptions, PattingStudyReport, PattingSummary,
+    PattingTable2, PattingTable3, SMALL_PATS, TABLE3_METHODS, body_name, body_seed,
+    check_distances, patting_hand, run_patting_study,
+};
 
 /// The number of poses of a body's patting scene.
 pub fn pats_of(body: SceneKind) -> usize {

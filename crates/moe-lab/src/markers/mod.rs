@@ -1,4 +1,5 @@
-//! Scoring marker detections against the ground truth of a recorded or simulated episode.
+//! Scoring marker detections against the ground truth of a recorded or simulated episode, and
+//! the marker study over the paper's scenes ([`run_marker_study`](crate::markers::run_marker_study)).
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::{HandKeypoints, HandModel, Point3, Real, Transform, bcd};
@@ -8,6 +9,13 @@ use serde::Serialize;
 
 use crate::LabError;
 use moe_touch::perception::{MarkerDetection, MarkerDetector};
+
+mod study;
+
+pub use study::{
+    MARKER_SCENES, MarkerSceneView, MarkerStudyOptions, MarkerStudyReport, PooledPlateMarkers,
+    pool_plates, run_marker_study,
+};
 
 /// A reported marker within this distance of its own true position is a correct detection;
 /// within it of another marker's true position, an identity swap; otherwise a false detection.

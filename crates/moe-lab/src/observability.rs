@@ -1,0 +1,337 @@
+//! How well a marker layout lets the physics estimator locate a press, whatever the
+//! estimator: the Cramér–Rao bound of the press's place along and around the finger and of its
+//! force ([`moe_physics::PhysicsEstimator::location_bounds`]), at every movable surface vertex
+//! of finger 0 of the two-finger hand (default finger, default material and settings, zero
+//! pulls, gravity along the hand's −z), for each layout of the study: the camera row of 7 (the
+//! paper's), two rows of 7 at ±35°, the camera row and rows of 7 on the sides (±90°), and the
+//! camera row with a ring of 6 at the tip. Per layout and region (tip z > 80 % of the length
+//! with the cap, middle 40–70 %, base 12–35 %): median and 90th percentile, for one frame and
+//! for a held press of several frames (independent marker noise per frame: the bound over √N).
+
+use moe_geom::{
+    FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,
+};
+use moe_physics::{
+    BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound, RegionBound, quantile,
+    region_bounds,
+};
+use serde::Serialize;
+
+use crate::LabError;
+
+/// Sides of the finger at mid height (40–70 % of the length): name and the range of the
+/// angle's magnitude around the axis from the camera side, degrees.
+const SIDES: [(&str, Real, Real); 3] = [
+    ("camera", 0.0, 45.0),
+    ("flanks", 45.0, 135.0),
+    ("back", 135.0, 180.0),
+];
+
+/// One layout's bound for one number of frames.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LayoutSummary {
+    /// The layout's name.
+    pub layout: &'static str,
+    /// Its markers on the finger.
+    pub markers: usize,
+    /// Frames of the held press (1: one frame).
+    pub frames: usize,
+    /// Median and 90th percentile per region (tip, middle, base).
+    pub regions: Vec<RegionBound>,
+    /// At mid height, by side: median along and around bounds, mm.
+    pub mid_height_by_side: Vec<SideSummary>,
+}
+
+/// The median bound on one side of the finger at mid height.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SideSummary {
+    /// The side: `camera` (0–45° from the camera side), `flanks` (45–135°), `back`.
+    pub side: &'static str,
+    /// Movable vertices on that side at mid height.
+    pub vertices: usize,
+    /// Median bound along the finger's axis, mm.
+    pub along_mm_median: Real,
+    /// Median bound around it, mm.
+    pub around_mm_median: Real,
+}
+
+/// A layout's finger and its bound at every movable vertex.
+#[derive(Debug, Clone)]
+pub struct LayoutBounds {
+    /// The layout.
+    pub layout: MarkerLayoutPreset,
+    /// Finger 0 of the two-finger hand with that layout.
+    pub finger: FingerModel,
+    /// The bound at every movable surface vertex.
+    pub bounds: Vec<PlaceBound>,
+}
+
+/// The finger of the study with `layout`.
+pub fn study_params(layout: MarkerLayoutPreset) -> FingerParams {
+    FingerParams {
+        marker_layout: layout.layout(),
+        ..FingerParams::default()
+    }
+}
+
+/// The bound of every movable vertex of finger 0 of the two-finger hand with `layout`.
+///
+/// # Errors
+/// Invalid `options`, a failing solve.
+pub fn layout_bounds(
+    layout: MarkerLayoutPreset,
+    options: &BoundOptions,
+) -> Result<LayoutBounds, LabError> {
+    let hand = HandModel::preset(HandPreset::TwoFinger, &study_params(layout))?;
+    let one = HandModel::new(vec![hand.fingers()[0].clone()])?;
+    let config = PhysicsConfig::default();
+    let mut estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config)?;
+    let gravity = Vector3::new(0.0, 0.0, -Vector3::from(config.gravity_m_s2).norm());
+    let finger = one.fingers()[0].model.clone();
+    let pulls = vec![0.0; finger.tendon_routes().len()];
+    let bounds = estimator.location_bounds(0, &pulls, gravity, options)?;
+    Ok(LayoutBounds {
+        layout,
+        finger,
+        bounds,
+    })
+}
+
+/// Angle of a point around the finger's axis from the camera side (+x), degrees, −180 to 180.
+pub fn angle_around_axis_deg(p: &Point3) -> Real {
+    p.y.atan2(p.x).to_degrees()
+}
+
+impl LayoutBounds {
+    /// The finger's length (its highest rest vertex).
+    fn length(&self) -> Real {
+        self.finger
+            .mesh()
+            .vertices()
+            .iter()
+            .map(|p| p.z)
+            .fold(Real::MIN, Real::max)
+    }
+
+    /// The bounds whose vertex lies between heights `lo` and `hi` (fractions of the length).
+    fn in_band(&self, lo: Real, hi: Real) -> impl Iterator<Item = &PlaceBound> {
+        let length = self.length();
+        self.bounds
+            .iter()
+            .filter(move |b| (lo..=hi).contains(&(b.rest_in_finger.z / length)))
+    }
+
+    /// The summary per region and, at mid height, per side.
+    pub fn summary(&self, frames: usize) -> LayoutSummary {
+        let regions = region_bounds(&self.bounds, self.length());
+        let mid_height_by_side = SIDES
+            .iter()
+            .map(|&(side, lo, hi)| {
+                let on: Vec<&PlaceBound> = self
+                    .in_band(0.4, 0.7)
+                    .filter(|b| (lo..=hi).contains(&angle_around_axis_deg(&b.rest_in_finger).abs()))
+                    .collect();
+                let med = |f: fn(&PlaceBound) -> Real| {
+                    quantile(&on.iter().map(|b| f(b)).collect::<Vec<_>>(), 0.5)
+                };
+                SideSummary {
+                    side,
+                    vertices: on.len(),
+                    along_mm_median: med(|b| b.along_m * 1e3),
+                    around_mm_median: med(|b| b.around_m * 1e3),
+                }
+            })
+            .collect();
+        LayoutSummary {
+            layout: self.layout.name(),
+            markers: self.finger.marker_vertices().len(),
+            frames,
+            regions,
+            mid_height_by_side,
+        }
+    }
+}
+
+/// The study's report.
+#[derive(Debug, Clone, Serialize)]
+pub struct ObservabilityReport {
+    /// Force of the press, newtons.
+    pub force_n: Real,
+    /// Noise of a marker coordinate, metres.
+    pub marker_sigma_m: Real,
+    /// The tendon pulls (`zero`).
+    pub pulls: &'static str,
+    /// The gravity (`along the hand's -z`).
+    pub gravity: &'static str,
+    /// Per layout of [`MarkerLayoutPreset::ALL`], for one frame and for the held press.
+    pub summaries: Vec<LayoutSummary>,
+    /// Per layout, the one-frame bound at every vertex (for figures; not serialised).
+    #[serde(skip)]
+    pub layouts: Vec<LayoutBounds>,
+}
+
+/// Settings of the observability study.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObservabilityOptions {
+    /// Force of the press, newtons.
+    pub force_n: Real,
+    /// Noise of a marker coordinate, metres.
+    pub marker_sigma_m: Real,
+    /// Frames of the held press of the second summary (the first is one frame); at least 2.
+    pub held_frames: usize,
+}
+
+impl Default for ObservabilityOptions {
+    fn default() -> Self {
+        let bound = BoundOptions::default();
+        Self {
+            force_n: bound.force_n,
+            marker_sigma_m: bound.marker_sigma_m,
+            held_frames: 5,
+        }
+    }
+}
+
+/// Runs the observability study: the bound of every layout of [`MarkerLayoutPreset::ALL`]
+/// ([`layout_bounds`]), summarised for one frame and for
+/// [`ObservabilityOptions::held_frames`] frames; `progress` is told each layout as it is done.
+///
+/// # Errors
+/// A force, noise or frame count the bound refuses ([`BoundOptions::validate`]), a failing
+/// solve.
+pub fn run_observability_study(
+    options: &ObservabilityOptions,
+    mut progress: impl FnMut(MarkerLayoutPreset),
+) -> Result<ObservabilityReport, LabError> {
+    let one = BoundOptions {
+        force_n: options.force_n,
+        marker_sigma_m: options.marker_sigma_m,
+        frames: 1,
+    };
+    one.validate()?;
+    let held_frames = options.held_frames;
+    BoundOptions {
+        frames: held_frames,
+        ..one.clone()
+    }
+    .validate()?;
+    let mut layouts = Vec::new();
+    let mut summaries = Vec::new();
+    for layout in MarkerLayoutPreset::ALL {
+        let single = layout_bounds(layout, &one)?;
+        summaries.push(single.summary(1));
+        let held = LayoutBounds {
+            layout,
+            finger: single.finger.clone(),
+            bounds: single
+                .bounds
+                .iter()
+                .map(|b| b.over_frames(held_frames))
+                .collect(),
+        };
+        summaries.push(held.summary(held_frames));
+        progress(layout);
+        layouts.push(single);
+    }
+    Ok(ObservabilityReport {
+        force_n: one.force_n,
+        marker_sigma_m: one.marker_sigma_m,
+        pulls: "zero",
+        gravity: "along the hand's -z",
+        summaries,
+        layouts,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bound is finite everywhere on the paper's finger; at mid height it is larger on the
+    /// flanks (±90°, away from the camera row's bending plane) than on the camera side, and
+    /// rows on the flanks bring it down there; it shrinks as one over the square root of the
+    /// frames of a held press. (The back is not worse than the camera side: a press there bends
+    /// the finger in the same plane, which the row sees stretch and shorten.)
+    #[test]
+    fn the_bound_is_finite_worse_far_from_the_markers_and_falls_with_frames() {
+        let one = BoundOptions::default();
+        let row = layout_bounds(MarkerLayoutPreset::CameraRow, &one).unwrap();
+        assert!(
+            row.bounds.len() > 800,
+            "{} movable vertices",
+            row.bounds.len()
+        );
+        for b in &row.bounds {
+            assert!(
+                b.along_m.is_finite() && b.around_m.is_finite() && b.force_sd_n.is_finite(),
+                "{b:?}"
+            );
+            assert!(b.along_m > 0.0 && b.around_m > 0.0 && b.force_sd_n > 0.0);
+        }
+        let s = row.summary(1);
+        let side = |k: usize| &s.mid_height_by_side[k];
+        assert!(side(0).vertices > 20 && side(1).vertices > 20);
+        for (flank, camera, what) in [
+            (side(1).along_mm_median, side(0).along_mm_median, "along"),
+            (side(1).around_mm_median, side(0).around_mm_median, "around"),
+        ] {
+            assert!(
+                flank > 1.3 * camera,
+                "{what}: flanks {flank} mm vs camera side {camera} mm"
+            );
+        }
+        let sides = layout_bounds(MarkerLayoutPreset::Sides, &one)
+            .unwrap()
+            .summary(1);
+        assert!(
+            sides.mid_height_by_side[1].along_mm_median < 0.5 * side(1).along_mm_median,
+            "rows on the flanks: {} mm, the camera row alone: {} mm",
+            sides.mid_height_by_side[1].along_mm_median,
+            side(1).along_mm_median
+        );
+        let five = layout_bounds(
+            MarkerLayoutPreset::CameraRow,
+            &BoundOptions {
+                frames: 5,
+                ..one.clone()
+            },
+        )
+        .unwrap();
+        for (a, b) in row.bounds.iter().zip(&five.bounds) {
+            assert_eq!(a.vertex, b.vertex);
+            for (x1, x5) in [
+                (a.along_m, b.along_m),
+                (a.around_m, b.around_m),
+                (a.force_sd_n, b.force_sd_n),
+            ] {
+                // Exactly √5 but for the rounding of the Fisher matrices' inverses, which are
+                // ill-conditioned next to the clamped base.
+                let ratio = x1 / x5;
+                assert!((ratio / 5f64.sqrt() - 1.0).abs() < 1e-4, "{ratio}");
+            }
+            // What the study reports for five frames, scaled without solving again.
+            let scaled = a.over_frames(5);
+            assert_eq!(scaled.vertex, b.vertex);
+            for (s5, x5) in [
+                (scaled.along_m, b.along_m),
+                (scaled.around_m, b.around_m),
+                (scaled.force_sd_n, b.force_sd_n),
+            ] {
+                assert!((s5 / x5 - 1.0).abs() < 1e-4, "{s5} vs {x5}");
+            }
+        }
+        // More markers around the finger: two rows locate a press around it better.
+        let two = layout_bounds(MarkerLayoutPreset::TwoRows, &one)
+            .unwrap()
+            .summary(1);
+        for (r2, r1) in two.regions.iter().zip(&s.regions) {
+            assert!(
+                r2.around_mm.median < r1.around_mm.median,
+                "{}: two rows {} mm, one row {} mm",
+                r1.region,
+                r2.around_mm.median,
+                r1.around_mm.median
+            );
+        }
+    }
+}
