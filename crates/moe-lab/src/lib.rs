@@ -12,6 +12,8 @@
 //! Architecture invariant: the runtime (`moe-touch`) never depends on this crate; this crate
 //! may use the simulator. Nothing here parses command lines or prints.
 
+/// The contact-free streams a material calibration fits, from an episode or a data set.
+pub mod calibration_streams;
 /// The simulation study of contact estimation (paper Tables 1–2).
 pub mod contact_eval;
 /// Sharded, resumable, deterministic data set generation.

@@ -8,9 +8,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_geom::{HandKeypoints, HandModel, OwnedObservation, Real};
-use moe_io::{DatasetReader, SplitFractions};
-use moe_lab::markers::{check_hand, has_ground_truth};
+use moe_geom::{HandModel, Real};
+use moe_io::DatasetReader;
+use moe_lab::calibration_streams::{
+    ContactFreeStreams, dataset_contact_free_streams, episode_contact_free_streams,
+    episode_has_ground_truth, episode_has_images, hand_difference,
+};
+use moe_lab::markers::check_hand;
 use moe_physics::{CalibrationOptions, HandMaterial, calibrate};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use serde::Serialize;
@@ -140,10 +144,7 @@ struct Streams {
     hand_name: String,
     markers: &'static str,
     contact: &'static str,
-    frames_read: usize,
-    frames_with_contact: usize,
-    trajectories: Option<usize>,
-    streams: Vec<Vec<OwnedObservation>>,
+    chosen: ContactFreeStreams,
 }
 
 pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
@@ -183,19 +184,19 @@ pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
         }
         _ => bail!("give either --episode EP.mcap or --data DIR"),
     };
-    let frames: usize = streams.streams.iter().map(Vec::len).sum();
+    let frames = streams.chosen.frames();
     if frames == 0 {
         bail!(
             "{}: no contact-free frames to calibrate from ({} frames read, {} with contact)",
             streams.source,
-            streams.frames_read,
-            streams.frames_with_contact
+            streams.chosen.frames_read,
+            streams.chosen.frames_with_contact
         );
     }
     eprintln!(
         "calibrate: {} contact-free frames in {} streams from {} ({} markers)",
         frames,
-        streams.streams.len(),
+        streams.chosen.streams.len(),
         streams.source,
         streams.markers
     );
@@ -204,16 +205,22 @@ pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
         max_evaluations: args.max_evaluations,
         ..CalibrationOptions::default()
     };
-    let report = calibrate(&streams.hand, &streams.streams, &initial, &config, &options)
-        .with_context(|| format!("calibrating from {}", streams.source))?;
+    let report = calibrate(
+        &streams.hand,
+        &streams.chosen.streams,
+        &initial,
+        &config,
+        &options,
+    )
+    .with_context(|| format!("calibrating from {}", streams.source))?;
     let record = CalibrateRecord {
         source: streams.source,
         hand: streams.hand_name,
         markers: streams.markers,
         contact: streams.contact,
-        frames_read: streams.frames_read,
-        frames_with_contact: streams.frames_with_contact,
-        trajectories: streams.trajectories,
+        frames_read: streams.chosen.frames_read,
+        frames_with_contact: streams.chosen.frames_with_contact,
+        trajectories: streams.chosen.trajectories,
         streams: report.streams,
         frames: report.frames,
         initial_material: initial_name,
@@ -296,16 +303,8 @@ fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
     let hand = super::load_hand(&hand_name)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {hand_name} for {}", path.display()))?;
-    let truth = !episode.frames.is_empty()
-        && episode
-            .frames
-            .iter()
-            .all(|f| has_ground_truth(&episode.info, f));
-    let images = !episode.frames.is_empty()
-        && episode
-            .frames
-            .iter()
-            .all(|f| !f.color_rgb8.is_empty() && !f.depth_m.is_empty());
+    let truth = episode_has_ground_truth(&episode);
+    let images = episode_has_images(&episode);
     let detected = match args.markers {
         MarkerSource::Auto => images || !truth,
         MarkerSource::Detected => true,
@@ -335,42 +334,8 @@ fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
     } else {
         None
     };
-    let mut streams = Vec::new();
-    let mut current = Vec::new();
-    let mut frames_with_contact = 0;
-    for frame in &episode.frames {
-        // Detection runs on every frame, contact or not, so that the marker tracks go on.
-        let keypoints = match &mut detector {
-            Some(d) => {
-                d.detect(&frame.color_rgb8, &frame.depth_m)
-                    .with_context(|| format!("{}: frame at {} ns", path.display(), frame.time_ns))?
-                    .keypoints
-            }
-            None => HandKeypoints {
-                fingers: frame
-                    .markers_in_hand
-                    .iter()
-                    .map(|m| m.iter().copied().map(Some).collect())
-                    .collect(),
-            },
-        };
-        if truth && frame.contact_vertices.iter().any(|c| !c.is_empty()) {
-            frames_with_contact += 1;
-            if !current.is_empty() {
-                streams.push(std::mem::take(&mut current));
-            }
-            continue;
-        }
-        current.push(
-            frame
-                .observation()
-                .to_owned_observation()
-                .with_keypoints(keypoints),
-        );
-    }
-    if !current.is_empty() {
-        streams.push(current);
-    }
+    let chosen = episode_contact_free_streams(&episode, detector.as_mut())
+        .with_context(|| path.display().to_string())?;
     Ok(Streams {
         source: path.display().to_string(),
         hand,
@@ -381,55 +346,8 @@ fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
         } else {
             "no ground truth: every frame taken as contact-free"
         },
-        frames_read: episode.frames.len(),
-        frames_with_contact,
-        trajectories: None,
-        streams,
+        chosen,
     })
-}
-
-/// How two hands differ, if they do (finger count, mesh, markers, tendons).
-fn hand_difference(a: &HandModel, b: &HandModel) -> Option<String> {
-    if a.num_fingers() != b.num_fingers() {
-        return Some(format!(
-            "{} fingers against {}",
-            a.num_fingers(),
-            b.num_fingers()
-        ));
-    }
-    for (f, (x, y)) in a.fingers().iter().zip(b.fingers()).enumerate() {
-        let (mx, my) = (x.model.mesh(), y.model.mesh());
-        if mx.num_vertices() != my.num_vertices() {
-            return Some(format!(
-                "finger {f} has {} vertices against {}",
-                mx.num_vertices(),
-                my.num_vertices()
-            ));
-        }
-        if x.model.marker_vertices() != y.model.marker_vertices() {
-            return Some(format!("finger {f} has other marker vertices"));
-        }
-        if x.model.tendon_routes().len() != y.model.tendon_routes().len() {
-            return Some(format!(
-                "finger {f} has {} tendons against {}",
-                x.model.tendon_routes().len(),
-                y.model.tendon_routes().len()
-            ));
-        }
-        let (ra, rb) = (a.rest_vertices_in_hand(f), b.rest_vertices_in_hand(f));
-        let far = ra
-            .iter()
-            .zip(&rb)
-            .map(|(p, q)| (p - q).norm())
-            .fold(0.0, Real::max);
-        if far > 1e-9 {
-            return Some(format!(
-                "finger {f}'s rest surface differs by up to {:.3} mm",
-                1e3 * far
-            ));
-        }
-    }
-    None
 }
 
 /// The contact-free prefix of each trajectory of a data set, with its true markers.
@@ -455,50 +373,8 @@ fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
         }
         None => (data_hand, params.preset.to_string()),
     };
-    let frame_secs = params.dt_secs * params.save_every_steps as Real;
-    let layout = card.layout.clone();
-    let mut streams: Vec<Vec<OwnedObservation>> = Vec::new();
-    let mut current_id = None;
-    let mut touched = false;
-    let (mut frames_read, mut frames_with_contact, mut trajectories) = (0, 0, 0usize);
-    for f in reader.frames(None, SplitFractions::default()) {
-        let f = f?;
-        if current_id != Some(f.trajectory_id) {
-            if args
-                .max_trajectories
-                .is_some_and(|m| trajectories as u64 >= m)
-            {
-                break;
-            }
-            current_id = Some(f.trajectory_id);
-            trajectories += 1;
-            touched = false;
-            streams.push(Vec::new());
-        }
-        frames_read += 1;
-        touched |= f.contact_count() > 0 || f.contact_force_n.iter().any(|&v| v > 0.0);
-        if touched {
-            frames_with_contact += 1;
-            continue;
-        }
-        let labelled = f.to_labelled(&layout).with_context(|| {
-            format!(
-                "{}: trajectory {}, frame {}",
-                dir.display(),
-                f.trajectory_id,
-                f.frame_index
-            )
-        })?;
-        if let Some(stream) = streams.last_mut() {
-            stream.push(
-                labelled
-                    .observation()
-                    .with_time(Real::from(f.frame_index) * frame_secs)
-                    .to_owned_observation(),
-            );
-        }
-    }
-    streams.retain(|s| !s.is_empty());
+    let chosen = dataset_contact_free_streams(&reader, args.max_trajectories)
+        .with_context(|| dir.display().to_string())?;
     Ok(Streams {
         source: dir.display().to_string(),
         hand,
@@ -506,9 +382,6 @@ fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
         markers: "ground truth",
         contact: "from the data set's labels and contact forces (each trajectory's frames \
                   before its first contact)",
-        frames_read,
-        frames_with_contact,
-        trajectories: Some(trajectories),
-        streams,
+        chosen,
     })
 }
