@@ -275,3 +275,49 @@ fn plate_perturbations_are_small_seeded_and_rigid() {
     let angle = Vector3::from(k[1].rotation_rad).norm().to_degrees();
     assert!((angle - tilt.abs()).abs() < 1e-9, "{angle} vs {tilt}");
 }
+
+#[test]
+fn the_plate_registry_lists_the_papers_six_scenes_in_order_with_their_regions() {
+    let scenes = plate_scenes().unwrap();
+    let names: Vec<(&str, &str)> = scenes
+        .iter()
+        .map(|s| (s.name.as_str(), s.region.as_str()))
+        .collect();
+    assert_eq!(names, PLATE_SCENES);
+    for s in &scenes {
+        assert!(!s.config.obstacles.is_empty(), "{}: a plate", s.name);
+    }
+}
+
+#[test]
+fn the_plate_table_summarises_each_region_and_counts_trials_all_missed() {
+    let report = |ucd_mm: Real| moe_contact::ContactReport {
+        ucd_mm,
+        ..moe_contact::ContactReport::default()
+    };
+    let trial = |region: &str, dgcnn: Real, knn: Real| PlateTrial {
+        scene: format!("plate_{region}_front"),
+        region: region.to_owned(),
+        trial: 0,
+        offset_m: [0.0; 3],
+        tilt_deg: 0.0,
+        contact_frames: 1,
+        dgcnn: report(dgcnn),
+        knn_all: report(knn),
+    };
+    let table = PlateTable::new(vec![
+        trial("tip", 1.0, 2.0),
+        trial("tip", 3.0, Real::NAN),
+        trial("base", 5.0, 6.0),
+    ]);
+    let tip = &table.regions.tip;
+    assert_eq!(
+        (tip.dgcnn.mean_mm, tip.dgcnn.sd_mm, tip.dgcnn.trials),
+        (2.0, 1.0, 2)
+    );
+    assert_eq!((tip.knn_all.trials, tip.knn_all.trials_all_missed), (1, 1));
+    assert_eq!(table.regions.middle.dgcnn.trials, 0);
+    assert_eq!(table.regions.base.knn_all.mean_mm, 6.0);
+    let names: Vec<&str> = table.regions.in_order().iter().map(|(n, _)| *n).collect();
+    assert_eq!(names, ["tip", "middle", "base"]);
+}
