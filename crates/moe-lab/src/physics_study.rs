@@ -442,3 +442,116 @@ pub fn physics_study(
         calibration,
     })
 }
+
+/// One load of a frame of [`PhysicsGolden`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsGoldenLoad {
+    /// The finger.
+    pub finger: usize,
+    /// The vertex it acts at.
+    pub vertex: u32,
+    /// Its force, hand frame, newtons.
+    pub force_n: [Real; 3],
+}
+
+/// One frame of [`PhysicsGolden`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsGoldenFrame {
+    /// The loads found.
+    pub loads: Vec<PhysicsGoldenLoad>,
+    /// Every finger's likelihood-ratio statistic.
+    pub statistic: Vec<Real>,
+}
+
+/// The golden physics stage: the physics estimator (nominal material) on a data set's
+/// trajectories as streams, from their exact markers: [`PhysicsEvaluation`] without its
+/// timings, and per frame the loads and every finger's statistic.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PhysicsGolden {
+    /// As [`PhysicsEvaluation::markers`].
+    pub markers: String,
+    /// Frames evaluated.
+    pub frames: u64,
+    /// Trajectories.
+    pub trajectories: u64,
+    /// The physics estimator's map.
+    pub physics: ContactReport,
+    /// The DGCNN on the physics shapes (none here).
+    pub dgcnn_on_physics: Option<ContactReport>,
+    /// The DGCNN on SR-ARAP shapes (none here).
+    pub dgcnn_on_sr_arap: Option<ContactReport>,
+    /// The physics estimator placed by the DGCNN (none here).
+    pub physics_placed_by_dgcnn: Option<ContactReport>,
+    /// BCD of the physics shapes, mm.
+    pub physics_shape_bcd_mm: Real,
+    /// BCD of the SR-ARAP shapes, mm.
+    pub sr_arap_shape_bcd_mm: Real,
+    /// The force table.
+    pub forces: crate::physics_eval::ForceTable,
+    /// The stream table.
+    pub stream: crate::physics_eval::StreamTable,
+    /// Finger-frames whose estimate failed.
+    pub failed_fingers: u64,
+    /// Per frame, the loads and statistics.
+    pub per_frame: Vec<PhysicsGoldenFrame>,
+}
+
+/// [`PhysicsGolden`] of the physics estimator with `config` on the data set at `dir`.
+///
+/// # Errors
+/// An unreadable data set or a failing estimate.
+pub fn physics_golden(dir: &Path, config: &PhysicsConfig) -> Result<PhysicsGolden, LabError> {
+    use moe_geom::HandEstimator as _;
+    let Streams { hand, frames, .. } = dataset_streams(dir, None, None, None)?;
+    let mut estimator = PhysicsEstimator::new(&hand, &HandMaterial::default(), config)?;
+    let shape = ShapeConfig::default();
+    let e = evaluate_physics(
+        &hand,
+        &frames,
+        MarkerSource::Exact,
+        &mut estimator,
+        Comparison {
+            dgcnn: None,
+            shape: &shape,
+            forget_between_frames: false,
+        },
+    )?;
+    // The loads frame by frame, the estimator reset at each trajectory as above.
+    let mut per_frame = Vec::with_capacity(frames.len());
+    let mut previous = None;
+    for sf in &frames {
+        if previous != Some(sf.frame.trajectory_id) {
+            estimator.reset();
+            previous = Some(sf.frame.trajectory_id);
+        }
+        let est = estimator.estimate(&sf.frame.observation().with_time(sf.time_secs))?;
+        per_frame.push(PhysicsGoldenFrame {
+            loads: est
+                .details
+                .loads
+                .iter()
+                .map(|l| PhysicsGoldenLoad {
+                    finger: l.finger,
+                    vertex: l.vertex,
+                    force_n: [l.force_n.x, l.force_n.y, l.force_n.z],
+                })
+                .collect(),
+            statistic: est.details.fingers.iter().map(|f| f.statistic).collect(),
+        });
+    }
+    Ok(PhysicsGolden {
+        markers: e.markers,
+        frames: e.frames,
+        trajectories: e.trajectories,
+        physics: e.physics,
+        dgcnn_on_physics: e.dgcnn_on_physics,
+        dgcnn_on_sr_arap: e.dgcnn_on_sr_arap,
+        physics_placed_by_dgcnn: e.physics_placed_by_dgcnn,
+        physics_shape_bcd_mm: e.physics_shape_bcd_mm,
+        sr_arap_shape_bcd_mm: e.sr_arap_shape_bcd_mm,
+        forces: e.forces,
+        stream: e.stream,
+        failed_fingers: e.failed_fingers,
+        per_frame,
+    })
+}

@@ -17,6 +17,7 @@
 //! the frames that have contact, for the DGCNN on SR-ARAP shapes and for `KNN[All]`.
 
 mod augmentation;
+mod golden;
 mod knn;
 mod plates;
 mod study;
@@ -27,6 +28,10 @@ mod tests;
 pub use augmentation::{
     MAX_MARKER_NOISE_M, MarkerAugmentation, distal_marker_order, marker_subset,
     with_estimated_shapes,
+};
+pub use golden::{
+    ArapGolden, ArapGoldenFrame, ArapGoldenShape, ArapGoldenShapes, ContactRowGolden,
+    ShapeRowGolden, Table1Golden, arap_golden, table1_golden,
 };
 pub use knn::{KnnIndexSource, build_knn_index, knn_index, read_knn_index};
 pub use plates::{

@@ -6,15 +6,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use moe_arap::MultiShapeEstimator;
 use moe_contact::DgcnnEstimator;
-use moe_geom::{ContactInput, HandModel, LabelledFrame, Real};
+use moe_geom::{HandModel, LabelledFrame};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_lab::contact_eval::{
-    ContactEvalOptions, ContactStudyOptions, ContactStudyPhysics, ContactStudyProgress,
-    ContactTable, Estimators, KnnIndexSource, PlateTable, contact_study, evaluate_table1,
+    ContactStudyOptions, ContactStudyPhysics, ContactStudyProgress, ContactTable, KnnIndexSource,
+    PlateTable, arap_golden, contact_study, table1_golden,
 };
-use serde_json::json;
 
 use crate::golden::workspace_root;
 use moe_lab::datagen::{dataset_hand, label_rule};
@@ -388,53 +386,7 @@ fn heldout_frames() -> Result<(HandModel, Vec<LabelledFrame>, String)> {
 /// sample of estimated vertices (mm).
 pub(crate) fn golden_arap() -> Result<serde_json::Value> {
     let (hand, frames, _) = heldout_frames()?;
-    let options = ContactEvalOptions::default();
-    let mut arap = MultiShapeEstimator::new(hand.clone(), options.shape.clone())?;
-    let rng = moe_geom::SeededRng::new(options.seed);
-    let mut out = Vec::new();
-    for (k, f) in frames.iter().enumerate() {
-        let subset = moe_lab::contact_eval::marker_subset(
-            &f.markers,
-            options.subset_markers,
-            &mut rng.split(k as u64),
-        );
-        let mut rows = serde_json::Map::new();
-        for (name, keypoints) in [("all_markers", &f.markers), ("four_markers", &subset)] {
-            let shape = arap.estimate(keypoints)?.shape;
-            let est: Vec<moe_geom::Point3> = shape.fingers.iter().flatten().copied().collect();
-            let truth: Vec<moe_geom::Point3> = f.shape.fingers.iter().flatten().copied().collect();
-            let errors: Vec<Real> = est
-                .iter()
-                .zip(&truth)
-                .map(|(a, b)| (a - b).norm())
-                .collect();
-            let samples: Vec<[Real; 3]> = shape
-                .fingers
-                .iter()
-                .flat_map(|v| {
-                    (0..5).map(move |j| {
-                        let p = v[j * (v.len() - 1) / 4];
-                        [1e3 * p.x, 1e3 * p.y, 1e3 * p.z]
-                    })
-                })
-                .collect();
-            rows.insert(
-                name.to_owned(),
-                json!({
-                    "bcd_mm": 1e3 * moe_geom::bcd(&est, &truth)?,
-                    "vertex_mean_mm": 1e3 * errors.iter().sum::<Real>() / errors.len() as Real,
-                    "vertex_max_mm": 1e3 * errors.iter().copied().fold(0.0, Real::max),
-                    "sample_vertices_mm": samples,
-                }),
-            );
-        }
-        out.push(json!({
-            "trajectory": f.trajectory_id,
-            "frame": f.frame_index,
-            "shapes": rows,
-        }));
-    }
-    Ok(json!({ "frames": out }))
+    crate::cli::eval::sorted_json(&arap_golden(&hand, &frames)?)
 }
 
 /// Golden contact stage: Table 1 of the shipped model on the held-out frames (no KNN rows, no
@@ -442,37 +394,5 @@ pub(crate) fn golden_arap() -> Result<serde_json::Value> {
 pub(crate) fn golden_table1() -> Result<serde_json::Value> {
     let (hand, frames, rule) = heldout_frames()?;
     let dgcnn = load_estimator(&workspace_root().join(SHIPPED_MODEL), &hand)?;
-    let estimators = Estimators {
-        dgcnn: &dgcnn,
-        knn_all: None,
-        knn_sub: None,
-    };
-    let (table, _) = evaluate_table1(
-        &hand,
-        &frames,
-        &rule,
-        None,
-        estimators,
-        &ContactEvalOptions::default(),
-        &|_| false,
-    )?;
-    let mut value = serde_json::to_value(&table)?;
-    for rows in ["shape", "contact"] {
-        if let Some(rows) = value[rows].as_array_mut() {
-            for r in rows {
-                if let Some(o) = r.as_object_mut() {
-                    o.remove("ms_per_frame");
-                }
-            }
-        }
-    }
-    let sums = frames
-        .iter()
-        .map(|f| {
-            let map = dgcnn.estimate_map(&ContactInput::of_frame(f, &f.shape))?;
-            Ok(map.fingers.iter().flatten().sum::<Real>())
-        })
-        .collect::<Result<Vec<Real>>>()?;
-    value["probability_sum_per_frame"] = json!(sums);
-    Ok(value)
+    crate::cli::eval::sorted_json(&table1_golden(&hand, &frames, &rule, &dgcnn)?)
 }

@@ -8,15 +8,13 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::ShapeConfig;
-use moe_geom::HandEstimator as _;
 use moe_geom::Real;
-use moe_lab::physics_eval::{Comparison, MarkerSource, PhysicsEvaluation, evaluate_physics};
+use moe_lab::physics_eval::PhysicsEvaluation;
 use moe_lab::physics_study::{
-    PhysicsFrames, PhysicsPlateRegions, PhysicsRegionStat, PhysicsStudyOptions, Streams,
-    dataset_streams, physics_study,
+    PhysicsFrames, PhysicsPlateRegions, PhysicsRegionStat, PhysicsStudyOptions, physics_golden,
+    physics_study,
 };
-use moe_physics::{HandMaterial, PhysicsConfig, PhysicsEstimator};
+use moe_physics::{HandMaterial, PhysicsConfig};
 use moe_tendon_sim::randomize::RandomSceneParams;
 
 /// Arguments of `moe-touch eval physics`.
@@ -305,49 +303,6 @@ pub(crate) fn golden_physics_default() -> Result<serde_json::Value> {
 
 /// The golden content of the physics estimator with `config` on the held-out frames.
 fn golden_physics_with(config: &PhysicsConfig) -> Result<serde_json::Value> {
-    let root = crate::golden::workspace_root();
-    let Streams { hand, frames, .. } = dataset_streams(
-        &root.join(crate::cli::eval::contact::HELDOUT_DIR),
-        None,
-        None,
-        None,
-    )?;
-    let mut estimator = PhysicsEstimator::new(&hand, &HandMaterial::default(), config)?;
-    let shape = ShapeConfig::default();
-    let eval = evaluate_physics(
-        &hand,
-        &frames,
-        MarkerSource::Exact,
-        &mut estimator,
-        Comparison {
-            dgcnn: None,
-            shape: &shape,
-            forget_between_frames: false,
-        },
-    )?;
-    let mut value = serde_json::to_value(&eval)?;
-    if let Some(o) = value.as_object_mut() {
-        o.remove("physics_ms_median");
-        o.remove("physics_ms_p90");
-    }
-    // The loads frame by frame, the estimator reset at each trajectory as above.
-    let mut per_frame = Vec::with_capacity(frames.len());
-    let mut previous = None;
-    for sf in &frames {
-        if previous != Some(sf.frame.trajectory_id) {
-            estimator.reset();
-            previous = Some(sf.frame.trajectory_id);
-        }
-        let est = estimator.estimate(&sf.frame.observation().with_time(sf.time_secs))?;
-        per_frame.push(serde_json::json!({
-            "loads": est.details.loads.iter().map(|l| serde_json::json!({
-                "finger": l.finger,
-                "vertex": l.vertex,
-                "force_n": [l.force_n.x, l.force_n.y, l.force_n.z],
-            })).collect::<Vec<_>>(),
-            "statistic": est.details.fingers.iter().map(|f| f.statistic).collect::<Vec<_>>(),
-        }));
-    }
-    value["per_frame"] = serde_json::Value::Array(per_frame);
-    Ok(value)
+    let dir = crate::golden::workspace_root().join(crate::cli::eval::contact::HELDOUT_DIR);
+    crate::cli::eval::sorted_json(&physics_golden(&dir, config)?)
 }
