@@ -240,17 +240,13 @@ impl<S: ShapeEstimator, C: ContactEstimator> HandEstimator for Staged<S, C> {
 /// Borrowed and boxed estimators estimate as the estimator does (so that a caller lends its
 /// estimator to a pipeline and keeps it, or chooses one at run time).
 macro_rules! forward_estimator {
-    ($trait:ident, $method:ident($($arg:ident: $ty:ty),*) -> $out:ty) => {
-        impl<T: $trait + ?Sized> $trait for &mut T {
-            type Error = T::Error;
-            fn $method(&mut self, $($arg: $ty),*) -> Result<$out, Self::Error> {
-                (**self).$method($($arg),*)
-            }
-            fn reset(&mut self) {
-                (**self).reset();
-            }
-        }
-        impl<T: $trait + ?Sized> $trait for Box<T> {
+    ($trait:ident $({ $($assoc:ident),* })?, $method:ident($($arg:ident: $ty:ty),*) -> $out:ty) => {
+        forward_estimator!(@impl &mut T, $trait $({ $($assoc),* })?, $method($($arg: $ty),*) -> $out);
+        forward_estimator!(@impl Box<T>, $trait $({ $($assoc),* })?, $method($($arg: $ty),*) -> $out);
+    };
+    (@impl $for:ty, $trait:ident $({ $($assoc:ident),* })?, $method:ident($($arg:ident: $ty:ty),*) -> $out:ty) => {
+        impl<T: $trait + ?Sized> $trait for $for {
+            $($(type $assoc = T::$assoc;)*)?
             type Error = T::Error;
             fn $method(&mut self, $($arg: $ty),*) -> Result<$out, Self::Error> {
                 (**self).$method($($arg),*)
@@ -264,51 +260,20 @@ macro_rules! forward_estimator {
 
 forward_estimator!(ShapeEstimator, estimate_shape(observation: &Observation<'_>) -> HandShape);
 forward_estimator!(ContactEstimator, estimate(input: &ContactInput<'_>) -> ContactEstimate);
-
-impl<T: HandEstimator + ?Sized> HandEstimator for &mut T {
-    type Details = T::Details;
-    type Error = T::Error;
-    fn estimate(
-        &mut self,
-        observation: &Observation<'_>,
-    ) -> Result<HandEstimate<T::Details>, T::Error> {
-        (**self).estimate(observation)
-    }
-    fn reset(&mut self) {
-        (**self).reset();
-    }
-}
-
-impl<T: HandEstimator + ?Sized> HandEstimator for Box<T> {
-    type Details = T::Details;
-    type Error = T::Error;
-    fn estimate(
-        &mut self,
-        observation: &Observation<'_>,
-    ) -> Result<HandEstimate<T::Details>, T::Error> {
-        (**self).estimate(observation)
-    }
-    fn reset(&mut self) {
-        (**self).reset();
-    }
-}
+forward_estimator!(
+    HandEstimator { Details },
+    estimate(observation: &Observation<'_>) -> HandEstimate<Self::Details>
+);
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::error::GeomError;
-    use crate::finger::FingerParams;
-    use crate::hand::{HandKeypoints, HandModel, HandPreset};
+    use crate::hand::HandKeypoints;
     use crate::math::Point3;
     use crate::transform::WorldFromHand;
 
-    fn small_hand() -> HandModel {
-        let params = FingerParams {
-            vertex_budget: 128,
-            ..FingerParams::default()
-        };
-        HandModel::preset(HandPreset::TwoFinger, &params).unwrap()
-    }
+    use crate::hand::tests::small_hand;
 
     #[test]
     fn finger_forces_are_the_sums_of_their_vertices_forces() {

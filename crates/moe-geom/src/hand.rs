@@ -291,9 +291,18 @@ impl HandKeypoints {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::chamfer::PointIndex;
+
+    /// The two-finger hand with small meshes (128 vertices a finger), for tests of this crate.
+    pub(crate) fn small_hand() -> HandModel {
+        let params = FingerParams {
+            vertex_budget: 128,
+            ..FingerParams::default()
+        };
+        HandModel::preset(HandPreset::TwoFinger, &params).unwrap()
+    }
 
     #[test]
     fn one_tendon_count_for_the_hand_or_the_finger_that_differs() {

@@ -255,16 +255,8 @@ impl LabelledFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::finger::FingerParams;
-    use crate::hand::HandPreset;
 
-    fn small_hand() -> HandModel {
-        let params = FingerParams {
-            vertex_budget: 128,
-            ..FingerParams::default()
-        };
-        HandModel::preset(HandPreset::TwoFinger, &params).unwrap()
-    }
+    use crate::hand::tests::small_hand;
 
     #[test]
     fn contacts_above_pick_the_vertices_at_or_over_the_threshold() {
