@@ -4,11 +4,11 @@
 //! *free twin* — the same wrist motion and tendon schedule with the obstacle removed. The
 //! difference between the two surfaces at the same instant (hand frame) is the deformation the
 //! contact causes, the only signal a shape-based estimator has. For each rule
-//! [`run_label_study`] counts, over all frames: labelled vertices, frames with a label,
-//! connected patches of labelled vertices (mesh edges) and how many are single vertices, labels
-//! on vertices held by the fixed base, and labelled frames whose markers moved less than
-//! 0.1 mm from the twin's (the "no visible deformation" frames), plus the same with every
-//! surface vertex instead of the markers.
+//! [`run_label_study`](crate::labels::run_label_study) counts, over all frames: labelled
+//! vertices, frames with a label, connected patches of labelled vertices (mesh edges) and how
+//! many are single vertices, labels on vertices held by the fixed base, and labelled frames
+//! whose markers moved less than 0.1 mm from the twin's (the "no visible deformation" frames),
+//! plus the same with every surface vertex instead of the markers.
 
 use moe_geom::{Real, Topology};
 use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
@@ -315,5 +315,51 @@ mod tests {
         sizes.sort_unstable();
         assert_eq!(sizes, vec![1, 2]);
         assert!(patch_sizes(&[false; 6], &topo).is_empty());
+    }
+
+    /// Two trajectories (the first touches nothing): every rule sees the same frames and
+    /// vertices, and the force rules label fewer vertices and frames the higher their threshold
+    /// (each labels a subset of the one before: penetration anywhere, then ≥ 1, 10, 50 mN on
+    /// the movable vertices).
+    #[test]
+    fn the_force_rules_nest_by_threshold() {
+        let options = LabelStudyOptions {
+            trajectories: 2,
+            seed: 11,
+        };
+        let mut done = Vec::new();
+        let report = run_label_study(&options, |t| done.push(t)).unwrap();
+        assert_eq!(report.trajectories + report.failed, 2);
+        assert_eq!(done.len() as u64, report.trajectories);
+        assert_eq!(report.rules.len(), RULES.len());
+        let first = &report.rules[0];
+        for r in &report.rules {
+            assert_eq!(
+                (r.frames, r.vertices),
+                (first.frames, first.vertices),
+                "{}",
+                r.rule
+            );
+            assert!(r.labelled_frames <= r.frames && r.single_vertex_patches <= r.patches);
+        }
+        let force = &report.rules[1..5];
+        assert!(force.iter().all(|r| r.rule.contains("force")));
+        assert!(
+            force[0].labelled_vertices > 0,
+            "the trajectories touch nothing"
+        );
+        for pair in force.windows(2) {
+            assert!(
+                pair[1].labelled_vertices <= pair[0].labelled_vertices
+                    && pair[1].labelled_frames <= pair[0].labelled_frames,
+                "{} vs {}",
+                pair[1].rule,
+                pair[0].rule
+            );
+        }
+        // Only the rules that may label the base do.
+        for (r, rule) in report.rules.iter().zip(&RULES) {
+            assert!(rule.base_too || r.labels_on_base == 0, "{}", r.rule);
+        }
     }
 }

@@ -5,8 +5,7 @@
 //!
 //! **The plane.** From a press's hold, RANSAC through the estimated contact points (the paper's
 //! fit) — unless three or more fingers are *loaded*, in which case the plane goes through their
-//! seen tips ([`PlaneSource`](crate::grasp::PlaneSource)); [`fit_grasp_plane`](crate::grasp::fit_grasp_plane)
-//! is that rule as a pure function of the pipeline's frame estimates, for a robot's own. The hand is not actuated during the
+//! seen tips ([`PlaneSource`](crate::grasp::PlaneSource)). The hand is not actuated during the
 //! grasp, so a finger whose estimated shape has moved from rest is one the plate pushes: which
 //! fingers touch comes from their deformation, not from the contact classifier, and the plane
 //! is spanned by points tens of millimetres apart instead of by one fingertip's patch. A level
@@ -14,7 +13,10 @@
 //! [`GraspOptions::refinements`](crate::grasp::GraspOptions::refinements) the hand turns onto
 //! the latest plane, presses again (now with more fingers down; deeper when fewer than three
 //! are loaded) and fits again before the judged press. `refinements = 0` without the
-//! fingertip plane is the paper's protocol.
+//! fingertip plane is the paper's protocol. The rule is
+//! [`fit_grasp_plane`](crate::grasp::fit_grasp_plane), a pure function of the pipeline's frame
+//! estimates ([`finger_views`](crate::grasp::finger_views)) that a robot calls with its own; the
+//! simulated trials call the same function.
 //!
 //! **Success** is the state from which the paper's hand folds the sheet: at the deepest point of
 //! the judged press every finger touches the plate (at least
@@ -23,6 +25,10 @@
 //! [`GraspOptions::max_axis_error_deg`](crate::grasp::GraspOptions::max_axis_error_deg) of the
 //! plate's normal, so the palm faces the sheet squarely. Without MOE-Touch the hand keeps its
 //! initial orientation: the judged press is its first.
+//!
+//! [`run_grasp_trial`](crate::grasp::run_grasp_trial) runs one trial;
+//! [`run_grasp_study`](crate::grasp::run_grasp_study) the paper's study (seeded trials on each
+//! incline, tallied beside Table 4).
 
 mod plane;
 mod press;

@@ -1,5 +1,6 @@
 //! Scoring marker detections against the ground truth of a recorded or simulated episode, and
-//! the marker study over the paper's scenes ([`run_marker_study`](crate::markers::run_marker_study)).
+//! the marker study over the paper's scenes
+//! ([`run_marker_study`](crate::markers::run_marker_study)).
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::{HandKeypoints, HandModel, Point3, Real, Transform, bcd};

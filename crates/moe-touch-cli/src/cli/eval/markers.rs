@@ -2,7 +2,8 @@
 //! simulator's wrist camera with its noise model — the six plate scenes of Table 2, head and
 //! arm patting and the three inclined plates. Per scene: detection rate of the markers visible in
 //! the ground truth, position error, false detections, identity swaps, and SR-ARAP shape BCD
-//! from the detected keypoints against from every true marker (`moe_lab::markers::run_marker_study`).
+//! from the detected keypoints against from every true marker. The study is
+//! `moe_lab::markers::run_marker_study`; this command draws the overlays and prints.
 
 use std::path::PathBuf;
 

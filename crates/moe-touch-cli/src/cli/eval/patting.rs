@@ -12,6 +12,9 @@
 //! - Table 3: UCD from each reconstruction to the true surface (GP with the prior, GP with a
 //!   sphere, the non-probabilistic baseline, the prior alone), from the DGCNN's contacts and,
 //!   as the upper bound, from the true contacts.
+//!
+//! The study is `moe_lab::patting::run_patting_study`; this command parses the flags, loads the
+//! `KNN[All]` index and prints the report.
 
 use std::path::{Path, PathBuf};
 
