@@ -16,6 +16,8 @@
 pub mod calibration_streams;
 /// The simulation study of contact estimation (paper Tables 1–2).
 pub mod contact_eval;
+/// What `moe-touch contact` writes of one estimate: coloured meshes, records, `contacts.csv`.
+pub mod contact_output;
 /// Sharded, resumable, deterministic data set generation.
 pub mod datagen;
 /// Recording simulated episodes (rendered camera frames with ground truth).

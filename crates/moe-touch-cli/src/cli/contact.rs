@@ -8,12 +8,15 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use moe_contact::{Aggregation, DeviceKind, ForwardTimings, InputFeature};
 use moe_geom::{
-    ContactInput, ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, Real, Vector3,
-    WorldFromHand,
+    ContactInput, ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, WorldFromHand,
 };
 use moe_geom::{HandEstimator as _, Observation};
+use moe_lab::contact_output::{
+    CONTACTS_HEADER, FingerContactRecord, PhysicsFingerRecord, contact_fingers, contact_rows,
+    physics_fingers,
+};
 use moe_lab::point_cloud::{NetworkPrecision, PointCloudModel, PointCloudOptions};
-use moe_lab::run::{LoadRecord, finger_force_records};
+use moe_lab::run::LoadRecord;
 use moe_physics::PhysicsEstimator;
 use serde::{Deserialize, Serialize};
 
@@ -140,15 +143,6 @@ impl TimingsMs {
             total: total_s * 1e3,
         }
     }
-}
-
-/// One finger of `contact.json`.
-#[derive(Debug, Serialize)]
-struct FingerContactRecord {
-    mesh: String,
-    vertices: usize,
-    contact_vertices: usize,
-    max_probability: f64,
 }
 
 /// `contact.json`, also the `--json` report of `--shape`.
@@ -361,19 +355,7 @@ fn run_shape(
         .with_context(|| format!("shape {}", dir.display()))?;
     let map: ContactMap = maps.pop().context("no contact map")?;
     // Everything in memory first, so that a failure leaves nothing half-written.
-    let mut plys = Vec::with_capacity(hand.num_fingers());
-    let mut fingers = Vec::with_capacity(hand.num_fingers());
-    for (i, probs) in map.fingers.iter().enumerate() {
-        let ply = moe_lab::contact_eval::contact_ply(&hand, i, &shape.fingers[i], probs)?;
-        let name = format!("finger_{i}.ply");
-        fingers.push(FingerContactRecord {
-            mesh: name.clone(),
-            vertices: probs.len(),
-            contact_vertices: probs.iter().filter(|&&p| p >= threshold).count(),
-            max_probability: probs.iter().copied().fold(0.0, f64::max),
-        });
-        plys.push((name, ply));
-    }
+    let (plys, fingers) = contact_fingers(&hand, &shape, &map, threshold)?;
     let contacts = map.contacts_above(threshold, &shape)?;
     let rows = contact_rows(&contacts);
     let record = ShapeContactRecord {
@@ -517,30 +499,6 @@ pub(crate) fn parse_world_from_hand(text: &str) -> Result<WorldFromHand> {
     )))
 }
 
-/// One finger of the physics `contact.json`.
-#[derive(Debug, Serialize)]
-struct PhysicsFingerRecord {
-    mesh: String,
-    vertices: usize,
-    contact_vertices: usize,
-    max_probability: f64,
-    /// Probability that the finger is pressed.
-    pressed_probability: f64,
-    /// The net force the world exerts on the finger, hand frame, newtons.
-    force_n: Vector3,
-    force_magnitude_n: f64,
-    loads: usize,
-    /// Likelihood-ratio statistic of the loads against none (χ² units).
-    statistic: f64,
-    observed_markers: usize,
-    /// RMS of the observed markers about the unloaded finger and about the estimate, metres.
-    free_rms_m: Option<f64>,
-    fit_rms_m: Option<f64>,
-    /// Why there is no estimate for this finger (it then keeps its rest shape, no contact).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    error: Option<String>,
-}
-
 /// The physics `contact.json`, also its `--json` report.
 #[derive(Debug, Serialize)]
 struct PhysicsContactRecord {
@@ -682,54 +640,6 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
     Ok(())
 }
 
-/// Named meshes to write.
-type NamedPlys = Vec<(String, moe_io::PlyData)>;
-
-/// Each finger's mesh coloured by contact probability (with the force per vertex) and its
-/// record, in memory.
-fn physics_fingers(
-    hand: &moe_geom::HandModel,
-    estimate: &moe_physics::PhysicsEstimate,
-    threshold: f64,
-) -> Result<(NamedPlys, Vec<PhysicsFingerRecord>)> {
-    let forces = finger_force_records(&estimate.details);
-    let mut plys = Vec::with_capacity(hand.num_fingers());
-    let mut fingers = Vec::with_capacity(hand.num_fingers());
-    for (i, probs) in estimate.contact.fingers.iter().enumerate() {
-        let vertices = &estimate.shape.fingers[i];
-        let force_magnitudes: Vec<f64> = estimate
-            .vertex_force_n
-            .as_ref()
-            .and_then(|f| f.get(i))
-            .map_or_else(
-                || vec![0.0; vertices.len()],
-                |f| f.iter().map(|v| v.norm()).collect(),
-            );
-        let ply = moe_lab::contact_eval::contact_ply(hand, i, vertices, probs)?
-            .with_scalar("force_n", force_magnitudes.iter().copied());
-        let name = format!("finger_{i}.ply");
-        let report = &estimate.details.fingers[i];
-        let finite = |x: f64| x.is_finite().then_some(x);
-        fingers.push(PhysicsFingerRecord {
-            mesh: name.clone(),
-            vertices: probs.len(),
-            contact_vertices: probs.iter().filter(|&&p| p >= threshold).count(),
-            max_probability: probs.iter().copied().fold(0.0, f64::max),
-            pressed_probability: report.pressed_probability,
-            force_n: forces[i].force_n,
-            force_magnitude_n: forces[i].magnitude_n,
-            loads: forces[i].loads.unwrap_or(0),
-            statistic: report.statistic,
-            observed_markers: report.observed_markers,
-            free_rms_m: finite(report.free_rms_m),
-            fit_rms_m: finite(report.fit_rms_m),
-            error: report.error.clone(),
-        });
-        plys.push((name, ply));
-    }
-    Ok((plys, fingers))
-}
-
 /// The physics estimate's lines on stdout: the hand, each finger, each load.
 fn print_physics(record: &PhysicsContactRecord, loads: &[LoadRecord]) {
     let threshold = record.threshold;
@@ -771,24 +681,4 @@ fn print_physics(record: &PhysicsContactRecord, loads: &[LoadRecord]) {
             l.magnitude_sd_n
         );
     }
-}
-
-/// The header of `contacts.csv` (hand frame, metres).
-const CONTACTS_HEADER: [&str; 6] = ["finger", "vertex", "x", "y", "z", "probability"];
-
-/// The rows of `contacts.csv`.
-fn contact_rows(contacts: &[moe_geom::ContactPoint]) -> Vec<Vec<Real>> {
-    contacts
-        .iter()
-        .map(|c| {
-            vec![
-                c.finger as f64,
-                f64::from(c.vertex),
-                c.point.x,
-                c.point.y,
-                c.point.z,
-                c.probability,
-            ]
-        })
-        .collect()
 }
