@@ -235,3 +235,47 @@ fn score_scene(
     })?;
     Ok((frames, detector, detections, report))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One plate scene rendered without noise: it is seen once by the caller, its markers are
+    /// nearly all detected, and the plates pooled over it are its own figures; a scene that is
+    /// not the study's is refused before any work.
+    #[test]
+    fn one_plate_scene_is_scored_and_pooled_as_itself() {
+        let options = MarkerStudyOptions {
+            scenes: vec!["plate_tip_front".into()],
+            scene_dir: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../fixtures/scenes"),
+            camera_seed: 0,
+            ideal: true,
+            detector: DetectorConfig::default(),
+        };
+        let mut seen = Vec::new();
+        let report = run_marker_study(&options, |scene: &MarkerSceneView<'_>| {
+            assert_eq!(scene.frames.len(), scene.detections.len());
+            seen.push(scene.name.to_owned());
+            Ok::<(), LabError>(())
+        })
+        .unwrap();
+        assert_eq!(seen, ["plate_tip_front"]);
+        let [scene] = report.scenes.as_slice() else {
+            panic!("{:?}", report.scenes);
+        };
+        assert!(scene.markers.detection_rate > 0.95, "{:?}", scene.markers);
+        let plates = report.plates.unwrap();
+        assert_eq!(plates.scenes, 1);
+        assert_eq!(plates.visible, scene.markers.visible);
+        assert_eq!(plates.detection_rate, scene.markers.detection_rate);
+        assert_eq!(plates.shape_bcd_detected_mm, scene.shape_bcd_detected_mm);
+        let unknown = MarkerStudyOptions {
+            scenes: vec!["plate_nowhere".into()],
+            ..options
+        };
+        let err = run_marker_study(&unknown, |_: &MarkerSceneView<'_>| Ok::<(), LabError>(()))
+            .unwrap_err();
+        assert!(err.to_string().contains("plate_nowhere"), "{err}");
+    }
+}
