@@ -228,7 +228,7 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     }
     let options = GraspStudyOptions {
         trials: args.trials,
-        model: workspace_root().join(&args.model),
+        model: args.model.clone(),
         camera_seed: args.seed,
         source,
         threshold: args.threshold,

@@ -24,7 +24,8 @@ use moe_contact::KnnIndex;
 use moe_geom::Real;
 use moe_gpis::HyperBounds;
 use moe_gpis::bench_scene::{SceneKind, Spread};
-use moe_io::{DatasetReader, SplitFractions};
+use moe_io::DatasetReader;
+use moe_lab::contact_eval::{build_knn_index, read_knn_index};
 use moe_lab::patting::{
     DEFAULT_ESTIMATED_NOISE_FLOOR_M, DEFAULT_PRIOR_GATE_M, PattingSize, PattingStudyOptions,
     PattingStudyReport, TABLE3_METHODS, body_name, run_patting_study,
@@ -97,21 +98,22 @@ pub(crate) struct PattingEvalArgs {
     estimated_noise_floor: Real,
 }
 
-/// The `KNN[All]` index: from a file, or built from the committed held-out set.
+/// The `KNN[All]` index: from a file (of the patting hand, the two-finger preset), or built
+/// from the committed held-out set.
 fn knn_index(path: Option<&Path>) -> Result<KnnIndex> {
     Ok(match path {
         Some(path) => {
-            let bytes =
-                std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-            KnnIndex::from_bytes(&bytes).with_context(|| format!("KNN index {}", path.display()))?
+            let hand = moe_geom::HandModel::preset(
+                moe_geom::HandPreset::TwoFinger,
+                &moe_geom::FingerParams::default(),
+            )?;
+            read_knn_index(path, &hand.signature().vertices_per_finger)?
         }
-        None => {
-            let reader = DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?;
-            let frames = reader
-                .labelled_frames(None, SplitFractions::default())
-                .collect::<Result<Vec<_>, _>>()?;
-            KnnIndex::new(&frames, false)?
-        }
+        None => build_knn_index(
+            &DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?,
+            None,
+            false,
+        )?,
     })
 }
 
@@ -124,7 +126,7 @@ fn options(args: &PattingEvalArgs) -> PattingStudyOptions {
         },
         pairs: args.pairs,
         bodies: args.bodies.iter().map(|b| b.kind()).collect(),
-        model: workspace_root().join(&args.model),
+        model: args.model.clone(),
         camera_seed: args.seed,
         out: args.out.clone(),
         prior_gate_m: args.prior_gate,
@@ -263,7 +265,7 @@ pub(crate) fn patting_fixture() -> Result<Value> {
         size: Size::Small,
         pairs: None,
         bodies: Vec::new(),
-        model: PathBuf::from(SHIPPED_MODEL),
+        model: workspace_root().join(SHIPPED_MODEL),
         knn_index: None,
         seed: 0,
         out: None,
