@@ -3,11 +3,18 @@
 //! - [`datagen`]: sharded, resumable, deterministic data set generation with the tendon FEM
 //!   simulator; [`episode`]: recording simulated episodes (rendered wrist-camera frames with
 //!   their ground truth).
-//! - The studies: [`contact_eval`] (paper Tables 1–2 and the plate experiments),
-//!   [`physics_eval`] (contact from physics scored as tactile sensors are specified),
-//!   [`markers`] (marker perception against the ground truth), [`patting`] and [`grasp`] (the
-//!   applications), [`run`] (the pipeline over a recorded episode, scored where the episode has
-//!   ground truth), [`training`] (a contact model from data sets: [`training::TrainingRun`]).
+//! - The studies, each a function with typed options and a typed `Serialize` report that the
+//!   `moe-touch eval` commands print: [`contact_eval`] (paper Tables 1–2, the plate experiments
+//!   and the one registry of the paper's plate scenes), [`physics_eval`] and [`physics_study`]
+//!   (contact from physics scored as tactile sensors are specified), [`markers`] (marker
+//!   perception against the ground truth), [`labels`] (contact-label rules),
+//!   [`observability`] (the Cramér–Rao bound per marker layout), [`surface_eval`] (occluded
+//!   surfaces), [`patting`] and [`grasp`] (the applications; [`grasp::fit_grasp_plane`] is the
+//!   grasp's plane rule, a pure function a robot calls with its own frame estimates).
+//! - [`run`] (the pipeline over a recorded episode, scored where the episode has ground truth),
+//!   [`training`] (a contact model from data sets: [`training::TrainingRun`]),
+//!   [`calibration_streams`] (contact-free streams for calibration), [`contact_output`] and
+//!   [`point_cloud`] (what `moe-touch contact` writes and runs).
 //!
 //! Architecture invariant: the runtime (`moe-touch`) never depends on this crate; this crate
 //! may use the simulator. Nothing here parses command lines or prints.
