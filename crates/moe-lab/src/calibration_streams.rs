@@ -164,46 +164,8 @@ pub fn dataset_contact_free_streams(
     })
 }
 
-/// How two hands differ, if they do (finger count, mesh, markers, tendons, rest surface).
+/// How two hands differ, if they do, in words: [`HandModel::difference`] (finger count,
+/// vertex, marker and tendon counts, rest meshes, marker vertices, placement on the palm).
 pub fn hand_difference(a: &HandModel, b: &HandModel) -> Option<String> {
-    if a.num_fingers() != b.num_fingers() {
-        return Some(format!(
-            "{} fingers against {}",
-            a.num_fingers(),
-            b.num_fingers()
-        ));
-    }
-    for (f, (x, y)) in a.fingers().iter().zip(b.fingers()).enumerate() {
-        let (mx, my) = (x.model.mesh(), y.model.mesh());
-        if mx.num_vertices() != my.num_vertices() {
-            return Some(format!(
-                "finger {f} has {} vertices against {}",
-                mx.num_vertices(),
-                my.num_vertices()
-            ));
-        }
-        if x.model.marker_vertices() != y.model.marker_vertices() {
-            return Some(format!("finger {f} has other marker vertices"));
-        }
-        if x.model.tendon_routes().len() != y.model.tendon_routes().len() {
-            return Some(format!(
-                "finger {f} has {} tendons against {}",
-                x.model.tendon_routes().len(),
-                y.model.tendon_routes().len()
-            ));
-        }
-        let (ra, rb) = (a.rest_vertices_in_hand(f), b.rest_vertices_in_hand(f));
-        let far = ra
-            .iter()
-            .zip(&rb)
-            .map(|(p, q)| (p - q).norm())
-            .fold(0.0, Real::max);
-        if far > 1e-9 {
-            return Some(format!(
-                "finger {f}'s rest surface differs by up to {:.3} mm",
-                1e3 * far
-            ));
-        }
-    }
-    None
+    a.difference(b).map(|d| d.to_string())
 }
