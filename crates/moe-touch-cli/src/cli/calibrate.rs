@@ -16,7 +16,7 @@ use moe_lab::calibration_streams::{
 };
 use moe_lab::markers::check_hand;
 use moe_physics::{CalibrationOptions, HandMaterial, calibrate};
-use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::perception::MarkerDetector;
 use serde::Serialize;
 
 /// Where the markers of an episode come from.
@@ -323,10 +323,7 @@ fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
         bail!("--config is for detected markers (--markers detected)");
     }
     let mut detector = if detected {
-        let config: DetectorConfig = match &args.config {
-            Some(p) => moe_io::read_config(p)?,
-            None => DetectorConfig::default(),
-        };
+        let config = super::load_detector_config(args.config.as_deref())?;
         Some(
             MarkerDetector::for_episode(&episode.info, &hand, config)
                 .with_context(|| format!("the camera of {}", path.display()))?,

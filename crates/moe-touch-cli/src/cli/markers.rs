@@ -62,10 +62,7 @@ struct MarkersRecord {
 }
 
 pub(crate) fn run(args: MarkersArgs) -> Result<()> {
-    let config = match &args.config {
-        Some(path) => moe_touch::settings::load_detector_config(path)?,
-        None => DetectorConfig::default(),
-    };
+    let config = super::load_detector_config(args.config.as_deref())?;
     let episode = moe_io::read_episode(&args.episode)?;
     let hand = super::load_hand(&args.hand)?;
     check_hand(&hand, &episode.info)

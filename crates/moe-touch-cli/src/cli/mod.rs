@@ -72,6 +72,18 @@ pub(crate) fn load_physics_config(
     Ok((config, path.display().to_string()))
 }
 
+/// The marker detector's parameters from `--config` (TOML or JSON `DetectorConfig`), checked;
+/// the defaults without one.
+pub(crate) fn load_detector_config(
+    path: Option<&std::path::Path>,
+) -> anyhow::Result<moe_touch::perception::DetectorConfig> {
+    use anyhow::Context;
+    path.map_or_else(
+        || Ok(moe_touch::perception::DetectorConfig::default()),
+        |p| moe_touch::settings::load_detector_config(p).context("--config"),
+    )
+}
+
 /// `n` and a noun, plural unless `n` is 1 ("1 load", "2 loads").
 pub(crate) fn count(n: usize, noun: &str) -> String {
     if n == 1 {

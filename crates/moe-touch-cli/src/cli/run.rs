@@ -14,7 +14,7 @@ use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunDetails, RunReport, run_episo
 use moe_touch::PhysicsPipeline;
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
-use moe_touch::perception::{DetectorConfig, MarkerDetector};
+use moe_touch::perception::MarkerDetector;
 use moe_touch::pipeline::load_contact_model;
 
 use super::ContactMethod;
@@ -201,10 +201,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             dir.display()
         );
     }
-    let config = match &args.config {
-        Some(path) => moe_touch::settings::load_detector_config(path)?,
-        None => DetectorConfig::default(),
-    };
+    let config = super::load_detector_config(args.config.as_deref())?;
     let hand = super::load_hand(&args.hand)?;
     // The recording's topics and frames, read once: they name the input's and the results'.
     let ros = ros_config(&args)?;

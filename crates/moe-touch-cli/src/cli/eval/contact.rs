@@ -93,14 +93,8 @@ pub(crate) fn run(args: &ContactEvalArgs) -> Result<()> {
     // The physics files are read before any evaluation, so that a bad file is refused at once.
     let physics = if args.physics {
         Some(ContactStudyPhysics {
-            material: match &args.material {
-                Some(p) => moe_io::read_config(p)?,
-                None => moe_physics::HandMaterial::default(),
-            },
-            config: match &args.physics_config {
-                Some(p) => moe_io::read_config(p)?,
-                None => moe_physics::PhysicsConfig::default(),
-            },
+            material: crate::cli::load_material(args.material.as_deref())?.0,
+            config: crate::cli::load_physics_config(args.physics_config.as_deref())?.0,
         })
     } else {
         None

@@ -14,7 +14,6 @@ use moe_lab::markers::{
     MARKER_SCENES, MarkerSceneView, MarkerStudyOptions, MarkerStudyReport, PooledPlateMarkers,
     run_marker_study,
 };
-use moe_touch::perception::DetectorConfig;
 
 use crate::golden::workspace_root;
 
@@ -50,10 +49,7 @@ pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
             MARKER_SCENES.join(", ")
         );
     }
-    let detector: DetectorConfig = match &args.config {
-        Some(path) => moe_io::read_config(path)?,
-        None => DetectorConfig::default(),
-    };
+    let detector = crate::cli::load_detector_config(args.config.as_deref())?;
     let options = MarkerStudyOptions {
         scenes: args.scenes.clone(),
         scene_dir: workspace_root().join("fixtures/scenes"),

@@ -14,7 +14,7 @@ use moe_lab::physics_study::{
     PhysicsFrames, PhysicsPlateRegions, PhysicsRegionStat, PhysicsStudyOptions, physics_golden,
     physics_study,
 };
-use moe_physics::{HandMaterial, PhysicsConfig};
+use moe_physics::PhysicsConfig;
 use moe_tendon_sim::randomize::RandomSceneParams;
 
 /// Arguments of `moe-touch eval physics`.
@@ -102,10 +102,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
         seed: args.seed,
         marker_layout: args.marker_layout,
         marker_noise_m: args.marker_noise,
-        material: match &args.material {
-            Some(p) => moe_io::read_config(p)?,
-            None => HandMaterial::default(),
-        },
+        material: crate::cli::load_material(args.material.as_deref())?.0,
         calibration_scene: match &args.calibrate {
             Some(p) => Some(
                 moe_io::read_config(p)
@@ -113,10 +110,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
             ),
             None => None,
         },
-        config: match &args.config {
-            Some(p) => moe_io::read_config(p)?,
-            None => PhysicsConfig::default(),
-        },
+        config: crate::cli::load_physics_config(args.config.as_deref())?.0,
         model: args.model.clone(),
         plates: args.plates,
         no_memory: args.no_memory,
