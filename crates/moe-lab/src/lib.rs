@@ -56,3 +56,51 @@ pub mod surface_eval;
 pub mod training;
 
 pub use error::LabError;
+
+/// `value` as JSON without the fields named `keys`, at any depth: a report as a golden fixture
+/// holds it, without what depends on the machine (wall times, counts of machine-made meshes).
+///
+/// # Errors
+/// [`LabError::InvalidEvaluation`] for a value that does not serialise to JSON (a non-finite
+/// float serialises as `null` and is kept).
+pub fn without_keys<T: serde::Serialize>(
+    value: &T,
+    keys: &[&str],
+) -> Result<serde_json::Value, LabError> {
+    fn strip(v: &mut serde_json::Value, keys: &[&str]) {
+        match v {
+            serde_json::Value::Object(o) => {
+                o.retain(|k, _| !keys.contains(&k.as_str()));
+                o.values_mut().for_each(|v| strip(v, keys));
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(|v| strip(v, keys)),
+            _ => {}
+        }
+    }
+    let mut v = serde_json::to_value(value).map_err(|e| LabError::InvalidEvaluation {
+        reason: format!("a report as JSON: {e}"),
+    })?;
+    strip(&mut v, keys);
+    Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn without_keys_drops_the_named_fields_at_every_depth_and_keeps_the_rest() {
+        let report = serde_json::json!({
+            "secs": 1.5,
+            "rows": [{"method": "a", "secs": 2.0, "bcd_mm": 0.5}],
+            "nested": {"inner": {"secs": 3.0, "frames": 7}},
+        });
+        let v = crate::without_keys(&report, &["secs"]).unwrap();
+        assert_eq!(
+            v,
+            serde_json::json!({
+                "rows": [{"method": "a", "bcd_mm": 0.5}],
+                "nested": {"inner": {"frames": 7}},
+            })
+        );
+        assert_eq!(crate::without_keys(&report, &[]).unwrap(), report);
+    }
+}

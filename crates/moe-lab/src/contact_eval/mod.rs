@@ -30,8 +30,8 @@ pub use augmentation::{
     with_estimated_shapes,
 };
 pub use golden::{
-    ArapGolden, ArapGoldenFrame, ArapGoldenShape, ArapGoldenShapes, ContactRowGolden,
-    ShapeRowGolden, Table1Golden, arap_golden, table1_golden,
+    ArapGolden, ArapGoldenFrame, ArapGoldenShape, ArapGoldenShapes, Table1Golden, arap_golden,
+    table1_golden,
 };
 pub use knn::{KnnIndexSource, build_knn_index, knn_index, read_knn_index};
 pub use plates::{

@@ -244,20 +244,6 @@ pub(crate) fn round3(v: &mut Value) {
     }
 }
 
-/// Removes what depends on the machine (timings, vertex counts of meshes).
-fn strip_timings(v: &mut Value) {
-    match v {
-        Value::Object(o) => {
-            for key in ["secs", "variance_secs", "vertices"] {
-                o.remove(key);
-            }
-            o.values_mut().for_each(strip_timings);
-        }
-        Value::Array(a) => a.iter_mut().for_each(strip_timings),
-        _ => {}
-    }
-}
-
 /// The golden content of `eval patting --size small`: every figure rounded to µm, timings left
 /// out.
 pub(crate) fn patting_fixture() -> Result<Value> {
@@ -273,8 +259,8 @@ pub(crate) fn patting_fixture() -> Result<Value> {
         prior_gate: DEFAULT_PRIOR_GATE_M,
         estimated_noise_floor: DEFAULT_ESTIMATED_NOISE_FLOOR_M,
     };
-    let mut v = serde_json::to_value(evaluate(&args)?)?;
-    strip_timings(&mut v);
+    // What depends on the machine left out: timings, vertex counts of meshes.
+    let mut v = moe_lab::without_keys(&evaluate(&args)?, &["secs", "variance_secs", "vertices"])?;
     round3(&mut v);
     Ok(v)
 }
