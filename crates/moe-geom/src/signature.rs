@@ -138,7 +138,12 @@ impl HandModel {
     /// How the hand differs from what `recorded` says of a hand, comparing each field the
     /// signature records; `None` when it is that hand.
     pub fn differs_from(&self, recorded: &HandSignature) -> Option<HandDifference> {
-        let ours = HandSignature::of(self);
+        // The digests hash every rest vertex: made only when the record has some to compare.
+        let ours = if recorded.mesh_digests.is_some() {
+            HandSignature::of(self)
+        } else {
+            HandSignature::counts_of(self)
+        };
         let n = ours.vertices_per_finger.len();
         if recorded.vertices_per_finger.len() != n {
             return Some(HandDifference::Fingers {
