@@ -3,7 +3,7 @@
 serialiser and MCAP writer), to check the project's ROS 2 reader against a writer it did not
 write. Run by hand; the result is committed as a test fixture.
 
-    cargo run -p moe-io --example export_episode -- fixtures/episodes/plate_tip_front_small.mcap /tmp/ep
+    cargo run -p moe-record --example export_episode -- fixtures/episodes/plate_tip_front_small.mcap /tmp/ep
     python3 -m venv /tmp/venv && /tmp/venv/bin/pip install rosbags numpy
     /tmp/venv/bin/python tools/episode_to_rosbag.py /tmp/ep fixtures/episodes/plate_tip_front_small_ros2
 

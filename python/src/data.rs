@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use moe_io::ros2::RosConfig;
 use moe_io::{DatasetFrame, DatasetReader, Split, SplitFractions};
+use moe_record::ros2::RosConfig;
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3};
 use pyo3::prelude::*;
@@ -40,7 +40,7 @@ pub struct EpisodeFrame {
 
 impl EpisodeFrame {
     /// Moves the frame's images into numpy (no copy) and converts the rest.
-    fn new(py: Python<'_>, f: moe_io::EpisodeFrame, h: usize, w: usize) -> PyResult<Self> {
+    fn new(py: Python<'_>, f: moe_record::EpisodeFrame, h: usize, w: usize) -> PyResult<Self> {
         let bad = |what: &str| {
             invalid(format!(
                 "frame at {} ns: {what} does not fit {w} x {h}",
@@ -100,7 +100,11 @@ pub struct Episode {
 }
 
 impl Episode {
-    fn new(py: Python<'_>, episode: moe_io::Episode, truncated: Option<String>) -> PyResult<Self> {
+    fn new(
+        py: Python<'_>,
+        episode: moe_record::Episode,
+        truncated: Option<String>,
+    ) -> PyResult<Self> {
         let info = episode.info;
         let (h, w) = (info.camera.height as usize, info.camera.width as usize);
         let frames = episode
@@ -206,12 +210,12 @@ pub(crate) fn read_episode(
     hand: Option<&Hand>,
     ros: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Episode> {
-    if ros.is_some() || moe_io::ros2::is_ros2_recording(&path) {
+    if ros.is_some() || moe_record::ros2::is_ros2_recording(&path) {
         return read_ros2_bag(py, path, hand, ros);
     }
     let (episode, cut) = py.detach(|| {
         let bytes = moe_io::read_bytes(&path).py()?;
-        Ok::<_, PyErr>(moe_io::parse_episode_prefix(&path, &bytes))
+        Ok::<_, PyErr>(moe_record::parse_episode_prefix(&path, &bytes))
     })?;
     let mismatch = hand.zip(episode.as_ref()).and_then(|(hand, episode)| {
         let reason = episode.info.hand_mismatch(&hand.model)?;
@@ -243,7 +247,8 @@ pub(crate) fn read_ros2_bag(
         Some(h) => h.clone(),
         None => Hand::from_spec("two-finger")?,
     };
-    let episode = py.detach(|| moe_io::ros2::read_ros2_bag(&path, &config, &hand.model).py())?;
+    let episode =
+        py.detach(|| moe_record::ros2::read_ros2_bag(&path, &config, &hand.model).py())?;
     Episode::new(py, episode, None)
 }
 
@@ -251,7 +256,7 @@ pub(crate) fn read_ros2_bag(
 /// CDR messages).
 #[pyfunction]
 pub(crate) fn is_ros2_recording(path: PathBuf) -> bool {
-    moe_io::ros2::is_ros2_recording(&path)
+    moe_record::ros2::is_ros2_recording(&path)
 }
 
 /// A data set written by `moe-touch gen-data`: its card, and its frames shard by shard as

@@ -172,7 +172,7 @@ pub struct Camera {
 }
 
 impl Camera {
-    pub(crate) fn of_episode(info: &moe_io::EpisodeInfo) -> Self {
+    pub(crate) fn of_episode(info: &moe_record::EpisodeInfo) -> Self {
         Self {
             intrinsics: info.camera.into(),
             hand_from_camera: Transform::new(info.hand_from_camera),

@@ -136,18 +136,16 @@ impl IoError {
         }
     }
 
-    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+    /// [`IoError::Io`] about `path`.
+    pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         Self::Io {
             path: path.to_path_buf(),
             source,
         }
     }
 
-    pub(crate) fn parse(
-        path: &std::path::Path,
-        line: Option<usize>,
-        message: impl Into<String>,
-    ) -> Self {
+    /// [`IoError::Parse`] about `path`, at `line` when known.
+    pub fn parse(path: &std::path::Path, line: Option<usize>, message: impl Into<String>) -> Self {
         Self::Parse {
             path: path.to_path_buf(),
             line,
@@ -156,7 +154,8 @@ impl IoError {
         }
     }
 
-    pub(crate) fn invalid(
+    /// [`IoError::InvalidData`]: `item` in `path` is wrong as `message` says.
+    pub fn invalid(
         path: &std::path::Path,
         item: impl Into<String>,
         message: impl Into<String>,

@@ -36,7 +36,11 @@ pub(crate) fn extension(path: &Path) -> String {
 ///
 /// The parser crates did not panic under the fuzz tests; this is a second line of defence so
 /// that an input nobody tried still yields an error instead of aborting a long pipeline run.
-pub(crate) fn guarded<T>(
+/// Other format crates (`moe-record`) guard their parsers with it too.
+///
+/// # Errors
+/// What `f` returns, or [`IoError::ParserPanic`] naming `path` and `parser`.
+pub fn guarded<T>(
     path: &Path,
     parser: &'static str,
     f: impl FnOnce() -> Result<T, IoError>,

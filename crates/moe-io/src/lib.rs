@@ -1,4 +1,6 @@
-//! Every file format of MOE-Touch.
+//! The artefact formats of MOE-Touch: meshes, configs, hand models, numeric tables, training
+//! shards and model files. Recordings (MCAP episodes, run results for Foxglove, ROS 2 bags) are
+//! `moe-record`'s; it builds on this crate's error type and atomic writes.
 //!
 //! # Formats
 //! | what | read | write |
@@ -54,8 +56,6 @@ pub mod config;
 pub mod csv;
 /// Training data sets: safetensors shards and the data set card.
 pub mod dataset;
-/// Recorded episodes: MCAP with Foxglove schemas.
-pub mod episode;
 /// The crate's error type.
 pub mod error;
 /// Shared file helpers.
@@ -70,13 +70,6 @@ pub mod model;
 pub mod obj;
 /// Stanford PLY.
 pub mod ply;
-/// ROS 2 recordings (rosbag2 with MCAP storage, CDR messages): recordings in, episodes and
-/// pipeline results out.
-#[cfg(feature = "mcap")]
-pub mod ros2;
-/// Pipeline results over an episode, as MCAP for Foxglove.
-#[cfg(feature = "mcap")]
-pub mod run_output;
 /// STL.
 pub mod stl;
 
@@ -89,21 +82,11 @@ pub use dataset::{
     DatasetCard, DatasetFrame, DatasetLayout, DatasetReader, LabelledFrames, Split, SplitFractions,
     read_shard, split_of, write_shard,
 };
-pub use episode::{CameraInfo, Episode, EpisodeFrame, EpisodeInfo, ObstacleMesh};
-#[cfg(feature = "mcap")]
-pub use episode::{
-    EpisodeWriter, create_episode, parse_episode, parse_episode_prefix, read_episode, write_episode,
-};
 pub use error::IoError;
-pub use files::{MEMORY, read_bytes};
+pub use files::{MEMORY, guarded, read_bytes};
 pub use hand_config::{FingerConfig, HandConfig, TendonConfig, load_hand_config};
 pub use mesh_io::{read_mesh, write_mesh};
 pub use model::{ModelFiles, read_model_files, write_model_files};
 pub use obj::{obj_bytes, read_obj, read_obj_from, write_obj};
 pub use ply::{PlyData, ply_bytes, read_ply, read_ply_from, write_ply};
-#[cfg(feature = "mcap")]
-pub use run_output::{
-    FingerForceMessage, FingerForcesMessage, JsonTime, RUN_TOPICS, RunForces, RunFrame, RunInfo,
-    RunLoad, RunTruth, RunWriter, probability_colour, viridis_colour, write_run,
-};
 pub use stl::{STL_WELD_RELATIVE_TOLERANCE, read_stl, read_stl_from};

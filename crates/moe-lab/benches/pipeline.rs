@@ -14,7 +14,11 @@ use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::{PaperPipeline, Pipeline};
 
-fn pipeline(hand: &HandModel, episode: &moe_io::Episode, options: ShapeConfig) -> PaperPipeline {
+fn pipeline(
+    hand: &HandModel,
+    episode: &moe_record::Episode,
+    options: ShapeConfig,
+) -> PaperPipeline {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
         .expect("the shipped model loads");
@@ -25,8 +29,9 @@ fn pipeline(hand: &HandModel, episode: &moe_io::Episode, options: ShapeConfig) -
 
 fn bench_pipeline(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let episode = moe_io::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
-        .expect("the committed episode reads");
+    let episode =
+        moe_record::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+            .expect("the committed episode reads");
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
     // The frame with the plate pressed in.
     let frame = &episode.frames[3];
@@ -56,8 +61,9 @@ fn bench_pipeline(c: &mut Criterion) {
 /// stream (each iteration 50 ms after the previous one).
 fn bench_physics_pipeline(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let episode = moe_io::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
-        .expect("the committed episode reads");
+    let episode =
+        moe_record::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+            .expect("the committed episode reads");
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
     let physics = || {
         let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())

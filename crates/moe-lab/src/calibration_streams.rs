@@ -4,7 +4,8 @@
 //! before its first contact).
 
 use moe_geom::{HandKeypoints, HandModel, OwnedObservation, Real};
-use moe_io::{DatasetReader, Episode, SplitFractions};
+use moe_io::{DatasetReader, SplitFractions};
+use moe_record::Episode;
 use moe_touch::perception::MarkerDetector;
 
 use crate::datagen::dataset_params;

@@ -1,8 +1,8 @@
 //! Recording simulated episodes: what the wrist camera sees of a scene, with the ground truth
-//! attached, frame by frame, ready for `moe_io::EpisodeWriter`.
+//! attached, frame by frame, ready for `moe_record::EpisodeWriter`.
 
 use moe_geom::{HandModel, Iso3, Point3};
-use moe_io::{EpisodeFrame, EpisodeInfo, ObstacleMesh};
+use moe_record::{EpisodeFrame, EpisodeInfo, ObstacleMesh};
 use moe_tendon_sim::camera::{RenderItem, RgbdCamera};
 use moe_tendon_sim::{ActuationMode, Scene, SimError, SimFrame, obstacle_surface};
 

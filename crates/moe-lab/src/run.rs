@@ -3,8 +3,8 @@
 
 use moe_contact::{ContactMetrics, ContactReport};
 use moe_geom::{HandEstimator, HandShape, Point3, Real, Vector3, bcd};
-use moe_io::{EpisodeFrame, EpisodeInfo, RunForces, RunFrame, RunLoad, RunTruth};
 use moe_physics::{ContactLoad, PhysicsDetails};
+use moe_record::{EpisodeFrame, EpisodeInfo, RunForces, RunFrame, RunLoad, RunTruth};
 use serde::Serialize;
 
 use crate::LabError;
@@ -421,9 +421,9 @@ fn frame_forces<D: RunDetails>(
 }
 
 /// The run file's fixed information for an episode and a model (a run without forces; set
-/// [`moe_io::RunInfo::force_arrow_m_per_n`] for one with).
-pub fn run_info(info: &EpisodeInfo, model: &str, threshold: Real) -> moe_io::RunInfo {
-    moe_io::RunInfo {
+/// [`moe_record::RunInfo::force_arrow_m_per_n`] for one with).
+pub fn run_info(info: &EpisodeInfo, model: &str, threshold: Real) -> moe_record::RunInfo {
+    moe_record::RunInfo {
         model: model.to_owned(),
         threshold,
         episode: info.clone(),

@@ -276,7 +276,7 @@ pub fn place_labels(
 }
 
 /// A mesh to render: its vertices, faces and a contact probability per vertex (its colour,
-/// blue 0 to red 1 as in the result files, [`moe_io::probability_colour`]).
+/// blue 0 to red 1 as in the result files, [`moe_record::probability_colour`]).
 #[derive(Debug, Clone, Copy)]
 pub struct ShadedMesh<'a> {
     /// Vertices, any common frame.
@@ -376,7 +376,7 @@ pub fn render_meshes(view: &OrthoView, meshes: &[ShadedMesh<'_>], background: Rg
             };
             let shade = 0.35 + 0.65 * n.z.abs();
             let colours = [a, b, c].map(|i| {
-                moe_io::probability_colour(mesh.probability.get(i).copied().unwrap_or(0.0))
+                moe_record::probability_colour(mesh.probability.get(i).copied().unwrap_or(0.0))
                     .map(|c| Real::from(c) / 255.0)
             });
             let [(xa, ya, za), (xb, yb, zb), (xc, yc, zc)] = [a, b, c].map(|i| projected[i]);
@@ -490,7 +490,7 @@ mod tests {
         let (blue, red_value) = ([0.0; 3], [1.0; 3]);
         // Drawn far first, then near first: the near (red) triangle shows at the centre either
         // way, facing the viewer (shade 1), and a corner stays background.
-        let red = moe_io::probability_colour(1.0);
+        let red = moe_record::probability_colour(1.0);
         for order in [
             [mesh(&far, &blue), mesh(&near, &red_value)],
             [mesh(&near, &red_value), mesh(&far, &blue)],

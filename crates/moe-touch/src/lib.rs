@@ -18,7 +18,7 @@
 //!   tree only with this feature.
 //! - `dgcnn`: the paper's chain (`Pipeline::paper`, `PaperPipeline`, `load_contact_model`) and
 //!   with it `moe-contact` and candle.
-//! - `mcap`: reading and writing MCAP episodes (`moe_io::read_episode`), with the Foxglove
+//! - `mcap`: reading and writing MCAP episodes (`moe_record::read_episode`), with the Foxglove
 //!   schemas (protobuf).
 //! - `cuda`: the contact network on a CUDA device (implies `dgcnn`).
 //!
@@ -55,6 +55,7 @@ pub use moe_geom;
 pub use moe_io;
 #[cfg(feature = "physics")]
 pub use moe_physics;
+pub use moe_record;
 
 /// The pipeline guide's Rust example, compiled by `cargo test` in the runtime's own crate (the
 /// README's is the `moe-touch-quickstart` crate, which depends on `moe-touch` alone).
@@ -84,9 +85,9 @@ pub mod prelude {
         Observation, OwnedObservation, Point3, Real, RgbdFrame, ShapeEstimator, Staged, Vector3,
         WorldFromHand,
     };
-    pub use moe_io::{Episode, EpisodeFrame, EpisodeInfo};
     #[cfg(feature = "physics")]
     pub use moe_physics::{
         ContactLoad, FingerReport, HandMaterial, PhysicsConfig, PhysicsDetails, PhysicsEstimator,
     };
+    pub use moe_record::{Episode, EpisodeFrame, EpisodeInfo};
 }

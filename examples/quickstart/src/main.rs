@@ -2,7 +2,8 @@
 //! pressing a fingertip), run from the repository's root: `cargo run -p moe-touch-quickstart`.
 //! Its only dependency is `moe-touch`; it prints what `python/examples/quickstart.py` prints.
 
-use moe_touch::moe_io::{read_config, read_episode};
+use moe_touch::moe_io::read_config;
+use moe_touch::moe_record::read_episode;
 use moe_touch::prelude::*;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -3,37 +3,14 @@
 //! parser crate would surface as `IoError::ParserPanic` (the readers catch it); that is counted
 //! as a failure too, so the crate doc's claim that the parsers did not panic stays checked.
 
-use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
 use moe_geom::{Point3, TriMesh};
 use moe_io::dataset::{DatasetFrame, DatasetLayout};
-use moe_io::{HandConfig, IoError, PlyData};
+use moe_io::{HandConfig, PlyData};
 
-use crate::{Fuzz, fixture_configs, octahedron};
-
-/// What one reader made of one input.
-enum Outcome {
-    /// A value that passed its validity check.
-    Valid,
-    /// A typed error.
-    Error,
-    /// A value that violates the reader's guarantees, or a caught parser panic.
-    Bad(String),
-}
-
-type Reader = fn(&[u8]) -> Outcome;
-
-fn from_result<T>(r: Result<T, IoError>, check: impl FnOnce(&T) -> Option<String>) -> Outcome {
-    match r {
-        Ok(v) => match check(&v) {
-            None => Outcome::Valid,
-            Some(why) => Outcome::Bad(why),
-        },
-        Err(IoError::ParserPanic { parser, .. }) => Outcome::Bad(format!("{parser} panicked")),
-        Err(_) => Outcome::Error,
-    }
-}
+use crate::harness::{Outcome, Reader, from_result, fuzz_readers, run_case};
+use crate::{fixture_configs, octahedron};
 
 fn mesh_check(m: &TriMesh) -> Option<String> {
     TriMesh::new(m.vertices().to_vec(), m.faces().to_vec())
@@ -112,84 +89,6 @@ fn shard_sample() -> Vec<u8> {
         })
         .collect();
     moe_io::dataset::shard_bytes(Path::new("s.safetensors"), &layout, &frames).unwrap()
-}
-
-fn read_episode(b: &[u8]) -> Outcome {
-    from_result(
-        moe_io::parse_episode(Path::new("fuzz.mcap"), b),
-        |e: &moe_io::Episode| {
-            let pixels = (e.info.camera.width * e.info.camera.height) as usize;
-            e.frames
-                .iter()
-                .any(|f| f.color_rgb8.len() != 3 * pixels || f.depth_m.len() != pixels)
-                .then(|| "a frame with images of another size was returned".into())
-        },
-    )
-}
-
-/// A valid episode of two frames of a 4 × 3 camera and a two-finger toy hand.
-pub(crate) fn episode_sample() -> Vec<u8> {
-    use moe_geom::Iso3;
-    use moe_io::{CameraInfo, EpisodeFrame, EpisodeInfo, EpisodeWriter, ObstacleMesh};
-    let info = EpisodeInfo {
-        scene: "fuzz".into(),
-        camera: CameraInfo {
-            width: 4,
-            height: 3,
-            fx: 380.0,
-            fy: 380.0,
-            cx: 1.5,
-            cy: 1.0,
-        },
-        hand_from_camera: Iso3::translation(0.0, 0.0, -0.02),
-        hand_from_finger: vec![Iso3::identity(), Iso3::translation(0.05, 0.0, 0.0)],
-        finger_faces: vec![vec![[0, 1, 2]], vec![[0, 2, 1]]],
-        finger_num_vertices: vec![3, 3],
-        tendons_per_finger: 1,
-    };
-    let frame = |k: u64| EpisodeFrame {
-        time_ns: k * 100_000_000,
-        color_rgb8: (0..36).map(|i| (i * 7 + k) as u8).collect(),
-        depth_m: (0..12).map(|i| 0.05 + i as f32 * 1e-3).collect(),
-        world_from_hand: Iso3::translation(0.0, 0.0, 0.1 * k as f64),
-        tendon_pull_m: vec![vec![0.001 * k as f64], vec![0.0]],
-        finger_vertices_in_hand: vec![
-            vec![
-                Point3::new(0.0, 0.0, 0.0),
-                Point3::new(0.01, 0.0, 0.0),
-                Point3::new(0.0, 0.01, 0.0),
-            ],
-            vec![
-                Point3::new(0.05, 0.0, 0.0),
-                Point3::new(0.06, 0.0, 0.0),
-                Point3::new(0.05, 0.01, 0.0),
-            ],
-        ],
-        contact_vertices: vec![vec![1], vec![]],
-        markers_in_hand: vec![
-            vec![Point3::new(0.0, 0.0, 0.0)],
-            vec![Point3::new(0.05, 0.0, 0.0)],
-        ],
-        obstacles: vec![ObstacleMesh {
-            name: "plate".into(),
-            vertices_in_world: vec![
-                Point3::new(0.0, 0.0, 0.5),
-                Point3::new(1.0, 0.0, 0.5),
-                Point3::new(0.0, 1.0, 0.5),
-            ],
-            faces: vec![[0, 1, 2]],
-        }],
-    };
-    let mut w = EpisodeWriter::new(
-        std::io::Cursor::new(Vec::new()),
-        &info,
-        Path::new("fuzz.mcap"),
-    )
-    .unwrap();
-    for k in 0..2 {
-        w.write_frame(&frame(k)).unwrap();
-    }
-    w.finish().unwrap().into_inner()
 }
 
 fn config_path() -> std::path::PathBuf {
@@ -285,193 +184,12 @@ fn samples() -> Vec<(&'static str, Reader, Vec<u8>)> {
         ("hand-json", read_hand_json, hand_json),
         ("csv", read_csv, csv),
         ("shard", read_shard, shard_sample()),
-        ("episode", read_episode, episode_sample()),
     ]
-}
-
-/// Keyword soup for each format family, so random inputs reach past the first token.
-const TOKENS: &[&str] = &[
-    "v",
-    "f",
-    "vt",
-    "vn",
-    "o",
-    "g",
-    "l",
-    "p",
-    "#",
-    "1",
-    "-1",
-    "0",
-    "2",
-    "3",
-    "4294967295",
-    "-9223372036854775808",
-    "1e308",
-    "nan",
-    "inf",
-    "0.5",
-    "/",
-    "//",
-    "1/2/3",
-    "ply",
-    "format",
-    "ascii",
-    "binary_little_endian",
-    "binary_big_endian",
-    "1.0",
-    "element",
-    "vertex",
-    "face",
-    "property",
-    "float",
-    "double",
-    "uchar",
-    "int",
-    "uint",
-    "list",
-    "vertex_indices",
-    "x",
-    "y",
-    "z",
-    "red",
-    "end_header",
-    "solid",
-    "facet",
-    "normal",
-    "outer",
-    "loop",
-    "endloop",
-    "endfacet",
-    "endsolid",
-    "preset",
-    "=",
-    "\"two-finger\"",
-    "[finger]",
-    "[[fingers]]",
-    "mesh",
-    "params",
-    "{",
-    "}",
-    "[",
-    "]",
-    ",",
-    ":",
-    "\"",
-    "length_m",
-    "vertex_budget",
-    "marker_vertices",
-    "\n",
-    " ",
-];
-
-/// Runs one reader on one input, catching panics.
-fn run_case(
-    name: &str,
-    reader: Reader,
-    input: &[u8],
-    kind: &str,
-    failures: &mut Vec<String>,
-) -> bool {
-    match catch_unwind(AssertUnwindSafe(|| reader(input))) {
-        Ok(Outcome::Valid) => true,
-        Ok(Outcome::Error) => false,
-        Ok(Outcome::Bad(why)) => {
-            failures.push(format!("{name} {kind} ({} bytes): {why}", input.len()));
-            false
-        }
-        Err(_) => {
-            failures.push(format!("{name} {kind} ({} bytes): panicked", input.len()));
-            false
-        }
-    }
 }
 
 #[test]
 fn every_reader_survives_truncation_flips_and_garbage() {
-    let mut rng = Fuzz::new(0x005E_ED0F_F022);
-    let mut failures = Vec::new();
-    let mut cases = 0usize;
-    let mut valid = 0usize;
-    for (name, reader, sample) in samples() {
-        // The untouched sample is valid.
-        assert!(
-            matches!(reader(&sample), Outcome::Valid),
-            "{name}: the unmodified sample must be accepted"
-        );
-        // Every prefix.
-        for len in 0..sample.len() {
-            cases += 1;
-            valid += usize::from(run_case(
-                name,
-                reader,
-                &sample[..len],
-                "prefix",
-                &mut failures,
-            ));
-        }
-        // Byte flips: 1–4 random bytes replaced by random values or single-bit flips.
-        for _ in 0..1000 {
-            let mut s = sample.clone();
-            for _ in 0..1 + rng.below(4) {
-                let i = rng.below(s.len());
-                s[i] = if rng.below(2) == 0 {
-                    rng.next_u64() as u8
-                } else {
-                    s[i] ^ (1 << rng.below(8))
-                };
-            }
-            cases += 1;
-            valid += usize::from(run_case(name, reader, &s, "byte flip", &mut failures));
-        }
-        // Spliced: a random slice of the sample repeated or dropped.
-        for _ in 0..100 {
-            let a = rng.below(sample.len());
-            let b = a + rng.below(sample.len() - a);
-            let mut s = sample[..b].to_vec();
-            s.extend_from_slice(&sample[a..]);
-            cases += 1;
-            valid += usize::from(run_case(name, reader, &s, "splice", &mut failures));
-        }
-        // Random bytes and keyword soup.
-        for _ in 0..150 {
-            let n = rng.below(300);
-            let bytes: Vec<u8> = (0..n).map(|_| rng.next_u64() as u8).collect();
-            cases += 1;
-            valid += usize::from(run_case(
-                name,
-                reader,
-                &bytes,
-                "random bytes",
-                &mut failures,
-            ));
-            let mut soup = String::new();
-            for _ in 0..rng.below(120) {
-                soup.push_str(TOKENS[rng.below(TOKENS.len())]);
-                soup.push(if rng.below(4) == 0 { '\n' } else { ' ' });
-            }
-            cases += 1;
-            valid += usize::from(run_case(
-                name,
-                reader,
-                soup.as_bytes(),
-                "token soup",
-                &mut failures,
-            ));
-        }
-    }
-    assert!(
-        failures.is_empty(),
-        "{} of {cases} cases failed:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
-    // Some mutated inputs still parse (e.g. a flipped digit): the checks above saw them too.
-    assert!(
-        valid > 0,
-        "no mutated input was accepted; the fuzzing never reached a value check"
-    );
-    println!("fuzz: {cases} cases, {valid} accepted as valid, 0 panics");
+    fuzz_readers(0x005E_ED0F_F022, samples());
 }
 
 #[test]
@@ -517,44 +235,4 @@ fn adversarial_sizes_and_nesting_are_errors() {
         assert!(!accepted, "{name} was accepted");
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
-}
-
-#[test]
-fn an_episode_declaring_huge_lengths_is_a_typed_error() {
-    let sample = episode_sample();
-    // Every chunk record (opcode 0x06 after the 8-byte magic) gets a huge uncompressed size;
-    // then every top-level record a huge length.
-    let mut chunks = Vec::new();
-    let mut records = Vec::new();
-    let mut at = 8;
-    while at + 9 <= sample.len() {
-        let len = u64::from_le_bytes(sample[at + 1..at + 9].try_into().unwrap()) as usize;
-        if at + 9 + len > sample.len() {
-            break;
-        }
-        records.push(at);
-        if sample[at] == 0x06 {
-            chunks.push(at);
-        }
-        at += 9 + len;
-    }
-    assert!(chunks.len() >= 2, "the sample is chunked");
-    for &c in &chunks {
-        for huge in [1u64 << 40, u64::MAX] {
-            let mut b = sample.clone();
-            b[c + 9 + 16..c + 9 + 24].copy_from_slice(&huge.to_le_bytes());
-            let err = moe_io::parse_episode(Path::new("huge.mcap"), &b).unwrap_err();
-            assert!(err.to_string().contains("uncompressed"), "{err}");
-        }
-    }
-    for &r in &records {
-        for huge in [1u64 << 40, u64::MAX, (sample.len() as u64) * 2] {
-            let mut b = sample.clone();
-            b[r + 1..r + 9].copy_from_slice(&huge.to_le_bytes());
-            assert!(
-                matches!(read_episode(&b), Outcome::Error),
-                "record at {r}, length {huge}"
-            );
-        }
-    }
 }

@@ -4,6 +4,7 @@
 mod atomic_writes;
 mod configs;
 mod fuzz;
+mod harness;
 mod round_trips;
 mod stl;
 
@@ -49,24 +50,6 @@ pub(crate) fn finger_mesh(budget: usize) -> TriMesh {
 /// A regular octahedron of circumradius `r`, outward-oriented.
 pub(crate) fn octahedron(r: f64) -> TriMesh {
     moe_geom::shapes::octahedron(r)
-}
-
-/// The workspace's seeded generator, with a `usize` range helper for the fuzz loops.
-pub(crate) struct Fuzz(pub(crate) moe_geom::SeededRng);
-
-impl Fuzz {
-    pub(crate) fn new(seed: u64) -> Self {
-        Self(moe_geom::SeededRng::new(seed))
-    }
-
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0.next_u64()
-    }
-
-    /// Uniform in `0..n` (n > 0).
-    pub(crate) fn below(&mut self, n: usize) -> usize {
-        self.0.below(n as u64) as usize
-    }
 }
 
 /// Asserts two point lists are bit-identical.

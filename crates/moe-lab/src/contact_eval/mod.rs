@@ -73,7 +73,7 @@ impl FrameSet {
 
 /// Blue (0) to red (1) colour of a contact probability, for meshes a person looks at (the
 /// colours of the `run` output's meshes too).
-pub use moe_io::probability_colour;
+pub use moe_record::probability_colour;
 
 /// Finger `finger` of `hand` deformed to `vertices`, as PLY with the per-vertex scalar
 /// `contact_probability` and colours from [`probability_colour`].

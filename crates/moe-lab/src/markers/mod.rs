@@ -4,7 +4,7 @@
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::{HandKeypoints, HandModel, Point3, Real, Transform, bcd};
-use moe_io::{EpisodeFrame, EpisodeInfo};
+use moe_record::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::camera::{RenderItem, RgbdCamera};
 use serde::Serialize;
 

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use moe_arap::ShapeConfig;
-use moe_io::EpisodeFrame;
+use moe_record::EpisodeFrame;
 use moe_tendon_sim::camera::NoiseModel;
 use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use moe_touch::perception::{DetectorConfig, MarkerDetection, MarkerDetector};

@@ -16,7 +16,7 @@ use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_geom::bodies::{ArmParams, HeadParams};
 use moe_geom::{ContactEstimator, HandEstimator, HandModel, Iso3, Point3, Real, Staged, TriMesh};
 use moe_gpis::bench_scene::SceneKind;
-use moe_io::{EpisodeFrame, EpisodeInfo};
+use moe_record::{EpisodeFrame, EpisodeInfo};
 use moe_tendon_sim::paper_scenes::{self, ARM_PATS, HEAD_PATS, pat_press_time};
 use moe_tendon_sim::{Scene, SceneConfig, run_saving};
 use serde::Serialize;

@@ -286,7 +286,7 @@ fn print_report(r: &CalibrateRecord) {
 /// them one stream.
 fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let (episode, cut) = moe_io::parse_episode_prefix(path, &bytes);
+    let (episode, cut) = moe_record::parse_episode_prefix(path, &bytes);
     let Some(episode) = episode else {
         return Err(match cut {
             Some(err) => err.into(),

@@ -55,8 +55,8 @@ pub(crate) struct DemoArgs {
 pub(crate) fn run(args: DemoArgs) -> Result<()> {
     args.estimator.check(&[], &[])?;
     let episode = match &args.episode {
-        Some(path) => moe_io::read_episode(path)?,
-        None => moe_io::parse_episode(Path::new(DEMO_EPISODE_NAME), DEMO_EPISODE)?,
+        Some(path) => moe_record::read_episode(path)?,
+        None => moe_record::parse_episode(Path::new(DEMO_EPISODE_NAME), DEMO_EPISODE)?,
     };
     let episode_name = args
         .episode
@@ -124,7 +124,7 @@ pub(crate) fn run(args: DemoArgs) -> Result<()> {
 fn demo<E>(
     args: &DemoArgs,
     hand: &HandModel,
-    episode: &moe_io::Episode,
+    episode: &moe_record::Episode,
     mut pipeline: Pipeline<E>,
     model_name: &str,
     settings: &str,
@@ -182,7 +182,7 @@ where
 
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    moe_io::write_run(&args.out.join("result.mcap"), &info, &frames)?;
+    moe_record::write_run(&args.out.join("result.mcap"), &info, &frames)?;
     moe_io::write_atomic(&args.out.join("report.json"), report_text.as_bytes())?;
     for (name, ply) in &plys {
         moe_io::write_ply(&args.out.join(name), ply)?;
@@ -197,8 +197,8 @@ where
 fn camera_panel(
     intrinsics: &moe_geom::CameraIntrinsics,
     hand_from_camera: moe_geom::HandFromCamera,
-    frame: &moe_io::RunFrame,
-    source: &moe_io::EpisodeFrame,
+    frame: &moe_record::RunFrame,
+    source: &moe_record::EpisodeFrame,
 ) -> Result<image::RgbImage> {
     let small = image::RgbImage::from_raw(
         intrinsics.width,
@@ -245,8 +245,8 @@ fn figure(
     hand: &HandModel,
     intrinsics: &moe_geom::CameraIntrinsics,
     hand_from_camera: moe_geom::HandFromCamera,
-    frame: &moe_io::RunFrame,
-    source: &moe_io::EpisodeFrame,
+    frame: &moe_record::RunFrame,
+    source: &moe_record::EpisodeFrame,
     record: &moe_lab::run::FrameReport,
     index: usize,
 ) -> Result<Vec<u8>> {

@@ -343,7 +343,7 @@ fn bound_map(mesh: &TriMesh, markers: &[u32], bounds: &[PlaceBound]) -> moe_io::
             } else if movable[v] == 0.0 {
                 [160, 160, 160]
             } else {
-                moe_io::viridis_colour(((along[v] / 0.5).log10() / 2.0).clamp(0.0, 1.0))
+                moe_record::viridis_colour(((along[v] / 0.5).log10() / 2.0).clamp(0.0, 1.0))
             }
         })
         .collect();

@@ -63,7 +63,7 @@ struct MarkersRecord {
 
 pub(crate) fn run(args: MarkersArgs) -> Result<()> {
     let config = super::load_detector_config(args.config.as_deref())?;
-    let episode = moe_io::read_episode(&args.episode)?;
+    let episode = moe_record::read_episode(&args.episode)?;
     let hand = super::load_hand(&args.hand)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;

@@ -250,15 +250,18 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
 /// episode MCAP, with the error that cut it short if it was.
 fn read_episode(
     args: &RunArgs,
-    ros: &moe_io::ros2::RosConfig,
+    ros: &moe_record::ros2::RosConfig,
     hand: &moe_geom::HandModel,
-) -> Result<(moe_io::Episode, Option<moe_io::IoError>)> {
-    if args.ros.is_some() || moe_io::ros2::is_ros2_recording(&args.episode) {
-        return Ok((moe_io::ros2::read_ros2_bag(&args.episode, ros, hand)?, None));
+) -> Result<(moe_record::Episode, Option<moe_io::IoError>)> {
+    if args.ros.is_some() || moe_record::ros2::is_ros2_recording(&args.episode) {
+        return Ok((
+            moe_record::ros2::read_ros2_bag(&args.episode, ros, hand)?,
+            None,
+        ));
     }
     let bytes = std::fs::read(&args.episode)
         .with_context(|| format!("reading {}", args.episode.display()))?;
-    let (episode, cut) = moe_io::parse_episode_prefix(&args.episode, &bytes);
+    let (episode, cut) = moe_record::parse_episode_prefix(&args.episode, &bytes);
     match episode {
         Some(episode) => Ok((episode, cut)),
         None => Err(match cut {
@@ -269,19 +272,19 @@ fn read_episode(
 }
 
 /// The ROS 2 topics and frames of `--ros`, or the defaults.
-fn ros_config(args: &RunArgs) -> Result<moe_io::ros2::RosConfig> {
+fn ros_config(args: &RunArgs) -> Result<moe_record::ros2::RosConfig> {
     Ok(match &args.ros {
         Some(path) => moe_io::read_config(path)?,
-        None => moe_io::ros2::RosConfig::default(),
+        None => moe_record::ros2::RosConfig::default(),
     })
 }
 
 /// Runs the pipeline over the episode, writes the result and the report, prints the summary.
 fn finish<E>(
     args: &RunArgs,
-    ros: &moe_io::ros2::RosConfig,
+    ros: &moe_record::ros2::RosConfig,
     mut pipeline: Pipeline<E>,
-    episode: &moe_io::Episode,
+    episode: &moe_record::Episode,
     cut: Option<moe_io::IoError>,
     model_name: &str,
     force_scale: Option<f64>,
@@ -313,9 +316,9 @@ where
     // command leaves neither output behind.
     if let Some(dir) = &args.ros_out {
         let arrow = force_scale.unwrap_or(DEFAULT_FORCE_ARROW_M_PER_N);
-        moe_io::ros2::write_ros2_results(dir, &frames, ros, arrow)?;
+        moe_record::ros2::write_ros2_results(dir, &frames, ros, arrow)?;
     }
-    if let Err(e) = moe_io::write_run(&args.out, &info, &frames) {
+    if let Err(e) = moe_record::write_run(&args.out, &info, &frames) {
         if let Some(dir) = &args.ros_out {
             let _ = std::fs::remove_dir_all(dir);
         }

@@ -315,7 +315,7 @@ fn record_episode(mut scene: Scene, args: &SimArgs) -> Result<()> {
     let recorder = moe_lab::episode::EpisodeRecorder::new(&scene, &name, args.seed)?;
     let frames = moe_tendon_sim::run_saving(&mut scene, steps)
         .with_context(|| format!("simulating {}", args.scene.display()))?;
-    let mut writer = moe_io::create_episode(&args.out, recorder.info())?;
+    let mut writer = moe_record::create_episode(&args.out, recorder.info())?;
     let mut contact_frames = 0;
     for (k, saved) in frames.iter().enumerate() {
         let frame = recorder.frame(&scene, saved, k as u64)?;

@@ -18,7 +18,7 @@ fn the_committed_episode_reads_back_with_its_ground_truth() {
         std::fs::metadata(&path).unwrap().len() < 5_000_000,
         "fixture stays small"
     );
-    let episode = moe_io::read_episode(&path).unwrap();
+    let episode = moe_record::read_episode(&path).unwrap();
     assert_eq!(
         (episode.info.camera.width, episode.info.camera.height),
         (320, 240)
@@ -78,11 +78,11 @@ fn episodes_are_deterministic_and_keep_complete_frames_when_cut() {
     }
     let bytes = std::fs::read(&a).unwrap();
     assert_eq!(bytes, std::fs::read(&b).unwrap(), "same scene, same bytes");
-    let full = moe_io::parse_episode(Path::new("a.mcap"), &bytes).unwrap();
+    let full = moe_record::parse_episode(Path::new("a.mcap"), &bytes).unwrap();
     assert_eq!(full.frames.len(), 3);
     // Cut in the last frame: the first two frames survive exactly.
     let cut = bytes.len() - bytes.len() / 5;
-    let (prefix, err) = moe_io::parse_episode_prefix(Path::new("a.mcap"), &bytes[..cut]);
+    let (prefix, err) = moe_record::parse_episode_prefix(Path::new("a.mcap"), &bytes[..cut]);
     assert!(err.is_some());
     let prefix = prefix.unwrap();
     assert!(!prefix.frames.is_empty() && prefix.frames.len() < 3);

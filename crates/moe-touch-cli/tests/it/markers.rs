@@ -148,9 +148,15 @@ fn a_noise_free_frame_gives_every_visible_marker_within_half_a_millimetre() {
 }
 /// The committed example episode's true shapes and obstacles re-rendered at 640 × 480 by the
 /// default (noisy) camera: the plate presses finger 0's tip.
-fn rerendered_episode(seed: u64) -> (moe_io::EpisodeInfo, Vec<moe_io::EpisodeFrame>, RgbdCamera) {
+fn rerendered_episode(
+    seed: u64,
+) -> (
+    moe_record::EpisodeInfo,
+    Vec<moe_record::EpisodeFrame>,
+    RgbdCamera,
+) {
     let episode =
-        moe_io::read_episode(&fixtures().join("episodes/plate_tip_front_small.mcap")).unwrap();
+        moe_record::read_episode(&fixtures().join("episodes/plate_tip_front_small.mcap")).unwrap();
     let camera = RgbdCamera::default();
     let hand = two_finger();
     let mut info = episode.info.clone();
@@ -177,7 +183,7 @@ fn rerendered_episode(seed: u64) -> (moe_io::EpisodeInfo, Vec<moe_io::EpisodeFra
                 &plates,
                 seed + i as u64,
             );
-            moe_io::EpisodeFrame {
+            moe_record::EpisodeFrame {
                 color_rgb8: img.color,
                 depth_m: img.depth_m,
                 ..f.clone()
@@ -479,7 +485,7 @@ fn the_markers_command_writes_keypoints_overlays_and_a_report() {
     let text = std::fs::read_to_string(&kp).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 7);
-    let episode_frames = moe_io::read_episode(&episode).unwrap().frames;
+    let episode_frames = moe_record::read_episode(&episode).unwrap().frames;
     for (line, frame) in lines.iter().zip(&episode_frames) {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
         assert_eq!(v["time_ns"].as_u64(), Some(frame.time_ns));

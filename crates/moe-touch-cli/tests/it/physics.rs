@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 
 use moe_geom::{FingerParams, HandModel, HandPreset, Point3};
 use moe_geom::{HandEstimator as _, Observation};
-use moe_io::{DatasetFrame, EpisodeFrame};
+use moe_io::DatasetFrame;
+use moe_record::EpisodeFrame;
 
 use crate::common::{assert_one_line_error, fixtures, run, run_json, scratch};
 
@@ -19,8 +20,8 @@ fn episode_path() -> PathBuf {
     fixtures().join("episodes/plate_tip_front_small.mcap")
 }
 
-fn episode() -> moe_io::Episode {
-    moe_io::read_episode(&episode_path()).unwrap()
+fn episode() -> moe_record::Episode {
+    moe_record::read_episode(&episode_path()).unwrap()
 }
 
 /// The plate-at-the-tip frame 4 (the plate presses finger 0's tip; one marker of finger 1
@@ -457,14 +458,16 @@ fn run_with_physics_reports_forces_and_draws_them_as_arrows_and_a_plot() {
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         match m.channel.topic.as_str() {
-            "/run/info" => info = Some(serde_json::from_slice::<moe_io::RunInfo>(&m.data).unwrap()),
+            "/run/info" => {
+                info = Some(serde_json::from_slice::<moe_record::RunInfo>(&m.data).unwrap())
+            }
             "/estimate/forces" => {
                 let u = <foxglove::messages::SceneUpdate as foxglove::Decode>::decode(&m.data[..])
                     .unwrap();
                 arrows.push(u.entities.iter().map(|e| e.arrows.len()).sum::<usize>());
             }
             "/estimate/finger_force" => plotted
-                .push(serde_json::from_slice::<moe_io::FingerForcesMessage>(&m.data).unwrap()),
+                .push(serde_json::from_slice::<moe_record::FingerForcesMessage>(&m.data).unwrap()),
             _ => {}
         }
     }
@@ -697,7 +700,7 @@ fn calibrate_fits_the_material_from_contact_free_frames_and_refuses_what_it_cann
         f.contact_vertices[1] = vec![0];
     }
     let all_path = dir.join("all-contact.mcap");
-    moe_io::write_episode(&all_path, &all.info, &all.frames).unwrap();
+    moe_record::write_episode(&all_path, &all.info, &all.frames).unwrap();
     refused(
         &["--episode", path(&all_path)],
         &never,

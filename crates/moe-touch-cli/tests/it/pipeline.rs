@@ -16,11 +16,11 @@ fn hand() -> HandModel {
     HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap()
 }
 
-fn episode() -> moe_io::Episode {
-    moe_io::read_episode(&fixtures().join("episodes/plate_tip_front_small.mcap")).unwrap()
+fn episode() -> moe_record::Episode {
+    moe_record::read_episode(&fixtures().join("episodes/plate_tip_front_small.mcap")).unwrap()
 }
 
-fn detector(hand: &HandModel, episode: &moe_io::Episode) -> MarkerDetector {
+fn detector(hand: &HandModel, episode: &moe_record::Episode) -> MarkerDetector {
     MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default()).unwrap()
 }
 
@@ -140,7 +140,7 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
 }
 
 /// The physics pipeline with the default material and settings.
-fn physics_pipeline(hand: &HandModel, episode: &moe_io::Episode) -> PhysicsPipeline {
+fn physics_pipeline(hand: &HandModel, episode: &moe_record::Episode) -> PhysicsPipeline {
     PhysicsPipeline::physics(
         hand.clone(),
         detector(hand, episode),
@@ -152,7 +152,7 @@ fn physics_pipeline(hand: &HandModel, episode: &moe_io::Episode) -> PhysicsPipel
 
 /// Out-of-order frames are refused and change nothing; a gap beyond the memory's horizon and
 /// `reset()` each start a stream whose estimate is a fresh pipeline's, bit for bit.
-fn stream_contract<E>(episode: &moe_io::Episode, make: impl Fn() -> Pipeline<E>)
+fn stream_contract<E>(episode: &moe_record::Episode, make: impl Fn() -> Pipeline<E>)
 where
     E: HandEstimator + std::fmt::Debug,
     E::Details: PartialEq + std::fmt::Debug,
@@ -407,11 +407,11 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     assert!(!wrong.exists());
 
     // An episode that repeats a frame's time: one clear error naming it, nothing written.
-    let recorded = moe_io::read_episode(&episode).unwrap();
+    let recorded = moe_record::read_episode(&episode).unwrap();
     let mut frames = recorded.frames[..3].to_vec();
     frames.push(recorded.frames[2].clone());
     let repeated = dir.join("repeated.mcap");
-    moe_io::write_episode(&repeated, &recorded.info, &frames).unwrap();
+    moe_record::write_episode(&repeated, &recorded.info, &frames).unwrap();
     let repeated_out = dir.join("repeated-result.mcap");
     let o = run(&[
         "run",
@@ -455,7 +455,7 @@ fn the_foxglove_layout_shows_only_topics_a_run_writes() {
                 // The fields are those of the messages a run writes.
                 assert!(fields.starts_with("fingers["), "{id}: {value}");
                 let (_, field) = fields.split_once("].").unwrap();
-                let message = moe_io::FingerForceMessage {
+                let message = moe_record::FingerForceMessage {
                     finger: 0,
                     x_n: 0.0,
                     y_n: 0.0,
@@ -470,7 +470,7 @@ fn the_foxglove_layout_shows_only_topics_a_run_writes() {
             topics.push(topic.to_owned());
         }
         for t in topics {
-            assert!(moe_io::RUN_TOPICS.contains(&t.as_str()), "{id}: {t}");
+            assert!(moe_record::RUN_TOPICS.contains(&t.as_str()), "{id}: {t}");
             named += 1;
         }
     }

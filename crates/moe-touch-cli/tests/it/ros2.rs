@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use moe_geom::{FingerParams, HandModel, HandPreset, Point3};
-use moe_io::ros2::{DepthEncoding, RosConfig, read_ros2_bag, write_ros2_bag};
+use moe_record::ros2::{DepthEncoding, RosConfig, read_ros2_bag, write_ros2_bag};
 
 use crate::common::{fixtures, run, scratch};
 
@@ -19,7 +19,7 @@ fn episode_path() -> std::path::PathBuf {
 /// `back`, read from a recording, holds `episode`'s frames: the same camera, colour bit for bit,
 /// depth within `16UC1`'s half millimetre, poses to rounding (through quaternions), the same
 /// pulls, and the same times (a recording's frames keep their stamps).
-fn assert_decodes_to(back: &moe_io::Episode, episode: &moe_io::Episode) {
+fn assert_decodes_to(back: &moe_record::Episode, episode: &moe_record::Episode) {
     assert_eq!(back.frames.len(), episode.frames.len());
     assert_eq!(back.info.camera, episode.info.camera);
     let p = Point3::new(0.01, -0.02, 0.03);
@@ -44,11 +44,11 @@ fn assert_decodes_to(back: &moe_io::Episode, episode: &moe_io::Episode) {
 /// to rounding, through quaternions).
 #[test]
 fn an_episode_written_as_a_bag_reads_back_as_its_frames() {
-    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let episode = moe_record::read_episode(&episode_path()).unwrap();
     let dir = scratch("ros2-roundtrip").join("bag");
     let config = RosConfig::default();
     write_ros2_bag(&dir, &episode, &config, DepthEncoding::Millimetres16).unwrap();
-    assert!(moe_io::ros2::is_ros2_recording(&dir));
+    assert!(moe_record::ros2::is_ros2_recording(&dir));
     let back = read_ros2_bag(&dir, &config, &hand()).unwrap();
     assert_decodes_to(&back, &episode);
     // Writing into an existing directory is refused and changes nothing.
@@ -98,7 +98,7 @@ fn run_report(episode: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value,
 /// frame; a recording has no ground truth to score.
 #[test]
 fn run_on_a_recording_finds_what_it_finds_on_the_episode() {
-    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let episode = moe_record::read_episode(&episode_path()).unwrap();
     let root = scratch("ros2-run");
     let bag = root.join("bag");
     write_ros2_bag(
@@ -130,7 +130,7 @@ fn assert_run_refused(episode: &Path, extra: &[&str], says: &str) {
 /// recording lacks: one error line, nothing written.
 #[test]
 fn bad_recordings_give_one_error_line_and_no_output() {
-    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    let episode = moe_record::read_episode(&episode_path()).unwrap();
     let root = scratch("ros2-bad");
     let bag = root.join("bag");
     let renamed = RosConfig {
@@ -162,13 +162,13 @@ fn bad_recordings_give_one_error_line_and_no_output() {
 #[test]
 fn a_recording_written_by_rosbags_decodes_to_its_source_episode() {
     let bag = fixtures().join("episodes/plate_tip_front_small_ros2");
-    assert!(moe_io::ros2::is_ros2_recording(&bag));
+    assert!(moe_record::ros2::is_ros2_recording(&bag));
     // Its MCAP file alone is recognised by its CDR messages; a Foxglove episode is not one.
-    assert!(moe_io::ros2::is_ros2_recording(
+    assert!(moe_record::ros2::is_ros2_recording(
         &bag.join("plate_tip_front_small_ros2.mcap")
     ));
-    assert!(!moe_io::ros2::is_ros2_recording(&episode_path()));
-    let episode = moe_io::read_episode(&episode_path()).unwrap();
+    assert!(!moe_record::ros2::is_ros2_recording(&episode_path()));
+    let episode = moe_record::read_episode(&episode_path()).unwrap();
     let back = read_ros2_bag(&bag, &RosConfig::default(), &hand()).unwrap();
     assert_decodes_to(&back, &episode);
 }
@@ -210,8 +210,8 @@ fn bag_messages(dir: &Path) -> Vec<(String, u64, Vec<u8>)> {
 /// frame. A directory that exists is refused before anything runs.
 #[test]
 fn run_writes_its_results_as_ros_messages() {
-    use moe_io::ros2::cdr::{marker_array, wrench_stamped};
-    use moe_io::ros2::{RESULT_MARKERS_TOPIC, result_wrench_topic};
+    use moe_record::ros2::cdr::{marker_array, wrench_stamped};
+    use moe_record::ros2::{RESULT_MARKERS_TOPIC, result_wrench_topic};
     let root = scratch("ros2-results");
     let results = root.join("results");
     let bag = fixtures().join("episodes/plate_tip_front_small_ros2");
@@ -220,7 +220,7 @@ fn run_writes_its_results_as_ros_messages() {
         &root.join("r.mcap"),
         &["--ros-out", results.to_str().unwrap()],
     );
-    assert!(moe_io::ros2::is_ros2_recording(&results));
+    assert!(moe_record::ros2::is_ros2_recording(&results));
     let meta = std::fs::read_to_string(results.join("metadata.yaml")).unwrap();
     assert!(
         meta.contains("type: visualization_msgs/msg/MarkerArray"),

@@ -298,7 +298,7 @@ impl MarkerDetector {
     /// # Errors
     /// As [`MarkerDetector::new`].
     pub fn for_episode(
-        info: &moe_io::EpisodeInfo,
+        info: &moe_record::EpisodeInfo,
         hand: &HandModel,
         config: DetectorConfig,
     ) -> Result<Self, TouchError> {

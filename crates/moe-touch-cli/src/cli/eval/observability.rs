@@ -136,7 +136,7 @@ fn table(r: &ObservabilityReport) -> String {
 
 /// The figure's colour of `t` from 0 (dark blue: small bound) to 1 (yellow).
 fn ramp(t: Real) -> String {
-    let [r, g, b] = moe_io::viridis_colour(t);
+    let [r, g, b] = moe_record::viridis_colour(t);
     format!("#{r:02x}{g:02x}{b:02x}")
 }
 

@@ -24,7 +24,7 @@
 //! every chunk's contents are checked against their declared lengths before the MCAP reader
 //! sees them (a corrupt length would otherwise make it reserve that much memory — the fuzz
 //! tests found one in a damaged zstd chunk), and a panic in the MCAP or protobuf decoders
-//! becomes [`IoError::ParserPanic`](crate::IoError::ParserPanic). Compression shrinks a frame about threefold (the
+//! becomes [`IoError::ParserPanic`](moe_io::IoError::ParserPanic). Compression shrinks a frame about threefold (the
 //! noisy depth image compresses least; sizes in docs/results.md). Unchunked, uncompressed files (as
 //! written by earlier versions) read the same way.
 
@@ -44,13 +44,13 @@ use moe_geom::{Iso3, Point3};
 use serde::{Deserialize, Serialize};
 
 #[cfg(feature = "mcap")]
-use crate::error::IoError;
-#[cfg(feature = "mcap")]
 pub(crate) use foxglove::{
     add_channel, camera_calibration, color_image, contact_mesh_entity, encode, fg_color, fg_pose,
     fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities, schema_of, spheres_entity,
     timestamp, write_info, write_message,
 };
+#[cfg(feature = "mcap")]
+use moe_io::IoError;
 #[cfg(feature = "mcap")]
 pub(crate) use read::check_declared_lengths;
 #[cfg(feature = "mcap")]
@@ -477,7 +477,7 @@ mod tests {
         let mut w = EpisodeWriter::new(
             std::io::Cursor::new(Vec::new()),
             &info(),
-            Path::new(crate::MEMORY),
+            Path::new(moe_io::MEMORY),
         )
         .unwrap();
         for f in frames {
@@ -573,7 +573,7 @@ mod tests {
     fn each_frame_is_one_compressed_chunk_and_a_cut_after_it_keeps_it() {
         let frames: Vec<EpisodeFrame> = (0..4).map(frame).collect();
         let sink = SharedSink::default();
-        let mut w = EpisodeWriter::new(sink.clone(), &info(), Path::new(crate::MEMORY)).unwrap();
+        let mut w = EpisodeWriter::new(sink.clone(), &info(), Path::new(moe_io::MEMORY)).unwrap();
         // Where the file ends once the info, then each frame, is written (its chunk closed).
         let mut ends = vec![sink.0.borrow().get_ref().len()];
         for f in &frames {

@@ -10,12 +10,14 @@ use moe_geom::{Iso3, Point3};
 use super::RosConfig;
 use super::cdr::CdrWriter;
 use crate::episode::{add_channel, mcap_writer};
-use crate::error::IoError;
 use crate::run_output::{
     CONTACT_COLOR, CONTACT_DIAMETER_M, FORCE_COLOR, MARKER_COLOR, MARKER_DIAMETER_M,
     probability_rgba,
 };
-use crate::{AtomicFile, Episode, RunFrame};
+use moe_io::AtomicFile;
+use moe_io::IoError;
+
+use crate::{Episode, RunFrame};
 
 /// How depth is written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -187,7 +189,7 @@ impl<'a> BagWriter<'a> {
             meta,
             "      message_count: {total}\n  custom_data: ~\n  ros_distro: jazzy"
         );
-        crate::write_atomic(&self.dir.join("metadata.yaml"), meta.as_bytes())
+        moe_io::write_atomic(&self.dir.join("metadata.yaml"), meta.as_bytes())
     }
 }
 

@@ -39,7 +39,7 @@ use crate::episode::{
     encode, fg_color, fg_pose, fg_transform, mcap_err, mcap_writer, mesh_entity, obstacle_entities,
     schema_of, spheres_entity, timestamp, write_info, write_message,
 };
-use crate::error::IoError;
+use moe_io::IoError;
 
 /// What stays fixed over a run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -668,7 +668,7 @@ pub fn write_run(path: &Path, info: &RunInfo, frames: &[RunFrame]) -> Result<(),
         writer.write_frame(frame)?;
     }
     let bytes = writer.finish()?.into_inner();
-    crate::atomic::write_atomic(path, &bytes)
+    moe_io::write_atomic(path, &bytes)
 }
 
 #[cfg(test)]

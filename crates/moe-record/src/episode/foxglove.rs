@@ -11,7 +11,7 @@ use moe_geom::nalgebra;
 use moe_geom::{Iso3, Point3, Vector3};
 
 use super::{CameraInfo, ObstacleMesh};
-use crate::error::IoError;
+use moe_io::IoError;
 
 /// Colour of contact vertices on true meshes.
 pub(crate) const CONTACT_COLOR: [f64; 4] = [0.86, 0.1, 0.1, 1.0];

@@ -4,7 +4,7 @@
 //! the tendon pulls) and `color_K.bin` (RGB8) / `depth_K.bin` (f32 metres, little-endian) per
 //! frame `K`.
 //!
-//! `cargo run -p moe-io --example export_episode -- EP.mcap OUT_DIR`
+//! `cargo run -p moe-record --example export_episode -- EP.mcap OUT_DIR`
 
 use std::path::PathBuf;
 
@@ -21,7 +21,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let [episode, out] = args.as_slice() else {
         return Err("usage: export_episode EP.mcap OUT_DIR".into());
     };
-    let episode = moe_io::read_episode(episode.as_ref())?;
+    let episode = moe_record::read_episode(episode.as_ref())?;
     let out = PathBuf::from(out);
     std::fs::create_dir_all(&out)?;
     let mut frames = Vec::new();

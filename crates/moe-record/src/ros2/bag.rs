@@ -9,8 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use super::cdr::{self, CdrError, TransformStamped};
 use crate::episode::check_declared_lengths;
-use crate::error::IoError;
 use crate::{CameraInfo, Episode, EpisodeFrame, EpisodeInfo};
+use moe_io::IoError;
 
 /// Where a recording's data are: topics, frames, pairing and the tendons' joint names.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -264,15 +264,15 @@ pub fn read_ros2_bag(
 ) -> Result<Episode, IoError> {
     let mut messages = Messages::default();
     for file in storage_files(path)? {
-        let bytes = crate::read_bytes(&file)?;
+        let bytes = moe_io::read_bytes(&file)?;
         let readable = check_declared_lengths(&file, &bytes)?;
         let bytes = &bytes[..readable];
-        crate::files::guarded(&file, "mcap", || {
+        moe_io::guarded(&file, "mcap", || {
             read_messages(&file, bytes, config, &mut messages)
         })?;
     }
     // A second line of defence, as for the third-party parsers: a panic becomes an error.
-    crate::files::guarded(path, "ros2", || assemble(path, config, hand, messages))
+    moe_io::guarded(path, "ros2", || assemble(path, config, hand, messages))
 }
 
 fn read_messages(
@@ -635,7 +635,7 @@ pub fn is_ros2_recording(path: &Path) -> bool {
             .map(|m| m.channel.message_encoding.clone());
         Ok(encoding)
     };
-    crate::files::guarded(path, "mcap", first_encoding)
+    moe_io::guarded(path, "mcap", first_encoding)
         .ok()
         .flatten()
         .is_some_and(|e| e == "cdr")

@@ -13,7 +13,7 @@ use super::foxglove::{
     timestamp,
 };
 use super::{EpisodeFrame, EpisodeInfo, ObstacleMesh};
-use crate::error::IoError;
+use moe_io::IoError;
 
 /// The episode info's topic (one message, before any frame).
 pub(super) const INFO_TOPIC: &str = "/episode/info";

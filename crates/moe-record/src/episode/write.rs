@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use super::foxglove::{add_channel, format_err, mcap_err, mcap_writer, write_info, write_message};
 use super::topic::{INFO_TOPIC, Topic};
 use super::{EpisodeFrame, EpisodeInfo, check_frame, check_info};
-use crate::atomic::AtomicFile;
-use crate::error::IoError;
+use moe_io::AtomicFile;
+use moe_io::IoError;
 
 /// Writes an episode to any seekable sink.
 pub struct EpisodeWriter<W: Write + Seek> {
@@ -34,7 +34,7 @@ impl<W: Write + Seek> EpisodeWriter<W> {
     /// # Errors
     /// Inconsistent info (finger lists of different lengths, a face id beyond the vertex count),
     /// or a write failure.
-    /// `path` names the destination in errors (use [`crate::MEMORY`] for an in-memory sink).
+    /// `path` names the destination in errors (use [`moe_io::MEMORY`] for an in-memory sink).
     pub fn new(sink: W, info: &EpisodeInfo, path: &Path) -> Result<Self, IoError> {
         check_info(path, info)?;
         let mut writer = mcap_writer(sink, path, "")?;
@@ -132,5 +132,5 @@ pub fn write_episode(
         writer.write_frame(frame)?;
     }
     let bytes = writer.finish()?.into_inner();
-    crate::atomic::write_atomic(path, &bytes)
+    moe_io::write_atomic(path, &bytes)
 }

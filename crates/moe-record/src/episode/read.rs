@@ -6,7 +6,7 @@ use std::path::Path;
 use super::foxglove::{format_err, mcap_err};
 use super::topic::{FrameParts, INFO_TOPIC, Topic};
 use super::{Episode, EpisodeFrame, EpisodeInfo, MAX_CHUNK_BYTES, check_frame, check_info};
-use crate::error::IoError;
+use moe_io::IoError;
 
 /// Walks the file's records before the MCAP reader sees them, so that no declared length can
 /// make it allocate without bound (it reserves what a record or a chunk declares): every
