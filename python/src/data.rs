@@ -213,24 +213,13 @@ pub(crate) fn read_episode(
     if ros.is_some() || moe_record::ros2::is_ros2_recording(&path) {
         return read_ros2_bag(py, path, hand, ros);
     }
-    let (episode, cut) = py.detach(|| {
-        let bytes = moe_io::read_bytes(&path).py()?;
-        Ok::<_, PyErr>(moe_record::parse_episode_prefix(&path, &bytes))
-    })?;
-    let mismatch = hand.zip(episode.as_ref()).and_then(|(hand, episode)| {
-        let reason = episode.info.hand_mismatch(&hand.model)?;
-        Some(format!("hand '{}': {reason}", hand.label()))
-    });
-    if let Some(message) = mismatch {
-        return Err(invalid(message));
+    let (episode, cut) = py.detach(|| moe_record::read_episode_prefix(&path).py())?;
+    if let Some(hand) = hand
+        && let Some(reason) = episode.info.hand_mismatch(&hand.model)
+    {
+        return Err(invalid(format!("hand '{}': {reason}", hand.label())));
     }
-    match (episode, cut) {
-        (Some(episode), cut) => {
-            Episode::new(py, episode, cut.map(|e| moe_touch::error::one_line(&e)))
-        }
-        (None, Some(err)) => Err(convert::raise(&err)),
-        (None, None) => Err(invalid(format!("{}: holds no episode", path.display()))),
-    }
+    Episode::new(py, episode, cut.map(|e| moe_touch::error::one_line(&e)))
 }
 
 /// Reads a ROS 2 recording (see `read_episode`) of `hand` (default: two-finger).

@@ -2,7 +2,7 @@
 //!
 //! | what | read | write |
 //! |---|---|---|
-//! | episodes (the wrist camera's RGB-D, poses, tendon pulls, ground truth) | MCAP with Foxglove schemas ([`read_episode`], [`parse_episode_prefix`] for a file cut short) | [`write_episode`], streaming [`EpisodeWriter`] |
+//! | episodes (the wrist camera's RGB-D, poses, tendon pulls, ground truth) | MCAP with Foxglove schemas ([`read_episode`], [`read_episode_prefix`] for a file cut short; [`ros2::read_recording`] for either kind of log) | [`write_episode`], streaming [`EpisodeWriter`] |
 //! | pipeline results over an episode | — | MCAP for Foxglove ([`write_run`], streaming [`RunWriter`]) |
 //! | ROS 2 recordings (rosbag2, MCAP storage, CDR messages) | [`ros2::read_ros2_bag`] with a TF buffer and time sync | [`ros2::write_ros2_bag`], [`ros2::write_ros2_results`] |
 //!
@@ -27,7 +27,8 @@ pub mod run_output;
 pub use episode::{CameraInfo, Episode, EpisodeFrame, EpisodeInfo, ObstacleMesh};
 #[cfg(feature = "mcap")]
 pub use episode::{
-    EpisodeWriter, create_episode, parse_episode, parse_episode_prefix, read_episode, write_episode,
+    EpisodeWriter, create_episode, parse_episode, parse_episode_prefix, read_episode,
+    read_episode_prefix, write_episode,
 };
 #[cfg(feature = "mcap")]
 pub use run_output::{

@@ -54,7 +54,7 @@ use moe_io::IoError;
 #[cfg(feature = "mcap")]
 pub(crate) use read::check_declared_lengths;
 #[cfg(feature = "mcap")]
-pub use read::{parse_episode, parse_episode_prefix, read_episode};
+pub use read::{parse_episode, parse_episode_prefix, read_episode, read_episode_prefix};
 #[cfg(feature = "mcap")]
 pub use write::{EpisodeWriter, create_episode, write_episode};
 

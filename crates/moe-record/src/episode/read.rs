@@ -113,6 +113,21 @@ pub fn read_episode(path: &Path) -> Result<Episode, IoError> {
     parse_episode(path, &bytes)
 }
 
+/// Reads an episode file that may be cut short (a crashed recorder, a partial copy): every frame
+/// written completely before the cut, and the error at the cut when there is one.
+///
+/// # Errors
+/// A file that cannot be read, or that yields no episode at all (not MCAP, no episode info):
+/// the error that stopped the reading.
+pub fn read_episode_prefix(path: &Path) -> Result<(Episode, Option<IoError>), IoError> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    match parse_episode_prefix(path, &bytes) {
+        (Some(episode), cut) => Ok((episode, cut)),
+        (None, Some(err)) => Err(err),
+        (None, None) => Err(IoError::invalid(path, "episode", "holds no episode")),
+    }
+}
+
 /// Parses a complete episode from memory (`path` names the source in errors).
 ///
 /// # Errors

@@ -28,6 +28,24 @@ mod bag;
 mod write;
 
 pub use bag::{RosConfig, is_ros2_recording, read_ros2_bag};
+
+/// Reads a robot log as an episode: a ROS 2 recording of `hand` when `ros` names its topics or
+/// `path` is one (with `ros`, or the default topics), else an episode MCAP, which may be cut
+/// short (then the frames before the cut, and the error at it).
+///
+/// # Errors
+/// As [`read_ros2_bag`] and [`read_episode_prefix`](crate::read_episode_prefix).
+pub fn read_recording(
+    path: &std::path::Path,
+    ros: Option<&RosConfig>,
+    hand: &moe_geom::HandModel,
+) -> Result<(crate::Episode, Option<moe_io::IoError>), moe_io::IoError> {
+    if ros.is_some() || is_ros2_recording(path) {
+        let default = RosConfig::default();
+        return Ok((read_ros2_bag(path, ros.unwrap_or(&default), hand)?, None));
+    }
+    crate::read_episode_prefix(path)
+}
 pub use write::{
     CAMERA_FRAME, DepthEncoding, RESULT_MARKERS_TOPIC, result_wrench_topic, write_ros2_bag,
     write_ros2_results,
