@@ -98,6 +98,13 @@ pub enum LabError {
         /// What is wrong.
         reason: String,
     },
+    /// A material calibration's source does not give what it needs (the named markers, a
+    /// camera the detector can use, readable frames).
+    #[error("{reason}")]
+    Calibration {
+        /// What is wrong, naming the source.
+        reason: String,
+    },
 }
 
 /// The runtime's errors reach an experiment's caller through [`LabError::Touch`], by one path.

@@ -10,6 +10,8 @@
 //! whose markers moved less than 0.1 mm from the twin's (the "no visible deformation" frames),
 //! plus the same with every surface vertex instead of the markers.
 
+use std::fmt::Write as _;
+
 use moe_geom::{Real, Topology};
 use moe_tendon_sim::randomize::{RandomSceneParams, sample_scene};
 use moe_tendon_sim::{LabelRule, Scene, SimFrame, SurfaceContact, contact_labels, run_saving};
@@ -146,6 +148,59 @@ pub struct LabelStudyReport {
     pub visible_deformation_m: Real,
     /// Every rule, in the study's order.
     pub rules: Vec<RuleStats>,
+}
+
+impl LabelStudyReport {
+    /// The report as the table `moe-touch eval labels` prints: one row per rule (labelled
+    /// vertices, frames with a label, patches, labels on the base, still frames, mean marker
+    /// deformation) and a legend.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "label rules on {} trajectories of seed {} ({} diverged and skipped)",
+            self.trajectories, self.seed, self.failed
+        );
+        let _ = writeln!(
+            s,
+            "{:<26} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9}",
+            "rule",
+            "ratio",
+            "frames",
+            "v/frame",
+            "patches",
+            "single",
+            "on base",
+            "mk still",
+            "sf still",
+            "mk def mm"
+        );
+        for r in &self.rules {
+            let lf = r.labelled_frames.max(1) as Real;
+            let _ = writeln!(
+                s,
+                "{:<26} {:>8.3}% {:>8.1}% {:>8.1} {:>8} {:>8} {:>8} {:>8.1}% {:>8.1}% {:>9.3}",
+                r.rule,
+                100.0 * r.labelled_vertices as Real / r.vertices.max(1) as Real,
+                100.0 * r.labelled_frames as Real / r.frames.max(1) as Real,
+                r.labelled_vertices as Real / lf,
+                r.patches,
+                r.single_vertex_patches,
+                r.labels_on_base,
+                100.0 * r.frames_markers_still as Real / lf,
+                100.0 * r.frames_surface_still as Real / lf,
+                1e3 * r.sum_marker_deformation_m / lf,
+            );
+        }
+        let _ = writeln!(
+            s,
+            "ratio: labelled vertices; frames: frames with a label; single: one-vertex patches; \
+             still: labelled frames whose markers (mk) or whole surface (sf) moved < {} mm from \
+             the obstacle-free twin; mk def: mean largest marker deformation of labelled frames",
+            VISIBLE_DEFORMATION_M * 1e3
+        );
+        s
+    }
 }
 
 /// Runs the label study: each trajectory and its free twin simulated and every frame tallied

@@ -15,6 +15,11 @@
 //!   [`training`] (a contact model from data sets: [`training::TrainingRun`]),
 //!   [`calibration_streams`] (contact-free streams for calibration), [`contact_output`] and
 //!   [`point_cloud`] (what `moe-touch contact` writes and runs).
+//! - What the file commands do, each with a typed report, its summary lines and its output
+//!   files: [`contact_job`] (`contact`), [`surface_job`] (`surface`), [`hand_job`] (`hand`),
+//!   [`shape_job`] (`arap`, `shape`), [`marker_job`] (`markers`), [`plane_job`] (`plane`); the
+//!   keypoints file they share ([`keypoints_file`]) and the output files written together
+//!   ([`output_files::OutputFiles`]).
 //!
 //! Architecture invariant: the runtime (`moe-touch`) never depends on this crate; this crate
 //! may use the simulator. Nothing here parses command lines or prints.
@@ -23,22 +28,46 @@
 pub mod calibration_streams;
 /// The simulation study of contact estimation (paper Tables 1–2).
 pub mod contact_eval;
+/// Contact from files as `moe-touch contact` runs it: the network on a point cloud or a hand
+/// shape, or physics on one frame; typed records, summaries and output files.
+pub mod contact_job;
 /// What `moe-touch contact` writes of one estimate: coloured meshes, records, `contacts.csv`.
 pub mod contact_output;
 /// Sharded, resumable, deterministic data set generation.
 pub mod datagen;
+/// `moe-touch demo`: the pipeline on the built-in example episode and what the demo writes.
+pub mod demo;
+/// Drawing on images: pixels, lines, a bitmap font, labels that do not overlap, meshes coloured
+/// by contact probability.
+pub mod draw;
 /// Recording simulated episodes (rendered camera frames with ground truth).
 pub mod episode;
 /// The crate's error type.
 pub mod error;
+/// Small SVG figures written by hand (the plate errors per region).
+pub mod figure;
+/// Golden fixtures: committed reference results of the numerical stages, how each is
+/// recomputed, compared and rewritten.
+pub mod golden;
 /// Grasping paper on an unknown incline: press, fit the plane, reorient, press again.
 pub mod grasp;
+/// A hand model's files (`moe-touch hand`): rest meshes, vertex ids, measures and the bound of a
+/// press's place on finger 0.
+pub mod hand_job;
+/// The keypoints file: one frame's markers in the hand frame, read, checked and written.
+pub mod keypoints_file;
 /// What each contact-label rule labels, and whether the finger's deformation can show it.
 pub mod labels;
+/// Marker tracking over a recorded episode (`moe-touch markers`): keypoints lines and a report.
+pub mod marker_job;
 /// Marker perception scored against an episode's ground truth.
 pub mod markers;
 /// The Cramér–Rao bound of a press's place and force for each marker layout of the study.
 pub mod observability;
+/// A command's output files, made in memory and written together.
+pub mod output_files;
+/// Marker detections and contact points drawn over camera frames.
+pub mod overlay;
 /// Patting a hidden body: simulated pats, contacts from the pipeline, and their error.
 pub mod patting;
 /// Contact from physics evaluated as tactile sensors are specified (detection, location and
@@ -46,16 +75,34 @@ pub mod patting;
 pub mod physics_eval;
 /// `eval physics` as one call: frames, calibration, the physics study and its typed report.
 pub mod physics_study;
+/// A plane fitted to points by RANSAC (`moe-touch plane`) with its report.
+pub mod plane_job;
 /// The contact network on a bare point cloud (no hand), to check a model file.
 pub mod point_cloud;
 /// Running the pipeline over a recorded episode, scored against its ground truth.
 pub mod run;
+/// SR-ARAP on files: any mesh toward a constraints file's targets (`moe-touch arap`), a hand
+/// from one frame of keypoints (`moe-touch shape`).
+pub mod shape_job;
+/// A scripted scene's run written out: meshes per saved frame with a summary, or an episode.
+pub mod sim_output;
 /// The occluded-surface reconstruction benchmark (paper Table 3) with its typed report.
 pub mod surface_eval;
+/// An occluded surface from contact points in files (`moe-touch surface`) with its report.
+pub mod surface_job;
 /// Training a contact model on generated data sets.
 pub mod training;
 
 pub use error::LabError;
+
+/// `n` and `noun`, plural unless `n` is 1 ("1 load", "2 loads"), as the report tables say it.
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
 
 /// `value` as JSON without the fields named `keys`, at any depth: a report as a golden fixture
 /// holds it, without what depends on the machine (wall times, counts of machine-made meshes).

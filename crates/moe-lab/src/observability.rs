@@ -7,6 +7,8 @@
 //! camera row with a ring of 6 at the tip. Per layout and region (tip z > 80 % of the length
 //! with the cap, middle 40–70 %, base 12–35 %): median and 90th percentile, for one frame and
 //! for a held press of several frames (independent marker noise per frame: the bound over √N).
+//! The report prints as Markdown tables ([`ObservabilityReport::table`]); [`bound_map_svg`] draws
+//! the bound on each layout's unrolled surface.
 
 use moe_geom::{
     FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,
@@ -18,6 +20,10 @@ use moe_physics::{
 use serde::Serialize;
 
 use crate::LabError;
+
+mod map;
+
+pub use map::bound_map_svg;
 
 /// Sides of the finger at mid height (40–70 % of the length): name and the range of the
 /// angle's magnitude around the axis from the camera side, degrees.

@@ -767,5 +767,6 @@ pub fn evaluate_plates_physics(
     Ok(out)
 }
 
+mod table;
 #[cfg(test)]
 mod tests;

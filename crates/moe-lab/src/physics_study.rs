@@ -2,6 +2,7 @@
 //! simulated afresh, perceived or not), the material (calibrated first if asked), the physics
 //! estimator scored by [`crate::physics_eval`] on them and, if asked, on the plate scenes.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use moe_arap::ShapeConfig;
@@ -117,6 +118,34 @@ impl PhysicsPlateRegions {
     }
 }
 
+impl PhysicsPlateRegions {
+    /// Table 2 as the Markdown table `moe-touch eval physics` prints (a blank line first): per
+    /// region, the UCD mean ± sd and the contact frames missed of the physics estimator and of
+    /// the DGCNN on its shapes.
+    pub fn table(&self) -> String {
+        let mut s = String::from(
+            "\n| region | physics UCD mm (missed) | DGCNN on the physics shape UCD mm (missed) |\n|---|---|---|\n",
+        );
+        let cell = |r: &PhysicsRegionStat| {
+            format!(
+                "{:.2} ± {:.2} ({:.0} %)",
+                r.ucd_mean_mm,
+                r.ucd_sd_mm,
+                100.0 * r.missed_fraction
+            )
+        };
+        for (name, region) in self.in_order() {
+            let _ = writeln!(
+                s,
+                "| {name} | {} | {} |",
+                cell(&region.physics),
+                cell(&region.dgcnn_on_physics)
+            );
+        }
+        s
+    }
+}
+
 /// The physics estimator's Table 2: the trials and their summary per region.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PhysicsPlateTable {
@@ -182,6 +211,38 @@ pub struct PhysicsStudy {
     pub report: PhysicsStudyReport,
     /// The calibration of the material.
     pub calibration: Option<CalibrationReport>,
+}
+
+impl PhysicsStudyReport {
+    /// The report as the Markdown tables `moe-touch eval physics` prints: Table 1 and the
+    /// force table ([`PhysicsEvaluation::table`]), then Table 2 when plates were run.
+    pub fn tables(&self) -> String {
+        let mut s = self.evaluation.table();
+        if !self.plates.trials.is_empty() {
+            s.push_str(&self.plates.regions.table());
+        }
+        s
+    }
+}
+
+impl PhysicsStudy {
+    /// The calibration in one line (no line break): the fitted material, how well the frames
+    /// pin it down and the residual before and after; `None` without a calibration.
+    pub fn calibration_summary(&self) -> Option<String> {
+        self.calibration.as_ref().map(|report| {
+            format!(
+                "calibrated on {} frames: E {:.0} Pa (resolution {:.1} %), damping {:.4} s, RMS \
+                 {:.4} -> {:.4} mm ({} evaluations)",
+                report.frames,
+                report.material.material.youngs_modulus_pa,
+                100.0 * report.youngs_modulus_resolution,
+                report.material.material.rayleigh_stiffness,
+                report.rms_initial_m * 1e3,
+                report.rms_fitted_m * 1e3,
+                report.evaluations
+            )
+        })
+    }
 }
 
 /// The frames to evaluate and what they were made with.

@@ -11,6 +11,8 @@ use crate::LabError;
 use crate::markers::{MarkerReport, MarkerScore, has_ground_truth, visible_markers};
 use moe_touch::{Pipeline, StageTimings, StreamEvent};
 
+mod summary;
+
 /// One frame of a run report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FrameReport {

@@ -3,11 +3,13 @@
 //! truth for GP + prior, GP + sphere, the non-probabilistic baseline and the prior itself, plus
 //! runtimes, each scene family on several truth/prior/contact seed triples.
 
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use moe_gpis::ReconstructOptions;
 use moe_gpis::bench_scene::{
-    BenchSceneConfig, FamilyReport, SceneKind, build_scene, evaluate_family, evaluate_scene_with,
+    BenchSceneConfig, FamilyReport, SceneKind, SceneReport, build_scene, evaluate_family,
+    evaluate_scene_with,
 };
 use moe_io::PlyData;
 use serde::Serialize;
@@ -45,6 +47,82 @@ pub struct SurfaceEvalReport {
     pub size: SurfaceBenchSize,
     /// Each family: its scenes' reports (the first scene's is the table) and the summary.
     pub families: Vec<FamilyReport>,
+}
+
+impl SurfaceEvalReport {
+    /// The report as the tables `moe-touch eval surface` prints: per family, its first scene
+    /// (every method's Chamfer distances, times and vertices) and, over several scenes, every
+    /// method's mean ± sd and how often it was the best; a blank line after each family.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        for f in &self.families {
+            scene_table(&mut s, &f.scenes[0]);
+            if f.scenes.len() > 1 {
+                family_table(&mut s, f);
+            }
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// One scene's table.
+fn scene_table(s: &mut String, r: &SceneReport) {
+    let _ = writeln!(
+        s,
+        "scene {:?}: {} contacts, {} grid nodes (UCD = reconstruction -> truth, the paper's metric; back = truth -> reconstruction)",
+        r.scene, r.contacts, r.grid_nodes
+    );
+    let _ = writeln!(
+        s,
+        "  {:<10} {:>9} {:>9} {:>9} {:>10} {:>10} {:>9}",
+        "method", "UCD mm", "back mm", "BCD mm", "time ms", "var ms", "vertices"
+    );
+    for m in &r.methods {
+        if let Some(e) = &m.error {
+            let _ = writeln!(s, "  {:<10} failed: {e}", m.method);
+            continue;
+        }
+        let _ = writeln!(
+            s,
+            "  {:<10} {:>9.3} {:>9.3} {:>9.3} {:>10.1} {:>10.1} {:>9}",
+            m.method,
+            m.ucd_mm,
+            m.ucd_truth_to_recon_mm,
+            m.bcd_mm,
+            1e3 * m.secs,
+            1e3 * m.variance_secs,
+            m.vertices
+        );
+    }
+}
+
+/// A family's summary over its scenes.
+fn family_table(s: &mut String, f: &FamilyReport) {
+    let _ = writeln!(
+        s,
+        "family {:?}: {} scenes (seeds +0, +10, ...), mean ± sd",
+        f.scene,
+        f.scenes.len()
+    );
+    let _ = writeln!(
+        s,
+        "  {:<10} {:>15} {:>15} {:>9} {:>8}",
+        "method", "UCD mm", "BCD mm", "best UCD", "failed"
+    );
+    for m in &f.summary {
+        let _ = writeln!(
+            s,
+            "  {:<10} {:>7.2} ± {:<5.2} {:>7.2} ± {:<5.2} {:>9} {:>8}",
+            m.method,
+            m.ucd_mm.mean,
+            m.ucd_mm.sd,
+            m.bcd_mm.mean,
+            m.bcd_mm.sd,
+            m.best_ucd,
+            m.failures
+        );
+    }
 }
 
 /// The scene and surface configurations of a benchmark size, with the contact noise (metres)
@@ -206,4 +284,28 @@ pub fn surface_fixture() -> Result<SurfaceFixture, LabError> {
         })
         .collect();
     Ok(SurfaceFixture { scenes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each family's first scene gives the truth, the contacts and every method's closed
+    /// surface, the GP with the prior's with its posterior variance.
+    #[test]
+    fn surface_meshes_are_closed_with_their_variance() {
+        let meshes = surface_meshes(SurfaceBenchSize::Small, None).unwrap();
+        let find = |path: &PathBuf| meshes.iter().find(|(p, _)| p == path).map(|(_, ply)| ply);
+        for scene in ["head", "arm"] {
+            for name in ["truth", "prior", "gp_prior", "nonprob"] {
+                let path = PathBuf::from(scene).join(format!("{name}.ply"));
+                let ply = find(&path).unwrap_or_else(|| panic!("{}", path.display()));
+                let has_variance = ply.scalar("variance").is_some();
+                assert_eq!(has_variance, name == "gp_prior", "{}", path.display());
+                ply.clone().into_mesh().unwrap().require_closed().unwrap();
+            }
+            let contacts = find(&PathBuf::from(scene).join("contacts.ply")).unwrap();
+            assert!(contacts.faces.is_empty() && contacts.points.len() >= 120);
+        }
+    }
 }

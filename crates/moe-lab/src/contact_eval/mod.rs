@@ -18,12 +18,14 @@
 
 mod augmentation;
 mod golden;
+mod heldout;
 mod knn;
 mod plates;
 mod study;
 mod table;
 #[cfg(test)]
 mod tests;
+mod text;
 
 pub use augmentation::{
     MAX_MARKER_NOISE_M, MarkerAugmentation, distal_marker_order, marker_subset,
@@ -33,6 +35,7 @@ pub use golden::{
     ArapGolden, ArapGoldenFrame, ArapGoldenShape, ArapGoldenShapes, Table1Golden, arap_golden,
     table1_golden,
 };
+pub use heldout::{heldout_knn_index, select_heldout_frames, write_heldout_set};
 pub use knn::{KnnIndexSource, build_knn_index, knn_index, read_knn_index};
 pub use plates::{
     PLATE_OFFSET_M, PLATE_SCENES, PLATE_TILT_DEG, PlateScene, PlateTrial, PlateTrialScene,

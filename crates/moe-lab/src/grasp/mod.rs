@@ -42,7 +42,7 @@ pub use plane::{
 pub use press::plate_normal;
 pub use study::{
     GraspInclineRow, GraspStudyOptions, GraspStudyReport, GraspStudySource, PAPER_INCLINES,
-    run_grasp_study,
+    run_grasp_study, trial_point_clouds,
 };
 pub use trial::run_grasp_trial;
 

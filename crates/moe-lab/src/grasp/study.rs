@@ -1,13 +1,15 @@
 //! The grasp study (paper §6.2, Table 4): seeded trials on each of the paper's inclines, with
 //! the plane from one contact source, tallied beside the paper's figures.
 
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use moe_geom::{FingerParams, HandModel, HandPreset, Real};
+use moe_geom::{ContactPoint, FingerParams, HandModel, HandPreset, Point3, Real};
+use moe_io::PlyData;
 use moe_touch::pipeline::{check_contact_threshold, load_contact_model};
 use serde::Serialize;
 
-use super::{GraspContacts, GraspOptions, GraspTrial, run_grasp_trial};
+use super::{GraspContacts, GraspOptions, GraspTrial, PlaneSource, PressOutcome, run_grasp_trial};
 use crate::LabError;
 
 /// The paper's inclines, degrees, and its Table 4: successes of 5 with and without MOE-Touch.
@@ -186,10 +188,115 @@ pub fn run_grasp_study<E: From<LabError>>(
     })
 }
 
+impl GraspStudyReport {
+    /// The report as the tables `moe-touch eval grasp` prints: successes per incline beside
+    /// the paper's, then every trial's planes (what each fit went through, the error of its
+    /// normal, the fingers touching at each press).
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "plane from: {}", self.contacts.name());
+        let _ = writeln!(
+            s,
+            "incline   with MOE-Touch  (paper)   without  (paper)   incline error max   fits failed"
+        );
+        for row in &self.rows {
+            let _ = writeln!(
+                s,
+                "{:?}°    {} / {}      ({} / 5)    {} / {} ({} / 5)    {:>8}          {}",
+                row.incline_deg,
+                row.success_with,
+                row.trials,
+                row.paper_with_of_5,
+                row.success_without,
+                row.trials,
+                row.paper_without_of_5,
+                row.max_incline_error_deg
+                    .map_or("—".to_owned(), |e| format!("{e:.2}°")),
+                row.fits_failed,
+            );
+        }
+        let _ = writeln!(
+            s,
+            "\nper trial: true incline → estimated incline (per fit: plane through, error of the normal; \
+             fingers touching at each press)"
+        );
+        let touching = |p: &PressOutcome| {
+            p.contact_vertices
+                .iter()
+                .filter(|&&n| n >= self.options.min_contact_vertices)
+                .count()
+        };
+        for row in &self.rows {
+            for t in &row.trials_detail {
+                let fits: Vec<String> = t
+                    .fits
+                    .iter()
+                    .map(|f| {
+                        format!(
+                            "{} {}{}",
+                            f.source.map_or("no fit", PlaneSource::name),
+                            f.normal_error_deg
+                                .map_or("—".to_owned(), |e| format!("{e:.1}°")),
+                            if f.press_depth_m > self.options.press_m + 1e-9 {
+                                format!(" (pressed {:.0} mm)", f.press_depth_m * 1e3)
+                            } else {
+                                String::new()
+                            }
+                        )
+                    })
+                    .collect();
+                let presses: Vec<String> = std::iter::once(&t.first_press)
+                    .chain(t.fits.iter().filter_map(|f| f.press.as_ref()))
+                    .map(|p| touching(p).to_string())
+                    .collect();
+                let _ = writeln!(
+                    s,
+                    "  {:?}° trial {}: {:>7}  ({}; presses {}) {}",
+                    t.incline_deg,
+                    t.trial,
+                    t.estimated_incline_deg
+                        .map_or("no fit".to_owned(), |e| format!("{e:.2}°")),
+                    fits.join(", "),
+                    presses.join(" → "),
+                    if t.success_with { "success" } else { "failed" }
+                );
+            }
+        }
+        s
+    }
+}
+
+/// A trial's points to look at, each named by its path under an output directory:
+/// `incline_<deg>/trial_<k>/plane_points.ply`, the contact points of the last observed press's
+/// hold (vertex scalars `finger`, `probability` and `inlier`, 1 for the plane fit's RANSAC
+/// inliers), and `true_contacts.ply`, the simulator's contact vertices of the same frames
+/// (`finger`); world frame.
+pub fn trial_point_clouds(trial: &GraspTrial) -> Vec<(PathBuf, PlyData)> {
+    let dir = PathBuf::from(format!("incline_{}", trial.incline_deg))
+        .join(format!("trial_{}", trial.trial));
+    let cloud = |points: &[ContactPoint]| {
+        let xyz: Vec<Point3> = points.iter().map(|c| c.point).collect();
+        PlyData::from_points(&xyz).with_scalar("finger", points.iter().map(|c| c.finger as Real))
+    };
+    let mut inlier = vec![0.0; trial.plane_points.len()];
+    for &i in &trial.inlier_indices {
+        inlier[i] = 1.0;
+    }
+    let plane = cloud(&trial.plane_points)
+        .with_scalar(
+            "probability",
+            trial.plane_points.iter().map(|c| c.probability),
+        )
+        .with_scalar("inlier", inlier);
+    vec![
+        (dir.join("plane_points.ply"), plane),
+        (dir.join("true_contacts.ply"), cloud(&trial.true_points)),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grasp::PlaneSource;
 
     /// The names the tables print are the names the reports serialise.
     #[test]
@@ -210,5 +317,54 @@ mod tests {
         ] {
             assert_eq!(serde_json::json!(source), source.name());
         }
+    }
+
+    /// A trial's plane points carry their finger, probability and inlier flag, and the
+    /// simulator's contacts their finger, under the trial's directory.
+    #[test]
+    fn a_trials_points_carry_finger_probability_and_inlier() {
+        let point = |finger, x: Real, probability| ContactPoint {
+            finger,
+            vertex: 3,
+            point: Point3::new(x, 0.01, -0.02),
+            probability,
+        };
+        let press = PressOutcome {
+            contact_vertices: vec![0, 4, 0],
+            axis_error_deg: 30.0,
+            success: false,
+        };
+        let trial = GraspTrial {
+            incline_deg: 30.0,
+            trial: 2,
+            first_press: press,
+            fits: Vec::new(),
+            estimated_incline_deg: None,
+            normal_error_deg: None,
+            final_press: None,
+            success_with: false,
+            success_without: false,
+            plane_points: vec![
+                point(0, 0.0, 0.7),
+                point(1, 0.001, 0.9),
+                point(2, 0.002, 0.8),
+            ],
+            inlier_indices: vec![0, 2],
+            true_points: vec![point(1, 0.005, 1.0)],
+        };
+        let clouds = trial_point_clouds(&trial);
+        let base = std::path::Path::new("incline_30").join("trial_2");
+        let [(plane_path, plane), (truth_path, truth)] = clouds.as_slice() else {
+            panic!("{} clouds", clouds.len());
+        };
+        assert_eq!(plane_path, &base.join("plane_points.ply"));
+        assert_eq!(truth_path, &base.join("true_contacts.ply"));
+        assert_eq!(plane.points.len(), 3);
+        assert!((plane.points[1].x - 0.001).abs() < 1e-9);
+        assert_eq!(plane.scalar("finger").unwrap(), &[0.0, 1.0, 2.0]);
+        assert_eq!(plane.scalar("probability").unwrap(), &[0.7, 0.9, 0.8]);
+        assert_eq!(plane.scalar("inlier").unwrap(), &[1.0, 0.0, 1.0]);
+        assert_eq!(truth.points.len(), 1);
+        assert_eq!(truth.scalar("finger").unwrap(), &[1.0]);
     }
 }

@@ -15,7 +15,7 @@ mod study;
 
 pub use study::{
     MARKER_SCENES, MarkerSceneView, MarkerStudyOptions, MarkerStudyReport, PooledPlateMarkers,
-    pool_plates, run_marker_study,
+    marker_scene, pool_plates, run_marker_study,
 };
 
 /// A reported marker within this distance of its own true position is a correct detection;

@@ -1,18 +1,20 @@
 //! The marker study: marker perception on the paper's scenes rendered by the simulator's wrist
 //! camera with its noise model — the six plate scenes of Table 2, head and arm patting and the
 //! three inclined plates — scored per scene ([`evaluate_episode`]) and pooled over the plates.
+//! The scenes are built in ([`marker_scene`]), so the study runs from any directory.
 
-use std::path::PathBuf;
+use std::fmt::Write as _;
 
 use moe_arap::ShapeConfig;
 use moe_record::EpisodeFrame;
 use moe_tendon_sim::camera::NoiseModel;
-use moe_tendon_sim::{Scene, SceneConfig, run_saving};
+use moe_tendon_sim::{Scene, SceneConfig, paper_scenes, run_saving};
 use moe_touch::perception::{DetectorConfig, MarkerDetection, MarkerDetector};
 use serde::Serialize;
 
 use super::{EpisodeMarkerReport, MarkerScore, evaluate_episode};
 use crate::LabError;
+use crate::contact_eval::plate_scenes;
 use crate::episode::EpisodeRecorder;
 
 /// The study's scenes, in report order: Table 2's plates, head and arm patting, the inclines.
@@ -35,8 +37,6 @@ pub const MARKER_SCENES: [&str; 11] = [
 pub struct MarkerStudyOptions {
     /// Only these scenes of [`MARKER_SCENES`], in this order (empty: all eleven).
     pub scenes: Vec<String>,
-    /// The directory of the scene files (`<scene>.toml`: the workspace's `fixtures/scenes`).
-    pub scene_dir: PathBuf,
     /// Seed of the camera noise.
     pub camera_seed: u64,
     /// Render without sensor noise.
@@ -146,12 +146,93 @@ pub fn pool_plates(reports: &[EpisodeMarkerReport]) -> Option<PooledPlateMarkers
     })
 }
 
+/// The scene of the study named `name` (one of [`MARKER_SCENES`]), built in: the plates from
+/// [`plate_scenes`], head and arm patting and the inclined plates from
+/// [`moe_tendon_sim::paper_scenes`] — the scenes the workspace's `fixtures/scenes/<name>.toml`
+/// hold.
+///
+/// # Errors
+/// [`LabError::InvalidEvaluation`] for a name not in [`MARKER_SCENES`]; a scene that cannot be
+/// built.
+pub fn marker_scene(name: &str) -> Result<SceneConfig, LabError> {
+    if let Some(plate) = plate_scenes()?.into_iter().find(|p| p.name == name) {
+        return Ok(plate.config);
+    }
+    let incline = |deg: f64| paper_scenes::inclined_plate(deg).map_err(LabError::from);
+    match name {
+        "head_patting" => Ok(paper_scenes::head_patting()?),
+        "arm_patting" => Ok(paper_scenes::arm_patting()?),
+        "inclined_plate_00" => incline(0.0),
+        "inclined_plate_30" => incline(30.0),
+        "inclined_plate_45" => incline(45.0),
+        _ => Err(LabError::InvalidEvaluation {
+            reason: format!("scene {name}: not one of {}", MARKER_SCENES.join(", ")),
+        }),
+    }
+}
+
+impl MarkerStudyReport {
+    /// The report as the table `moe-touch eval markers` prints: one row per scene (detection
+    /// rate, position error, false detections, swaps, shape BCD, time per frame), then the
+    /// plates pooled.
+    pub fn table(&self) -> String {
+        let mut s = String::from(
+            "scene                frames  visible  detected   err mean/p95/max mm  false  swaps  BCD det / seen / all mm  ms/frame\n",
+        );
+        for r in &self.scenes {
+            let m = &r.markers;
+            let _ = writeln!(
+                s,
+                "{:<20} {:>6} {:>8} {:>8.2} %   {:>5.2} / {:>4.2} / {:>4.2}   {:>5} {:>6}     {:>5.3} / {:>5.3} / {:>5.3}   {:>7.2}",
+                r.scene,
+                m.frames,
+                m.visible,
+                100.0 * m.detection_rate,
+                m.mean_error_mm,
+                m.p95_error_mm,
+                m.max_error_mm,
+                m.false_detections,
+                m.identity_swaps,
+                r.shape_bcd_detected_mm,
+                r.shape_bcd_truth_visible_mm,
+                r.shape_bcd_truth_mm,
+                r.detect_ms,
+            );
+        }
+        if let Some(p) = &self.plates {
+            s.push_str(&p.line());
+        }
+        s.push('\n');
+        s
+    }
+}
+
+impl PooledPlateMarkers {
+    /// The pooled plates in one line (no line break).
+    pub fn line(&self) -> String {
+        format!(
+            "plates pooled: {:.2} % of {} visible markers detected, error mean {:.2} / p95 {:.2} / max {:.2} mm, {} false, {} swaps; shape BCD {:.3} mm from detections, {:.3} mm from the visible true markers, {:.3} mm from every true marker (worst frame +{:.3} mm)",
+            100.0 * self.detection_rate,
+            self.visible,
+            self.mean_error_mm,
+            self.p95_error_mm,
+            self.max_error_mm,
+            self.false_detections,
+            self.identity_swaps,
+            self.shape_bcd_detected_mm,
+            self.shape_bcd_truth_visible_mm,
+            self.shape_bcd_truth_mm,
+            self.shape_bcd_worst_excess_mm,
+        )
+    }
+}
+
 /// Runs the marker study: each scene simulated, rendered (camera noise seeded by
 /// [`MarkerStudyOptions::camera_seed`]) and scored with [`evaluate_episode`]; `after_scene`
 /// sees each scene as it is done (its error ends the study).
 ///
 /// # Errors
-/// A scene not in [`MARKER_SCENES`], a scene file that cannot be read, a diverging simulation,
+/// A scene not in [`MARKER_SCENES`], a scene that cannot be built, a diverging simulation,
 /// a detector that does not fit the camera, a failing solve, or `after_scene`'s error.
 pub fn run_marker_study<E: From<LabError>>(
     options: &MarkerStudyOptions,
@@ -170,8 +251,7 @@ pub fn run_marker_study<E: From<LabError>>(
     }
     let mut reports: Vec<EpisodeMarkerReport> = Vec::new();
     for name in names {
-        let path = options.scene_dir.join(format!("{name}.toml"));
-        let mut scene_config: SceneConfig = moe_io::read_config(&path).map_err(LabError::from)?;
+        let mut scene_config = marker_scene(name)?;
         if options.ideal {
             scene_config.camera.noise = NoiseModel::ideal();
         }
@@ -247,8 +327,6 @@ mod tests {
     fn one_plate_scene_is_scored_and_pooled_as_itself() {
         let options = MarkerStudyOptions {
             scenes: vec!["plate_tip_front".into()],
-            scene_dir: std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../../fixtures/scenes"),
             camera_seed: 0,
             ideal: true,
             detector: DetectorConfig::default(),
@@ -276,6 +354,24 @@ mod tests {
         };
         let err = run_marker_study(&unknown, |_: &MarkerSceneView<'_>| Ok::<(), LabError>(()))
             .unwrap_err();
+        assert!(err.to_string().contains("plate_nowhere"), "{err}");
+    }
+
+    /// The built-in scenes are the committed scene files, to the bit, so the study finds the
+    /// scenes it always did.
+    #[test]
+    fn the_built_in_scenes_are_the_committed_files() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/scenes");
+        for name in MARKER_SCENES {
+            let file: SceneConfig = moe_io::read_config(&dir.join(format!("{name}.toml"))).unwrap();
+            let built_in = marker_scene(name).unwrap();
+            assert_eq!(
+                serde_json::to_string(&built_in).unwrap(),
+                serde_json::to_string(&file).unwrap(),
+                "{name}"
+            );
+        }
+        let err = marker_scene("plate_nowhere").unwrap_err();
         assert!(err.to_string().contains("plate_nowhere"), "{err}");
     }
 }

@@ -2,6 +2,7 @@
 //! pairs; every pair's pats through the DGCNN, `KNN[All]`, the physics estimator and the
 //! simulator's own contacts, and the surfaces reconstructed from them with a task prior.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use moe_contact::KnnIndex;
@@ -224,6 +225,82 @@ pub struct PattingStudyReport {
     pub estimated_noise_floor_m: Real,
     /// Every body.
     pub bodies: Vec<PattingBodyReport>,
+}
+
+/// The paper's figures (Tables 2 and 3; its arm rows of Table 3 are of a real gowned arm, not
+/// reproduced here).
+fn paper(body: &str) -> (Real, Real, Option<[Real; 4]>) {
+    match body {
+        "head" => (6.58, 7.76, Some([3.64, 13.83, 16.01, 5.46])),
+        _ => (6.24, 6.88, None),
+    }
+}
+
+/// A figure as `mean ± sd`, a dash when there is none.
+fn fmt(s: Option<Spread>) -> String {
+    match s {
+        Some(Spread { mean, sd }) => format!("{mean:6.2} ± {sd:5.2}"),
+        None => "      —       ".to_owned(),
+    }
+}
+
+impl PattingStudyReport {
+    /// The report as the tables `moe-touch eval patting` prints: per body, Table 2 (the
+    /// contact points' UCD to the true surface per estimator) and Table 3 (each surface's UCD
+    /// from the DGCNN's, the physics estimator's and the true contacts), beside the paper's
+    /// figures.
+    pub fn table(&self) -> String {
+        let mut out = String::new();
+        for b in &self.bodies {
+            let name = body_name(b.body);
+            let s = &b.summary;
+            let t2 = &s.table2;
+            let (paper_dgcnn, paper_knn, paper_t3) = paper(name);
+            let _ = writeln!(
+                out,
+                "{name}: {} pats over {} pair(s); KNN[All] index of {} frames",
+                t2.pats, self.pairs, self.knn_index_frames
+            );
+            let _ = writeln!(
+                out,
+                "  Table 2, contact points to the true surface (UCD mm):   ours            paper"
+            );
+            let _ = writeln!(
+                out,
+                "    DGCNN      {}  ({} pats without contact)  {paper_dgcnn:5.2}",
+                fmt(t2.dgcnn_ucd_mm),
+                t2.dgcnn_pats_without_contact
+            );
+            let _ = writeln!(
+                out,
+                "    KNN[All]   {}  ({} pats without contact)  {paper_knn:5.2}",
+                fmt(t2.knn_all_ucd_mm),
+                t2.knn_all_pats_without_contact
+            );
+            let _ = writeln!(
+                out,
+                "    physics    {}  ({} pats without contact)",
+                fmt(t2.physics_ucd_mm),
+                t2.physics_pats_without_contact
+            );
+            let _ = writeln!(out, "    true contacts {}", fmt(t2.true_contacts_ucd_mm));
+            let _ = writeln!(
+                out,
+                "  Table 3, surface to the true surface (UCD mm): from DGCNN contacts | from physics contacts | from true contacts | paper"
+            );
+            for (i, m) in TABLE3_METHODS.iter().enumerate() {
+                let p = paper_t3.map_or("—".to_owned(), |p| format!("{:.2}", p[i]));
+                let _ = writeln!(
+                    out,
+                    "    {m:<10} {}   {}   {}   {p}",
+                    fmt(s.table3_estimated.method(m)),
+                    fmt(s.table3_physics.method(m)),
+                    fmt(s.table3_true_contacts.method(m))
+                );
+            }
+        }
+        out
+    }
 }
 
 /// Mean ± sd of one figure over the pairs where it exists.

@@ -1,12 +1,11 @@
 //! `moe-touch arap`: deform any mesh with SR-ARAP so that handle vertices reach their targets.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_arap::{ArapConfig, ArapEnergy, ArapSolver, HandleTargets, Start};
-use moe_geom::Point3;
-use serde::{Deserialize, Serialize};
+use moe_arap::{ArapConfig, ArapEnergy};
+use moe_lab::shape_job::{ArapConstraints, deform_mesh};
 
 /// Arguments of `moe-touch arap`.
 #[derive(Debug, Args)]
@@ -38,49 +37,10 @@ pub(crate) struct ArapArgs {
     json: bool,
 }
 
-/// The constraints file.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Constraints {
-    handles: Vec<HandleRecord>,
-}
-
-/// One handle of the constraints file.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct HandleRecord {
-    vertex: u32,
-    target: [f64; 3],
-}
-
-/// The `--json` summary.
-#[derive(Debug, Serialize)]
-struct ArapSummary {
-    mesh: String,
-    out: String,
-    num_vertices: usize,
-    num_faces: usize,
-    num_handles: usize,
-    energy: ArapEnergy,
-    alpha: f64,
-    iterations: usize,
-    /// Energy after the first and the last iteration (squared mesh units).
-    first_energy: Option<f64>,
-    final_energy: Option<f64>,
-    /// Largest vertex displacement from the rest mesh (mesh units).
-    max_displacement: f64,
-    svd_fallbacks: usize,
-}
-
 pub(crate) fn run(args: ArapArgs) -> Result<()> {
     let mesh = moe_io::read_mesh(&args.mesh)?;
-    let constraints: Constraints = moe_io::read_json(&args.constraints)?;
-    let pairs: Vec<(u32, Point3)> = constraints
-        .handles
-        .iter()
-        .map(|h| (h.vertex, Point3::from(h.target)))
-        .collect();
-    let handles = HandleTargets::from_pairs(&pairs, mesh.num_vertices())
+    let handles = ArapConstraints::read(&args.constraints)?
+        .targets(mesh.num_vertices())
         .with_context(|| format!("constraints {}", args.constraints.display()))?;
     let config = ArapConfig {
         energy: args.energy,
@@ -88,65 +48,13 @@ pub(crate) fn run(args: ArapArgs) -> Result<()> {
         iterations: args.iterations,
         parallel: true,
     };
-    let solver = ArapSolver::new(&mesh, &config, &handles.vertices, &[])
+    let deformation = deform_mesh(&mesh, &handles, &config)
         .with_context(|| format!("setting up ARAP on {}", args.mesh.display()))?;
-    let solution = solver.solve(&handles.targets, &[], Start::Rest)?;
-    let max_displacement = solution
-        .vertices
-        .iter()
-        .zip(mesh.vertices())
-        .map(|(a, b)| (a - b).norm())
-        .fold(0.0, f64::max);
-    let info = &solution.info;
-    let deformed = mesh.with_vertices(solution.vertices.clone())?;
-    moe_io::write_mesh(&args.out, &deformed)?;
-    if let Some(path) = &args.energy_log {
-        write_energy_log(path, &info.energy)?;
-    }
-    let summary = ArapSummary {
-        mesh: args.mesh.display().to_string(),
-        out: args.out.display().to_string(),
-        num_vertices: mesh.num_vertices(),
-        num_faces: mesh.num_faces(),
-        num_handles: handles.vertices.len(),
-        energy: args.energy,
-        alpha: config.effective_alpha(),
-        iterations: info.iterations,
-        first_energy: info.energy.first().copied(),
-        final_energy: info.energy.last().copied(),
-        max_displacement,
-        svd_fallbacks: info.svd_fallbacks,
-    };
+    deformation.write(&args.out, args.energy_log.as_deref())?;
+    let summary = deformation.summary(&args.mesh, &args.out);
     if args.json {
-        super::print_json(&summary)?;
-    } else {
-        super::outln!(
-            "{}: {} vertices, {} handles, {} iterations of {} ARAP (α = {}); energy {} → {}; \
-             max displacement {:.4e}; wrote {}",
-            summary.mesh,
-            summary.num_vertices,
-            summary.num_handles,
-            summary.iterations,
-            summary.energy,
-            summary.alpha,
-            fmt_energy(summary.first_energy),
-            fmt_energy(summary.final_energy),
-            summary.max_displacement,
-            summary.out
-        );
+        return super::print_json(&summary);
     }
-    Ok(())
-}
-
-fn fmt_energy(e: Option<f64>) -> String {
-    e.map_or_else(|| "-".to_owned(), |e| format!("{e:.4e}"))
-}
-
-fn write_energy_log(path: &Path, energy: &[f64]) -> Result<()> {
-    let mut csv = String::from("iteration,energy\n");
-    for (t, e) in energy.iter().enumerate() {
-        csv.push_str(&format!("{t},{e:e}\n"));
-    }
-    moe_io::write_atomic(path, csv.as_bytes())?;
+    super::outln!("{}", summary.line());
     Ok(())
 }

@@ -8,20 +8,16 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_geom::{HandModel, Real};
+use moe_geom::HandModel;
 use moe_io::DatasetReader;
 use moe_lab::calibration_streams::{
-    ContactFreeStreams, dataset_contact_free_streams, episode_contact_free_streams,
-    episode_has_ground_truth, episode_has_images, hand_difference,
+    CalibrationRecord, CalibrationSource, dataset_calibration_source, episode_calibration_source,
+    hand_difference,
 };
-use moe_lab::markers::check_hand;
-use moe_physics::{CalibrationOptions, HandMaterial, calibrate};
-use moe_touch::perception::MarkerDetector;
-use serde::Serialize;
+use moe_physics::{CalibrationOptions, calibrate};
 
 /// Where the markers of an episode come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum MarkerSource {
     /// Detected in the camera images when the episode has them, else the ground truth.
     Auto,
@@ -85,68 +81,6 @@ pub(crate) struct CalibrateArgs {
     json: bool,
 }
 
-/// The figures of a material that calibration fits.
-#[derive(Debug, Clone, Copy, Serialize)]
-struct Fitted {
-    /// Young's modulus, pascals.
-    youngs_modulus_pa: Real,
-    /// Stiffness-proportional (Rayleigh) damping coefficient, seconds.
-    rayleigh_stiffness: Real,
-}
-
-impl Fitted {
-    fn of(m: &HandMaterial) -> Self {
-        Self {
-            youngs_modulus_pa: m.material.youngs_modulus_pa,
-            rayleigh_stiffness: m.material.rayleigh_stiffness,
-        }
-    }
-}
-
-/// The report, printed and with `--json`.
-#[derive(Debug, Serialize)]
-struct CalibrateRecord {
-    /// The episode or the data set.
-    source: String,
-    hand: String,
-    /// `detected` or `ground truth`.
-    markers: &'static str,
-    /// How contact frames were found: from the ground truth, or not at all (assumed none).
-    contact: &'static str,
-    /// Frames read.
-    frames_read: usize,
-    /// Frames left out because something touched the hand.
-    frames_with_contact: usize,
-    /// Trajectories of a data set used.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    trajectories: Option<usize>,
-    /// Contact-free streams and frames fitted.
-    streams: usize,
-    frames: usize,
-    initial_material: String,
-    initial: Fitted,
-    fitted: Fitted,
-    fit_damping: bool,
-    /// RMS marker coordinate residual with the initial and with the fitted material, metres.
-    rms_initial_m: Real,
-    rms_fitted_m: Real,
-    /// Relative change of E that raises the residual by 1 %: how well the frames pin E down.
-    youngs_modulus_resolution: Real,
-    evaluations: usize,
-    out: String,
-    wall_secs: Real,
-}
-
-/// Contact-free streams and what was read to make them.
-struct Streams {
-    source: String,
-    hand: HandModel,
-    hand_name: String,
-    markers: &'static str,
-    contact: &'static str,
-    chosen: ContactFreeStreams,
-}
-
 pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
     let t0 = Instant::now();
     let ext = args
@@ -166,7 +100,7 @@ pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
     if args.max_evaluations == 0 {
         bail!("--max-evaluations must be at least 1");
     }
-    let streams = match (&args.episode, &args.data) {
+    let (streams, hand, hand_name) = match (&args.episode, &args.data) {
         (Some(episode), None) => {
             if args.max_trajectories.is_some() {
                 bail!("--max-trajectories is for --data");
@@ -205,94 +139,35 @@ pub(crate) fn run(args: CalibrateArgs) -> Result<()> {
         max_evaluations: args.max_evaluations,
         ..CalibrationOptions::default()
     };
-    let report = calibrate(
-        &streams.hand,
-        &streams.chosen.streams,
-        &initial,
-        &config,
-        &options,
-    )
-    .with_context(|| format!("calibrating from {}", streams.source))?;
-    let record = CalibrateRecord {
-        source: streams.source,
-        hand: streams.hand_name,
-        markers: streams.markers,
-        contact: streams.contact,
-        frames_read: streams.chosen.frames_read,
-        frames_with_contact: streams.chosen.frames_with_contact,
-        trajectories: streams.chosen.trajectories,
-        streams: report.streams,
-        frames: report.frames,
-        initial_material: initial_name,
-        initial: Fitted::of(&initial),
-        fitted: Fitted::of(&report.material),
-        fit_damping: options.fit_damping,
-        rms_initial_m: report.rms_initial_m,
-        rms_fitted_m: report.rms_fitted_m,
-        youngs_modulus_resolution: report.youngs_modulus_resolution,
-        evaluations: report.evaluations,
-        out: args.out.display().to_string(),
-        wall_secs: t0.elapsed().as_secs_f64(),
-    };
+    let report = calibrate(&hand, &streams.chosen.streams, &initial, &config, &options)
+        .with_context(|| format!("calibrating from {}", streams.source))?;
     if json_out {
         moe_io::write_json(&args.out, &report.material)?;
     } else {
         moe_io::write_toml(&args.out, &report.material)?;
     }
+    let record = CalibrationRecord::new(
+        streams,
+        hand_name,
+        (&initial, initial_name),
+        &report,
+        options.fit_damping,
+        &args.out,
+        t0.elapsed().as_secs_f64(),
+    );
     if args.json {
         return super::print_json(&record);
     }
-    print_report(&record);
+    super::print_text(&record.table());
     Ok(())
 }
 
-fn print_report(r: &CalibrateRecord) {
-    super::outln!(
-        "calibrated hand '{}' from {}: {} contact-free frames in {} streams ({} markers; {} of {} \
-         frames left out for contact, {})",
-        r.hand,
-        r.source,
-        r.frames,
-        r.streams,
-        r.markers,
-        r.frames_with_contact,
-        r.frames_read,
-        r.contact
-    );
-    super::outln!(
-        "  Young's modulus E        {:.0} Pa -> {:.0} Pa (a {:.1} % change of E raises the \
-         residual by 1 %)",
-        r.initial.youngs_modulus_pa,
-        r.fitted.youngs_modulus_pa,
-        100.0 * r.youngs_modulus_resolution
-    );
-    super::outln!(
-        "  damping (Rayleigh beta)  {:.4} s -> {:.4} s{}",
-        r.initial.rayleigh_stiffness,
-        r.fitted.rayleigh_stiffness,
-        if r.fit_damping { "" } else { " (kept)" }
-    );
-    super::outln!(
-        "  RMS marker residual      {:.3} mm -> {:.3} mm ({} evaluations)",
-        1e3 * r.rms_initial_m,
-        1e3 * r.rms_fitted_m,
-        r.evaluations
-    );
-    super::outln!("wrote {}", r.out);
-}
-
-/// The contact-free streams of an episode: every frame's markers (detected or true), pulls,
-/// pose and time; frames with true contact left out, each run of contact-free frames between
-/// them one stream.
-fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let (episode, cut) = moe_record::parse_episode_prefix(path, &bytes);
-    let Some(episode) = episode else {
-        return Err(match cut {
-            Some(err) => err.into(),
-            None => anyhow::anyhow!("{}: holds no episode", path.display()),
-        });
-    };
+/// An episode's contact-free streams, its hand and the hand's name.
+fn episode_streams(
+    args: &CalibrateArgs,
+    path: &Path,
+) -> Result<(CalibrationSource, HandModel, String)> {
+    let (episode, cut) = moe_record::read_episode_prefix(path)?;
     if let Some(err) = cut {
         eprintln!(
             "warning: {err}; calibrating from the {} complete frames before the cut",
@@ -301,58 +176,36 @@ fn episode_streams(args: &CalibrateArgs, path: &Path) -> Result<Streams> {
     }
     let hand_name = args.hand.clone().unwrap_or_else(|| "two-finger".to_owned());
     let hand = super::load_hand(&hand_name)?;
-    check_hand(&hand, &episode.info)
+    moe_lab::markers::check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {hand_name} for {}", path.display()))?;
-    let truth = episode_has_ground_truth(&episode);
-    let images = episode_has_images(&episode);
-    let detected = match args.markers {
-        MarkerSource::Auto => images || !truth,
-        MarkerSource::Detected => true,
-        MarkerSource::Truth => {
-            if !truth {
-                bail!(
-                    "--markers truth: {} has no ground-truth markers (a real recording); use \
-                     the detected ones",
-                    path.display()
-                );
+    let markers = match args.markers {
+        MarkerSource::Auto => moe_lab::calibration_streams::MarkerSource::Auto,
+        MarkerSource::Detected => moe_lab::calibration_streams::MarkerSource::Detected,
+        MarkerSource::Truth => moe_lab::calibration_streams::MarkerSource::Truth,
+    };
+    let config = match &args.config {
+        Some(path) => Some(super::load_detector_config(Some(path))?),
+        None => None,
+    };
+    let source = path.display().to_string();
+    let streams =
+        episode_calibration_source(&source, &episode, &hand, markers, config).map_err(|e| {
+            match args.markers {
+                MarkerSource::Truth => anyhow::anyhow!("--markers truth: {e}"),
+                _ => anyhow::Error::from(e),
             }
-            false
-        }
-    };
-    if !detected && args.config.is_some() {
-        bail!("--config is for detected markers (--markers detected)");
-    }
-    let mut detector = if detected {
-        let config = super::load_detector_config(args.config.as_deref())?;
-        Some(
-            MarkerDetector::for_episode(&episode.info, &hand, config)
-                .with_context(|| format!("the camera of {}", path.display()))?,
-        )
-    } else {
-        None
-    };
-    let chosen = episode_contact_free_streams(&episode, detector.as_mut())
-        .with_context(|| path.display().to_string())?;
-    Ok(Streams {
-        source: path.display().to_string(),
-        hand,
-        hand_name,
-        markers: if detected { "detected" } else { "ground truth" },
-        contact: if truth {
-            "from the ground truth"
-        } else {
-            "no ground truth: every frame taken as contact-free"
-        },
-        chosen,
-    })
+        })?;
+    Ok((streams, hand, hand_name))
 }
 
-/// The contact-free prefix of each trajectory of a data set, with its true markers.
-fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
+/// The contact-free prefix of each trajectory of a data set, its hand and the hand's name.
+fn dataset_streams(
+    args: &CalibrateArgs,
+    dir: &Path,
+) -> Result<(CalibrationSource, HandModel, String)> {
     let reader = DatasetReader::open(dir)?;
-    let card = reader.card();
-    let params =
-        moe_lab::datagen::dataset_params(card).with_context(|| dir.display().to_string())?;
+    let params = moe_lab::datagen::dataset_params(reader.card())
+        .with_context(|| dir.display().to_string())?;
     let data_hand =
         moe_lab::datagen::dataset_hand(&reader).with_context(|| dir.display().to_string())?;
     let (hand, hand_name) = match &args.hand {
@@ -370,15 +223,7 @@ fn dataset_streams(args: &CalibrateArgs, dir: &Path) -> Result<Streams> {
         }
         None => (data_hand, params.preset.to_string()),
     };
-    let chosen = dataset_contact_free_streams(&reader, args.max_trajectories)
-        .with_context(|| dir.display().to_string())?;
-    Ok(Streams {
-        source: dir.display().to_string(),
-        hand,
-        hand_name,
-        markers: "ground truth",
-        contact: "from the data set's labels and contact forces (each trajectory's frames \
-                  before its first contact)",
-        chosen,
-    })
+    let streams =
+        dataset_calibration_source(&dir.display().to_string(), &reader, args.max_trajectories)?;
+    Ok((streams, hand, hand_name))
 }

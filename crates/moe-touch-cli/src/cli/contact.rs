@@ -6,25 +6,17 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_contact::{Aggregation, DeviceKind, ForwardTimings, InputFeature};
-use moe_geom::{
-    ContactInput, ContactMap, HandKeypoints, HandModel, HandShape, Iso3, Point3, WorldFromHand,
-};
-use moe_geom::{HandEstimator as _, Observation};
-use moe_lab::contact_output::{
-    CONTACTS_HEADER, FingerContactRecord, PhysicsFingerRecord, contact_fingers, contact_rows,
-    physics_fingers,
-};
+use moe_contact::{Aggregation, DeviceKind, InputFeature};
+use moe_geom::{HandModel, Iso3, WorldFromHand};
+use moe_lab::contact_job::{self, ContactSources, PhysicsFrame};
+use moe_lab::keypoints_file::KeypointsFile;
 use moe_lab::point_cloud::{NetworkPrecision, PointCloudModel, PointCloudOptions};
-use moe_lab::run::LoadRecord;
 use moe_physics::PhysicsEstimator;
-use serde::{Deserialize, Serialize};
 
 use super::ContactMethod;
 
 /// The float type the network computes in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Precision {
     /// 32-bit (the default, as trained).
     F32,
@@ -109,56 +101,12 @@ pub(crate) struct ContactArgs {
     json: bool,
 }
 
-/// The `--points` report.
-#[derive(Debug, Serialize)]
-struct PointsReport {
-    points: usize,
-    model: String,
-    card: bool,
-    aggregation: Aggregation,
-    dtype: Precision,
-    threshold: f64,
-    contact_points: usize,
-    timings_ms: TimingsMs,
-    out: String,
-}
-
-/// Stage timings in milliseconds.
-#[derive(Debug, Serialize)]
-struct TimingsMs {
-    knn: f64,
-    edgeconv: f64,
-    head: f64,
-    network: f64,
-    total: f64,
-}
-
-impl TimingsMs {
-    fn new(t: ForwardTimings, total_s: f64) -> Self {
-        Self {
-            knn: t.knn_s * 1e3,
-            edgeconv: t.edgeconv_s * 1e3,
-            head: t.head_s * 1e3,
-            network: t.total_s() * 1e3,
-            total: total_s * 1e3,
-        }
+/// Refuses the first flag given of `flags`, saying `why`.
+fn refuse(flags: &[(bool, &str)], why: &str) -> Result<()> {
+    match flags.iter().find(|(given, _)| *given) {
+        Some((_, flag)) => bail!("{flag} {why}"),
+        None => Ok(()),
     }
-}
-
-/// `contact.json`, also the `--json` report of `--shape`.
-#[derive(Debug, Serialize)]
-struct ShapeContactRecord {
-    hand: String,
-    shape: String,
-    model: String,
-    card: bool,
-    aggregation: Aggregation,
-    dtype: Precision,
-    threshold: f64,
-    frame: &'static str,
-    fingers: Vec<FingerContactRecord>,
-    contact_vertices: usize,
-    timings_ms: TimingsMs,
 }
 
 fn check_threshold(t: f64) -> Result<f64> {
@@ -170,26 +118,23 @@ fn check_threshold(t: f64) -> Result<f64> {
 
 pub(crate) fn run(args: ContactArgs) -> Result<()> {
     match args.method {
-        ContactMethod::Dgcnn => run_dgcnn(args),
+        ContactMethod::Dgcnn => run_dgcnn(&args),
         ContactMethod::Physics => run_physics(&args),
     }
 }
 
-fn run_dgcnn(args: ContactArgs) -> Result<()> {
-    let t0 = Instant::now();
-    for (given, flag) in [
-        (args.keypoints.is_some(), "--keypoints"),
-        (args.world_from_hand.is_some(), "--world-from-hand"),
-        (args.material.is_some(), "--material"),
-        (args.physics_config.is_some(), "--physics-config"),
-    ] {
-        if given {
-            bail!(
-                "{flag} is for --method physics; the DGCNN reads a point cloud (--points) or a \
-                 hand shape (--hand with --shape)"
-            );
-        }
-    }
+fn run_dgcnn(args: &ContactArgs) -> Result<()> {
+    let started = Instant::now();
+    refuse(
+        &[
+            (args.keypoints.is_some(), "--keypoints"),
+            (args.world_from_hand.is_some(), "--world-from-hand"),
+            (args.material.is_some(), "--material"),
+            (args.physics_config.is_some(), "--physics-config"),
+        ],
+        "is for --method physics; the DGCNN reads a point cloud (--points) or a hand shape \
+         (--hand with --shape)",
+    )?;
     let Some(model_path) = &args.model else {
         bail!("--method dgcnn needs --model M.safetensors (or use --method physics)");
     };
@@ -198,34 +143,36 @@ fn run_dgcnn(args: ContactArgs) -> Result<()> {
             if args.tendon_pulls.is_some() {
                 bail!("--tendon-pulls needs --hand with --shape (a point cloud has no fingers)");
             }
-            run_points(&args, model_path, points, t0)
+            run_points(args, model_path, points, started)
         }
         (None, Some(hand), Some(shape)) => {
-            for (given, flag) in [
-                (args.aggregation.is_some(), "--aggregation"),
-                (args.dtype.is_some(), "--dtype"),
-                (args.device.is_some(), "--device"),
-            ] {
-                if given {
-                    bail!(
-                        "{flag} is for --points; a hand shape runs the model as the runtime \
-                         does (f32 on the CPU, the card's aggregation)"
-                    );
-                }
-            }
-            run_shape(&args, model_path, hand, shape, t0)
+            refuse(
+                &[
+                    (args.aggregation.is_some(), "--aggregation"),
+                    (args.dtype.is_some(), "--dtype"),
+                    (args.device.is_some(), "--device"),
+                ],
+                "is for --points; a hand shape runs the model as the runtime does (f32 on the \
+                 CPU, the card's aggregation)",
+            )?;
+            run_shape(args, model_path, hand, shape, started)
         }
         _ => bail!("give either --points, or --hand with --shape"),
     }
 }
 
-fn run_points(args: &ContactArgs, model_path: &Path, points: &Path, t0: Instant) -> Result<()> {
-    let dtype = args.dtype.unwrap_or(Precision::F32);
+fn run_points(
+    args: &ContactArgs,
+    model_path: &Path,
+    points: &Path,
+    started: Instant,
+) -> Result<()> {
+    let precision = match args.dtype.unwrap_or(Precision::F32) {
+        Precision::F32 => NetworkPrecision::F32,
+        Precision::F64 => NetworkPrecision::F64,
+    };
     let options = PointCloudOptions {
-        precision: match dtype {
-            Precision::F32 => NetworkPrecision::F32,
-            Precision::F64 => NetworkPrecision::F64,
-        },
+        precision,
         device: args.device.unwrap_or(DeviceKind::Cpu),
         aggregation: args.aggregation,
     };
@@ -241,54 +188,35 @@ fn run_points(args: &ContactArgs, model_path: &Path, points: &Path, t0: Instant)
             spec.describe()
         );
     }
-    let rows = moe_io::read_points_csv(points)?;
-    if let Some((i, r)) = rows.iter().enumerate().find(|(_, r)| r.len() != 3) {
-        bail!(
-            "{}: row {} has {} fields; points are x,y,z",
-            points.display(),
-            i + 1,
-            r.len()
-        );
-    }
-    let n = rows.len();
-    let cloud: Vec<[f64; 3]> = rows.iter().map(|r| [r[0], r[1], r[2]]).collect();
-    let out = model
+    let cloud = contact_job::read_point_cloud(points)?;
+    let contact = model
         .estimate(&cloud)
         .with_context(|| format!("points {}", points.display()))?;
-    let table: Vec<Vec<f64>> = out
-        .logits
-        .iter()
-        .zip(&out.probability)
-        .map(|(l, &p)| vec![l[0], l[1], p])
-        .collect();
-    moe_io::write_csv(&args.out, &["logit0", "logit1", "probability"], &table)?;
-    let report = PointsReport {
-        points: n,
-        model: model_path.display().to_string(),
-        card: model.has_card(),
-        aggregation: model.aggregation(),
-        dtype,
-        threshold,
-        contact_points: out.probability.iter().filter(|&&p| p >= threshold).count(),
-        timings_ms: TimingsMs::new(out.timings, t0.elapsed().as_secs_f64()),
-        out: args.out.display().to_string(),
-    };
+    let report = contact_job::write_points_contact(
+        &model, model_path, precision, &contact, threshold, &args.out, started,
+    )?;
     if args.json {
-        super::print_json(&report)?;
-    } else {
-        super::outln!(
-            "{} points, {} at or above {threshold}; network {:.1} ms (kNN {:.1}, EdgeConv {:.1}, \
-             head {:.1}); wrote {}",
-            report.points,
-            report.contact_points,
-            report.timings_ms.network,
-            report.timings_ms.knn,
-            report.timings_ms.edgeconv,
-            report.timings_ms.head,
-            report.out
-        );
+        return super::print_json(&report);
     }
+    super::outln!("{}", report.line());
     Ok(())
+}
+
+/// Comma-separated finite numbers; `name(i)` names the `i`-th in errors.
+fn numbers(text: &str, name: impl Fn(usize) -> String) -> Result<Vec<f64>> {
+    text.split(',')
+        .map(str::trim)
+        .enumerate()
+        .map(|(i, v)| {
+            let x: f64 = v
+                .parse()
+                .with_context(|| format!("{}: '{v}' is not a number", name(i)))?;
+            if !x.is_finite() {
+                bail!("{}: '{v}' is not finite", name(i));
+            }
+            Ok(x)
+        })
+        .collect()
 }
 
 /// `--tendon-pulls`: fingers separated by `;`, each finger's pulls by `,`.
@@ -296,32 +224,11 @@ fn parse_tendon_pulls(text: &str) -> Result<Vec<Vec<f64>>> {
     text.split(';')
         .enumerate()
         .map(|(f, finger)| {
-            finger
-                .split(',')
-                .map(str::trim)
-                .enumerate()
-                .map(|(t, v)| {
-                    let x: f64 = v.parse().with_context(|| {
-                        format!("--tendon-pulls: finger {f}, tendon {t}: '{v}' is not a number")
-                    })?;
-                    if !x.is_finite() {
-                        bail!("--tendon-pulls: finger {f}, tendon {t}: '{v}' is not finite");
-                    }
-                    Ok(x)
-                })
-                .collect()
+            numbers(finger, |t| {
+                format!("--tendon-pulls: finger {f}, tendon {t}")
+            })
         })
         .collect()
-}
-
-fn read_shape(hand: &HandModel, dir: &Path) -> Result<HandShape> {
-    let mut fingers = Vec::with_capacity(hand.num_fingers());
-    for i in 0..hand.num_fingers() {
-        let path = dir.join(format!("finger_{i}.obj"));
-        let mesh = moe_io::read_mesh(&path)?;
-        fingers.push(mesh.vertices().to_vec());
-    }
-    Ok(HandShape { fingers })
 }
 
 fn run_shape(
@@ -329,13 +236,13 @@ fn run_shape(
     model_path: &Path,
     hand_spec: &str,
     dir: &Path,
-    t0: Instant,
+    started: Instant,
 ) -> Result<()> {
     let hand = super::load_hand(hand_spec)?;
     let estimator = moe_touch::pipeline::load_contact_model(model_path, &hand)
         .with_context(|| format!("model {} on hand '{hand_spec}'", model_path.display()))?;
     let threshold = check_threshold(args.threshold.unwrap_or(estimator.threshold()))?;
-    let shape = read_shape(&hand, dir)?;
+    let shape = contact_job::read_hand_shape(&hand, dir)?;
     let pulls = args
         .tendon_pulls
         .as_deref()
@@ -348,97 +255,27 @@ fn run_shape(
             estimator.features().spec().describe()
         );
     }
-    let mut observation = Observation::new();
-    observation.tendon_pull_m = pulls.as_deref();
-    let (mut maps, timings) = estimator
-        .estimate_inputs(&[ContactInput::new(&shape, observation)])
-        .with_context(|| format!("shape {}", dir.display()))?;
-    let map: ContactMap = maps.pop().context("no contact map")?;
-    // Everything in memory first, so that a failure leaves nothing half-written.
-    let (plys, fingers) = contact_fingers(&hand, &shape, &map, threshold)?;
-    let contacts = map.contacts_above(threshold, &shape)?;
-    let rows = contact_rows(&contacts);
-    let record = ShapeContactRecord {
-        hand: hand_spec.to_string(),
-        shape: dir.display().to_string(),
+    let sources = ContactSources {
+        hand: hand_spec.to_owned(),
+        input: dir.display().to_string(),
         model: model_path.display().to_string(),
-        card: true,
-        aggregation: estimator.network().config().aggregation,
-        dtype: Precision::F32,
-        threshold,
-        frame: "hand",
-        contact_vertices: contacts.len(),
-        fingers,
-        timings_ms: TimingsMs::new(timings, t0.elapsed().as_secs_f64()),
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating output directory {}", args.out.display()))?;
-    for (name, ply) in &plys {
-        moe_io::write_ply(&args.out.join(name), ply)?;
-    }
-    moe_io::write_csv(&args.out.join("contacts.csv"), &CONTACTS_HEADER, &rows)?;
-    moe_io::write_json(&args.out.join("contact.json"), &record)?;
+    let output = contact_job::shape_contact(
+        &estimator,
+        &hand,
+        &shape,
+        pulls.as_deref(),
+        threshold,
+        sources,
+        started,
+    )
+    .with_context(|| format!("shape {}", dir.display()))?;
+    output.files.write(&args.out)?;
     if args.json {
-        super::print_json(&record)?;
-    } else {
-        super::outln!(
-            "hand '{}': {} contact vertices at or above {threshold}; network {:.1} ms",
-            record.hand,
-            record.contact_vertices,
-            record.timings_ms.network
-        );
-        for (i, f) in record.fingers.iter().enumerate() {
-            super::outln!(
-                "  finger {i}: {} of {} vertices, max probability {:.3}, wrote {}",
-                f.contact_vertices,
-                f.vertices,
-                f.max_probability,
-                f.mesh
-            );
-        }
+        return super::print_json(&output.record);
     }
+    super::outln!("{}", output.record.summary());
     Ok(())
-}
-
-/// A keypoints file: the keypoints, optionally with the time of their frame (as `moe-touch
-/// shape` reads it and `moe-touch markers` writes it).
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct KeypointsInput {
-    #[serde(default, rename = "time_ns")]
-    _time_ns: Option<u64>,
-    fingers: Vec<Vec<Option<Point3>>>,
-}
-
-/// Reads `--keypoints` and checks it against the hand, naming the file and the item.
-fn read_keypoints(path: &Path, hand: &HandModel) -> Result<HandKeypoints> {
-    let input: KeypointsInput = moe_io::read_json(path)?;
-    let name = path.display();
-    if input.fingers.len() != hand.num_fingers() {
-        bail!(
-            "--keypoints {name}: {} fingers, the hand has {}",
-            input.fingers.len(),
-            hand.num_fingers()
-        );
-    }
-    for (f, (markers, hf)) in input.fingers.iter().zip(hand.fingers()).enumerate() {
-        let expected = hf.model.marker_vertices().len();
-        if markers.len() != expected {
-            bail!(
-                "--keypoints {name}: finger {f} has {} markers, the hand's finger has {expected}",
-                markers.len()
-            );
-        }
-        if let Some(m) = markers
-            .iter()
-            .position(|p| p.is_some_and(|p| !p.iter().all(|c| c.is_finite())))
-        {
-            bail!("--keypoints {name}: finger {f}, marker {m} is not finite");
-        }
-    }
-    Ok(HandKeypoints {
-        fingers: input.fingers,
-    })
 }
 
 /// `--tendon-pulls` checked against the hand's tendon routes.
@@ -465,21 +302,8 @@ fn hand_tendon_pulls(text: &str, hand: &HandModel) -> Result<Vec<Vec<f64>>> {
 }
 
 /// `--world-from-hand x,y,z,qx,qy,qz,qw`: a translation in metres and a unit quaternion.
-pub(crate) fn parse_world_from_hand(text: &str) -> Result<WorldFromHand> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(str::trim)
-        .enumerate()
-        .map(|(i, v)| {
-            let x: f64 = v
-                .parse()
-                .with_context(|| format!("--world-from-hand: value {i}: '{v}' is not a number"))?;
-            if !x.is_finite() {
-                bail!("--world-from-hand: value {i}: '{v}' is not finite");
-            }
-            Ok(x)
-        })
-        .collect::<Result<_>>()?;
+fn parse_world_from_hand(text: &str) -> Result<WorldFromHand> {
+    let values = numbers(text, |i| format!("--world-from-hand: value {i}"))?;
     let [x, y, z, qx, qy, qz, qw] = values[..] else {
         bail!(
             "--world-from-hand: {} values, expected 7 (x,y,z,qx,qy,qz,qw)",
@@ -499,61 +323,20 @@ pub(crate) fn parse_world_from_hand(text: &str) -> Result<WorldFromHand> {
     )))
 }
 
-/// The physics `contact.json`, also its `--json` report.
-#[derive(Debug, Serialize)]
-struct PhysicsContactRecord {
-    method: ContactMethod,
-    hand: String,
-    keypoints: String,
-    tendon_pull_m: Vec<Vec<f64>>,
-    /// `x,y,z,qx,qy,qz,qw`.
-    world_from_hand: [f64; 7],
-    material: String,
-    physics_config: String,
-    threshold: f64,
-    frame: &'static str,
-    units: &'static str,
-    fingers: Vec<PhysicsFingerRecord>,
-    contact_vertices: usize,
-    loads: usize,
-    loads_file: &'static str,
-    timings_ms: PhysicsTimingsMs,
-}
-
-/// Wall time of the physics path, milliseconds.
-#[derive(Debug, Serialize)]
-struct PhysicsTimingsMs {
-    /// Building the finger models.
-    setup_ms: f64,
-    /// The estimate.
-    estimate_ms: f64,
-    total_ms: f64,
-}
-
-/// `loads.json`.
-#[derive(Debug, Serialize)]
-struct LoadsFile<'a> {
-    frame: &'static str,
-    units: &'static str,
-    loads: &'a [LoadRecord],
-}
-
 fn run_physics(args: &ContactArgs) -> Result<()> {
-    let t0 = Instant::now();
-    let dgcnn_only = "is for --method dgcnn; the physics estimator reads markers (--keypoints), \
-                      estimates the shape itself and has no network";
-    for (given, flag) in [
-        (args.points.is_some(), "--points"),
-        (args.shape.is_some(), "--shape"),
-        (args.model.is_some(), "--model"),
-        (args.aggregation.is_some(), "--aggregation"),
-        (args.dtype.is_some(), "--dtype"),
-        (args.device.is_some(), "--device"),
-    ] {
-        if given {
-            bail!("{flag} {dgcnn_only}");
-        }
-    }
+    let started = Instant::now();
+    refuse(
+        &[
+            (args.points.is_some(), "--points"),
+            (args.shape.is_some(), "--shape"),
+            (args.model.is_some(), "--model"),
+            (args.aggregation.is_some(), "--aggregation"),
+            (args.dtype.is_some(), "--dtype"),
+            (args.device.is_some(), "--device"),
+        ],
+        "is for --method dgcnn; the physics estimator reads markers (--keypoints), estimates \
+         the shape itself and has no network",
+    )?;
     let (Some(hand_spec), Some(kp_path), Some(pulls_text)) =
         (&args.hand, &args.keypoints, &args.tendon_pulls)
     else {
@@ -564,7 +347,7 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
     };
     let threshold = check_threshold(args.threshold.unwrap_or(moe_physics::CONTACT_THRESHOLD))?;
     let hand = super::load_hand(hand_spec)?;
-    let keypoints = read_keypoints(kp_path, &hand)?;
+    let keypoints = KeypointsFile::read_for_hand(kp_path, &hand).context("--keypoints")?;
     let pulls = hand_tendon_pulls(pulls_text, &hand)?;
     let world_from_hand = match &args.world_from_hand {
         Some(text) => parse_world_from_hand(text)?,
@@ -574,111 +357,32 @@ fn run_physics(args: &ContactArgs) -> Result<()> {
     let (config, config_name) = super::load_physics_config(args.physics_config.as_deref())?;
     let mut estimator = PhysicsEstimator::new(&hand, &material, &config)
         .with_context(|| format!("the physics estimator of hand '{hand_spec}'"))?;
-    let t_setup = Instant::now();
-    let estimate = estimator
-        .estimate(
-            &Observation::from_keypoints(&keypoints)
-                .with_tendon_pulls(&pulls)
-                .with_world_from_hand(world_from_hand),
-        )
-        .with_context(|| format!("keypoints {}", kp_path.display()))?;
-    let t_estimate = Instant::now();
-    // Everything in memory first, so that a failure leaves nothing half-written.
-    let (plys, fingers) = physics_fingers(&hand, &estimate, threshold)?;
-    let contacts = estimate
-        .contact
-        .contacts_above(threshold, &estimate.shape)?;
-    let rows = contact_rows(&contacts);
-    let loads: Vec<LoadRecord> = estimate
-        .details
-        .loads
-        .iter()
-        .map(LoadRecord::from)
-        .collect();
-    let loads_text = serde_json::to_string_pretty(&LoadsFile {
-        frame: "hand",
-        units: "metres, newtons",
-        loads: &loads,
-    })?;
-    let iso = world_from_hand.iso();
-    let (t, q) = (iso.translation.vector, iso.rotation.quaternion());
-    let end = Instant::now();
-    let ms = |a: Instant, b: Instant| 1e3 * (b - a).as_secs_f64();
-    let record = PhysicsContactRecord {
-        method: ContactMethod::Physics,
-        hand: hand_spec.clone(),
-        keypoints: kp_path.display().to_string(),
-        tendon_pull_m: pulls,
-        world_from_hand: [t.x, t.y, t.z, q.i, q.j, q.k, q.w],
-        material: material_name,
-        physics_config: config_name,
-        threshold,
-        frame: "hand",
-        units: "metres, newtons",
-        contact_vertices: contacts.len(),
-        loads: loads.len(),
-        loads_file: "loads.json",
-        fingers,
-        timings_ms: PhysicsTimingsMs {
-            setup_ms: ms(t0, t_setup),
-            estimate_ms: ms(t_setup, t_estimate),
-            total_ms: ms(t0, end),
-        },
+    let frame = PhysicsFrame {
+        keypoints: &keypoints,
+        tendon_pull_m: &pulls,
+        world_from_hand,
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating output directory {}", args.out.display()))?;
-    for (name, ply) in &plys {
-        moe_io::write_ply(&args.out.join(name), ply)?;
-    }
-    moe_io::write_csv(&args.out.join("contacts.csv"), &CONTACTS_HEADER, &rows)?;
-    moe_io::write_atomic(&args.out.join("loads.json"), loads_text.as_bytes())?;
-    moe_io::write_json(&args.out.join("contact.json"), &record)?;
+    let sources = ContactSources {
+        hand: hand_spec.clone(),
+        input: kp_path.display().to_string(),
+        model: material_name,
+    };
+    let physics = contact_job::physics_contact(
+        &mut estimator,
+        frame,
+        threshold,
+        sources,
+        config_name,
+        started,
+    )
+    .with_context(|| format!("keypoints {}", kp_path.display()))?;
+    physics.output.files.write(&args.out)?;
     if args.json {
-        return super::print_json(&record);
+        return super::print_json(&physics.output.record);
     }
-    print_physics(&record, &loads);
+    for warning in physics.warnings() {
+        eprintln!("warning: {warning}");
+    }
+    super::outln!("{}", physics.summary());
     Ok(())
-}
-
-/// The physics estimate's lines on stdout: the hand, each finger, each load.
-fn print_physics(record: &PhysicsContactRecord, loads: &[LoadRecord]) {
-    let threshold = record.threshold;
-    super::outln!(
-        "hand '{}' (physics, material {}): {}, {} contact vertices at or above {threshold}; \
-         estimate {:.1} ms",
-        record.hand,
-        record.material,
-        super::count(record.loads, "load"),
-        record.contact_vertices,
-        record.timings_ms.estimate_ms
-    );
-    for (i, f) in record.fingers.iter().enumerate() {
-        if let Some(e) = &f.error {
-            eprintln!("warning: finger {i}: no estimate ({e}); left at its rest shape");
-        }
-        super::outln!(
-            "  finger {i}: force {:.3} N ({:+.3}, {:+.3}, {:+.3}) from {}, pressed with \
-             probability {:.3}, {} contact vertices, wrote {}",
-            f.force_magnitude_n,
-            f.force_n.x,
-            f.force_n.y,
-            f.force_n.z,
-            super::count(f.loads, "load"),
-            f.pressed_probability,
-            f.contact_vertices,
-            f.mesh
-        );
-    }
-    for l in loads {
-        super::outln!(
-            "  load on finger {} at vertex {} ({:.1}, {:.1}, {:.1}) mm: {:.3} ± {:.3} N",
-            l.finger,
-            l.vertex,
-            1e3 * l.location_m.x,
-            1e3 * l.location_m.y,
-            1e3 * l.location_m.z,
-            l.magnitude_n,
-            l.magnitude_sd_n
-        );
-    }
 }

@@ -84,15 +84,6 @@ pub(crate) fn load_detector_config(
     )
 }
 
-/// `n` and a noun, plural unless `n` is 1 ("1 load", "2 loads").
-pub(crate) fn count(n: usize, noun: &str) -> String {
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
-}
-
 /// Prints `value` as one JSON object on stdout.
 pub(crate) fn print_json<T: serde::Serialize>(value: &T) -> anyhow::Result<()> {
     emit(format_args!("{}", serde_json::to_string(value)?));
@@ -108,6 +99,14 @@ pub(crate) fn emit(line: std::fmt::Arguments<'_>) {
         && e.kind() != std::io::ErrorKind::BrokenPipe
     {
         eprintln!("warning: cannot write to stdout: {e}");
+    }
+}
+
+/// Writes text (lines ending in `\n`, as the library's report tables come) to stdout; see
+/// [`emit`].
+pub(crate) fn print_text(text: &str) {
+    for line in text.lines() {
+        emit(format_args!("{line}"));
     }
 }
 

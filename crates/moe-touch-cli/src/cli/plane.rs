@@ -5,8 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_geom::{Point3, RansacConfig, fit_plane_ransac};
-use serde_json::json;
+use moe_geom::RansacConfig;
 
 #[derive(Debug, Args)]
 pub(crate) struct PlaneArgs {
@@ -28,41 +27,18 @@ pub(crate) struct PlaneArgs {
 }
 
 pub(crate) fn run(args: PlaneArgs) -> Result<()> {
-    let rows = moe_io::read_points_csv(&args.points)?;
-    let points: Vec<Point3> = rows.iter().map(|r| Point3::new(r[0], r[1], r[2])).collect();
+    let points = moe_lab::surface_job::read_points(&args.points)?;
     let config = RansacConfig {
         distance_threshold_m: args.threshold,
         iterations: args.iterations,
         seed: args.seed,
         ..RansacConfig::default()
     };
-    let fit = fit_plane_ransac(&points, &config)
+    let report = moe_lab::plane_job::fit_plane(&points, &config)
         .with_context(|| format!("fitting a plane to {}", args.points.display()))?;
     if args.json {
-        return super::print_json(&json!({
-            "points": points.len(),
-            "normal": [fit.normal.x, fit.normal.y, fit.normal.z],
-            "offset_m": fit.offset,
-            "inliers": fit.inliers,
-            "num_inliers": fit.inliers.len(),
-            "rms_m": fit.rms_m,
-            "iterations": fit.iterations,
-            "threshold_m": args.threshold,
-            "seed": args.seed,
-        }));
+        return super::print_json(&report);
     }
-    super::outln!(
-        "plane: n = ({:.6}, {:.6}, {:.6}), d = {:.6} m (n·x + d = 0); {} of {} points within {} m, \
-         RMS {:.3} mm; {} samples",
-        fit.normal.x,
-        fit.normal.y,
-        fit.normal.z,
-        fit.offset,
-        fit.inliers.len(),
-        points.len(),
-        args.threshold,
-        1e3 * fit.rms_m,
-        fit.iterations
-    );
+    super::outln!("{}", report.line());
     Ok(())
 }

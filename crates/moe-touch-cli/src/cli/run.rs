@@ -10,7 +10,7 @@ use clap::Args;
 use moe_arap::ShapeConfig;
 use moe_geom::{HandEstimator, HandModel};
 use moe_lab::markers::check_hand;
-use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunDetails, RunReport, run_episode, run_info};
+use moe_lab::run::{DEFAULT_FORCE_ARROW_M_PER_N, RunDetails, run_episode, run_info};
 use moe_touch::PhysicsPipeline;
 use moe_touch::Pipeline;
 use moe_touch::filter::{ContactSmoother, KalmanConfig, KeypointFilter};
@@ -205,7 +205,8 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
     let hand = super::load_hand(&args.hand)?;
     // The recording's topics and frames, read once: they name the input's and the results'.
     let ros = ros_config(&args)?;
-    let (episode, cut) = read_episode(&args, &ros, &hand)?;
+    let given = args.ros.as_ref().map(|_| &ros);
+    let (episode, cut) = moe_record::ros2::read_recording(&args.episode, given, &hand)?;
     check_hand(&hand, &episode.info)
         .with_context(|| format!("--hand {} for {}", args.hand, args.episode.display()))?;
     let detector = MarkerDetector::for_episode(&episode.info, &hand, config)
@@ -243,31 +244,6 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
                 Some(force_scale),
             )
         }
-    }
-}
-
-/// The episode of `--episode`: a ROS 2 recording (with `--ros`, or when it is one), or an
-/// episode MCAP, with the error that cut it short if it was.
-fn read_episode(
-    args: &RunArgs,
-    ros: &moe_record::ros2::RosConfig,
-    hand: &moe_geom::HandModel,
-) -> Result<(moe_record::Episode, Option<moe_io::IoError>)> {
-    if args.ros.is_some() || moe_record::ros2::is_ros2_recording(&args.episode) {
-        return Ok((
-            moe_record::ros2::read_ros2_bag(&args.episode, ros, hand)?,
-            None,
-        ));
-    }
-    let bytes = std::fs::read(&args.episode)
-        .with_context(|| format!("reading {}", args.episode.display()))?;
-    let (episode, cut) = moe_record::parse_episode_prefix(&args.episode, &bytes);
-    match episode {
-        Some(episode) => Ok((episode, cut)),
-        None => Err(match cut {
-            Some(err) => err.into(),
-            None => anyhow::anyhow!("{}: holds no episode", args.episode.display()),
-        }),
     }
 }
 
@@ -335,86 +311,6 @@ where
         }
         return super::print_json(&value);
     }
-    print_summary(&report, &args.out);
+    super::print_text(&report.summary(&args.out));
     Ok(())
-}
-
-pub(crate) fn print_summary(r: &RunReport, out: &Path) {
-    super::outln!(
-        "{} frames{}: {:.1} frames/s (per frame: markers {:.2} ms, estimate {:.2} ms, contact points {:.2} ms, total {:.2} ms median); wrote {}",
-        r.frames,
-        if r.truncated.is_some() {
-            " (episode cut short)"
-        } else {
-            ""
-        },
-        r.frames_per_second,
-        r.markers_ms.median_ms,
-        r.estimate_ms.median_ms,
-        r.points_ms.median_ms,
-        r.total_ms.median_ms,
-        out.display()
-    );
-    if let (Some(m), Some(bcd), Some(c)) = (&r.markers, r.shape_bcd_mm, &r.contact) {
-        super::outln!(
-            "against the ground truth: markers {:.1} % of {} visible found (error {:.2} mm mean); shape BCD {:.3} mm; contact BCD {:.1} mm, UCD {:.1} mm, F1 {:.3}, {} of {} contact frames missed, {} false alarms",
-            100.0 * m.detection_rate,
-            m.visible,
-            m.mean_error_mm,
-            bcd,
-            c.bcd_mm,
-            c.ucd_mm,
-            c.f1,
-            c.misses,
-            c.contact_frames,
-            c.false_alarms
-        );
-    }
-    print_forces(r);
-}
-
-/// The estimated force on every finger, frame by frame (runs whose estimator estimates force).
-pub(crate) fn print_forces(r: &RunReport) {
-    let Some(summary) = &r.forces else { return };
-    super::outln!("estimated force on each finger (N, hand frame x, y, z; loads found):");
-    for (k, frame) in r.per_frame.iter().enumerate() {
-        let Some(fingers) = &frame.finger_forces else {
-            continue;
-        };
-        let cells: Vec<String> = fingers
-            .iter()
-            .enumerate()
-            .map(|(f, x)| {
-                let loads = x
-                    .loads
-                    .map_or(String::new(), |n| format!(", {}", super::count(n, "load")));
-                let failed = if x.error.is_some() {
-                    ", no estimate"
-                } else {
-                    ""
-                };
-                format!(
-                    "finger {f} {:.3} ({:+.3}, {:+.3}, {:+.3}{loads}{failed})",
-                    x.magnitude_n, x.force_n.x, x.force_n.y, x.force_n.z
-                )
-            })
-            .collect();
-        super::outln!(
-            "  frame {k:>3} {:>8.3} s  {}",
-            1e-9 * frame.time_ns as f64,
-            cells.join("   ")
-        );
-    }
-    let cells: Vec<String> = summary
-        .fingers
-        .iter()
-        .enumerate()
-        .map(|(f, s)| {
-            format!(
-                "finger {f} up to {:.3} N ({} of {} frames with force)",
-                s.max_magnitude_n, s.frames_with_force, r.frames
-            )
-        })
-        .collect();
-    super::outln!("  {}", cells.join("; "));
 }

@@ -1,18 +1,15 @@
 //! `moe-touch surface`: reconstruct an occluded surface from contact points with a
 //! Gaussian-process implicit surface (paper §6.1), or the non-probabilistic baseline.
 
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use moe_geom::{Point3, TriMesh};
 use moe_gpis::{
-    FitConfig, GpisConfig, Hyper, HyperBounds, IcpConfig, IcpReport, KernelKind, Mesher,
-    Observations, PoissonOptions, PosePrior, ReconstructOptions, RegistrationKind, SphereMean,
-    SurfaceMethod, SurfaceOptions, condition_surface, reconstruct_surface,
+    FitConfig, GpisConfig, Hyper, HyperBounds, IcpConfig, KernelKind, Mesher, PoissonOptions,
+    PosePrior, ReconstructOptions, RegistrationKind, SurfaceMethod, SurfaceOptions,
 };
-use serde_json::json;
+use moe_lab::surface_job::SurfaceFiles;
 
 /// Reconstruction method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -148,58 +145,9 @@ pub(crate) struct SurfaceArgs {
     json: bool,
 }
 
-fn ext(path: &Path) -> String {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or_default()
-        .to_ascii_lowercase()
-}
-
-/// Reads observations from CSV (`x,y,z[,sdf]`) or PLY (points, optional scalar `sdf`).
-fn read_observations(path: &Path) -> Result<Observations> {
-    let (points, values): (Vec<Point3>, Vec<f64>) = match ext(path).as_str() {
-        "ply" => {
-            let ply = moe_io::read_ply(path)?;
-            let values = match ply.scalar("sdf") {
-                Some(s) => s.iter().map(|&v| f64::from(v)).collect(),
-                None => vec![0.0; ply.points.len()],
-            };
-            (ply.points, values)
-        }
-        _ => moe_io::read_points_csv(path)?
-            .into_iter()
-            .map(|r| {
-                (
-                    Point3::new(r[0], r[1], r[2]),
-                    r.get(3).copied().unwrap_or(0.0),
-                )
-            })
-            .unzip(),
-    };
-    let mut obs = Observations::new();
-    obs.add_valued(&points, &values)
-        .with_context(|| format!("reading observations from {}", path.display()))?;
-    Ok(obs)
-}
-
-fn read_prior(args: &SurfaceArgs) -> Result<Option<TriMesh>> {
-    let method = method_of(args)?;
-    match &args.prior {
-        Some(path) => {
-            Ok(Some(moe_io::read_mesh(path).with_context(|| {
-                format!("reading prior {}", path.display())
-            })?))
-        }
-        None if method.needs_prior() => {
-            bail!("--method {:?} needs --prior PRIOR.obj", args.method)
-        }
-        None => Ok(None),
-    }
-}
-
 /// The library's method for the command line's choice.
-fn method_of(args: &SurfaceArgs) -> Result<SurfaceMethod> {
-    Ok(match args.method {
+fn method_of(args: &SurfaceArgs) -> SurfaceMethod {
+    match args.method {
         Method::Prior => SurfaceMethod::Prior {
             registration: args.register.map(|kind| {
                 let pose_prior = (!args.no_pose_prior).then(|| {
@@ -229,7 +177,7 @@ fn method_of(args: &SurfaceArgs) -> Result<SurfaceMethod> {
             value: args.mean_value,
         },
         Method::Nonprob => SurfaceMethod::NonProbabilistic,
-    })
+    }
 }
 
 fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
@@ -277,7 +225,7 @@ fn options_of(args: &SurfaceArgs) -> Result<SurfaceOptions> {
         }
     };
     Ok(SurfaceOptions {
-        method: method_of(args)?,
+        method: method_of(args),
         surface: ReconstructOptions {
             gpis,
             max_grid_nodes: args.grid.saturating_pow(3),
@@ -320,146 +268,25 @@ pub(crate) fn run(args: SurfaceArgs) -> Result<()> {
             bail!("--method nonprob needs --out SURFACE.obj");
         }
     }
-    let t0 = Instant::now();
-    let obs = read_observations(&args.contacts)?;
-    let prior = read_prior(&args)?;
     let options = options_of(&args)?;
-    let mut report = serde_json::Map::new();
-    report.insert(
-        "method".into(),
-        json!(format!("{:?}", args.method).to_lowercase()),
-    );
-    report.insert("contacts".into(), json!(obs.contacts().len()));
-    if args.method == Method::Constant && obs.num_interior() == 0 {
-        eprintln!("surface: no inside observation; the contacts' centroid is added as one");
+    if args.prior.is_none() && options.method.needs_prior() {
+        bail!("--method {:?} needs --prior PRIOR.obj", args.method);
     }
-
-    let gpis = if let Some(out) = &args.out {
-        let (rec, gpis) = reconstruct_surface(&obs, prior.as_ref(), &options)?;
-        moe_io::write_mesh(out, &rec.mesh)?;
-        if let Some(vpath) = &args.variance_out {
-            let ply = moe_io::PlyData::with_variance(&rec.mesh, &rec.vertex_variance);
-            moe_io::write_ply(vpath, &ply)?;
-        }
-        insert_fitted(&mut report, rec.registration.as_ref(), rec.sphere.as_ref())?;
-        report.insert("gated_contacts".into(), json!(rec.gated_contacts));
-        if let Some(cond) = &rec.condition {
-            report.insert("observations".into(), json!(rec.observations));
-            insert_condition(&mut report, cond)?;
-            report.insert("mesher".into(), json!(mesher_name(&args)));
-        }
-        report.insert("vertices".into(), json!(rec.mesh.num_vertices()));
-        report.insert("faces".into(), json!(rec.mesh.num_faces()));
-        if let Some(dims) = rec.grid_dims {
-            report.insert("grid_dims".into(), json!(dims));
-        }
-        match rec.timings {
-            Some(t) => report.insert("timings".into(), serde_json::to_value(t)?),
-            None => report.insert("timings".into(), json!({ "total_secs": rec.secs })),
-        };
-        gpis
-    } else {
-        let (gpis, cond, fitted) = condition_surface(&obs, prior.as_ref(), &options)?;
-        insert_fitted(
-            &mut report,
-            fitted.registration.as_ref(),
-            fitted.sphere.as_ref(),
-        )?;
-        report.insert("observations".into(), json!(fitted.observations));
-        report.insert("gated_contacts".into(), json!(fitted.gated_contacts));
-        report.insert("mesher".into(), json!(mesher_name(&args)));
-        insert_condition(&mut report, &cond)?;
-        report.insert("timings".into(), json!({ "fit_secs": cond.secs }));
-        Some(gpis)
+    let files = SurfaceFiles {
+        contacts: args.contacts,
+        prior: args.prior,
+        out: args.out,
+        variance_out: args.variance_out,
+        query: args.query.zip(args.query_out),
     };
-
-    if let (Some(gpis), Some(q), Some(qout)) = (&gpis, &args.query, &args.query_out) {
-        let rows = moe_io::read_points_csv(q)?;
-        let pts: Vec<Point3> = rows.iter().map(|r| Point3::new(r[0], r[1], r[2])).collect();
-        let t = Instant::now();
-        let values = gpis
-            .query(&pts)
-            .with_context(|| format!("querying {}", q.display()))?;
-        let rows: Vec<Vec<f64>> = values.iter().map(|(m, s)| vec![*m, *s]).collect();
-        moe_io::write_csv(qout, &["mean", "std"], &rows)?;
-        report.insert("queries".into(), json!(pts.len()));
-        report.insert("query_secs".into(), json!(t.elapsed().as_secs_f64()));
+    let report = moe_lab::surface_job::reconstruct_files(&files, &options)?;
+    for note in &report.notes {
+        eprintln!("surface: {note}");
     }
-    report.insert("total_secs".into(), json!(t0.elapsed().as_secs_f64()));
-    finish(&args, report)
-}
-
-fn mesher_name(args: &SurfaceArgs) -> String {
-    format!("{:?}", args.mesher).to_lowercase()
-}
-
-/// The registration and the fitted sphere, when the method produced them.
-fn insert_fitted(
-    report: &mut serde_json::Map<String, serde_json::Value>,
-    registration: Option<&IcpReport>,
-    sphere: Option<&SphereMean>,
-) -> Result<()> {
-    if let Some(icp) = registration {
-        eprintln!(
-            "surface: registered the prior ({} iterations, RMS {:.2} mm -> {:.2} mm)",
-            icp.iterations,
-            1e3 * icp.rms_before_m,
-            1e3 * icp.rms_after_m
-        );
-        report.insert("registration".into(), serde_json::to_value(icp)?);
-    }
-    if let Some(s) = sphere {
-        report.insert(
-            "sphere".into(),
-            json!({ "center_m": [s.center.x, s.center.y, s.center.z], "radius_m": s.radius }),
-        );
-    }
-    Ok(())
-}
-
-fn insert_condition(
-    report: &mut serde_json::Map<String, serde_json::Value>,
-    cond: &moe_gpis::ConditionReport,
-) -> Result<()> {
-    let h = cond.hyper;
-    report.insert(
-        "hyper".into(),
-        json!({
-            "lengthscale_m": h.lengthscale,
-            "signal_variance_m2": h.signal_variance,
-            "noise_variance_m2": h.noise_variance,
-            "fitted": cond.fit.is_some(),
-        }),
-    );
-    report.insert(
-        "log_marginal_likelihood".into(),
-        json!(cond.log_marginal_likelihood),
-    );
-    report.insert("sparse".into(), json!(cond.sparse));
-    report.insert("jitter".into(), json!(cond.jitter));
-    if let Some(fit) = &cond.fit {
-        report.insert("fit".into(), serde_json::to_value(fit)?);
-    }
-    Ok(())
-}
-
-fn finish(args: &SurfaceArgs, report: serde_json::Map<String, serde_json::Value>) -> Result<()> {
     if args.json {
-        return super::print_json(&serde_json::Value::Object(report));
+        // Through a JSON value, whose keys are sorted, as this report has always printed them.
+        return super::print_json(&serde_json::to_value(&report)?);
     }
-    let get = |k: &str| {
-        report
-            .get(k)
-            .map(|v| v.to_string())
-            .unwrap_or_else(|| "-".into())
-    };
-    super::outln!(
-        "surface: method {}, {} contacts, {} vertices, hyper {}, log marginal likelihood {}",
-        get("method").trim_matches('"'),
-        get("contacts"),
-        get("vertices"),
-        get("hyper"),
-        get("log_marginal_likelihood")
-    );
+    super::outln!("{}", report.line());
     Ok(())
 }

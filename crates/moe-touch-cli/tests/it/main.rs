@@ -1,6 +1,7 @@
 //! Integration tests of the `moe-touch` binary: one module per subcommand.
 
 mod arap;
+mod args;
 mod common;
 mod contact;
 mod episode;

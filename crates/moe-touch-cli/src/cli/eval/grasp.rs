@@ -10,16 +10,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 use moe_geom::Real;
-use moe_io::PlyData;
+use moe_lab::golden::SHIPPED_MODEL;
 use moe_lab::grasp::{
     GraspInclineRow, GraspOptions, GraspStudyOptions, GraspStudyReport, GraspStudySource,
-    GraspTrial, PlaneSource, PressOutcome, run_grasp_study,
+    run_grasp_study, trial_point_clouds,
 };
 use moe_touch::pipeline::check_contact_threshold;
-use serde_json::Value;
-
-use crate::cli::eval::contact::SHIPPED_MODEL;
-use crate::golden::workspace_root;
 
 /// Arguments of `moe-touch eval grasp`.
 #[derive(Debug, Args)]
@@ -73,31 +69,6 @@ pub(crate) struct GraspEvalArgs {
     out: Option<PathBuf>,
 }
 
-/// Writes one trial's points under `dir` (see [`GraspEvalArgs::out`]).
-fn write_trial(dir: &Path, trial: &GraspTrial) -> Result<()> {
-    let dir = dir
-        .join(format!("incline_{}", trial.incline_deg))
-        .join(format!("trial_{}", trial.trial));
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let cloud = |points: &[moe_geom::ContactPoint]| {
-        let xyz: Vec<moe_geom::Point3> = points.iter().map(|c| c.point).collect();
-        PlyData::from_points(&xyz).with_scalar("finger", points.iter().map(|c| c.finger as Real))
-    };
-    let mut inlier = vec![0.0; trial.plane_points.len()];
-    for &i in &trial.inlier_indices {
-        inlier[i] = 1.0;
-    }
-    let plane = cloud(&trial.plane_points)
-        .with_scalar(
-            "probability",
-            trial.plane_points.iter().map(|c| c.probability),
-        )
-        .with_scalar("inlier", inlier);
-    moe_io::write_ply(&dir.join("plane_points.ply"), &plane)?;
-    moe_io::write_ply(&dir.join("true_contacts.ply"), &cloud(&trial.true_points))?;
-    Ok(())
-}
-
 /// The pipeline's contact estimation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub(crate) enum GraspMethod {
@@ -125,7 +96,7 @@ fn evaluate(options: &GraspStudyOptions, out: Option<&Path>) -> Result<GraspStud
     run_grasp_study(options, |row: &GraspInclineRow| -> Result<()> {
         if let Some(dir) = out {
             for trial in &row.trials_detail {
-                write_trial(dir, trial)?;
+                super::write_plys(dir, &trial_point_clouds(trial))?;
             }
         }
         eprintln!(
@@ -137,74 +108,6 @@ fn evaluate(options: &GraspStudyOptions, out: Option<&Path>) -> Result<GraspStud
         started = std::time::Instant::now();
         Ok(())
     })
-}
-
-/// The study's tables: successes per incline beside the paper's, then every trial's planes.
-fn print_table(r: &GraspStudyReport) {
-    println!("plane from: {}", r.contacts.name());
-    println!(
-        "incline   with MOE-Touch  (paper)   without  (paper)   incline error max   fits failed"
-    );
-    for row in &r.rows {
-        println!(
-            "{:?}°    {} / {}      ({} / 5)    {} / {} ({} / 5)    {:>8}          {}",
-            row.incline_deg,
-            row.success_with,
-            row.trials,
-            row.paper_with_of_5,
-            row.success_without,
-            row.trials,
-            row.paper_without_of_5,
-            row.max_incline_error_deg
-                .map_or("—".to_owned(), |e| format!("{e:.2}°")),
-            row.fits_failed,
-        );
-    }
-    println!(
-        "\nper trial: true incline → estimated incline (per fit: plane through, error of the normal; \
-         fingers touching at each press)"
-    );
-    let touching = |p: &PressOutcome| {
-        p.contact_vertices
-            .iter()
-            .filter(|&&n| n >= r.options.min_contact_vertices)
-            .count()
-    };
-    for row in &r.rows {
-        for t in &row.trials_detail {
-            let fits: Vec<String> = t
-                .fits
-                .iter()
-                .map(|f| {
-                    format!(
-                        "{} {}{}",
-                        f.source.map_or("no fit", PlaneSource::name),
-                        f.normal_error_deg
-                            .map_or("—".to_owned(), |e| format!("{e:.1}°")),
-                        if f.press_depth_m > r.options.press_m + 1e-9 {
-                            format!(" (pressed {:.0} mm)", f.press_depth_m * 1e3)
-                        } else {
-                            String::new()
-                        }
-                    )
-                })
-                .collect();
-            let presses: Vec<String> = std::iter::once(&t.first_press)
-                .chain(t.fits.iter().filter_map(|f| f.press.as_ref()))
-                .map(|p| touching(p).to_string())
-                .collect();
-            println!(
-                "  {:?}° trial {}: {:>7}  ({}; presses {}) {}",
-                t.incline_deg,
-                t.trial,
-                t.estimated_incline_deg
-                    .map_or("no fit".to_owned(), |e| format!("{e:.2}°")),
-                fits.join(", "),
-                presses.join(" → "),
-                if t.success_with { "success" } else { "failed" }
-            );
-        }
-    }
 }
 
 pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
@@ -236,85 +139,29 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     };
     let report = evaluate(&options, args.out.as_deref())?;
     if args.json {
-        // Keys sorted, as the report has always been printed.
-        println!("{}", serde_json::to_value(&report)?);
+        super::print_json(&report, false)
     } else {
-        print_table(&report);
+        crate::cli::print_text(&report.table());
+        Ok(())
     }
-    Ok(())
-}
-
-/// The study of the golden fixture: one trial per incline, the paper's pipeline, defaults.
-fn fixture_options() -> GraspStudyOptions {
-    GraspStudyOptions {
-        trials: 1,
-        model: workspace_root().join(SHIPPED_MODEL),
-        camera_seed: 0,
-        source: GraspStudySource::Pipeline,
-        threshold: None,
-        grasp: GraspOptions::default(),
-    }
-}
-
-/// The golden content of one trial per incline, rounded to 1e-3.
-pub(crate) fn grasp_fixture() -> Result<Value> {
-    let mut v = serde_json::to_value(evaluate(&fixture_options(), None)?)?;
-    crate::cli::eval::patting::round3(&mut v);
-    Ok(v)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use clap::Parser;
-    use moe_geom::{ContactPoint, Point3};
+    use moe_lab::golden::workspace_root;
 
-    /// `--out` writes a trial's plane points with their finger, probability and inlier flag,
-    /// and the simulator's contacts, and they read back as written.
-    #[test]
-    fn a_trials_points_are_written_and_read_back() {
-        let point = |finger, x: Real, probability| ContactPoint {
-            finger,
-            vertex: 3,
-            point: Point3::new(x, 0.01, -0.02),
-            probability,
-        };
-        let press = PressOutcome {
-            contact_vertices: vec![0, 4, 0],
-            axis_error_deg: 30.0,
-            success: false,
-        };
-        let trial = GraspTrial {
-            incline_deg: 30.0,
-            trial: 2,
-            first_press: press.clone(),
-            fits: Vec::new(),
-            estimated_incline_deg: None,
-            normal_error_deg: None,
-            final_press: None,
-            success_with: false,
-            success_without: false,
-            plane_points: vec![
-                point(0, 0.0, 0.7),
-                point(1, 0.001, 0.9),
-                point(2, 0.002, 0.8),
-            ],
-            inlier_indices: vec![0, 2],
-            true_points: vec![point(1, 0.005, 1.0)],
-        };
-        let dir = std::env::temp_dir().join(format!("xtask-grasp-out-{}", std::process::id()));
-        write_trial(&dir, &trial).unwrap();
-        let base = dir.join("incline_30").join("trial_2");
-        let plane = moe_io::read_ply(&base.join("plane_points.ply")).unwrap();
-        assert_eq!(plane.points.len(), 3);
-        assert!((plane.points[1].x - 0.001).abs() < 1e-9);
-        assert_eq!(plane.scalar("finger").unwrap(), &[0.0, 1.0, 2.0]);
-        assert_eq!(plane.scalar("probability").unwrap(), &[0.7, 0.9, 0.8]);
-        assert_eq!(plane.scalar("inlier").unwrap(), &[1.0, 0.0, 1.0]);
-        let truth = moe_io::read_ply(&base.join("true_contacts.ply")).unwrap();
-        assert_eq!(truth.points.len(), 1);
-        assert_eq!(truth.scalar("finger").unwrap(), &[1.0]);
-        std::fs::remove_dir_all(&dir).unwrap();
+    /// The study of the golden fixture: one trial per incline, the paper's pipeline, defaults.
+    fn fixture_options() -> GraspStudyOptions {
+        GraspStudyOptions {
+            trials: 1,
+            model: workspace_root().join(SHIPPED_MODEL),
+            camera_seed: 0,
+            source: GraspStudySource::Pipeline,
+            threshold: None,
+            grasp: GraspOptions::default(),
+        }
     }
 
     /// A contact threshold outside [0, 1] or a plane threshold that is not a positive distance

@@ -13,10 +13,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use moe_geom::Real;
-use moe_lab::labels::{
-    LabelStudyOptions, LabelStudyReport, VISIBLE_DEFORMATION_M, run_label_study,
-};
+use moe_lab::labels::{LabelStudyOptions, run_label_study};
 
 /// Arguments of `moe-touch eval labels`.
 #[derive(Debug, Args)]
@@ -42,55 +39,8 @@ pub(crate) fn run(args: &LabelsEvalArgs) -> Result<()> {
     })?;
     eprintln!();
     if args.json {
-        // Keys sorted, as the report has always been printed.
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::to_value(&report)?)?
-        );
-        return Ok(());
+        return super::print_json(&report, true);
     }
-    print_table(&report);
+    crate::cli::print_text(&report.table());
     Ok(())
-}
-
-fn print_table(r: &LabelStudyReport) {
-    println!(
-        "label rules on {} trajectories of seed {} ({} diverged and skipped)",
-        r.trajectories, r.seed, r.failed
-    );
-    println!(
-        "{:<26} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9}",
-        "rule",
-        "ratio",
-        "frames",
-        "v/frame",
-        "patches",
-        "single",
-        "on base",
-        "mk still",
-        "sf still",
-        "mk def mm"
-    );
-    for s in &r.rules {
-        let lf = s.labelled_frames.max(1) as Real;
-        println!(
-            "{:<26} {:>8.3}% {:>8.1}% {:>8.1} {:>8} {:>8} {:>8} {:>8.1}% {:>8.1}% {:>9.3}",
-            s.rule,
-            100.0 * s.labelled_vertices as Real / s.vertices.max(1) as Real,
-            100.0 * s.labelled_frames as Real / s.frames.max(1) as Real,
-            s.labelled_vertices as Real / lf,
-            s.patches,
-            s.single_vertex_patches,
-            s.labels_on_base,
-            100.0 * s.frames_markers_still as Real / lf,
-            100.0 * s.frames_surface_still as Real / lf,
-            1e3 * s.sum_marker_deformation_m / lf,
-        );
-    }
-    println!(
-        "ratio: labelled vertices; frames: frames with a label; single: one-vertex patches; \
-         still: labelled frames whose markers (mk) or whole surface (sf) moved < {} mm from \
-         the obstacle-free twin; mk def: mean largest marker deformation of labelled frames",
-        VISIBLE_DEFORMATION_M * 1e3
-    );
 }

@@ -3,19 +3,15 @@
 //! arm patting and the three inclined plates. Per scene: detection rate of the markers visible in
 //! the ground truth, position error, false detections, identity swaps, and SR-ARAP shape BCD
 //! from the detected keypoints against from every true marker. The study is
-//! `moe_lab::markers::run_marker_study`; this command draws the overlays and prints.
+//! `moe_lab::markers::run_marker_study`, its scenes built in (so an installed binary runs it
+//! from any directory); this command draws the overlays and prints.
 
 use std::path::PathBuf;
 
-use crate::overlay::draw_detection;
 use anyhow::{Context, Result};
 use clap::Args;
-use moe_lab::markers::{
-    MARKER_SCENES, MarkerSceneView, MarkerStudyOptions, MarkerStudyReport, PooledPlateMarkers,
-    run_marker_study,
-};
-
-use crate::golden::workspace_root;
+use moe_lab::markers::{MARKER_SCENES, MarkerSceneView, MarkerStudyOptions, run_marker_study};
+use moe_lab::overlay::draw_detection;
 
 /// Arguments of `moe-touch eval markers`.
 #[derive(Debug, Args)]
@@ -52,7 +48,6 @@ pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
     let detector = crate::cli::load_detector_config(args.config.as_deref())?;
     let options = MarkerStudyOptions {
         scenes: args.scenes.clone(),
-        scene_dir: workspace_root().join("fixtures/scenes"),
         camera_seed: args.seed,
         ideal: args.ideal,
         detector,
@@ -72,12 +67,11 @@ pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
         Ok(())
     })?;
     if args.json {
-        // Keys sorted, as the report has always been printed.
-        println!("{}", serde_json::to_value(&report)?);
+        super::print_json(&report, false)
     } else {
-        println!("{}", format_table(&report));
+        crate::cli::print_text(&report.table());
+        Ok(())
     }
-    Ok(())
 }
 
 /// The first and middle frame of a scene with its detections drawn, as
@@ -93,51 +87,4 @@ fn write_overlays(out: &std::path::Path, scene: &MarkerSceneView<'_>) -> Result<
         }
     }
     Ok(())
-}
-
-fn format_table(report: &MarkerStudyReport) -> String {
-    let mut s = String::new();
-    s.push_str(
-        "scene                frames  visible  detected   err mean/p95/max mm  false  swaps  BCD det / seen / all mm  ms/frame\n",
-    );
-    for r in &report.scenes {
-        let m = &r.markers;
-        s.push_str(&format!(
-            "{:<20} {:>6} {:>8} {:>8.2} %   {:>5.2} / {:>4.2} / {:>4.2}   {:>5} {:>6}     {:>5.3} / {:>5.3} / {:>5.3}   {:>7.2}\n",
-            r.scene,
-            m.frames,
-            m.visible,
-            100.0 * m.detection_rate,
-            m.mean_error_mm,
-            m.p95_error_mm,
-            m.max_error_mm,
-            m.false_detections,
-            m.identity_swaps,
-            r.shape_bcd_detected_mm,
-            r.shape_bcd_truth_visible_mm,
-            r.shape_bcd_truth_mm,
-            r.detect_ms,
-        ));
-    }
-    if let Some(p) = &report.plates {
-        s.push_str(&plates_line(p));
-    }
-    s
-}
-
-fn plates_line(p: &PooledPlateMarkers) -> String {
-    format!(
-        "plates pooled: {:.2} % of {} visible markers detected, error mean {:.2} / p95 {:.2} / max {:.2} mm, {} false, {} swaps; shape BCD {:.3} mm from detections, {:.3} mm from the visible true markers, {:.3} mm from every true marker (worst frame +{:.3} mm)",
-        100.0 * p.detection_rate,
-        p.visible,
-        p.mean_error_mm,
-        p.p95_error_mm,
-        p.max_error_mm,
-        p.false_detections,
-        p.identity_swaps,
-        p.shape_bcd_detected_mm,
-        p.shape_bcd_truth_visible_mm,
-        p.shape_bcd_truth_mm,
-        p.shape_bcd_worst_excess_mm,
-    )
 }

@@ -23,18 +23,15 @@ use clap::{Args, ValueEnum};
 use moe_contact::KnnIndex;
 use moe_geom::Real;
 use moe_gpis::HyperBounds;
-use moe_gpis::bench_scene::{SceneKind, Spread};
-use moe_io::DatasetReader;
-use moe_lab::contact_eval::{build_knn_index, read_knn_index};
+use moe_gpis::bench_scene::SceneKind;
+use moe_lab::contact_eval::{heldout_knn_index, read_knn_index};
+use moe_lab::golden::SHIPPED_MODEL;
 use moe_lab::patting::{
     DEFAULT_ESTIMATED_NOISE_FLOOR_M, DEFAULT_PRIOR_GATE_M, PattingSize, PattingStudyOptions,
-    PattingStudyReport, TABLE3_METHODS, body_name, run_patting_study,
+    PattingStudyReport, body_name, patting_hand, run_patting_study,
 };
-use serde_json::{Value, json};
 
 use crate::cli::eval::Size;
-use crate::cli::eval::contact::{HELDOUT_DIR, SHIPPED_MODEL};
-use crate::golden::workspace_root;
 
 /// A body to pat.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -99,21 +96,11 @@ pub(crate) struct PattingEvalArgs {
 }
 
 /// The `KNN[All]` index: from a file (of the patting hand, the two-finger preset), or built
-/// from the committed held-out set.
+/// from the committed held-out set (built in).
 fn knn_index(path: Option<&Path>) -> Result<KnnIndex> {
     Ok(match path {
-        Some(path) => {
-            let hand = moe_geom::HandModel::preset(
-                moe_geom::HandPreset::TwoFinger,
-                &moe_geom::FingerParams::default(),
-            )?;
-            read_knn_index(path, &hand.signature().vertices_per_finger)?
-        }
-        None => build_knn_index(
-            &DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?,
-            None,
-            false,
-        )?,
+        Some(path) => read_knn_index(path, &patting_hand()?.signature().vertices_per_finger)?,
+        None => heldout_knn_index()?,
     })
 }
 
@@ -159,108 +146,12 @@ fn evaluate(args: &PattingEvalArgs) -> Result<PattingStudyReport> {
     })
 }
 
-/// The paper's figures (Tables 2 and 3; its arm rows of Table 3 are of a real gowned arm, not
-/// reproduced here).
-fn paper(body: &str) -> (Real, Real, Option<[Real; 4]>) {
-    match body {
-        "head" => (6.58, 7.76, Some([3.64, 13.83, 16.01, 5.46])),
-        _ => (6.24, 6.88, None),
-    }
-}
-
-fn fmt(s: Option<Spread>) -> String {
-    match s {
-        Some(Spread { mean, sd }) => format!("{mean:6.2} ± {sd:5.2}"),
-        None => "      —       ".to_owned(),
-    }
-}
-
-fn print_tables(r: &PattingStudyReport) {
-    for b in &r.bodies {
-        let name = body_name(b.body);
-        let s = &b.summary;
-        let t2 = &s.table2;
-        let (paper_dgcnn, paper_knn, paper_t3) = paper(name);
-        println!(
-            "{name}: {} pats over {} pair(s); KNN[All] index of {} frames",
-            t2.pats, r.pairs, r.knn_index_frames
-        );
-        println!("  Table 2, contact points to the true surface (UCD mm):   ours            paper");
-        println!(
-            "    DGCNN      {}  ({} pats without contact)  {paper_dgcnn:5.2}",
-            fmt(t2.dgcnn_ucd_mm),
-            t2.dgcnn_pats_without_contact
-        );
-        println!(
-            "    KNN[All]   {}  ({} pats without contact)  {paper_knn:5.2}",
-            fmt(t2.knn_all_ucd_mm),
-            t2.knn_all_pats_without_contact
-        );
-        println!(
-            "    physics    {}  ({} pats without contact)",
-            fmt(t2.physics_ucd_mm),
-            t2.physics_pats_without_contact
-        );
-        println!("    true contacts {}", fmt(t2.true_contacts_ucd_mm));
-        println!(
-            "  Table 3, surface to the true surface (UCD mm): from DGCNN contacts | from physics contacts | from true contacts | paper"
-        );
-        for (i, m) in TABLE3_METHODS.iter().enumerate() {
-            let p = paper_t3.map_or("—".to_owned(), |p| format!("{:.2}", p[i]));
-            println!(
-                "    {m:<10} {}   {}   {}   {p}",
-                fmt(s.table3_estimated.method(m)),
-                fmt(s.table3_physics.method(m)),
-                fmt(s.table3_true_contacts.method(m))
-            );
-        }
-    }
-}
-
 pub(crate) fn run(args: &PattingEvalArgs) -> Result<()> {
     let report = evaluate(args)?;
     if args.json {
-        // Keys sorted, as the report has always been printed.
-        println!("{}", serde_json::to_value(&report)?);
+        super::print_json(&report, false)
     } else {
-        print_tables(&report);
+        crate::cli::print_text(&report.table());
+        Ok(())
     }
-    Ok(())
-}
-
-/// Rounds every float of `v` to 1e-3 (golden fixtures compare across machines).
-pub(crate) fn round3(v: &mut Value) {
-    match v {
-        Value::Number(n) => {
-            if let Some(f) = n.as_f64()
-                && n.is_f64()
-            {
-                *v = json!((f * 1e3).round() / 1e3);
-            }
-        }
-        Value::Array(a) => a.iter_mut().for_each(round3),
-        Value::Object(o) => o.values_mut().for_each(round3),
-        _ => {}
-    }
-}
-
-/// The golden content of `eval patting --size small`: every figure rounded to µm, timings left
-/// out.
-pub(crate) fn patting_fixture() -> Result<Value> {
-    let args = PattingEvalArgs {
-        size: Size::Small,
-        pairs: None,
-        bodies: Vec::new(),
-        model: workspace_root().join(SHIPPED_MODEL),
-        knn_index: None,
-        seed: 0,
-        out: None,
-        json: true,
-        prior_gate: DEFAULT_PRIOR_GATE_M,
-        estimated_noise_floor: DEFAULT_ESTIMATED_NOISE_FLOOR_M,
-    };
-    // What depends on the machine left out: timings, vertex counts of meshes.
-    let mut v = moe_lab::without_keys(&evaluate(&args)?, &["secs", "variance_secs", "vertices"])?;
-    round3(&mut v);
-    Ok(v)
 }

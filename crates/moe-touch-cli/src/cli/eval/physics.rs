@@ -2,19 +2,14 @@
 //! sensors are specified (detection, location and force error by the finger's true force),
 //! beside the paper's per-vertex metrics for the physics estimator, the DGCNN on its shapes and
 //! the paper's chain (SR-ARAP + DGCNN) on the same markers — a thin command over
-//! `moe_lab::physics_eval`.
+//! `moe_lab::physics_study`, whose report makes the tables.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
 use moe_geom::Real;
-use moe_lab::physics_eval::PhysicsEvaluation;
-use moe_lab::physics_study::{
-    PhysicsFrames, PhysicsPlateRegions, PhysicsRegionStat, PhysicsStudyOptions, physics_golden,
-    physics_study,
-};
-use moe_physics::PhysicsConfig;
+use moe_lab::physics_study::{PhysicsFrames, PhysicsStudyOptions, physics_study};
 use moe_tendon_sim::randomize::RandomSceneParams;
 
 /// Arguments of `moe-touch eval physics`.
@@ -118,185 +113,13 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
     let study = physics_study(&options, &mut |t, n| {
         eprintln!("eval physics: simulated trajectory {t} of {n}");
     })?;
-    if let Some(report) = &study.calibration {
-        eprintln!(
-            "eval physics: calibrated on {} frames: E {:.0} Pa (resolution {:.1} %), damping \
-             {:.4} s, RMS {:.4} -> {:.4} mm ({} evaluations)",
-            report.frames,
-            report.material.material.youngs_modulus_pa,
-            100.0 * report.youngs_modulus_resolution,
-            report.material.material.rayleigh_stiffness,
-            report.rms_initial_m * 1e3,
-            report.rms_fitted_m * 1e3,
-            report.evaluations
-        );
+    if let Some(line) = study.calibration_summary() {
+        eprintln!("eval physics: {line}");
     }
-    let report = &study.report;
     if args.json {
-        println!("{}", crate::cli::eval::sorted_json(report)?);
+        super::print_json(&study.report, false)
     } else {
-        print!("{}", table(&report.evaluation));
-        if !report.plates.trials.is_empty() {
-            print!("{}", plate_table(&report.plates.regions));
-        }
+        crate::cli::print_text(&study.report.tables());
+        Ok(())
     }
-    Ok(())
-}
-
-/// Table 2 as Markdown.
-pub(crate) fn plate_table(regions: &PhysicsPlateRegions) -> String {
-    use std::fmt::Write as _;
-    let mut s = String::from(
-        "\n| region | physics UCD mm (missed) | DGCNN on the physics shape UCD mm (missed) |\n|---|---|---|\n",
-    );
-    let cell = |r: &PhysicsRegionStat| {
-        format!(
-            "{:.2} ± {:.2} ({:.0} %)",
-            r.ucd_mean_mm,
-            r.ucd_sd_mm,
-            100.0 * r.missed_fraction
-        )
-    };
-    for (name, region) in regions.in_order() {
-        let _ = writeln!(
-            s,
-            "| {name} | {} | {} |",
-            cell(&region.physics),
-            cell(&region.dgcnn_on_physics)
-        );
-    }
-    s
-}
-
-/// The report as Markdown tables.
-pub(crate) fn table(e: &PhysicsEvaluation) -> String {
-    use std::fmt::Write as _;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "{} frames of {} trajectories, markers: {}; physics estimator {:.1} ms per frame \
-         (median; p90 {:.1}); {} finger-frames failed",
-        e.frames,
-        e.trajectories,
-        e.markers,
-        e.physics_ms_median,
-        e.physics_ms_p90,
-        e.failed_fingers
-    );
-    let _ = writeln!(
-        s,
-        "\n| contact estimation | BCD mm | UCD mm | missed frames | false-alarm frames | P | R | F1 | IoU |\n|---|---|---|---|---|---|---|---|---|"
-    );
-    let mut row = |name: &str, r: &moe_contact::ContactReport| {
-        let _ = writeln!(
-            s,
-            "| {name} | {:.2} | {:.2} | {:.1} % | {:.1} % | {:.3} | {:.3} | {:.3} | {:.3} |",
-            r.bcd_mm,
-            r.ucd_mm,
-            100.0 * r.miss_rate,
-            100.0 * r.false_alarm_rate,
-            r.precision,
-            r.recall,
-            r.f1,
-            r.iou
-        );
-    };
-    row("physics estimator", &e.physics);
-    if let Some(r) = &e.dgcnn_on_physics {
-        row("DGCNN on the physics shape", r);
-    }
-    if let Some(r) = &e.dgcnn_on_sr_arap {
-        row("DGCNN on the SR-ARAP shape", r);
-    }
-    if let Some(r) = &e.physics_placed_by_dgcnn {
-        row("physics, placed by the DGCNN on its shape", r);
-    }
-    let _ = writeln!(
-        s,
-        "\nshape BCD: physics {:.3} mm{}",
-        e.physics_shape_bcd_mm,
-        if e.sr_arap_shape_bcd_mm.is_finite() {
-            format!(", SR-ARAP {:.3} mm", e.sr_arap_shape_bcd_mm)
-        } else {
-            String::new()
-        }
-    );
-    let f = &e.forces;
-    let _ = writeln!(
-        s,
-        "\n| true force (N) | fingers | detected | location median mm (along) | force error median N (%) |\n|---|---|---|---|---|"
-    );
-    for b in &f.bins {
-        let _ = writeln!(
-            s,
-            "| {:.2}–{} | {} | {:.1} % | {:.2} ({:.2}) | {:.3} ({:.0} %) |",
-            b.lo_n,
-            if b.hi_n.is_finite() {
-                format!("{:.2}", b.hi_n)
-            } else {
-                "∞".into()
-            },
-            b.fingers,
-            100.0 * b.detection_rate,
-            b.location_median_mm,
-            b.along_median_mm,
-            b.force_error_median_n,
-            b.force_error_median_pct
-        );
-    }
-    let _ = writeln!(
-        s,
-        "\nfalse alarms: {} of {} unpressed finger-frames ({:.1} %); smallest force detected 90 % of the time: {:.3} N; truth: {}",
-        f.false_alarm_fingers,
-        f.unpressed_fingers,
-        100.0 * f.false_alarm_fingers as Real / f.unpressed_fingers.max(1) as Real,
-        f.force_detected_90pct_n,
-        if f.net_force_truth {
-            "net force vectors"
-        } else {
-            "summed magnitudes (an old data set)"
-        }
-    );
-    let t = &e.stream;
-    let _ = writeln!(
-        s,
-        "presses (runs of contact frames of a finger): {}; detected in their first frame: {} \
-         ({:.1} %), after {:.2} frames on average; held frames after detection dropped: {} of {} \
-         ({:.1} %, {} presses flicker); releases still reported: {} of {} ({:.1} %)",
-        t.presses,
-        t.onset_detected,
-        100.0 * t.onset_detected as Real / t.presses.max(1) as Real,
-        t.onset_delay_frames_mean,
-        t.held_frames_dropped,
-        t.held_frames,
-        100.0 * t.held_frames_dropped as Real / t.held_frames.max(1) as Real,
-        t.presses_with_flicker,
-        t.release_false_alarms,
-        t.releases,
-        100.0 * t.release_false_alarms as Real / t.releases.max(1) as Real,
-    );
-    s
-}
-
-/// Golden physics stage: the physics estimator (nominal material, the settings for exact
-/// markers in `fixtures/physics/exact-markers.toml`) on the committed held-out trajectories as
-/// streams, from their exact markers: the contact figures, the force table and, per frame, the
-/// loads (finger, vertex, force) and every finger's statistic.
-pub(crate) fn golden_physics() -> Result<serde_json::Value> {
-    let root = crate::golden::workspace_root();
-    let config: PhysicsConfig =
-        moe_io::read_config(&root.join("fixtures/physics/exact-markers.toml"))?;
-    golden_physics_with(&config)
-}
-
-/// Golden physics stage with the default settings (those of the pipeline, for detected
-/// markers) on the same frames.
-pub(crate) fn golden_physics_default() -> Result<serde_json::Value> {
-    golden_physics_with(&PhysicsConfig::default())
-}
-
-/// The golden content of the physics estimator with `config` on the held-out frames.
-fn golden_physics_with(config: &PhysicsConfig) -> Result<serde_json::Value> {
-    let dir = crate::golden::workspace_root().join(crate::cli::eval::contact::HELDOUT_DIR);
-    crate::cli::eval::sorted_json(&physics_golden(&dir, config)?)
 }

@@ -162,6 +162,16 @@ pub fn text(img: &mut RgbImage, u: Real, v: Real, s: &str, c: Rgb<u8>) {
     }
 }
 
+/// `img` encoded as PNG.
+///
+/// # Errors
+/// The encoder's error (none is expected for an image in memory).
+pub fn png_bytes(img: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)?;
+    Ok(png)
+}
+
 /// A pixel rectangle `[x0, x1) × [y0, y1)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PixelBox {

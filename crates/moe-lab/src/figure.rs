@@ -2,21 +2,27 @@
 
 use std::fmt::Write as _;
 
-/// Grouped bars of the per-region plate errors (`region_summary`'s JSON): DGCNN and `KNN[All]`
-/// per region, mean with ±sd whiskers, in mm.
-pub(crate) fn region_bars(summary: &serde_json::Value) -> String {
-    let regions = ["tip", "middle", "base"];
-    let methods = [
-        ("dgcnn", "DGCNN (SR-ARAP)", "#d62728"),
-        ("knn_all", "KNN[All]", "#1f77b4"),
+use crate::contact_eval::{PlateRegion, PlateRegionStat, PlateRegions};
+
+/// Grouped bars of the per-region plate errors (Table 2's summary): DGCNN and `KNN[All]` per
+/// region, mean with ±sd whiskers, in mm. A mean that is not finite (no trial of the region
+/// found contact) draws no bar.
+pub fn region_bars(regions: &PlateRegions) -> String {
+    type Method = (
+        fn(&PlateRegion) -> &PlateRegionStat,
+        &'static str,
+        &'static str,
+    );
+    let methods: [Method; 2] = [
+        (|r| &r.dgcnn, "DGCNN (SR-ARAP)", "#d62728"),
+        (|r| &r.knn_all, "KNN[All]", "#1f77b4"),
     ];
-    let value = |r: &str, m: &str, k: &str| summary[r][m][k].as_f64().filter(|v| v.is_finite());
+    let finite = |v: f64| Some(v).filter(|v| v.is_finite());
     let top = regions
-        .iter()
-        .flat_map(|r| methods.iter().map(move |m| (r, m)))
-        .filter_map(|(r, m)| {
-            Some(value(r, m.0, "mean_mm")? + value(r, m.0, "sd_mm").unwrap_or(0.0))
-        })
+        .in_order()
+        .into_iter()
+        .flat_map(|(_, r)| methods.iter().map(move |m| m.0(r)))
+        .filter_map(|stat| Some(finite(stat.mean_mm)? + finite(stat.sd_mm).unwrap_or(0.0)))
         .fold(1.0_f64, f64::max);
     // A round axis maximum.
     let step = if top > 20.0 {
@@ -53,13 +59,14 @@ pub(crate) fn region_bars(summary: &serde_json::Value) -> String {
         );
         v += step;
     }
-    let group = (w - left - 20.0) / regions.len() as f64;
+    let group = (w - left - 20.0) / regions.in_order().len() as f64;
     let bar = group / 4.0;
-    for (i, r) in regions.iter().enumerate() {
+    for (i, (name, region)) in regions.in_order().into_iter().enumerate() {
         let x0 = left + group * i as f64 + group / 2.0 - bar;
-        for (j, (key, _, colour)) in methods.iter().enumerate() {
+        for (j, (stat, _, colour)) in methods.iter().enumerate() {
             let x = x0 + bar * j as f64;
-            if let Some(mean) = value(r, key, "mean_mm") {
+            let stat = stat(region);
+            if let Some(mean) = finite(stat.mean_mm) {
                 let _ = writeln!(
                     s,
                     r#"<rect x="{x:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="{colour}"/>"#,
@@ -67,7 +74,7 @@ pub(crate) fn region_bars(summary: &serde_json::Value) -> String {
                     bar * 0.9,
                     y(0.0) - y(mean)
                 );
-                let sd = value(r, key, "sd_mm").unwrap_or(0.0);
+                let sd = finite(stat.sd_mm).unwrap_or(0.0);
                 let cx = x + bar * 0.45;
                 let _ = writeln!(
                     s,
@@ -80,7 +87,7 @@ pub(crate) fn region_bars(summary: &serde_json::Value) -> String {
         }
         let _ = writeln!(
             s,
-            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{r}</text>"#,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{name}</text>"#,
             left + group * (i as f64 + 0.5),
             h - bottom + 18.0
         );
@@ -110,15 +117,23 @@ mod tests {
 
     #[test]
     fn bars_scale_to_the_largest_error_and_skip_missing_values() {
-        let summary = serde_json::json!({
-            "tip": {"dgcnn": {"mean_mm": 3.0, "sd_mm": 0.5}, "knn_all": {"mean_mm": 3.5, "sd_mm": 0.2}},
-            "middle": {"dgcnn": {"mean_mm": 7.0, "sd_mm": 1.0}, "knn_all": {"mean_mm": 13.5, "sd_mm": 2.0}},
-            "base": {"dgcnn": {"mean_mm": null, "sd_mm": null}, "knn_all": {"mean_mm": 20.0, "sd_mm": 1.0}},
-        });
-        let svg = region_bars(&summary);
+        let stat = |mean_mm: f64, sd_mm: f64| PlateRegionStat {
+            mean_mm,
+            sd_mm,
+            trials: 3,
+            trials_all_missed: 0,
+        };
+        let region = |dgcnn, knn_all| PlateRegion { dgcnn, knn_all };
+        let regions = PlateRegions {
+            tip: region(stat(3.0, 0.5), stat(3.5, 0.2)),
+            middle: region(stat(7.0, 1.0), stat(13.5, 2.0)),
+            base: region(stat(f64::NAN, f64::NAN), stat(20.0, 1.0)),
+        };
+        let svg = region_bars(&regions);
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
         // Five bars (one value is missing) and a 25 mm axis (21 rounded up to a step of 5).
         assert_eq!(svg.matches("<rect x=").count(), 5 + 2, "{svg}");
         assert!(svg.contains(">25</text>") && !svg.contains(">30</text>"));
+        assert!(svg.contains(">tip</text>") && svg.contains(">base</text>"));
     }
 }
