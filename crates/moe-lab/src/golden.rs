@@ -330,7 +330,7 @@ fn physics_heldout(config: &PhysicsConfig) -> Result<Value, LabError> {
 fn patting_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
     use crate::patting::{
         DEFAULT_ESTIMATED_NOISE_FLOOR_M, DEFAULT_PRIOR_GATE_M, PattingSize, PattingStudyOptions,
-        body_name, run_patting_study,
+        pair_progress, run_patting_study,
     };
     let options = PattingStudyOptions {
         size: PattingSize::Small,
@@ -349,11 +349,11 @@ fn patting_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
     )?;
     let mut started = std::time::Instant::now();
     let report = run_patting_study(&options, &knn, |body, k, pair| -> Result<(), LabError> {
-        progress(&format!(
-            "eval patting: {} pair {k}: {} pats in {:.1} s",
-            body_name(body),
-            pair.pats,
-            started.elapsed().as_secs_f64()
+        progress(&pair_progress(
+            body,
+            k,
+            pair,
+            started.elapsed().as_secs_f64(),
         ));
         started = std::time::Instant::now();
         Ok(())
@@ -378,12 +378,7 @@ fn grasp_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
     let mut started = std::time::Instant::now();
     let report =
         crate::grasp::run_grasp_study(&options, |row: &GraspInclineRow| -> Result<(), LabError> {
-            progress(&format!(
-                "eval grasp: {}°: {} trials in {:.1} s",
-                row.incline_deg,
-                row.trials,
-                started.elapsed().as_secs_f64()
-            ));
+            progress(&row.progress(started.elapsed().as_secs_f64()));
             started = std::time::Instant::now();
             Ok(())
         })?;

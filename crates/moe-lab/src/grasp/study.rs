@@ -89,6 +89,17 @@ pub struct GraspInclineRow {
     pub trials_detail: Vec<GraspTrial>,
 }
 
+impl GraspInclineRow {
+    /// The progress line of this finished incline (which took `secs`), as `eval grasp`
+    /// reports it.
+    pub fn progress(&self, secs: f64) -> String {
+        format!(
+            "eval grasp: {}°: {} trials in {secs:.1} s",
+            self.incline_deg, self.trials
+        )
+    }
+}
+
 /// The grasp study's report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GraspStudyReport {

@@ -33,7 +33,7 @@ pub use study::{
     DEFAULT_ESTIMATED_NOISE_FLOOR_M, DEFAULT_PRIOR_GATE_M, PatContactResult, PatPairReport,
     PattingBodyReport, PattingSize, PattingStudyOptions, PattingStudyReport, PattingSummary,
     PattingTable2, PattingTable3, SMALL_PATS, TABLE3_METHODS, body_name, body_seed,
-    check_distances, patting_hand, run_patting_study,
+    check_distances, pair_progress, patting_hand, run_patting_study,
 };
 
 /// The number of poses of a body's patting scene.

@@ -51,6 +51,16 @@ pub enum PattingSize {
     Full,
 }
 
+/// The progress line of a finished pair of pats (`k` of `body`, which took `secs`), as `eval
+/// patting` reports it.
+pub fn pair_progress(body: SceneKind, k: u64, pair: &PatPairReport, secs: f64) -> String {
+    format!(
+        "eval patting: {} pair {k}: {} pats in {secs:.1} s",
+        body_name(body),
+        pair.pats
+    )
+}
+
 /// The name of a patted body (`head`, `arm`).
 pub fn body_name(body: SceneKind) -> &'static str {
     match body {

@@ -99,12 +99,7 @@ fn evaluate(options: &GraspStudyOptions, out: Option<&Path>) -> Result<GraspStud
                 super::write_plys(dir, &trial_point_clouds(trial))?;
             }
         }
-        eprintln!(
-            "eval grasp: {}°: {} trials in {:.1} s",
-            row.incline_deg,
-            row.trials,
-            started.elapsed().as_secs_f64()
-        );
+        eprintln!("{}", row.progress(started.elapsed().as_secs_f64()));
         started = std::time::Instant::now();
         Ok(())
     })

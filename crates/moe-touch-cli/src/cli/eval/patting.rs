@@ -28,7 +28,7 @@ use moe_lab::contact_eval::{heldout_knn_index, read_knn_index};
 use moe_lab::golden::SHIPPED_MODEL;
 use moe_lab::patting::{
     DEFAULT_ESTIMATED_NOISE_FLOOR_M, DEFAULT_PRIOR_GATE_M, PattingSize, PattingStudyOptions,
-    PattingStudyReport, body_name, patting_hand, run_patting_study,
+    PattingStudyReport, pair_progress, patting_hand, run_patting_study,
 };
 
 use crate::cli::eval::Size;
@@ -135,12 +135,8 @@ fn evaluate(args: &PattingEvalArgs) -> Result<PattingStudyReport> {
     let knn = knn_index(args.knn_index.as_deref())?;
     let mut started = std::time::Instant::now();
     run_patting_study(&options(args), &knn, |body, k, pair| -> Result<()> {
-        eprintln!(
-            "eval patting: {} pair {k}: {} pats in {:.1} s",
-            body_name(body),
-            pair.pats,
-            started.elapsed().as_secs_f64()
-        );
+        let secs = started.elapsed().as_secs_f64();
+        eprintln!("{}", pair_progress(body, k, pair, secs));
         started = std::time::Instant::now();
         Ok(())
     })
