@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::{GeomError, Point3, Real};
+use crate::{GeomError, Point3, Real, Vector3};
 
 /// Pinhole intrinsics in pixels (no distortion).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -87,4 +87,30 @@ impl CameraIntrinsics {
             )
         })
     }
+}
+
+/// Distance along the unit ray `dir` from the origin to triangle `q`, `None` if it misses
+/// (Möller–Trumbore, both faces). With the camera at the origin, a point is hidden by a
+/// triangle whose distance along the point's ray is shorter than the point's.
+pub fn ray_triangle(dir: &Vector3, q: &[Point3; 3]) -> Option<Real> {
+    let e1 = q[1] - q[0];
+    let e2 = q[2] - q[0];
+    let p = dir.cross(&e2);
+    let det = e1.dot(&p);
+    if det.abs() < 1e-18 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = -q[0].coords;
+    let u = s.dot(&p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qv = s.cross(&e1);
+    let v = dir.dot(&qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(&qv) * inv;
+    (t > 0.0).then_some(t)
 }

@@ -90,6 +90,14 @@ pub struct BoundRecord {
     pub regions: Vec<RegionBound>,
     /// The per-vertex map's file.
     pub map: String,
+    /// What is observed: `markers`, `depth` or `markers and depth`.
+    pub observed: &'static str,
+    /// The depth image's model, when depth is observed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth: Option<moe_physics::DepthBoundModel>,
+    /// What that camera sees of the finger, when depth is observed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_coverage: Option<moe_physics::DepthCoverage>,
 }
 
 /// The bound of finger 0 with its per-vertex map.
@@ -203,6 +211,10 @@ pub fn finger_bound(
     let gravity = Vector3::new(0.0, 0.0, -Vector3::from(config.gravity_m_s2).norm());
     let pulls = vec![0.0; model.tendon_routes().len()];
     let bounds = estimator.location_bounds(0, &pulls, gravity, options)?;
+    let depth_coverage = match &options.depth {
+        Some(depth) => Some(estimator.depth_coverage(0, &pulls, gravity, depth)?),
+        None => None,
+    };
     let length = model
         .mesh()
         .vertices()
@@ -225,6 +237,13 @@ pub fn finger_bound(
         pulls: "zero",
         regions: region_bounds(&bounds, length),
         map: BOUND_MAP.to_owned(),
+        observed: match (options.markers, options.depth.is_some()) {
+            (true, true) => "markers and depth",
+            (false, _) => "depth",
+            (true, false) => "markers",
+        },
+        depth: options.depth.clone(),
+        depth_coverage,
     };
     Ok(FingerBound { record, map })
 }
@@ -329,17 +348,41 @@ impl HandRecord {
 impl BoundRecord {
     /// The bound as a heading line and a table of the regions.
     pub fn table(&self) -> String {
+        let depth = self.depth.as_ref().map_or(String::new(), |d| {
+            format!(
+                "; depth seen from the wrist camera ({} × {}, σ = {:.2} mm + {:.4} m⁻¹·z², \
+                 correlated {:.2} mm, unit {:.1} mm)",
+                d.intrinsics.width,
+                d.intrinsics.height,
+                d.sigma_base_m * 1e3,
+                d.sigma_per_m2,
+                d.correlated_sigma_m * 1e3,
+                d.quantum_m * 1e3
+            )
+        });
+        let seen = self.depth_coverage.as_ref().map_or(String::new(), |c| {
+            format!(
+                "; it sees {} of the finger's {} surface vertices, {:.0} depth pixels, at {:.1} \
+                 mm (median; 90 % within {:.1} mm)",
+                c.vertices,
+                c.surface_vertices,
+                c.pixels,
+                c.depth_m.median * 1e3,
+                c.depth_m.p90 * 1e3
+            )
+        });
         let mut lines = vec![
             format!(
                 "Cramér–Rao bound of a press on finger {} ({} markers, layout {}): {:.2} N along \
                  the inward normal, {} frame(s), marker noise {:.3} mm per coordinate, zero \
-                 pulls, gravity along the hand's −z",
+                 pulls, gravity along the hand's −z; observed: {}{depth}{seen}",
                 self.finger,
                 self.markers,
                 self.marker_layout,
                 self.force_n,
                 self.frames,
-                self.marker_sigma_m * 1e3
+                self.marker_sigma_m * 1e3,
+                self.observed
             ),
             format!(
                 "  {:<20} {:>8} {:>22} {:>22} {:>22}",

@@ -14,8 +14,8 @@ use moe_geom::{
     FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,
 };
 use moe_physics::{
-    BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound, RegionBound, quantile,
-    region_bounds,
+    BoundOptions, DepthBoundModel, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound,
+    RegionBound, quantile, region_bounds,
 };
 use serde::Serialize;
 
@@ -36,8 +36,9 @@ const SIDES: [(&str, Real, Real); 3] = [
 /// One layout's bound for one number of frames.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LayoutSummary {
-    /// The layout's name.
-    pub layout: &'static str,
+    /// What is observed: the marker layout's name, `depth` (the depth image alone), or the
+    /// layout `+ depth`; the depth rows with the harsher noise say so.
+    pub layout: String,
     /// Its markers on the finger.
     pub markers: usize,
     /// Frames of the held press (1: one frame).
@@ -66,6 +67,8 @@ pub struct SideSummary {
 pub struct LayoutBounds {
     /// The layout.
     pub layout: MarkerLayoutPreset,
+    /// What is observed (as [`LayoutSummary::layout`] names it).
+    pub observed: String,
     /// Finger 0 of the two-finger hand with that layout.
     pub finger: FingerModel,
     /// The bound at every movable surface vertex.
@@ -80,7 +83,8 @@ pub fn study_params(layout: MarkerLayoutPreset) -> FingerParams {
     }
 }
 
-/// The bound of every movable vertex of finger 0 of the two-finger hand with `layout`.
+/// The bound of every movable vertex of finger 0 of the two-finger hand with `layout`, seen as
+/// `options` says (its markers, the depth image of the default wrist camera, or both).
 ///
 /// # Errors
 /// Invalid `options`, a failing solve.
@@ -96,8 +100,14 @@ pub fn layout_bounds(
     let finger = one.fingers()[0].model.clone();
     let pulls = vec![0.0; finger.tendon_routes().len()];
     let bounds = estimator.location_bounds(0, &pulls, gravity, options)?;
+    let observed = match (options.markers, options.depth.is_some()) {
+        (true, false) => layout.name().to_owned(),
+        (true, true) => format!("{} + depth", layout.name()),
+        (false, _) => "depth".to_owned(),
+    };
     Ok(LayoutBounds {
         layout,
+        observed,
         finger,
         bounds,
     })
@@ -127,6 +137,15 @@ impl LayoutBounds {
             .filter(move |b| (lo..=hi).contains(&(b.rest_in_finger.z / length)))
     }
 
+    /// The markers observed: none for the depth image alone, else the layout's.
+    pub fn observed_markers(&self) -> usize {
+        if self.observed == "depth" || self.observed.starts_with("depth,") {
+            0
+        } else {
+            self.finger.marker_vertices().len()
+        }
+    }
+
     /// The summary per region and, at mid height, per side.
     pub fn summary(&self, frames: usize) -> LayoutSummary {
         let regions = region_bounds(&self.bounds, self.length());
@@ -149,8 +168,8 @@ impl LayoutBounds {
             })
             .collect();
         LayoutSummary {
-            layout: self.layout.name(),
-            markers: self.finger.marker_vertices().len(),
+            layout: self.observed.clone(),
+            markers: self.observed_markers(),
             frames,
             regions,
             mid_height_by_side,
@@ -177,7 +196,7 @@ pub struct ObservabilityReport {
 }
 
 /// Settings of the observability study.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ObservabilityOptions {
     /// Force of the press, newtons.
     pub force_n: Real,
@@ -185,6 +204,9 @@ pub struct ObservabilityOptions {
     pub marker_sigma_m: Real,
     /// Frames of the held press of the second summary (the first is one frame); at least 2.
     pub held_frames: usize,
+    /// The depth image's model: with it, the paper's camera row is also bounded with depth
+    /// alone and with both, under this noise and under [`DepthBoundModel::harsher`].
+    pub depth: Option<DepthBoundModel>,
 }
 
 impl Default for ObservabilityOptions {
@@ -194,6 +216,7 @@ impl Default for ObservabilityOptions {
             force_n: bound.force_n,
             marker_sigma_m: bound.marker_sigma_m,
             held_frames: 5,
+            depth: Some(DepthBoundModel::default()),
         }
     }
 }
@@ -207,12 +230,13 @@ impl Default for ObservabilityOptions {
 /// solve.
 pub fn run_observability_study(
     options: &ObservabilityOptions,
-    mut progress: impl FnMut(MarkerLayoutPreset),
+    mut progress: impl FnMut(&str),
 ) -> Result<ObservabilityReport, LabError> {
     let one = BoundOptions {
         force_n: options.force_n,
         marker_sigma_m: options.marker_sigma_m,
         frames: 1,
+        ..BoundOptions::default()
     };
     one.validate()?;
     let held_frames = options.held_frames;
@@ -223,20 +247,36 @@ pub fn run_observability_study(
     .validate()?;
     let mut layouts = Vec::new();
     let mut summaries = Vec::new();
-    for layout in MarkerLayoutPreset::ALL {
-        let single = layout_bounds(layout, &one)?;
+    let mut runs: Vec<(MarkerLayoutPreset, BoundOptions, &str)> = MarkerLayoutPreset::ALL
+        .into_iter()
+        .map(|layout| (layout, one.clone(), ""))
+        .collect();
+    if let Some(depth) = &options.depth {
+        for (model, suffix) in [(depth.clone(), ""), (depth.harsher(), ", harsher noise")] {
+            for markers in [false, true] {
+                let seen = BoundOptions {
+                    markers,
+                    depth: Some(model.clone()),
+                    ..one.clone()
+                };
+                runs.push((MarkerLayoutPreset::CameraRow, seen, suffix));
+            }
+        }
+    }
+    for (layout, seen, suffix) in runs {
+        let mut single = layout_bounds(layout, &seen)?;
+        single.observed.push_str(suffix);
         summaries.push(single.summary(1));
         let held = LayoutBounds {
-            layout,
-            finger: single.finger.clone(),
             bounds: single
                 .bounds
                 .iter()
                 .map(|b| b.over_frames(held_frames))
                 .collect(),
+            ..single.clone()
         };
         summaries.push(held.summary(held_frames));
-        progress(layout);
+        progress(&single.observed);
         layouts.push(single);
     }
     Ok(ObservabilityReport {
@@ -339,5 +379,92 @@ mod tests {
                 r1.around_mm.median
             );
         }
+    }
+
+    /// Fisher information adds up: observing the depth image as well as the markers can only
+    /// lower the bound, at every place; noisier depth can only raise it. The camera sees a few
+    /// hundred of the finger's vertices, and the depth image alone bounds the base better
+    /// than the seven markers do (they sit where the base bends least).
+    #[test]
+    fn depth_adds_information_and_harsher_noise_removes_it() {
+        let markers = BoundOptions::default();
+        let depth = DepthBoundModel::default();
+        let with = |markers: bool, depth: &DepthBoundModel| BoundOptions {
+            markers,
+            depth: Some(depth.clone()),
+            ..BoundOptions::default()
+        };
+        let layout = MarkerLayoutPreset::CameraRow;
+        let m = layout_bounds(layout, &markers).unwrap();
+        let both = layout_bounds(layout, &with(true, &depth)).unwrap();
+        let harsh = layout_bounds(layout, &with(true, &depth.harsher())).unwrap();
+        let alone = layout_bounds(layout, &with(false, &depth)).unwrap();
+        assert_eq!(
+            (both.observed.as_str(), alone.observed.as_str()),
+            ("camera-row + depth", "depth")
+        );
+        let close = |a: Real, b: Real| a <= b * (1.0 + 1e-6) + 1e-12;
+        for ((m, b), h) in m.bounds.iter().zip(&both.bounds).zip(&harsh.bounds) {
+            assert_eq!((m.vertex, b.vertex), (b.vertex, h.vertex));
+            for (x_m, x_b, x_h) in [
+                (m.along_m, b.along_m, h.along_m),
+                (m.around_m, b.around_m, h.around_m),
+                (m.force_sd_n, b.force_sd_n, h.force_sd_n),
+            ] {
+                assert!(
+                    close(x_b, x_m),
+                    "vertex {}: {x_b} with depth, {x_m} without",
+                    m.vertex
+                );
+                assert!(
+                    close(x_b, x_h),
+                    "vertex {}: {x_b} default, {x_h} harsher",
+                    m.vertex
+                );
+            }
+        }
+        let base = |l: &LayoutBounds| l.summary(1).regions[2].along_mm.median;
+        assert!(
+            base(&alone) < 0.7 * base(&m),
+            "{} vs {}",
+            base(&alone),
+            base(&m)
+        );
+        let hand = HandModel::preset(HandPreset::TwoFinger, &study_params(layout)).unwrap();
+        let one = HandModel::new(vec![hand.fingers()[0].clone()]).unwrap();
+        let config = PhysicsConfig::default();
+        let mut estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config).unwrap();
+        let gravity = Vector3::new(0.0, 0.0, -9.81);
+        let pulls = vec![0.0; one.fingers()[0].model.tendon_routes().len()];
+        let coverage = estimator
+            .depth_coverage(0, &pulls, gravity, &depth)
+            .unwrap();
+        assert!(
+            (100..coverage.surface_vertices / 2).contains(&coverage.vertices),
+            "{coverage:?}"
+        );
+        assert!(
+            coverage.pixels > 1e4 && coverage.depth_m.median > 0.02,
+            "{coverage:?}"
+        );
+    }
+
+    /// The bound's default camera is the virtual camera that renders the episodes: the same
+    /// intrinsics, mount, noise, range and grazing limit.
+    #[test]
+    fn the_depth_model_is_the_virtual_cameras() {
+        let camera = moe_tendon_sim::camera::RgbdCamera::default();
+        let model = DepthBoundModel::default();
+        assert_eq!(model.intrinsics, camera.intrinsics);
+        assert_eq!(model.hand_from_camera, *camera.hand_from_camera.iso());
+        let n = camera.noise;
+        assert_eq!(
+            (model.sigma_base_m, model.sigma_per_m2),
+            (n.depth_std_base_m, n.depth_std_per_m2)
+        );
+        assert_eq!(
+            (model.min_range_m, model.max_range_m, model.grazing_deg),
+            (n.min_depth_m, n.max_depth_m, n.grazing_dropout_deg)
+        );
     }
 }

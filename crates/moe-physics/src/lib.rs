@@ -60,5 +60,6 @@ pub use estimator::{
 /// What a fitted material records of its hand (the one signature type, `moe_geom`'s).
 pub use moe_geom::HandSignature;
 pub use observability::{
-    BOUND_REGIONS, BoundOptions, PlaceBound, RegionBound, Spread, quantile, region_bounds,
+    BOUND_REGIONS, BoundOptions, DepthBoundModel, DepthCoverage, PlaceBound, RegionBound, Spread,
+    quantile, region_bounds,
 };

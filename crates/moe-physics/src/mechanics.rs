@@ -185,18 +185,19 @@ impl FingerMechanics {
     }
 
     /// Factorises the tangent at `x` (with the tendon terms under `commands` and `loads`) and
-    /// returns the displacement field of every observed coordinate's unit load: column `j` of
-    /// the result is `K_T⁻¹ s_j` where `s_j` puts a unit force along axis `axes[j].1` at
-    /// surface vertex `axes[j].0`. By reciprocity (`K_T` symmetric), the displacement of
-    /// coordinate `j` under a unit force along axis `d` at any surface point `p` is the value
-    /// of column `j` interpolated at `p` along `d`.
+    /// returns the displacement field of every observed quantity's unit load: column `j` of
+    /// the result is `K_T⁻¹ s_j` where `s_j` puts the force `axes[j].1` at surface vertex
+    /// `axes[j].0` (a unit axis for a marker coordinate, a unit normal for a depth
+    /// observation, which sees only the normal component). By reciprocity (`K_T` symmetric),
+    /// the change of observation `j` under a unit force along axis `d` at any surface point
+    /// `p` is the value of column `j` interpolated at `p` along `d`.
     pub(crate) fn reciprocal_fields(
         &mut self,
         x: &[Point3],
         commands: &[TendonCommand],
         gravity: &Vector3,
         loads: &[PatchLoad],
-        axes: &[(u32, usize)],
+        axes: &[(u32, Vector3)],
         ctx: StepContext,
     ) -> Result<Mat<Real>, SimError> {
         let mut terms = std::mem::take(&mut self.terms);
@@ -216,11 +217,15 @@ impl FingerMechanics {
         result?;
         let rows = self.tangent.num_rows();
         let mut rhs = Mat::<Real>::zeros(rows, axes.len());
-        for (j, &(v, d)) in axes.iter().enumerate() {
+        for (j, &(v, direction)) in axes.iter().enumerate() {
             let e = self.body.surface().points()[v as usize];
             for k in 0..4 {
                 if let Some(i) = fem.free_index(e.nodes[k]) {
-                    rhs[(3 * i + d, j)] += e.weights[k];
+                    for d in 0..3 {
+                        if direction[d] != 0.0 {
+                            rhs[(3 * i + d, j)] += e.weights[k] * direction[d];
+                        }
+                    }
                 }
             }
         }

@@ -22,6 +22,7 @@
 //!
 //! The noise is drawn from a [`SeededRng`](moe_geom::SeededRng) in pixel order, so a seed fixes the image bit for bit.
 
+use moe_geom::camera::ray_triangle;
 use moe_geom::rng::SeededRng;
 use moe_geom::transform::{Transform, frame};
 use moe_geom::{GeomError, Iso3, Point3, Real, Vector3};
@@ -456,31 +457,6 @@ impl RgbdCamera {
             depth_m,
         }
     }
-}
-
-/// Distance along the unit ray `dir` from the origin to triangle `q`, `None` if it misses
-/// (Möller–Trumbore, both faces).
-fn ray_triangle(dir: &Vector3, q: &[Point3; 3]) -> Option<Real> {
-    let e1 = q[1] - q[0];
-    let e2 = q[2] - q[0];
-    let p = dir.cross(&e2);
-    let det = e1.dot(&p);
-    if det.abs() < 1e-18 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = -q[0].coords;
-    let u = s.dot(&p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let qv = s.cross(&e1);
-    let v = dir.dot(&qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = e2.dot(&qv) * inv;
-    (t > 0.0).then_some(t)
 }
 
 #[cfg(test)]

@@ -205,8 +205,8 @@ fn bound_panel(s: &mut String, (ox, oy): (Real, Real), l: &LayoutBounds, scale: 
         r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="13">{} ({} markers)</text>"#,
         (x0 + x1) / 2.0,
         oy + 20.0,
-        l.layout.name(),
-        l.finger.marker_vertices().len()
+        l.observed,
+        l.observed_markers()
     );
     // Grid and axes.
     for deg in [-180.0, -90.0, 0.0, 90.0, 180.0] {

@@ -1,6 +1,7 @@
 //! Compliance by reciprocity: the linear model of the markers about one configuration, from
 //! one factorisation of the static tangent and a solve per observed coordinate.
 
+use faer::Mat;
 use moe_geom::{Point3, Real, Vector3};
 
 use super::{FingerInverse, FingerObservation, to_physics};
@@ -45,7 +46,7 @@ pub(super) fn dot(a: &[Real], b: &[Real]) -> Real {
 
 impl FingerInverse {
     /// Vertex normals of the surface `s` (area-weighted).
-    fn normals_of(&self, s: &[Point3]) -> Vec<Vector3> {
+    pub(super) fn normals_of(&self, s: &[Point3]) -> Vec<Vector3> {
         let mut n = vec![Vector3::zeros(); s.len()];
         for f in &self.faces {
             let [a, b, c] = f.map(|i| s[i as usize]);
@@ -77,7 +78,7 @@ impl FingerInverse {
                 let v = self.markers[slot];
                 let model = self.mech.surface_position(x, v);
                 for d in 0..3 {
-                    axes.push((v, d));
+                    axes.push((v, Vector3::ith(d, 1.0)));
                     r.push(p[d] - model[d]);
                 }
             }
@@ -96,6 +97,29 @@ impl FingerInverse {
             .map_err(|e| to_physics(self.index, "(tangent)", e))?;
         *solves += 1;
         let n_obs = axes.len();
+        let responses = self.candidate_responses(&fields);
+        let inward = self.inward_normals(x);
+        let mut lin = Linear {
+            n_obs,
+            r,
+            responses,
+            inward,
+        };
+        let mut buf = vec![0.0; n_obs];
+        for &(c, f) in loads {
+            lin.response_into(c, &f, &mut buf);
+            for (r, b) in lin.r.iter_mut().zip(&buf) {
+                *r += b;
+            }
+        }
+        Ok(lin)
+    }
+
+    /// `responses[(c·3 + d)·n + j]`: the response of observation `j` (column `j` of `fields`,
+    /// its reciprocal field, `n` columns) to a unit force along axis `d` over candidate `c`'s
+    /// patch.
+    pub(super) fn candidate_responses(&self, fields: &Mat<Real>) -> Vec<Real> {
+        let n_obs = fields.ncols();
         // Row-major copy: row `3i + d` holds the `n_obs` responses at free node `i`, axis `d`.
         let rows = fields.nrows();
         let mut rm = vec![0.0; rows * n_obs];
@@ -118,28 +142,18 @@ impl FingerInverse {
                 }
             }
         }
+        responses
+    }
+
+    /// Per candidate: the inward unit normal over its patch on the surface at `x`.
+    pub(super) fn inward_normals(&self, x: &[Point3]) -> Vec<Vector3> {
         let normals = self.normals_of(&self.surface_of(x));
-        let inward = self
-            .patches
+        self.patches
             .iter()
             .map(|patch| {
                 let n: Vector3 = patch.iter().map(|&(u, s)| normals[u as usize] * s).sum();
                 -n.try_normalize(0.0).unwrap_or_else(Vector3::zeros)
             })
-            .collect();
-        let mut lin = Linear {
-            n_obs,
-            r,
-            responses,
-            inward,
-        };
-        let mut buf = vec![0.0; n_obs];
-        for &(c, f) in loads {
-            lin.response_into(c, &f, &mut buf);
-            for (r, b) in lin.r.iter_mut().zip(&buf) {
-                *r += b;
-            }
-        }
-        Ok(lin)
+            .collect()
     }
 }

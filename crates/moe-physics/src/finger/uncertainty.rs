@@ -9,6 +9,7 @@ use super::gauss_newton::Solved;
 use super::search::Fit;
 use super::{FingerInverse, FingerLoad, FingerObservation, to_physics};
 use crate::error::PhysicsError;
+use crate::observability::BoundOptions;
 
 /// The loads of a press, described for the estimate.
 pub(super) struct PressedLoads {
@@ -187,47 +188,34 @@ impl FingerInverse {
     }
 
     /// The Cramér–Rao bound of a press at every candidate place, linearised at the static free
-    /// shape under `obs`'s pulls and gravity with every marker observed: the Fisher information
-    /// of the marker coordinates (independent Gaussian noise of `sigma_m` per coordinate, over
-    /// `frames` independent frames of a held press) about the press's place on the surface
-    /// (along the finger's axis and around it) and its force vector, at a force of
-    /// `force_n` along the inward normal. Per candidate: its vertex, the bound's standard
-    /// deviations along and around (metres) and of the force's magnitude (newtons).
+    /// shape under `obs`'s pulls and gravity: the Fisher information of what `options` observes
+    /// (every marker's coordinates with independent Gaussian noise; the depth image's view of
+    /// the surface, each visible vertex's normal displacement with the depth noise of its
+    /// pixels), over `options.frames` independent frames of a held press, about the press's
+    /// place on the surface (along the finger's axis and around it) and its force vector, at a
+    /// force of `options.force_n` along the inward normal. Per candidate: its vertex, the
+    /// bound's standard deviations along and around (metres) and of the force's magnitude
+    /// (newtons).
     pub(crate) fn location_bounds(
         &mut self,
         obs: &FingerObservation<'_>,
-        force_n: Real,
-        sigma_m: Real,
-        frames: usize,
+        options: &BoundOptions,
     ) -> Result<Vec<(u32, [Real; 3])>, PhysicsError> {
         let mut solves = 0;
         let x = self.static_free(obs, &mut solves)?;
-        let all: Vec<Option<Point3>> = self
-            .markers
-            .iter()
-            .map(|&v| Some(self.mech.surface_position(&x, v)))
-            .collect();
-        let full = FingerObservation {
-            markers: &all,
-            ..*obs
-        };
-        let lin = self.linearise(&x, &full, &[], &mut solves)?;
-        let n_obs = lin.n_obs;
-        // Reciprocal fields again, to differentiate them in space.
-        let axes: Vec<(u32, usize)> = self
-            .markers
-            .iter()
-            .flat_map(|&v| (0..3).map(move |d| (v, d)))
-            .collect();
+        let (axes, weights) = self.bound_axes(&x, obs, options);
+        let n_obs = axes.len();
         let fields = self
             .mech
             .reciprocal_fields(&x, &obs.commands(), &obs.gravity, &[], &axes, self.ctx())
             .map_err(|e| to_physics(self.index, "(tangent)", e))?;
-        let info_scale = frames.max(1) as Real / (sigma_m * sigma_m);
+        let responses = self.candidate_responses(&fields);
+        let inward_normals = self.inward_normals(&x);
+        let frames = options.frames.max(1) as Real;
         let mut out = Vec::with_capacity(self.candidates.len());
         for (c, patch) in self.patches.iter().enumerate() {
-            let inward = lin.inward[c];
-            let force = inward * force_n;
+            let inward = inward_normals[c];
+            let force = inward * options.force_n;
             // Tangent directions at the patch: around the axis and along it.
             let n = -inward;
             let around = Vector3::z()
@@ -254,10 +242,14 @@ impl FingerInverse {
             let base = 3 * c * n_obs;
             for d in 0..3 {
                 for k in 0..n_obs {
-                    j[(k, 2 + d)] = lin.responses[base + d * n_obs + k];
+                    j[(k, 2 + d)] = responses[base + d * n_obs + k];
                 }
             }
-            let info = j.transpose() * &j * info_scale;
+            let mut weighted = j.clone();
+            for (k, w) in weights.iter().enumerate() {
+                weighted.row_mut(k).scale_mut(*w * frames);
+            }
+            let info = j.transpose() * &weighted;
             let bound = match info.try_inverse() {
                 Some(cov) => {
                     let f = DVector::from_column_slice(inward.as_slice());
@@ -273,5 +265,65 @@ impl FingerInverse {
             out.push((self.candidates[c], bound));
         }
         Ok(out)
+    }
+
+    /// The surface vertices the camera of `depth` sees on the static free shape under `obs`'s
+    /// pulls and gravity: per vertex, its depth (metres) and the pixels that fall on its share
+    /// of the surface.
+    pub(crate) fn depth_view(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        depth: &crate::observability::DepthBoundModel,
+    ) -> Result<Vec<(Real, Real)>, PhysicsError> {
+        let mut solves = 0;
+        let x = self.static_free(obs, &mut solves)?;
+        let surface = self.surface_of(&x);
+        let normals = self.normals_of(&surface);
+        let camera_from_finger = depth.hand_from_camera.inverse() * obs.world_from_finger;
+        Ok(depth
+            .visible_vertices(&camera_from_finger, &surface, &normals, &self.faces)
+            .into_iter()
+            .map(|seen| {
+                let pixels = self.area[seen.vertex as usize] * seen.pixels_per_m2;
+                (seen.depth_m, pixels)
+            })
+            .collect())
+    }
+
+    /// What the bound observes at nodes `x`, as observation axes (a surface vertex and the
+    /// direction its displacement is seen along) with their information per frame (one over
+    /// the variance): each marker's three coordinates, and with a depth model every surface
+    /// vertex the camera sees, along its normal.
+    fn bound_axes(
+        &self,
+        x: &[Point3],
+        obs: &FingerObservation<'_>,
+        options: &BoundOptions,
+    ) -> (Vec<(u32, Vector3)>, Vec<Real>) {
+        let mut axes = Vec::new();
+        let mut weights = Vec::new();
+        if options.markers {
+            let w = 1.0 / (options.marker_sigma_m * options.marker_sigma_m);
+            for &v in &self.markers {
+                for d in 0..3 {
+                    axes.push((v, Vector3::ith(d, 1.0)));
+                    weights.push(w);
+                }
+            }
+        }
+        if let Some(depth) = &options.depth {
+            let surface = self.surface_of(x);
+            let normals = self.normals_of(&surface);
+            let camera_from_finger = depth.hand_from_camera.inverse() * obs.world_from_finger;
+            for seen in depth.visible_vertices(&camera_from_finger, &surface, &normals, &self.faces)
+            {
+                let n_pixels = self.area[seen.vertex as usize] * seen.pixels_per_m2;
+                let variance = depth.pixel_variance(seen.depth_m) / n_pixels.max(1e-12)
+                    + depth.correlated_sigma_m * depth.correlated_sigma_m;
+                axes.push((seen.vertex, normals[seen.vertex as usize]));
+                weights.push(1.0 / variance);
+            }
+        }
+        (axes, weights)
     }
 }

@@ -43,12 +43,32 @@ pub(crate) struct HandArgs {
     /// Noise of a marker coordinate, metres (default: the perception stage's, 0.16 mm).
     #[arg(long, value_name = "M", default_value_t = BoundOptions::default().marker_sigma_m, requires = "bound")]
     bound_sigma: Real,
+    /// With --bound: what the bound observes: the markers, the depth image of the default wrist
+    /// camera (each visible surface vertex along its normal, with the camera's depth noise), or
+    /// both.
+    #[arg(long, value_enum, default_value = "markers", requires = "bound")]
+    bound_observe: BoundObserve,
+    /// With --bound and depth: twice the depth noise (white and correlated) and depth quantised
+    /// to whole millimetres (as a ROS 2 16UC1 topic gives it).
+    #[arg(long, requires = "bound")]
+    bound_harsher_depth: bool,
     /// Output directory: finger_<i>.obj (rest mesh in the hand frame, metres) and hand.json.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Print the summary as one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+/// What `hand --bound` observes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub(crate) enum BoundObserve {
+    /// The finger's markers.
+    Markers,
+    /// The depth image alone.
+    Depth,
+    /// The markers and the depth image.
+    Both,
 }
 
 pub(crate) fn run(args: HandArgs) -> Result<()> {
@@ -73,10 +93,23 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
             (hand, args.preset.to_string(), layout)
         }
     };
+    if args.bound_harsher_depth && args.bound_observe == BoundObserve::Markers {
+        anyhow::bail!("--bound-harsher-depth is for --bound-observe depth or both");
+    }
+    let depth = (args.bound_observe != BoundObserve::Markers).then(|| {
+        let camera = moe_physics::DepthBoundModel::default();
+        if args.bound_harsher_depth {
+            camera.harsher()
+        } else {
+            camera
+        }
+    });
     let options = BoundOptions {
         force_n: args.bound_force,
         marker_sigma_m: args.bound_sigma,
         frames: args.bound_frames as usize,
+        markers: args.bound_observe != BoundObserve::Depth,
+        depth,
     };
     let bound = args
         .bound

@@ -352,3 +352,60 @@ fn bound_options_need_bound_and_bad_layouts_are_named() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `--bound-observe` adds the wrist camera's depth image: the report says what it sees, every
+/// region's median bound with the markers and depth is below the markers' alone, the harsher
+/// depth noise gives a larger one, and the harsher noise without depth is refused.
+#[test]
+fn the_bound_with_depth_reports_what_the_camera_sees() {
+    let dir = scratch("hand-bound-depth");
+    let bound = |extra: &[&str]| {
+        let mut args = vec![
+            "hand",
+            "--vertex-budget",
+            "512",
+            "--out",
+            dir.to_str().unwrap(),
+            "--bound",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        run_json(&args)
+    };
+    let markers = bound(&[]);
+    let both = bound(&["--bound-observe", "both"]);
+    let harsher = bound(&["--bound-observe", "both", "--bound-harsher-depth"]);
+    assert_eq!(markers["bound"]["observed"], "markers");
+    assert!(markers["bound"].get("depth").is_none());
+    assert_eq!(both["bound"]["observed"], "markers and depth");
+    let seen = &both["bound"]["depth_coverage"];
+    let (vertices, total) = (
+        seen["vertices"].as_u64().unwrap(),
+        seen["surface_vertices"].as_u64().unwrap(),
+    );
+    assert!(vertices > 20 && vertices < total / 2, "{seen}");
+    assert!(seen["pixels"].as_f64().unwrap() > 1000.0, "{seen}");
+    for region in ["tip", "middle", "base"] {
+        for key in ["along_mm", "around_mm"] {
+            let (m, b, h) = (
+                region_median(&markers, region, key),
+                region_median(&both, region, key),
+                region_median(&harsher, region, key),
+            );
+            assert!(
+                b < m && b < h,
+                "{region} {key}: markers {m}, both {b}, harsher {h}"
+            );
+        }
+    }
+    let out = run(&[
+        "hand",
+        "--out",
+        dir.to_str().unwrap(),
+        "--bound",
+        "--bound-harsher-depth",
+    ]);
+    let line = assert_one_line_error(&out);
+    assert!(line.contains("--bound-harsher-depth"), "{line}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

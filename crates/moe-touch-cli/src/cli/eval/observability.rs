@@ -47,9 +47,10 @@ pub(crate) fn run(args: &ObservabilityEvalArgs) -> Result<()> {
         force_n: args.force,
         marker_sigma_m: args.sigma,
         held_frames: usize::try_from(args.frames)?,
+        ..ObservabilityOptions::default()
     };
-    let report = run_observability_study(&options, |layout| {
-        eprintln!("eval observability: {layout} done");
+    let report = run_observability_study(&options, |observed| {
+        eprintln!("eval observability: {observed} done");
     })?;
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
