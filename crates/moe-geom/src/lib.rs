@@ -12,6 +12,8 @@ pub mod camera;
 pub mod chamfer;
 /// Cotangent edge weights and the cotangent Laplacian.
 pub mod cotan;
+/// The wrist camera's depth image as an observation.
+pub mod depth;
 /// The crate's error type.
 pub mod error;
 /// The estimator seams: observation to shape, contact and details.
@@ -40,6 +42,8 @@ pub mod signature;
 pub mod topology;
 /// Rigid transforms named by frame.
 pub mod transform;
+/// Z-buffer rasterisation through the pinhole camera.
+pub mod zbuffer;
 
 /// nalgebra, re-exported so that users name the same version.
 pub use nalgebra;
@@ -47,6 +51,7 @@ pub use nalgebra;
 pub use camera::CameraIntrinsics;
 pub use chamfer::{Neighbor, PointIndex, bcd, ucd};
 pub use cotan::{CotanLaplacian, cotan_weights};
+pub use depth::{DepthImage, OwnedDepthImage};
 pub use error::GeomError;
 pub use estimate::{
     ContactEstimate, ContactEstimator, ContactInput, HandEstimate, HandEstimator, ShapeEstimator,

@@ -13,6 +13,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::depth::{DepthImage, OwnedDepthImage};
 use crate::hand::HandKeypoints;
 use crate::math::Real;
 use crate::transform::WorldFromHand;
@@ -46,6 +47,8 @@ pub struct Observation<'a> {
     /// Time of the observation, seconds on a clock that only moves forward: observations close
     /// in time form a stream for estimators that carry state; `None` for a lone frame.
     pub time_secs: Option<Real>,
+    /// The wrist camera's depth image with its camera (`None` where the caller has none).
+    pub depth: Option<DepthImage<'a>>,
 }
 
 impl<'a> Observation<'a> {
@@ -95,6 +98,15 @@ impl<'a> Observation<'a> {
         }
     }
 
+    /// The same observation with the depth image `depth`.
+    #[must_use]
+    pub fn with_depth(self, depth: DepthImage<'a>) -> Self {
+        Self {
+            depth: Some(depth),
+            ..self
+        }
+    }
+
     /// The same observation without a time (a lone frame).
     #[must_use]
     pub fn untimed(self) -> Self {
@@ -111,6 +123,7 @@ impl<'a> Observation<'a> {
             tendon_pull_m: self.tendon_pull_m.map(<[Vec<Real>]>::to_vec),
             world_from_hand: self.world_from_hand,
             time_secs: self.time_secs,
+            depth: self.depth.map(|d| d.to_owned_image()),
         }
     }
 }
@@ -132,6 +145,9 @@ pub struct OwnedObservation {
     /// Time of the observation, seconds.
     #[serde(default)]
     pub time_secs: Option<Real>,
+    /// The wrist camera's depth image with its camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth: Option<OwnedDepthImage>,
 }
 
 impl OwnedObservation {
@@ -176,6 +192,15 @@ impl OwnedObservation {
         }
     }
 
+    /// The same observation with the depth image `depth`.
+    #[must_use]
+    pub fn with_depth(self, depth: OwnedDepthImage) -> Self {
+        Self {
+            depth: Some(depth),
+            ..self
+        }
+    }
+
     /// The observation, borrowed (what estimators take).
     pub fn view(&self) -> Observation<'_> {
         Observation {
@@ -183,6 +208,7 @@ impl OwnedObservation {
             tendon_pull_m: self.tendon_pull_m.as_deref(),
             world_from_hand: self.world_from_hand,
             time_secs: self.time_secs,
+            depth: self.depth.as_ref().map(OwnedDepthImage::view),
         }
     }
 }

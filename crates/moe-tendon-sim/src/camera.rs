@@ -25,7 +25,8 @@
 use moe_geom::camera::ray_triangle;
 use moe_geom::rng::SeededRng;
 use moe_geom::transform::{Transform, frame};
-use moe_geom::{GeomError, Iso3, Point3, Real, Vector3};
+use moe_geom::zbuffer::{ZBuffer, ZHit};
+use moe_geom::{GeomError, Iso3, Point3, Real};
 use serde::{Deserialize, Serialize};
 
 pub use moe_geom::CameraIntrinsics;
@@ -223,39 +224,23 @@ impl Default for RgbdCamera {
     }
 }
 
-/// Per-pixel result of the visibility pass.
-#[derive(Clone, Copy)]
-struct Hit {
-    z: Real,
-    item: u32,
-    /// Cosine between the viewing ray and the face normal (absolute value).
-    cos_view: Real,
-    /// The surface point in the camera frame.
-    point: Point3,
-}
-
 impl RgbdCamera {
     /// Renders the items and applies the noise model with `seed`.
     ///
     /// # Errors
     /// Invalid intrinsics or noise parameters, or a face index out of range in an item.
     pub fn render(&self, items: &[RenderItem<'_>], seed: u64) -> Result<RgbdImage, GeomError> {
-        self.intrinsics.validate()?;
         self.noise.validate()?;
-        let (w, h) = (
-            self.intrinsics.width as usize,
-            self.intrinsics.height as usize,
-        );
-        let mut hits: Vec<Option<Hit>> = vec![None; w * h];
+        let mut zbuffer = ZBuffer::new(self.intrinsics)?;
         let camera_from_hand = self.hand_from_camera.inverse();
         let mut markers_in_camera: Vec<Vec<Point3>> = Vec::with_capacity(items.len());
         for (index, item) in items.iter().enumerate() {
-            for q in item.triangles_in(&camera_from_hand)? {
-                self.raster_triangle(&q, index as u32, &mut hits);
+            for (face, q) in item.triangles_in(&camera_from_hand)?.iter().enumerate() {
+                zbuffer.draw(q, index as u32, face as u32);
             }
             markers_in_camera.push(camera_from_hand.transform_points(item.markers_in_hand));
         }
-        Ok(self.shade(items, &markers_in_camera, &hits, seed))
+        Ok(self.shade(items, &markers_in_camera, zbuffer.hits(), seed))
     }
 
     /// Which of `points_in_hand` the camera sees: a point is visible when it projects inside
@@ -302,115 +287,11 @@ impl RgbdCamera {
         Ok(visible)
     }
 
-    /// Clips a camera-frame triangle at the near plane and rasterises what remains.
-    fn raster_triangle(&self, q: &[Point3; 3], item: u32, hits: &mut [Option<Hit>]) {
-        const NEAR: Real = 1e-3;
-        let normal = (q[1] - q[0]).cross(&(q[2] - q[0]));
-        let len = normal.norm();
-        if len <= 0.0 {
-            return;
-        }
-        let normal = normal / len;
-        // Sutherland–Hodgman against z >= NEAR.
-        let mut poly: Vec<Point3> = Vec::with_capacity(4);
-        for k in 0..3 {
-            let (a, b) = (q[k], q[(k + 1) % 3]);
-            if a.z >= NEAR {
-                poly.push(a);
-            }
-            if (a.z >= NEAR) != (b.z >= NEAR) {
-                let t = (NEAR - a.z) / (b.z - a.z);
-                poly.push(a + (b - a) * t);
-            }
-        }
-        for k in 1..poly.len().saturating_sub(1) {
-            self.raster_clipped(&[poly[0], poly[k], poly[k + 1]], &normal, item, hits);
-        }
-    }
-
-    fn raster_clipped(
-        &self,
-        q: &[Point3; 3],
-        normal: &Vector3,
-        item: u32,
-        hits: &mut [Option<Hit>],
-    ) {
-        let cam = &self.intrinsics;
-        let uv = q.map(|p| cam.project(&p).expect("clipped to z >= near"));
-        let edge = |a: (Real, Real), b: (Real, Real), p: (Real, Real)| {
-            (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0)
-        };
-        let area = edge(uv[0], uv[1], uv[2]);
-        if area.abs() < 1e-12 {
-            return;
-        }
-        let (w, h) = (cam.width as Real, cam.height as Real);
-        let min_u = uv
-            .iter()
-            .map(|p| p.0)
-            .fold(Real::INFINITY, Real::min)
-            .ceil()
-            .max(0.0);
-        let max_u = uv
-            .iter()
-            .map(|p| p.0)
-            .fold(Real::NEG_INFINITY, Real::max)
-            .floor()
-            .min(w - 1.0);
-        let min_v = uv
-            .iter()
-            .map(|p| p.1)
-            .fold(Real::INFINITY, Real::min)
-            .ceil()
-            .max(0.0);
-        let max_v = uv
-            .iter()
-            .map(|p| p.1)
-            .fold(Real::NEG_INFINITY, Real::max)
-            .floor()
-            .min(h - 1.0);
-        if min_u > max_u || min_v > max_v {
-            return;
-        }
-        let inv_z = q.map(|p| 1.0 / p.z);
-        for j in min_v as usize..=max_v as usize {
-            for i in min_u as usize..=max_u as usize {
-                let p = (i as Real, j as Real);
-                let l0 = edge(uv[1], uv[2], p) / area;
-                let l1 = edge(uv[2], uv[0], p) / area;
-                let l2 = 1.0 - l0 - l1;
-                if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
-                    continue;
-                }
-                // Perspective-correct interpolation: 1/z is affine in screen space.
-                let iz = l0 * inv_z[0] + l1 * inv_z[1] + l2 * inv_z[2];
-                let z = 1.0 / iz;
-                let slot = &mut hits[j * cam.width as usize + i];
-                if slot.is_some_and(|hit| hit.z <= z) {
-                    continue;
-                }
-                let point = Point3::from(
-                    (q[0].coords * (l0 * inv_z[0])
-                        + q[1].coords * (l1 * inv_z[1])
-                        + q[2].coords * (l2 * inv_z[2]))
-                        * z,
-                );
-                let cos_view = normal.dot(&point.coords.normalize()).abs();
-                *slot = Some(Hit {
-                    z,
-                    item,
-                    cos_view,
-                    point,
-                });
-            }
-        }
-    }
-
     fn shade(
         &self,
         items: &[RenderItem<'_>],
         markers_in_camera: &[Vec<Point3>],
-        hits: &[Option<Hit>],
+        hits: &[Option<ZHit>],
         seed: u64,
     ) -> RgbdImage {
         let noise = &self.noise;

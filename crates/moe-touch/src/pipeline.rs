@@ -10,8 +10,8 @@ use moe_contact::DgcnnEstimator;
 #[cfg(feature = "dgcnn")]
 use moe_geom::Staged;
 use moe_geom::{
-    ContactMap, ContactPoint, HandEstimate, HandEstimator, HandKeypoints, HandModel, HandShape,
-    Observation, Real, RgbdFrame, Vector3, WorldFromHand,
+    ContactMap, ContactPoint, DepthImage, HandEstimate, HandEstimator, HandKeypoints, HandModel,
+    HandShape, Observation, Real, RgbdFrame, Vector3, WorldFromHand,
 };
 use serde::Serialize;
 
@@ -372,8 +372,9 @@ impl<E: HandEstimator> Pipeline<E> {
     ///
     /// # Errors
     /// [`TouchError::MissingObservation`] without the wrist pose,
-    /// [`TouchError::InvalidObservation`] for an observation that already carries markers (the
-    /// pipeline finds them in the frame), [`TouchError::StreamOutOfOrder`] for a time not after
+    /// [`TouchError::InvalidObservation`] for an observation that already carries markers or a
+    /// depth image (the pipeline finds the markers in the frame and passes its depth image on,
+    /// with the camera's intrinsics and mount, to the estimator), [`TouchError::StreamOutOfOrder`] for a time not after
     /// the previous frame's (nothing changes), images that do not fit the camera, an
     /// observation that does not fit the hand, or a failing estimator.
     pub fn process(
@@ -385,6 +386,11 @@ impl<E: HandEstimator> Pipeline<E> {
             return Err(TouchError::InvalidObservation {
                 reason: "it already carries markers; the pipeline finds them in the frame \
                          (give the keypoints to the estimator itself instead)",
+            });
+        }
+        if observation.depth.is_some() {
+            return Err(TouchError::InvalidObservation {
+                reason: "it already carries a depth image; the pipeline takes the frame's",
             });
         }
         let world_from_hand =
@@ -400,6 +406,12 @@ impl<E: HandEstimator> Pipeline<E> {
             detection.keypoints = f.filter(&detection.keypoints);
         }
         let t_markers = Instant::now();
+        // The frame's size was checked by the detector, whose camera took it.
+        let depth = DepthImage::new(
+            frame.depth_m,
+            *self.detector.intrinsics(),
+            self.detector.hand_from_camera(),
+        )?;
         let HandEstimate {
             shape,
             contact,
@@ -407,7 +419,11 @@ impl<E: HandEstimator> Pipeline<E> {
             details,
         } = self
             .estimator
-            .estimate(&observation.with_keypoints(&detection.keypoints))
+            .estimate(
+                &observation
+                    .with_keypoints(&detection.keypoints)
+                    .with_depth(depth),
+            )
             .map_err(TouchError::from_estimator)?;
         let t_estimate = Instant::now();
         let contact = match &mut self.contact_smoother {

@@ -1,7 +1,7 @@
 //! Tests of the RGB-D camera: depth of planes, noise, grazing surfaces, markers and what hides them.
 
 use super::*;
-use moe_geom::{FingerParams, HandModel, HandPreset};
+use moe_geom::{FingerParams, HandModel, HandPreset, Vector3};
 
 /// A square of side `size` centred on the camera axis at depth `z` in the camera frame,
 /// expressed in the hand frame for `camera`.

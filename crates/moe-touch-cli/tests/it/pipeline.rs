@@ -790,3 +790,74 @@ fn the_grasps_true_labels_are_the_simulators_vertices_on_the_estimated_shape() {
         "labels on the estimated shape: {on_shape}°"
     );
 }
+
+/// An estimator that reports the rest shape without contact and keeps what it was told of the
+/// depth image: valid pixels, the camera's intrinsics and mount.
+struct DepthWitness {
+    hand: HandModel,
+    seen: Vec<Option<(usize, moe_geom::CameraIntrinsics, moe_geom::HandFromCamera)>>,
+}
+
+impl HandEstimator for DepthWitness {
+    type Details = ();
+    type Error = std::convert::Infallible;
+
+    fn estimate(
+        &mut self,
+        observation: &Observation<'_>,
+    ) -> Result<moe_geom::HandEstimate, Self::Error> {
+        self.seen.push(
+            observation
+                .depth
+                .map(|d| (d.valid_pixels(), *d.intrinsics(), *d.hand_from_camera())),
+        );
+        let shape = moe_geom::HandShape::rest(&self.hand);
+        let labels: Vec<Vec<bool>> = shape.fingers.iter().map(|f| vec![false; f.len()]).collect();
+        Ok(moe_geom::HandEstimate {
+            contact: moe_geom::ContactMap::from_labels(&labels),
+            shape,
+            vertex_force_n: None,
+            details: (),
+        })
+    }
+}
+
+/// The pipeline passes each frame's depth image on to its estimator with the camera that took
+/// it, and refuses an observation that brings its own.
+#[test]
+fn the_estimator_sees_the_frames_depth_image_with_its_camera() {
+    let hand = hand();
+    let episode = episode();
+    let d = detector(&hand, &episode);
+    let (intrinsics, mount) = (*d.intrinsics(), d.hand_from_camera());
+    let witness = DepthWitness {
+        hand: hand.clone(),
+        seen: Vec::new(),
+    };
+    let mut pipeline = Pipeline::new(hand.clone(), d, witness, 0.5).unwrap();
+    for frame in &episode.frames {
+        pipeline
+            .process(frame.rgbd(), &frame.observation())
+            .unwrap();
+    }
+    let seen = &pipeline.estimator().seen;
+    assert_eq!(seen.len(), episode.frames.len());
+    for (frame, seen) in episode.frames.iter().zip(seen) {
+        let valid = frame
+            .depth_m
+            .iter()
+            .filter(|z| z.is_finite() && **z > 0.0)
+            .count();
+        assert_eq!(*seen, Some((valid, intrinsics, mount)));
+        assert!(valid > 10_000, "{valid} depth pixels");
+    }
+    let f = &episode.frames[0];
+    let image = moe_geom::DepthImage::new(&f.depth_m, intrinsics, mount).unwrap();
+    let err = pipeline
+        .process(f.rgbd(), &f.observation().with_depth(image))
+        .unwrap_err();
+    assert!(
+        matches!(err, TouchError::InvalidObservation { .. }),
+        "{err}"
+    );
+}
