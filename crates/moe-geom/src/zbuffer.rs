@@ -64,9 +64,14 @@ impl ZBuffer {
     }
 
     /// Draws triangle `q` (camera frame) of item `item`, face `face`: clipped at the near plane,
-    /// each pixel whose centre it covers keeps the nearest surface.
+    /// each pixel whose centre it covers keeps the nearest surface. A triangle with a NaN or
+    /// infinite corner is not drawn.
     pub fn draw(&mut self, q: &[Point3; 3], item: u32, face: u32) {
         const NEAR: Real = 1e-3;
+        // A triangle with a non-finite corner covers nothing (and would not clip).
+        if !q.iter().all(|p| p.coords.iter().all(|c| c.is_finite())) {
+            return;
+        }
         let normal = (q[1] - q[0]).cross(&(q[2] - q[0]));
         let len = normal.norm();
         if len <= 0.0 {

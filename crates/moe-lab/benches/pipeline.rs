@@ -9,7 +9,10 @@ use std::path::Path;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use moe_arap::ShapeConfig;
-use moe_geom::{FingerParams, HandModel, HandPreset, Observation, WorldFromHand};
+use moe_geom::depth::{AssociationOptions, associate_depth};
+use moe_geom::{
+    DepthImage, FingerParams, HandModel, HandPreset, HandShape, Observation, WorldFromHand,
+};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
 use moe_touch::{PaperPipeline, Pipeline};
@@ -106,9 +109,52 @@ fn bench_physics_pipeline(c: &mut Criterion) {
     );
 }
 
+/// Which depth pixels see which finger on the pressed frame, predicted from the frame's true
+/// shape (the z-buffer of both fingers' meshes, then the grid, silhouette band and gate of the
+/// default options): what giving an estimator the depth image costs before it uses it. The
+/// benchmark's name says how many pixels each finger keeps.
+fn bench_depth_association(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let episode =
+        moe_record::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
+            .expect("the committed episode reads");
+    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    let frame = &episode.frames[3];
+    let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
+        .expect("detector");
+    let depth = DepthImage::new(
+        &frame.depth_m,
+        *detector.intrinsics(),
+        detector.hand_from_camera(),
+    )
+    .expect("the frame fits its camera");
+    let shape = HandShape {
+        fingers: frame.finger_vertices_in_hand.clone(),
+    };
+    let options = AssociationOptions::default();
+    let kept: Vec<String> = associate_depth(&hand, &shape, &depth, &options)
+        .expect("associates")
+        .iter()
+        .map(|f| f.points.len().to_string())
+        .collect();
+    c.bench_function(
+        &format!(
+            "depth/association, stride 4 ({} pixels kept per finger)",
+            kept.join(" and ")
+        ),
+        |b| {
+            b.iter(|| {
+                black_box(
+                    associate_depth(&hand, &shape, black_box(&depth), &options).expect("runs"),
+                )
+            })
+        },
+    );
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30);
-    targets = bench_pipeline, bench_physics_pipeline
+    targets = bench_pipeline, bench_physics_pipeline, bench_depth_association
 }
 criterion_main!(benches);

@@ -5,8 +5,15 @@
 //! (RealSense, ROS 2) or NaN; both, and any other value that is not a finite positive number,
 //! are holes: [`DepthImage::depth`] gives `None` there, so a frame of holes is a frame without
 //! depth, never an error. Only an image whose size does not fit the camera is refused.
+//!
+//! [`associate_depth`] tells which pixels see which finger, predicted from an estimated shape
+//! (a z-buffer of its meshes, not colour), and gives each a point-to-plane residual.
 
 use serde::{Deserialize, Serialize};
+
+mod associate;
+
+pub use associate::{AssociationOptions, DepthPoint, FingerDepth, associate_depth};
 
 use crate::camera::CameraIntrinsics;
 use crate::error::GeomError;
