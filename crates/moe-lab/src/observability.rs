@@ -7,8 +7,10 @@
 //! camera row with a ring of 6 at the tip. Per layout and region (tip z > 80 % of the length
 //! with the cap, middle 40–70 %, base 12–35 %): median and 90th percentile, for one frame and
 //! for a held press of several frames (independent marker noise per frame: the bound over √N).
-//! The report prints as Markdown tables ([`ObservabilityReport::table`]); [`bound_map_svg`] draws
-//! the bound on each layout's unrolled surface.
+//! The report prints as Markdown tables
+//! ([`ObservabilityReport::table`](crate::observability::ObservabilityReport::table));
+//! [`bound_map_svg`](crate::observability::bound_map_svg) draws the bound on each layout's
+//! unrolled surface.
 
 use moe_geom::{
     FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,

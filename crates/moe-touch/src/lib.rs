@@ -80,10 +80,10 @@ pub mod prelude {
     #[cfg(feature = "dgcnn")]
     pub use moe_contact::DgcnnEstimator;
     pub use moe_geom::{
-        CameraIntrinsics, ContactEstimator, ContactMap, ContactPoint, FingerParams, HandEstimate,
-        HandEstimator, HandFromCamera, HandKeypoints, HandModel, HandPreset, HandShape,
-        Observation, OwnedObservation, Point3, Real, RgbdFrame, ShapeEstimator, Staged, Vector3,
-        WorldFromHand,
+        CameraIntrinsics, ContactEstimator, ContactMap, ContactPoint, DepthImage, FingerParams,
+        HandEstimate, HandEstimator, HandFromCamera, HandKeypoints, HandModel, HandPreset,
+        HandShape, Observation, OwnedObservation, Point3, Real, RgbdFrame, ShapeEstimator, Staged,
+        Vector3, WorldFromHand,
     };
     #[cfg(feature = "physics")]
     pub use moe_physics::{

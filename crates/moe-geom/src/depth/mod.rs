@@ -6,7 +6,7 @@
 //! are holes: [`DepthImage::depth`] gives `None` there, so a frame of holes is a frame without
 //! depth, never an error. Only an image whose size does not fit the camera is refused.
 //!
-//! [`associate_depth`] tells which pixels see which finger, predicted from an estimated shape
+//! [`associate_depth`](crate::depth::associate_depth) tells which pixels see which finger, predicted from an estimated shape
 //! (a z-buffer of its meshes, not colour), and gives each a point-to-plane residual.
 
 use serde::{Deserialize, Serialize};
