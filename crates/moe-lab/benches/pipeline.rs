@@ -30,12 +30,18 @@ fn pipeline(
     Pipeline::paper(hand.clone(), detector, model, options).expect("pipeline")
 }
 
-fn bench_pipeline(c: &mut Criterion) {
+/// The committed example episode and the hand that recorded it.
+fn committed_episode() -> (moe_record::Episode, HandModel) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let episode =
         moe_record::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
             .expect("the committed episode reads");
     let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    (episode, hand)
+}
+
+fn bench_pipeline(c: &mut Criterion) {
+    let (episode, hand) = committed_episode();
     // The frame with the plate pressed in.
     let frame = &episode.frames[3];
     let input = frame.rgbd();
@@ -63,11 +69,7 @@ fn bench_pipeline(c: &mut Criterion) {
 /// the pressed frame: a lone frame (the pipeline reset before each), and the frame held in a
 /// stream (each iteration 50 ms after the previous one).
 fn bench_physics_pipeline(c: &mut Criterion) {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let episode =
-        moe_record::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
-            .expect("the committed episode reads");
-    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    let (episode, hand) = committed_episode();
     let physics = || {
         let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
             .expect("detector");
@@ -114,11 +116,7 @@ fn bench_physics_pipeline(c: &mut Criterion) {
 /// default options): what giving an estimator the depth image costs before it uses it. The
 /// benchmark's name says how many pixels each finger keeps.
 fn bench_depth_association(c: &mut Criterion) {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let episode =
-        moe_record::read_episode(&root.join("fixtures/episodes/plate_tip_front_small.mcap"))
-            .expect("the committed episode reads");
-    let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).expect("hand");
+    let (episode, hand) = committed_episode();
     let frame = &episode.frames[3];
     let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
         .expect("detector");

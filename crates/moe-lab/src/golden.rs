@@ -363,18 +363,24 @@ fn patting_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
     Ok(v)
 }
 
-/// `eval grasp` with one trial per incline, the paper's pipeline and the default settings,
-/// rounded to 1e-3.
-fn grasp_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
-    use crate::grasp::{GraspInclineRow, GraspOptions, GraspStudyOptions, GraspStudySource};
-    let options = GraspStudyOptions {
+/// The grasp study of the golden fixture: one trial per incline, the paper's pipeline with the
+/// shipped model, the default settings.
+pub fn grasp_fixture_options() -> crate::grasp::GraspStudyOptions {
+    use crate::grasp::{GraspOptions, GraspStudyOptions, GraspStudySource};
+    GraspStudyOptions {
         trials: 1,
         model: workspace_root().join(SHIPPED_MODEL),
         camera_seed: 0,
         source: GraspStudySource::Pipeline,
         threshold: None,
         grasp: GraspOptions::default(),
-    };
+    }
+}
+
+/// `eval grasp` with [`grasp_fixture_options`], rounded to 1e-3.
+fn grasp_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
+    use crate::grasp::GraspInclineRow;
+    let options = grasp_fixture_options();
     let mut started = std::time::Instant::now();
     let report =
         crate::grasp::run_grasp_study(&options, |row: &GraspInclineRow| -> Result<(), LabError> {

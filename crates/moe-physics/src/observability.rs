@@ -314,12 +314,20 @@ impl PlaceBound {
 }
 
 impl PhysicsEstimator {
-    /// Finger `finger` of the hand, checked with its `pulls`.
-    fn bound_finger(
-        &self,
+    /// Runs `f` on finger `finger`'s model and its observation at rest as a bound sees it: no
+    /// marker seen, `pulls`, gravity, the hand taken as the world, no time. `f` is also given
+    /// the finger of the hand.
+    fn with_bound_observation<T>(
+        &mut self,
         finger: usize,
         pulls: &[Real],
-    ) -> Result<moe_geom::HandFinger, PhysicsError> {
+        gravity_in_hand: Vector3,
+        f: impl FnOnce(
+            &mut crate::finger::FingerInverse,
+            &FingerObservation<'_>,
+            &moe_geom::HandFinger,
+        ) -> Result<T, PhysicsError>,
+    ) -> Result<T, PhysicsError> {
         let n = self.hand().num_fingers();
         if finger >= n {
             return Err(PhysicsError::LengthMismatch {
@@ -338,7 +346,15 @@ impl PhysicsEstimator {
                 got: pulls.len(),
             });
         }
-        Ok(hf)
+        let markers = vec![None; hf.model.marker_vertices().len()];
+        let obs = FingerObservation {
+            markers: &markers,
+            gravity: hf.hand_from_finger.iso().inverse() * gravity_in_hand,
+            world_from_finger: *hf.hand_from_finger.iso(),
+            pulls,
+            time_secs: None,
+        };
+        f(self.finger_mut(finger), &obs, &hf)
     }
 
     /// What the camera of `depth` sees of finger `finger` at its static shape under `pulls` and
@@ -355,23 +371,15 @@ impl PhysicsEstimator {
         depth: &DepthBoundModel,
     ) -> Result<DepthCoverage, PhysicsError> {
         depth.validate()?;
-        let hf = self.bound_finger(finger, pulls)?;
-        let finger_from_hand = hf.hand_from_finger.iso().inverse();
-        let markers = vec![None; hf.model.marker_vertices().len()];
-        let obs = FingerObservation {
-            markers: &markers,
-            gravity: finger_from_hand * gravity_in_hand,
-            world_from_finger: *hf.hand_from_finger.iso(),
-            pulls,
-            time_secs: None,
-        };
-        let seen = self.finger_mut(finger).depth_view(&obs, depth)?;
-        let depths: Vec<Real> = seen.iter().map(|s| s.0).collect();
-        Ok(DepthCoverage {
-            vertices: seen.len(),
-            surface_vertices: hf.model.mesh().num_vertices(),
-            pixels: seen.iter().map(|s| s.1).sum(),
-            depth_m: Spread::of(&depths),
+        self.with_bound_observation(finger, pulls, gravity_in_hand, |inverse, obs, hf| {
+            let seen = inverse.depth_view(obs, depth)?;
+            let depths: Vec<Real> = seen.iter().map(|s| s.0).collect();
+            Ok(DepthCoverage {
+                vertices: seen.len(),
+                surface_vertices: hf.model.mesh().num_vertices(),
+                pixels: seen.iter().map(|s| s.1).sum(),
+                depth_m: Spread::of(&depths),
+            })
         })
     }
 
@@ -391,28 +399,20 @@ impl PhysicsEstimator {
         options: &BoundOptions,
     ) -> Result<Vec<PlaceBound>, PhysicsError> {
         options.validate()?;
-        let hf = self.bound_finger(finger, pulls)?;
-        let finger_from_hand = hf.hand_from_finger.iso().inverse();
-        let markers = vec![None; hf.model.marker_vertices().len()];
-        let obs = FingerObservation {
-            markers: &markers,
-            gravity: finger_from_hand * gravity_in_hand,
-            world_from_finger: *hf.hand_from_finger.iso(),
-            pulls,
-            time_secs: None,
-        };
-        let rest = hf.model.mesh().vertices();
-        let bounds = self.finger_mut(finger).location_bounds(&obs, options)?;
-        Ok(bounds
-            .into_iter()
-            .map(|(vertex, [along_m, around_m, force_sd_n])| PlaceBound {
-                vertex,
-                rest_in_finger: rest[vertex as usize],
-                along_m,
-                around_m,
-                force_sd_n,
-            })
-            .collect())
+        self.with_bound_observation(finger, pulls, gravity_in_hand, |inverse, obs, hf| {
+            let rest = hf.model.mesh().vertices();
+            Ok(inverse
+                .location_bounds(obs, options)?
+                .into_iter()
+                .map(|(vertex, [along_m, around_m, force_sd_n])| PlaceBound {
+                    vertex,
+                    rest_in_finger: rest[vertex as usize],
+                    along_m,
+                    around_m,
+                    force_sd_n,
+                })
+                .collect())
+        })
     }
 }
 

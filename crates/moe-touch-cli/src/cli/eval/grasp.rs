@@ -145,19 +145,6 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
 mod tests {
     use super::*;
     use clap::Parser;
-    use moe_lab::golden::workspace_root;
-
-    /// The study of the golden fixture: one trial per incline, the paper's pipeline, defaults.
-    fn fixture_options() -> GraspStudyOptions {
-        GraspStudyOptions {
-            trials: 1,
-            model: workspace_root().join(SHIPPED_MODEL),
-            camera_seed: 0,
-            source: GraspStudySource::Pipeline,
-            threshold: None,
-            grasp: GraspOptions::default(),
-        }
-    }
 
     /// A contact threshold outside [0, 1] or a plane threshold that is not a positive distance
     /// is refused before any trial runs, and a threshold where no model's contacts are used, or
@@ -167,7 +154,7 @@ mod tests {
         for t in [-0.5, 1.5, Real::NAN] {
             let options = GraspStudyOptions {
                 threshold: Some(t),
-                ..fixture_options()
+                ..moe_lab::golden::grasp_fixture_options()
             };
             let e = format!("{:#}", evaluate(&options, None).unwrap_err());
             assert!(e.contains("--threshold") && e.contains("[0, 1]"), "{e}");
@@ -190,7 +177,7 @@ mod tests {
             );
         }
         for m in [0.0, -0.001, Real::NAN] {
-            let mut options = fixture_options();
+            let mut options = moe_lab::golden::grasp_fixture_options();
             options.grasp.ransac.distance_threshold_m = m;
             let e = format!("{:#}", evaluate(&options, None).unwrap_err());
             assert!(e.contains("--plane-threshold"), "{e}");
