@@ -5,12 +5,9 @@
 
 use std::path::Path;
 
-use moe_geom::{HandModel, MarkerLayoutPreset, Real, Topology, TriMesh, Vector3};
+use moe_geom::{HandModel, MarkerLayoutPreset, Real, Topology, TriMesh};
 use moe_io::PlyData;
-use moe_physics::{
-    BoundOptions, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound, RegionBound, Spread,
-    region_bounds,
-};
+use moe_physics::{BoundOptions, PlaceBound, RegionBound, Spread, region_bounds};
 use serde::Serialize;
 
 use crate::error::LabError;
@@ -202,17 +199,13 @@ pub fn finger_bound(
     options: &BoundOptions,
     marker_layout: String,
 ) -> Result<FingerBound, LabError> {
-    let finger = hand.fingers()[0].clone();
-    let model = finger.model.clone();
+    let model = hand.fingers()[0].model.clone();
     // The bound needs finger 0's model only.
-    let one = HandModel::new(vec![finger])?;
-    let config = PhysicsConfig::default();
-    let mut estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config)?;
-    let gravity = Vector3::new(0.0, 0.0, -Vector3::from(config.gravity_m_s2).norm());
-    let pulls = vec![0.0; model.tendon_routes().len()];
-    let bounds = estimator.location_bounds(0, &pulls, gravity, options)?;
+    let mut alone = crate::observability::FingerAlone::of(hand)?;
+    let gravity = alone.gravity();
+    let bounds = alone.location_bounds(options)?;
     let depth_coverage = match &options.depth {
-        Some(depth) => Some(estimator.depth_coverage(0, &pulls, gravity, depth)?),
+        Some(depth) => Some(alone.depth_coverage(depth)?),
         None => None,
     };
     let length = model

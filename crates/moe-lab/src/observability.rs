@@ -16,8 +16,8 @@ use moe_geom::{
     FingerModel, FingerParams, HandModel, HandPreset, MarkerLayoutPreset, Point3, Real, Vector3,
 };
 use moe_physics::{
-    BoundOptions, DepthBoundModel, HandMaterial, PhysicsConfig, PhysicsEstimator, PlaceBound,
-    RegionBound, quantile, region_bounds,
+    BoundOptions, DepthBoundModel, DepthCoverage, HandMaterial, PhysicsConfig, PhysicsEstimator,
+    PlaceBound, RegionBound, quantile, region_bounds,
 };
 use serde::Serialize;
 
@@ -85,6 +85,58 @@ pub fn study_params(layout: MarkerLayoutPreset) -> FingerParams {
     }
 }
 
+/// Finger 0 of a hand alone, as the bound takes it: its physics model with the default
+/// material and settings, zero pulls, gravity along the hand's −z.
+pub struct FingerAlone {
+    estimator: PhysicsEstimator,
+    pulls: Vec<Real>,
+    gravity: Vector3,
+}
+
+impl FingerAlone {
+    /// Finger 0 of `hand`.
+    ///
+    /// # Errors
+    /// A finger the physics model cannot be built for.
+    pub fn of(hand: &HandModel) -> Result<Self, LabError> {
+        let one = HandModel::new(vec![hand.fingers()[0].clone()])?;
+        let config = PhysicsConfig::default();
+        let estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config)?;
+        let gravity = Vector3::new(0.0, 0.0, -Vector3::from(config.gravity_m_s2).norm());
+        let pulls = vec![0.0; one.fingers()[0].model.tendon_routes().len()];
+        Ok(Self {
+            estimator,
+            pulls,
+            gravity,
+        })
+    }
+
+    /// Gravity in the hand frame, m/s².
+    pub fn gravity(&self) -> Vector3 {
+        self.gravity
+    }
+
+    /// The bound at every movable vertex ([`PhysicsEstimator::location_bounds`]).
+    ///
+    /// # Errors
+    /// Invalid `options`, a failing solve.
+    pub fn location_bounds(&mut self, options: &BoundOptions) -> Result<Vec<PlaceBound>, LabError> {
+        Ok(self
+            .estimator
+            .location_bounds(0, &self.pulls, self.gravity, options)?)
+    }
+
+    /// What the camera of `depth` sees of the finger ([`PhysicsEstimator::depth_coverage`]).
+    ///
+    /// # Errors
+    /// An invalid model, a failing solve.
+    pub fn depth_coverage(&mut self, depth: &DepthBoundModel) -> Result<DepthCoverage, LabError> {
+        Ok(self
+            .estimator
+            .depth_coverage(0, &self.pulls, self.gravity, depth)?)
+    }
+}
+
 /// The bound of every movable vertex of finger 0 of the two-finger hand with `layout`, seen as
 /// `options` says (its markers, the depth image of the default wrist camera, or both).
 ///
@@ -95,13 +147,9 @@ pub fn layout_bounds(
     options: &BoundOptions,
 ) -> Result<LayoutBounds, LabError> {
     let hand = HandModel::preset(HandPreset::TwoFinger, &study_params(layout))?;
-    let one = HandModel::new(vec![hand.fingers()[0].clone()])?;
-    let config = PhysicsConfig::default();
-    let mut estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config)?;
-    let gravity = Vector3::new(0.0, 0.0, -Vector3::from(config.gravity_m_s2).norm());
-    let finger = one.fingers()[0].model.clone();
-    let pulls = vec![0.0; finger.tendon_routes().len()];
-    let bounds = estimator.location_bounds(0, &pulls, gravity, options)?;
+    let mut alone = FingerAlone::of(&hand)?;
+    let finger = hand.fingers()[0].model.clone();
+    let bounds = alone.location_bounds(options)?;
     let observed = match (options.markers, options.depth.is_some()) {
         (true, false) => layout.name().to_owned(),
         (true, true) => format!("{} + depth", layout.name()),
@@ -433,13 +481,9 @@ mod tests {
             base(&m)
         );
         let hand = HandModel::preset(HandPreset::TwoFinger, &study_params(layout)).unwrap();
-        let one = HandModel::new(vec![hand.fingers()[0].clone()]).unwrap();
-        let config = PhysicsConfig::default();
-        let mut estimator = PhysicsEstimator::new(&one, &HandMaterial::default(), &config).unwrap();
-        let gravity = Vector3::new(0.0, 0.0, -9.81);
-        let pulls = vec![0.0; one.fingers()[0].model.tendon_routes().len()];
-        let coverage = estimator
-            .depth_coverage(0, &pulls, gravity, &depth)
+        let coverage = FingerAlone::of(&hand)
+            .unwrap()
+            .depth_coverage(&depth)
             .unwrap();
         assert!(
             (100..coverage.surface_vertices / 2).contains(&coverage.vertices),
