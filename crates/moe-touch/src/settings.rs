@@ -33,6 +33,13 @@ impl Validated for moe_physics::PhysicsConfig {
     }
 }
 
+#[cfg(feature = "physics")]
+impl Validated for moe_physics::DepthBoundModel {
+    fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(self.validate()?)
+    }
+}
+
 /// Reads and checks the settings file at `path`.
 fn load<T: serde::de::DeserializeOwned + Validated>(path: &Path) -> Result<T, TouchError> {
     let value: T = moe_io::read_config(path)?;
@@ -70,6 +77,16 @@ pub fn load_material(path: &Path) -> Result<moe_physics::HandMaterial, TouchErro
 /// As [`load_detector_config`].
 #[cfg(feature = "physics")]
 pub fn load_physics_config(path: &Path) -> Result<moe_physics::PhysicsConfig, TouchError> {
+    load(path)
+}
+
+/// A depth camera for the Cramér–Rao bound (`DepthBoundModel`: intrinsics, mount, noise, range)
+/// from a TOML or JSON file, checked; fields not given keep the virtual camera's values.
+///
+/// # Errors
+/// As [`load_detector_config`].
+#[cfg(feature = "physics")]
+pub fn load_depth_bound_model(path: &Path) -> Result<moe_physics::DepthBoundModel, TouchError> {
     load(path)
 }
 

@@ -52,6 +52,12 @@ pub(crate) struct HandArgs {
     /// to whole millimetres (as a ROS 2 16UC1 topic gives it).
     #[arg(long, requires = "bound")]
     bound_harsher_depth: bool,
+    /// With --bound and depth: another depth camera than the default wrist camera (TOML or JSON
+    /// `DepthBoundModel`: `intrinsics`, `hand_from_camera`, `sigma_base_m`, `sigma_per_m2`,
+    /// `correlated_sigma_m`, `quantum_m`, `min_range_m`, `max_range_m`, `grazing_deg`; fields
+    /// not given keep the default camera's).
+    #[arg(long, value_name = "CAMERA.toml", requires = "bound")]
+    bound_camera: Option<PathBuf>,
     /// Output directory: finger_<i>.obj (rest mesh in the hand frame, metres) and hand.json.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
@@ -93,11 +99,23 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
             (hand, args.preset.to_string(), layout)
         }
     };
-    if args.bound_harsher_depth && args.bound_observe == BoundObserve::Markers {
-        anyhow::bail!("--bound-harsher-depth is for --bound-observe depth or both");
+    if args.bound_observe == BoundObserve::Markers {
+        for (given, flag) in [
+            (args.bound_harsher_depth, "--bound-harsher-depth"),
+            (args.bound_camera.is_some(), "--bound-camera"),
+        ] {
+            if given {
+                anyhow::bail!("{flag} is for --bound-observe depth or both");
+            }
+        }
     }
+    let camera = match &args.bound_camera {
+        Some(path) => {
+            moe_touch::settings::load_depth_bound_model(path).context("--bound-camera")?
+        }
+        None => moe_physics::DepthBoundModel::default(),
+    };
     let depth = (args.bound_observe != BoundObserve::Markers).then(|| {
-        let camera = moe_physics::DepthBoundModel::default();
         if args.bound_harsher_depth {
             camera.harsher()
         } else {

@@ -407,5 +407,43 @@ fn the_bound_with_depth_reports_what_the_camera_sees() {
     ]);
     let line = assert_one_line_error(&out);
     assert!(line.contains("--bound-harsher-depth"), "{line}");
+    // Another camera from a file: the committed D405-class example, mounted farther back, sees
+    // fewer pixels and bounds less tightly than the default camera, still far below the markers
+    // alone at the base.
+    let d405 = fixtures().join("cameras/d405-424x240.toml");
+    let other = bound(&[
+        "--bound-observe",
+        "both",
+        "--bound-camera",
+        d405.to_str().unwrap(),
+    ]);
+    assert_eq!(other["bound"]["depth"]["intrinsics"]["width"], 424);
+    let pixels = |v: &serde_json::Value| v["bound"]["depth_coverage"]["pixels"].as_f64().unwrap();
+    assert!(
+        pixels(&other) < pixels(&both),
+        "{} vs {}",
+        pixels(&other),
+        pixels(&both)
+    );
+    let base = |v: &serde_json::Value| region_median(v, "base", "along_mm");
+    assert!(base(&both) < base(&other) && base(&other) < base(&markers));
+    let bad = dir.join("bad-camera.toml");
+    std::fs::write(&bad, "min_range_m = 0.5\nmax_range_m = 0.1\n").unwrap();
+    let out = run(&[
+        "hand",
+        "--out",
+        dir.join("never").to_str().unwrap(),
+        "--bound",
+        "--bound-observe",
+        "depth",
+        "--bound-camera",
+        bad.to_str().unwrap(),
+    ]);
+    let line = assert_one_line_error(&out);
+    assert!(
+        line.contains("bad-camera.toml") && line.contains("max_range_m"),
+        "{line}"
+    );
+    assert!(!dir.join("never").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
