@@ -10,7 +10,7 @@ write. Run by hand; the result is committed as a test fixture.
 Topics are those `realsense2_camera` publishes (colour `rgb8`, depth aligned to colour `16UC1`
 in millimetres, camera info), `/tf_static` (hand -> camera_color_optical_frame), `/tf`
 (world -> hand) and `/hand/tendons` (sensor_msgs/JointState, the pulls as positions, joints
-`finger{i}_tendon{j}`): the defaults of `moe_io::ros2::RosConfig`.
+`finger{i}_tendon{j}`): the defaults of `moe_record::ros2::RosConfig`.
 """
 
 import json

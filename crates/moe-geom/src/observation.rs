@@ -1,15 +1,16 @@
 //! What an estimator is told about one instant of a hand: the one observation type.
 //!
 //! An [`Observation`] borrows what the caller has — the markers seen (keypoints), the tendon
-//! pulls the robot commanded, the wrist pose and the time — and an [`OwnedObservation`] holds
+//! pulls the robot commanded, the wrist pose, the time and the wrist camera's depth image
+//! ([`DepthImage`]) — and an [`OwnedObservation`] holds
 //! the same values (to store them, send them to another thread, or read them from a file).
 //! Every field is optional: an estimator takes what it needs and refuses, naming it, what it
 //! needs and was not given. Both types are `#[non_exhaustive]` and built with the `with_*`
-//! methods, so that a new kind of observation (the camera's depth image) is one more optional
-//! field, and code that builds observations today keeps compiling.
+//! methods, so that a new kind of observation is one more optional field (as the depth image
+//! was), and code that builds observations keeps compiling.
 //!
-//! A camera frame itself is an [`RgbdFrame`]: the pipeline finds the markers in it and adds them
-//! to the caller's observation.
+//! A camera frame itself is an [`RgbdFrame`]: the pipeline finds the markers in it and adds them,
+//! with the frame's depth image and the camera that took it, to the caller's observation.
 
 use serde::{Deserialize, Serialize};
 

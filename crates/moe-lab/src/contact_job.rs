@@ -92,7 +92,8 @@ pub struct PointsReport {
 /// Reads a point cloud: CSV rows `x,y,z` (metres), header optional.
 ///
 /// # Errors
-/// [`IoError`] naming the file: unreadable, malformed, or a row of another width.
+/// [`IoError`] naming the file: unreadable, malformed (rows of different widths), or rows of
+/// four fields (a point cloud is `x,y,z` only).
 pub fn read_point_cloud(path: &Path) -> Result<Vec<[Real; 3]>, LabError> {
     let rows = moe_io::read_points_csv(path)?;
     if let Some((i, r)) = rows.iter().enumerate().find(|(_, r)| r.len() != 3) {
@@ -516,9 +517,13 @@ mod tests {
         let path = std::env::temp_dir().join(format!("moe-lab-cloud-{}.csv", std::process::id()));
         std::fs::write(&path, "x,y,z\n0,0,0\n0,0,1\n").unwrap();
         assert_eq!(read_point_cloud(&path).unwrap().len(), 2);
-        std::fs::write(&path, "0,0,0\n0,0,1,2\n").unwrap();
+        // Rows of 4 fields read as points with a value; a point cloud takes x,y,z only.
+        std::fs::write(&path, "0,0,0,1\n0,0,1,2\n").unwrap();
         let err = read_point_cloud(&path).unwrap_err().to_string();
-        assert!(err.contains("row 2") && err.contains("4 fields"), "{err}");
+        assert!(
+            err.contains("row 1") && err.contains("points are x,y,z"),
+            "{err}"
+        );
         std::fs::remove_file(&path).unwrap();
     }
 

@@ -230,11 +230,7 @@ pub fn finger_bound(
         pulls: "zero",
         regions: region_bounds(&bounds, length),
         map: BOUND_MAP.to_owned(),
-        observed: match (options.markers, options.depth.is_some()) {
-            (true, true) => "markers and depth",
-            (false, _) => "depth",
-            (true, false) => "markers",
-        },
+        observed: options.observed(),
         depth: options.depth.clone(),
         depth_coverage,
     };

@@ -4,7 +4,9 @@
 //! of finger 0 of the two-finger hand (default finger, default material and settings, zero
 //! pulls, gravity along the hand's −z), for each layout of the study: the camera row of 7 (the
 //! paper's), two rows of 7 at ±35°, the camera row and rows of 7 on the sides (±90°), and the
-//! camera row with a ring of 6 at the tip. Per layout and region (tip z > 80 % of the length
+//! camera row with a ring of 6 at the tip; and, with a depth model (the default), the wrist
+//! camera's depth image alone and the camera row with depth, under the model's noise and under
+//! its harsher variant. Per layout and region (tip z > 80 % of the length
 //! with the cap, middle 40–70 %, base 12–35 %): median and 90th percentile, for one frame and
 //! for a held press of several frames (independent marker noise per frame: the bound over √N).
 //! The report prints as Markdown tables
@@ -71,6 +73,8 @@ pub struct LayoutBounds {
     pub layout: MarkerLayoutPreset,
     /// What is observed (as [`LayoutSummary::layout`] names it).
     pub observed: String,
+    /// The markers observed: the layout's, or none for the depth image alone.
+    pub observed_markers: usize,
     /// Finger 0 of the two-finger hand with that layout.
     pub finger: FingerModel,
     /// The bound at every movable surface vertex.
@@ -155,9 +159,15 @@ pub fn layout_bounds(
         (true, true) => format!("{} + depth", layout.name()),
         (false, _) => "depth".to_owned(),
     };
+    let observed_markers = if options.markers {
+        finger.marker_vertices().len()
+    } else {
+        0
+    };
     Ok(LayoutBounds {
         layout,
         observed,
+        observed_markers,
         finger,
         bounds,
     })
@@ -187,15 +197,6 @@ impl LayoutBounds {
             .filter(move |b| (lo..=hi).contains(&(b.rest_in_finger.z / length)))
     }
 
-    /// The markers observed: none for the depth image alone, else the layout's.
-    pub fn observed_markers(&self) -> usize {
-        if self.observed == "depth" || self.observed.starts_with("depth,") {
-            0
-        } else {
-            self.finger.marker_vertices().len()
-        }
-    }
-
     /// The summary per region and, at mid height, per side.
     pub fn summary(&self, frames: usize) -> LayoutSummary {
         let regions = region_bounds(&self.bounds, self.length());
@@ -219,7 +220,7 @@ impl LayoutBounds {
             .collect();
         LayoutSummary {
             layout: self.observed.clone(),
-            markers: self.observed_markers(),
+            markers: self.observed_markers,
             frames,
             regions,
             mid_height_by_side,
@@ -238,9 +239,12 @@ pub struct ObservabilityReport {
     pub pulls: &'static str,
     /// The gravity (`along the hand's -z`).
     pub gravity: &'static str,
-    /// Per layout of [`MarkerLayoutPreset::ALL`], for one frame and for the held press.
+    /// Per layout of [`MarkerLayoutPreset::ALL`], then per depth run (depth alone, the camera row
+    /// with depth; each under the default and the harsher noise), for one frame and for the
+    /// held press.
     pub summaries: Vec<LayoutSummary>,
-    /// Per layout, the one-frame bound at every vertex (for figures; not serialised).
+    /// Per layout and depth run, the one-frame bound at every vertex (for figures; not
+    /// serialised).
     #[serde(skip)]
     pub layouts: Vec<LayoutBounds>,
 }
@@ -272,8 +276,10 @@ impl Default for ObservabilityOptions {
 }
 
 /// Runs the observability study: the bound of every layout of [`MarkerLayoutPreset::ALL`]
-/// ([`layout_bounds`]), summarised for one frame and for
-/// [`ObservabilityOptions::held_frames`] frames; `progress` is told each layout as it is done.
+/// ([`layout_bounds`]) and, with [`ObservabilityOptions::depth`], of the depth image alone and
+/// of the camera row with depth under that noise and the harsher one; each summarised for one
+/// frame and for [`ObservabilityOptions::held_frames`] frames. `progress` is told what each run
+/// observed as it is done.
 ///
 /// # Errors
 /// A force, noise or frame count the bound refuses ([`BoundOptions::validate`]), a failing

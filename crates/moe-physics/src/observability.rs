@@ -44,6 +44,15 @@ impl Default for BoundOptions {
 }
 
 impl BoundOptions {
+    /// What the options observe, in words: `markers`, `depth` or `markers and depth`.
+    pub fn observed(&self) -> &'static str {
+        match (self.markers, self.depth.is_some()) {
+            (true, true) => "markers and depth",
+            (false, _) => "depth",
+            (true, false) => "markers",
+        }
+    }
+
     /// Checks the options.
     ///
     /// # Errors
@@ -625,7 +634,7 @@ mod tests {
                     correlated_sigma_m: 0.0,
                     ..DepthBoundModel::default()
                 },
-                "sigma_base_m",
+                "bounds nothing",
             ),
         ] {
             let options = BoundOptions {

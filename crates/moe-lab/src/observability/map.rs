@@ -17,8 +17,9 @@ impl ObservabilityReport {
         let _ = writeln!(
             s,
             "Cramér–Rao bound of a press's place on finger 0 of the two-finger hand: {:.2} N along the \
-             inward normal, marker noise {:.3} mm per coordinate, zero pulls, gravity along −z; \
-             median / 90th percentile over each region's movable vertices",
+             inward normal, marker noise {:.3} mm per coordinate (the depth rows: the wrist camera's \
+             depth noise model), zero pulls, gravity along −z; median / 90th percentile over each \
+             region's movable vertices",
             self.force_n,
             self.marker_sigma_m * 1e3
         );
@@ -206,7 +207,7 @@ fn bound_panel(s: &mut String, (ox, oy): (Real, Real), l: &LayoutBounds, scale: 
         (x0 + x1) / 2.0,
         oy + 20.0,
         l.observed,
-        l.observed_markers()
+        l.observed_markers
     );
     // Grid and axes.
     for deg in [-180.0, -90.0, 0.0, 90.0, 180.0] {
@@ -257,7 +258,13 @@ fn bound_panel(s: &mut String, (ox, oy): (Real, Real), l: &LayoutBounds, scale: 
             ramp(scale.t(b.along_m * 1e3))
         );
     }
-    for p in l.finger.marker_positions() {
+    // Rings only for markers the bound observed (none on the depth-only panels).
+    let observed = if l.observed_markers > 0 {
+        l.finger.marker_positions()
+    } else {
+        Vec::new()
+    };
+    for p in observed {
         let _ = writeln!(
             s,
             r#"<circle class="marker" cx="{:.1}" cy="{:.1}" r="4.5" fill="none" stroke="black" stroke-width="1.6"/>"#,

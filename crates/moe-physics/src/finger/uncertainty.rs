@@ -212,6 +212,7 @@ impl FingerInverse {
         let responses = self.candidate_responses(&fields);
         let inward_normals = self.inward_normals(&x);
         let frames = options.frames.max(1) as Real;
+        let whiten: Vec<Real> = weights.iter().map(|w| (w * frames).sqrt()).collect();
         let mut out = Vec::with_capacity(self.candidates.len());
         for (c, patch) in self.patches.iter().enumerate() {
             let inward = inward_normals[c];
@@ -225,17 +226,16 @@ impl FingerInverse {
             let along = n.cross(&around).normalize();
             // Jacobian columns: place along, place around, force x, y, z.
             let mut j = DMatrix::<Real>::zeros(n_obs, 5);
-            for (col, dir) in [along, around].iter().enumerate() {
-                for &(u, share) in patch {
-                    for (i, grad) in self.mech.load_weight_gradients(u) {
-                        let dw = grad.dot(dir) * share;
-                        for k in 0..n_obs {
-                            let mut s = 0.0;
-                            for a in 0..3 {
-                                s += fields[(3 * i as usize + a, k)] * force[a];
-                            }
-                            j[(k, col)] += dw * s;
+            for &(u, share) in patch {
+                for (i, grad) in self.mech.load_weight_gradients(u) {
+                    let dw = [grad.dot(&along) * share, grad.dot(&around) * share];
+                    for k in 0..n_obs {
+                        let mut s = 0.0;
+                        for a in 0..3 {
+                            s += fields[(3 * i as usize + a, k)] * force[a];
                         }
+                        j[(k, 0)] += dw[0] * s;
+                        j[(k, 1)] += dw[1] * s;
                     }
                 }
             }
@@ -245,11 +245,11 @@ impl FingerInverse {
                     j[(k, 2 + d)] = responses[base + d * n_obs + k];
                 }
             }
-            let mut weighted = j.clone();
-            for (k, w) in weights.iter().enumerate() {
-                weighted.row_mut(k).scale_mut(*w * frames);
+            // Whitened rows: the information is Jᵀ W J with W the weights over the frames.
+            for (k, w) in whiten.iter().enumerate() {
+                j.row_mut(k).scale_mut(*w);
             }
-            let info = j.transpose() * &weighted;
+            let info = j.transpose() * &j;
             let bound = match info.try_inverse() {
                 Some(cov) => {
                     let f = DVector::from_column_slice(inward.as_slice());
@@ -277,17 +277,34 @@ impl FingerInverse {
     ) -> Result<Vec<(Real, Real)>, PhysicsError> {
         let mut solves = 0;
         let x = self.static_free(obs, &mut solves)?;
-        let surface = self.surface_of(&x);
+        Ok(self
+            .seen_by(&x, obs, depth)
+            .1
+            .into_iter()
+            .map(|(_, depth_m, pixels)| (depth_m, pixels))
+            .collect())
+    }
+
+    /// The unit normals of the surface at nodes `x`, and the vertices the camera of `depth`
+    /// sees there: `(vertex, depth, pixels on its share of the surface)`.
+    fn seen_by(
+        &self,
+        x: &[Point3],
+        obs: &FingerObservation<'_>,
+        depth: &crate::observability::DepthBoundModel,
+    ) -> (Vec<Vector3>, Vec<(u32, Real, Real)>) {
+        let surface = self.surface_of(x);
         let normals = self.normals_of(&surface);
         let camera_from_finger = depth.hand_from_camera.inverse() * obs.world_from_finger;
-        Ok(depth
+        let seen = depth
             .visible_vertices(&camera_from_finger, &surface, &normals, &self.faces)
             .into_iter()
-            .map(|seen| {
-                let pixels = self.area[seen.vertex as usize] * seen.pixels_per_m2;
-                (seen.depth_m, pixels)
+            .map(|v| {
+                let pixels = self.area[v.vertex as usize] * v.pixels_per_m2;
+                (v.vertex, v.depth_m, pixels)
             })
-            .collect())
+            .collect();
+        (normals, seen)
     }
 
     /// What the bound observes at nodes `x`, as observation axes (a surface vertex and the
@@ -312,15 +329,11 @@ impl FingerInverse {
             }
         }
         if let Some(depth) = &options.depth {
-            let surface = self.surface_of(x);
-            let normals = self.normals_of(&surface);
-            let camera_from_finger = depth.hand_from_camera.inverse() * obs.world_from_finger;
-            for seen in depth.visible_vertices(&camera_from_finger, &surface, &normals, &self.faces)
-            {
-                let n_pixels = self.area[seen.vertex as usize] * seen.pixels_per_m2;
-                let variance = depth.pixel_variance(seen.depth_m) / n_pixels.max(1e-12)
+            let (normals, seen) = self.seen_by(x, obs, depth);
+            for (vertex, depth_m, pixels) in seen {
+                let variance = depth.pixel_variance(depth_m) / pixels.max(1e-12)
                     + depth.correlated_sigma_m * depth.correlated_sigma_m;
-                axes.push((seen.vertex, normals[seen.vertex as usize]));
+                axes.push((vertex, normals[vertex as usize]));
                 weights.push(1.0 / variance);
             }
         }
