@@ -65,10 +65,21 @@ fn bench_pipeline(c: &mut Criterion) {
     );
 }
 
-/// The pipeline with the physics estimator's stages (nominal material, default settings) on
-/// the pressed frame: a lone frame (the pipeline reset before each), and the frame held in a
-/// stream (each iteration 50 ms after the previous one).
+/// The pipeline with the physics estimator's stages (nominal material, default settings, then
+/// with the depth image as observation) on the pressed frame: a lone frame (the pipeline reset
+/// before each), and the frame held in a stream (each iteration 50 ms after the previous one).
 fn bench_physics_pipeline(c: &mut Criterion) {
+    let mut with_depth = moe_physics::PhysicsConfig::default();
+    with_depth.depth.enabled = true;
+    for (name, config) in [
+        ("physics", moe_physics::PhysicsConfig::default()),
+        ("physics with depth", with_depth),
+    ] {
+        bench_physics_config(c, name, &config);
+    }
+}
+
+fn bench_physics_config(c: &mut Criterion, name: &str, config: &moe_physics::PhysicsConfig) {
     let (episode, hand) = committed_episode();
     let physics = || {
         let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
@@ -77,27 +88,30 @@ fn bench_physics_pipeline(c: &mut Criterion) {
             hand.clone(),
             detector,
             &moe_physics::HandMaterial::default(),
-            &moe_physics::PhysicsConfig::default(),
+            config,
         )
         .expect("pipeline")
     };
     let mut frame = episode.frames[3].clone();
     let mut lone = physics();
-    c.bench_function("pipeline/two-finger frame, physics from rest", |b| {
-        b.iter(|| {
-            lone.reset();
-            black_box(
-                lone.process(frame.rgbd(), black_box(&frame.observation()))
-                    .expect("runs"),
-            )
-        })
-    });
+    c.bench_function(
+        &format!("pipeline/two-finger frame, {name} from rest"),
+        |b| {
+            b.iter(|| {
+                lone.reset();
+                black_box(
+                    lone.process(frame.rgbd(), black_box(&frame.observation()))
+                        .expect("runs"),
+                )
+            })
+        },
+    );
     let mut stream = physics();
     stream
         .process(frame.rgbd(), &frame.observation())
         .expect("runs");
     c.bench_function(
-        "pipeline/two-finger frame, physics tracked (50 ms frames)",
+        &format!("pipeline/two-finger frame, {name} tracked (50 ms frames)"),
         |b| {
             b.iter(|| {
                 frame.time_ns += 50_000_000;

@@ -15,8 +15,8 @@ use moe_arap::{MultiShapeEstimator, ShapeConfig};
 use moe_contact::{ContactMetrics, ContactReport, DgcnnEstimator};
 use moe_geom::HandEstimator as _;
 use moe_geom::{
-    ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, Point3, Real, SeededRng,
-    Vector3, WorldFromHand, bcd,
+    ContactInput, HandKeypoints, HandModel, HandShape, LabelledFrame, OwnedDepthImage, Point3,
+    Real, SeededRng, Vector3, WorldFromHand, bcd,
 };
 use moe_physics::{PhysicsEstimate, PhysicsEstimator};
 use moe_tendon_sim::{Scene, SceneConfig, SimFrame, run_saving};
@@ -142,8 +142,19 @@ pub enum MarkerSource<'a> {
         /// Seed.
         seed: u64,
     },
-    /// Markers supplied per frame (detected in rendered frames; `None` where unseen).
-    Given(&'a [HandKeypoints]),
+    /// Markers detected in rendered frames (`None` where unseen), with the frames' depth
+    /// images.
+    Given(&'a [PerceivedFrame]),
+}
+
+/// What the wrist camera gave of one rendered frame: the markers the perception stage
+/// detected in it and its depth image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerceivedFrame {
+    /// The markers detected (`None` where unseen), hand frame.
+    pub keypoints: HandKeypoints,
+    /// The frame's depth image with its camera.
+    pub depth: OwnedDepthImage,
 }
 
 impl MarkerSource<'_> {
@@ -157,12 +168,21 @@ impl MarkerSource<'_> {
                     .split(u64::from(frame.frame_index));
                 Ok(frame.markers.with_noise(sigma_m, &mut rng))
             }
-            Self::Given(all) => all
-                .get(k)
-                .cloned()
-                .ok_or_else(|| LabError::InvalidEvaluation {
-                    reason: format!("{} marker sets for frame {k}", all.len()),
-                }),
+            Self::Given(all) => {
+                all.get(k)
+                    .map(|p| p.keypoints.clone())
+                    .ok_or_else(|| LabError::InvalidEvaluation {
+                        reason: format!("{} marker sets for frame {k}", all.len()),
+                    })
+            }
+        }
+    }
+
+    /// The depth image of frame `k`, where the source has one.
+    fn depth(&self, k: usize) -> Option<moe_geom::DepthImage<'_>> {
+        match *self {
+            Self::Given(all) => all.get(k).map(|p| p.depth.view()),
+            _ => None,
         }
     }
 
@@ -584,7 +604,10 @@ pub fn evaluate_physics(
         }
         let markers = source.markers(k, frame)?;
         let start = Instant::now();
-        let observation = frame.observation().with_keypoints(&markers);
+        let mut observation = frame.observation().with_keypoints(&markers);
+        if let Some(depth) = source.depth(k) {
+            observation = observation.with_depth(depth);
+        }
         let est = estimator.estimate(&observation.with_time(sf.time_secs))?;
         times.push(start.elapsed().as_secs_f64() * 1e3);
         failed += est
@@ -663,7 +686,8 @@ fn bcd_of(a: &HandShape, b: &HandShape) -> Result<Real, LabError> {
 /// A simulated stream with the markers the perception stage detects in its rendered wrist
 /// camera frames: the scene is simulated, every saved frame rendered by the scene's camera
 /// (noise seeded by `seed`) and its markers detected and tracked by a detector with the
-/// default parameters. Returns the stream and, per frame, the detected keypoints.
+/// default parameters. Returns the stream and, per frame, the detected keypoints and the depth
+/// image.
 ///
 /// # Errors
 /// As [`simulate_stream`], and a camera or detector the scene does not allow.
@@ -672,7 +696,7 @@ pub fn simulate_perceived(
     hand: &HandModel,
     trajectory_id: u64,
     seed: u64,
-) -> Result<(Vec<StreamFrame>, Vec<HandKeypoints>), LabError> {
+) -> Result<(Vec<StreamFrame>, Vec<PerceivedFrame>), LabError> {
     let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
     let recorder = crate::episode::EpisodeRecorder::new(&scene, "perceived", seed)?;
     let mut detector = moe_touch::perception::MarkerDetector::for_episode(
@@ -688,7 +712,14 @@ pub fn simulate_perceived(
         let index = stream.len() as u64;
         let rendered = recorder.frame(scene, &saved, index)?;
         let detection = detector.detect(&rendered.color_rgb8, &rendered.depth_m)?;
-        seen.push(detection.keypoints);
+        seen.push(PerceivedFrame {
+            keypoints: detection.keypoints,
+            depth: OwnedDepthImage::new(
+                rendered.depth_m,
+                *detector.intrinsics(),
+                detector.hand_from_camera(),
+            )?,
+        });
         stream.push(StreamFrame::from_sim(
             hand,
             &saved,

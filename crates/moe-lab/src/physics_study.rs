@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use moe_arap::ShapeConfig;
 use moe_contact::{ContactReport, DgcnnEstimator};
-use moe_geom::{HandKeypoints, HandModel, MarkerLayoutPreset, OwnedObservation, Real};
+use moe_geom::{HandModel, MarkerLayoutPreset, OwnedObservation, Real};
 use moe_io::{DatasetReader, Split, SplitFractions};
 use moe_physics::{
     CalibrationOptions, CalibrationReport, HandMaterial, PhysicsConfig, PhysicsEstimator, calibrate,
@@ -20,8 +20,8 @@ use crate::contact_eval::FrameSet;
 use crate::datagen::{dataset_hand, dataset_params};
 use crate::error::LabError;
 use crate::physics_eval::{
-    Comparison, MarkerSource, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame, evaluate_physics,
-    evaluate_plates_physics, simulate_perceived, simulate_stream,
+    Comparison, MarkerSource, PerceivedFrame, PhysicsEvaluation, PhysicsPlateTrial, StreamFrame,
+    evaluate_physics, evaluate_plates_physics, simulate_perceived, simulate_stream,
 };
 
 /// Where the frames of [`physics_study`] come from.
@@ -252,8 +252,9 @@ pub struct Streams {
     pub hand: HandModel,
     /// The frames, trajectory after trajectory.
     pub frames: Vec<StreamFrame>,
-    /// Per frame, the markers detected in the rendered images (perceived frames).
-    pub perceived: Option<Vec<HandKeypoints>>,
+    /// Per frame, the markers detected in the rendered images and the depth images (perceived
+    /// frames).
+    pub perceived: Option<Vec<PerceivedFrame>>,
     /// The randomisation the frames were made with.
     pub params: RandomSceneParams,
 }

@@ -111,6 +111,7 @@ impl Problem<'_> {
                         world_from_finger: world_from_hand * hand_from_finger,
                         pulls: &frame.tendon_pull_m[f],
                         time_secs: frame.time_secs,
+                        depth: &[],
                     };
                     let (s, n) = finger.free_residual(&obs)?;
                     sum += s;

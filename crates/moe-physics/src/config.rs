@@ -177,6 +177,185 @@ pub struct PhysicsConfig {
     /// the same contacts, but the committed held-out frames (exact markers, further apart than
     /// 50 ms) lose accuracy (contact BCD 1.75 → 3.71 mm on 12 frames).
     pub max_dynamic_steps: usize,
+    /// How the wrist camera's depth image is used, when an observation carries one.
+    pub depth: DepthSettings,
+}
+
+/// A depth camera's noise at the ranges a wrist camera sees a finger: white noise per pixel
+/// growing with the square of the range (stereo), a part shared by neighbouring pixels that
+/// does not average away, and quantisation to the image's depth unit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DepthNoise {
+    /// White depth noise at zero range, metres. Default 0.0005 (the virtual camera's).
+    pub sigma_base_m: Real,
+    /// Growth of the white noise with squared range, 1/metre. Default 0.0025 (the virtual
+    /// camera's).
+    pub sigma_per_m2: Real,
+    /// Error shared by the pixels of a neighbourhood, metres. Default 1e-4 (an assumption).
+    pub correlated_sigma_m: Real,
+    /// Depth unit the image is quantised to, metres (0: none). Default 0.
+    pub quantum_m: Real,
+}
+
+impl Default for DepthNoise {
+    fn default() -> Self {
+        Self {
+            sigma_base_m: 0.0005,
+            sigma_per_m2: 0.0025,
+            correlated_sigma_m: 1e-4,
+            quantum_m: 0.0,
+        }
+    }
+}
+
+impl DepthNoise {
+    /// The variance of one pixel's depth at range `z`: white noise and quantisation.
+    pub fn pixel_variance(&self, z: Real) -> Real {
+        let sigma = self.sigma_base_m + self.sigma_per_m2 * z * z;
+        sigma * sigma + self.quantum_m * self.quantum_m / 12.0
+    }
+
+    /// The variance of the mean of pixels whose white variances sum to `white_sum` over `n`
+    /// pixels: the white part averaged, the correlated part whole.
+    pub fn mean_variance(&self, white_sum: Real, n: usize) -> Real {
+        let n = n.max(1) as Real;
+        white_sum / (n * n) + self.correlated_sigma_m * self.correlated_sigma_m
+    }
+
+    fn validate(&self) -> Result<(), PhysicsError> {
+        for (name, v) in [
+            ("depth.noise.sigma_base_m", self.sigma_base_m),
+            ("depth.noise.sigma_per_m2", self.sigma_per_m2),
+            ("depth.noise.correlated_sigma_m", self.correlated_sigma_m),
+            ("depth.noise.quantum_m", self.quantum_m),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(PhysicsError::InvalidParameter {
+                    name,
+                    value: v,
+                    reason: "must be finite and non-negative",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How the physics estimator uses a depth image: which pixels it keeps, how it aggregates them
+/// into observations of the surface, and how much it trusts them.
+///
+/// Each finger's pixels are predicted from the model (the estimated meshes drawn through the
+/// camera), gated, and pooled over patches of the surface about `patch_spacing_m` across: a
+/// patch gives one observation, the mean distance of its pixels from the model's surface along
+/// the surface normal, with the variance of that mean under the noise model plus
+/// `model_sigma_m²` for what the model gets wrong.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DepthSettings {
+    /// Use the observation's depth image when it carries one. Default false.
+    pub enabled: bool,
+    /// Every `stride_px`-th pixel in both directions is sampled. Default 4.
+    pub stride_px: u32,
+    /// Pixels this close to a predicted silhouette (flying pixels) are left out. Default 2.
+    pub edge_band_px: u32,
+    /// Pixels that see further than this behind the predicted surface (along the optical axis)
+    /// are not the finger's, metres. Default 0.003.
+    pub gate_m: Real,
+    /// Pixels that see further than this in front of the predicted surface are not the
+    /// finger's (an object near it), metres. Default 0.003.
+    pub front_gate_m: Real,
+    /// Spacing of the patches pixels are pooled over, metres. Default 0.005.
+    pub patch_spacing_m: Real,
+    /// Fewest pixels of a patch's observation. Default 8.
+    pub min_pixels: usize,
+    /// The camera's noise.
+    pub noise: DepthNoise,
+    /// Standard deviation of the model's surface about the true one at a patch, metres.
+    /// Default 1e-4.
+    pub model_sigma_m: Real,
+}
+
+impl Default for DepthSettings {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            stride_px: 4,
+            edge_band_px: 2,
+            gate_m: 0.003,
+            front_gate_m: 0.003,
+            patch_spacing_m: 0.005,
+            min_pixels: 8,
+            noise: DepthNoise::default(),
+            model_sigma_m: 1e-4,
+        }
+    }
+}
+
+impl DepthSettings {
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// [`PhysicsError::InvalidParameter`] naming the first bad one.
+    pub fn validate(&self) -> Result<(), PhysicsError> {
+        self.noise.validate()?;
+        for (name, v) in [
+            ("depth.gate_m", self.gate_m),
+            ("depth.front_gate_m", self.front_gate_m),
+            ("depth.patch_spacing_m", self.patch_spacing_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(PhysicsError::InvalidParameter {
+                    name,
+                    value: v,
+                    reason: "must be finite and positive",
+                });
+            }
+        }
+        if !(self.model_sigma_m.is_finite() && self.model_sigma_m >= 0.0) {
+            return Err(PhysicsError::InvalidParameter {
+                name: "depth.model_sigma_m",
+                value: self.model_sigma_m,
+                reason: "must be finite and non-negative",
+            });
+        }
+        if self.stride_px == 0 {
+            return Err(PhysicsError::InvalidParameter {
+                name: "depth.stride_px",
+                value: 0.0,
+                reason: "must be at least 1",
+            });
+        }
+        if self.min_pixels == 0 {
+            return Err(PhysicsError::InvalidParameter {
+                name: "depth.min_pixels",
+                value: 0.0,
+                reason: "must be at least 1",
+            });
+        }
+        let floor = self.model_sigma_m + self.noise.correlated_sigma_m;
+        if floor <= 0.0 {
+            return Err(PhysicsError::InvalidParameter {
+                name: "depth.model_sigma_m",
+                value: self.model_sigma_m,
+                reason: "with no correlated noise either, a patch of many pixels would be trusted \
+                         without limit",
+            });
+        }
+        Ok(())
+    }
+
+    /// The association of pixels with fingers these settings ask for.
+    pub fn association(&self) -> moe_geom::depth::AssociationOptions {
+        moe_geom::depth::AssociationOptions {
+            stride_px: self.stride_px,
+            edge_band_px: self.edge_band_px,
+            gate_m: self.gate_m,
+            front_gate_m: self.front_gate_m,
+            // The objects in front of the finger are not used yet.
+            reach_m: 0.0,
+        }
+    }
 }
 
 impl Default for PhysicsConfig {
@@ -209,6 +388,7 @@ impl Default for PhysicsConfig {
             dynamic_step_secs: 0.01,
             max_dynamic_steps: 25,
             contact_lag_gain: 0.0,
+            depth: DepthSettings::default(),
         }
     }
 }
@@ -300,6 +480,6 @@ impl PhysicsConfig {
         if self.min_markers == 0 {
             return bad("min_markers", 0.0, "must be at least 1");
         }
-        Ok(())
+        self.depth.validate()
     }
 }

@@ -1,7 +1,8 @@
 //! The hand-level physics estimator: every finger read backwards, in the hand frame.
 
+use moe_geom::depth::associate_depth;
 use moe_geom::{
-    ContactMap, HandEstimate, HandEstimator, HandKeypoints, HandModel, HandShape, Iso3,
+    ContactMap, DepthImage, HandEstimate, HandEstimator, HandKeypoints, HandModel, HandShape, Iso3,
     Observation, Point3, Real, Vector3, WorldFromHand,
 };
 use rayon::prelude::*;
@@ -9,7 +10,7 @@ use serde::Serialize;
 
 use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
-use crate::finger::{FingerEstimate, FingerInverse, FingerObservation};
+use crate::finger::{Begun, FingerEstimate, FingerInverse, FingerObservation, FingerPixel};
 
 /// An observation with everything the physics estimator needs (hand frame).
 #[derive(Debug, Clone, Copy)]
@@ -24,6 +25,8 @@ pub(crate) struct FullObservation<'a> {
     /// Time of the observation, seconds: observations close in time form a stream (see
     /// [`PhysicsConfig::stream_horizon_secs`]); `None` for a lone frame.
     pub(crate) time_secs: Option<Real>,
+    /// The wrist camera's depth image, when the observation has one.
+    pub(crate) depth: Option<DepthImage<'a>>,
 }
 
 impl<'a> FullObservation<'a> {
@@ -44,6 +47,7 @@ impl<'a> FullObservation<'a> {
                 what: "the hand's pose (world_from_hand), for the direction of gravity",
             })?,
             time_secs: obs.time_secs,
+            depth: obs.depth,
         })
     }
 }
@@ -91,6 +95,11 @@ pub struct FingerReport {
     pub fit_rms_m: Real,
     /// Markers used.
     pub observed_markers: usize,
+    /// Depth observations used: patches of the surface the depth image saw, each pooling
+    /// pixels (0 without a depth image or with depth off).
+    pub depth_rows: usize,
+    /// Depth pixels pooled into them.
+    pub depth_pixels: usize,
     /// Linear solves of the frame (static Newton iterations, dynamic steps, tangents).
     pub solves: usize,
     /// Why there is no estimate for this finger in this frame (too few markers, a static solve
@@ -193,6 +202,59 @@ pub(crate) fn check_observation(
 /// One finger's observed markers (finger frame) and its estimate.
 type FingerResult = (Vec<Option<Point3>>, Result<FingerEstimate, PhysicsError>);
 
+/// What one finger's estimate is given, in the finger frame.
+struct FingerInput<'a> {
+    hand_from_finger: Iso3,
+    markers: Vec<Option<Point3>>,
+    gravity: Vector3,
+    world_from_finger: Iso3,
+    pulls: &'a [Real],
+    time_secs: Option<Real>,
+}
+
+impl FingerInput<'_> {
+    fn observation<'b>(&'b self, depth: &'b [crate::finger::DepthRow]) -> FingerObservation<'b> {
+        FingerObservation {
+            markers: &self.markers,
+            gravity: self.gravity,
+            world_from_finger: self.world_from_finger,
+            pulls: self.pulls,
+            time_secs: self.time_secs,
+            depth,
+        }
+    }
+}
+
+/// A finger's depth pixels (hand frame) in its own frame, each with the variance of its
+/// point-to-plane distance: the pixel's depth variance projected on the normal along the ray
+/// (`σ_z · |n · ray| / cos α`, α the ray's angle from the optical axis).
+fn finger_pixels(
+    found: &[moe_geom::depth::DepthPoint],
+    depth: &DepthImage<'_>,
+    noise: &crate::config::DepthNoise,
+    finger_from_hand: &Iso3,
+) -> Vec<FingerPixel> {
+    let hand_from_camera: Iso3 = *depth.hand_from_camera().iso();
+    let eye = Point3::from(hand_from_camera.translation.vector);
+    let axis = hand_from_camera.rotation * Vector3::z();
+    found
+        .iter()
+        .filter_map(|p| {
+            let z = depth.depth(p.pixel[0], p.pixel[1])?;
+            let ray = (p.measured_in_hand - eye).try_normalize(0.0)?;
+            let cos_axis = ray.dot(&axis).max(1e-6);
+            let along = p.normal_in_hand.dot(&ray) / cos_axis;
+            Some(FingerPixel {
+                face: p.face,
+                predicted: finger_from_hand * p.predicted_in_hand,
+                normal: finger_from_hand * p.normal_in_hand,
+                measured: finger_from_hand * p.measured_in_hand,
+                variance: noise.pixel_variance(z) * along * along,
+            })
+        })
+        .collect()
+}
+
 /// The physics estimator of a hand: per finger, the loads that explain its markers through its
 /// FEM model, and the shape they produce.
 #[derive(Debug)]
@@ -273,30 +335,39 @@ impl PhysicsEstimator {
             world_from_hand.inverse_transform_vector(&Vector3::from(self.config.gravity_m_s2));
         // The fingers are independent: each is estimated on its own thread (the results are
         // those of a sequential loop, bit for bit), then gathered in finger order.
-        let hand = &self.hand;
-        let results: Vec<FingerResult> = self
-            .fingers
-            .par_iter_mut()
+        let inputs: Vec<FingerInput<'_>> = self
+            .hand
+            .fingers()
+            .iter()
             .enumerate()
-            .map(|(f, inverse)| {
-                let hf = &hand.fingers()[f];
+            .map(|(f, hf)| {
                 let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
                 let finger_from_hand = hand_from_finger.inverse();
-                let markers: Vec<Option<Point3>> = keypoints.fingers[f]
-                    .iter()
-                    .map(|m| m.map(|p| finger_from_hand * p))
-                    .collect();
-                let fobs = FingerObservation {
-                    markers: &markers,
+                FingerInput {
+                    hand_from_finger,
+                    markers: keypoints.fingers[f]
+                        .iter()
+                        .map(|m| m.map(|p| finger_from_hand * p))
+                        .collect(),
                     gravity: finger_from_hand * gravity_in_hand,
                     world_from_finger: world_from_hand * hand_from_finger,
                     pulls: &pulls[f],
                     time_secs: obs.time_secs,
-                };
-                let est = inverse.estimate(&fobs);
-                (markers, est)
+                }
             })
             .collect();
+        let results = match obs.depth.filter(|_| self.config.depth.enabled) {
+            Some(depth) => self.estimate_with_depth(&inputs, &depth)?,
+            None => self
+                .fingers
+                .par_iter_mut()
+                .zip(&inputs)
+                .map(|(inverse, input)| {
+                    let est = inverse.estimate(&input.observation(&[]));
+                    (input.markers.clone(), est)
+                })
+                .collect(),
+        };
         for (f, (markers, result)) in results.into_iter().enumerate() {
             let hf = &self.hand.fingers()[f];
             let hand_from_finger: Iso3 = *hf.hand_from_finger.iso();
@@ -313,6 +384,8 @@ impl PhysicsEstimator {
                         free_rms_m: Real::NAN,
                         fit_rms_m: Real::NAN,
                         observed_markers: markers.iter().filter(|m| m.is_some()).count(),
+                        depth_rows: 0,
+                        depth_pixels: 0,
                         solves: 0,
                         error: Some(e.to_string()),
                     });
@@ -330,6 +403,64 @@ impl PhysicsEstimator {
                 fingers: out.fingers,
             },
         })
+    }
+
+    /// Every finger's estimate with the depth image: the free fingers first, which predict
+    /// where the camera sees each finger's surface (a finger whose start fails is predicted at
+    /// rest, for the others' occlusion); the pixels are associated with the predicted meshes and
+    /// pooled into each finger's depth observations; then each finger's estimate is finished.
+    fn estimate_with_depth(
+        &mut self,
+        inputs: &[FingerInput<'_>],
+        depth: &DepthImage<'_>,
+    ) -> Result<Vec<FingerResult>, PhysicsError> {
+        let begun: Vec<Result<Begun, PhysicsError>> = self
+            .fingers
+            .par_iter_mut()
+            .zip(inputs)
+            .map(|(inverse, input)| inverse.begin(&input.observation(&[])))
+            .collect();
+        let predicted: Vec<Option<Vec<Point3>>> = self
+            .fingers
+            .iter()
+            .zip(&begun)
+            .map(|(inverse, b)| b.as_ref().ok().map(|b| inverse.predicted_surface(b)))
+            .collect();
+        let shape = HandShape {
+            fingers: predicted
+                .iter()
+                .zip(inputs)
+                .enumerate()
+                .map(|(f, (p, input))| match p {
+                    Some(p) => p.iter().map(|q| input.hand_from_finger * q).collect(),
+                    None => self.hand.rest_vertices_in_hand(f),
+                })
+                .collect(),
+        };
+        let found = associate_depth(&self.hand, &shape, depth, &self.config.depth.association())?;
+        let noise = self.config.depth.noise;
+        Ok(self
+            .fingers
+            .par_iter_mut()
+            .zip(inputs)
+            .zip(
+                begun
+                    .into_iter()
+                    .zip(predicted)
+                    .zip(&found)
+                    .collect::<Vec<_>>(),
+            )
+            .map(|((inverse, input), ((begun, predicted), found))| {
+                let est = begun.and_then(|begun| {
+                    let finger_from_hand = input.hand_from_finger.inverse();
+                    let predicted = predicted.as_deref().unwrap_or(&[]);
+                    let pixels = finger_pixels(&found.points, depth, &noise, &finger_from_hand);
+                    let rows = inverse.depth_rows(&pixels, predicted);
+                    inverse.finish(&input.observation(&rows), begun)
+                });
+                (input.markers.clone(), est)
+            })
+            .collect())
     }
 
     fn push_finger(
@@ -370,6 +501,8 @@ impl PhysicsEstimator {
             free_rms_m: est.free_rms_m,
             fit_rms_m: est.fit_rms_m,
             observed_markers: est.observed_markers,
+            depth_rows: est.depth_rows,
+            depth_pixels: est.depth_pixels,
             solves: est.solves,
             error: None,
         });

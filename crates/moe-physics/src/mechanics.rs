@@ -21,6 +21,10 @@ pub(crate) struct PatchLoad {
     pub(crate) force: Vector3,
 }
 
+/// A linear observation of the surface: the quantity `Σ a · s_v` over its terms `(v, a)`,
+/// where `s_v` is surface vertex `v`'s position.
+pub(crate) type Axis = Vec<(u32, Vector3)>;
+
 /// Settings of the static solves.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct StaticSettings {
@@ -186,9 +190,10 @@ impl FingerMechanics {
 
     /// Factorises the tangent at `x` (with the tendon terms under `commands` and `loads`) and
     /// returns the displacement field of every observed quantity's unit load: column `j` of
-    /// the result is `K_T⁻¹ s_j` where `s_j` puts the force `axes[j].1` at surface vertex
-    /// `axes[j].0` (a unit axis for a marker coordinate, a unit normal for a depth
-    /// observation, which sees only the normal component). By reciprocity (`K_T` symmetric),
+    /// the result is `K_T⁻¹ s_j` where `s_j` puts the force `a` at surface vertex `v` for every
+    /// term `(v, a)` of `axes[j]` (one term along a unit axis for a marker coordinate; for a
+    /// depth observation, which sees only the normal component, the normal at a vertex or the
+    /// weighted normals of the pixels of a patch). By reciprocity (`K_T` symmetric),
     /// the change of observation `j` under a unit force along axis `d` at any surface point
     /// `p` is the value of column `j` interpolated at `p` along `d`.
     pub(crate) fn reciprocal_fields(
@@ -197,7 +202,7 @@ impl FingerMechanics {
         commands: &[TendonCommand],
         gravity: &Vector3,
         loads: &[PatchLoad],
-        axes: &[(u32, Vector3)],
+        axes: &[Axis],
         ctx: StepContext,
     ) -> Result<Mat<Real>, SimError> {
         let mut terms = std::mem::take(&mut self.terms);
@@ -217,13 +222,15 @@ impl FingerMechanics {
         result?;
         let rows = self.tangent.num_rows();
         let mut rhs = Mat::<Real>::zeros(rows, axes.len());
-        for (j, &(v, direction)) in axes.iter().enumerate() {
-            let e = self.body.surface().points()[v as usize];
-            for k in 0..4 {
-                if let Some(i) = fem.free_index(e.nodes[k]) {
-                    for d in 0..3 {
-                        if direction[d] != 0.0 {
-                            rhs[(3 * i + d, j)] += e.weights[k] * direction[d];
+        for (j, axis) in axes.iter().enumerate() {
+            for &(v, direction) in axis {
+                let e = self.body.surface().points()[v as usize];
+                for k in 0..4 {
+                    if let Some(i) = fem.free_index(e.nodes[k]) {
+                        for d in 0..3 {
+                            if direction[d] != 0.0 {
+                                rhs[(3 * i + d, j)] += e.weights[k] * direction[d];
+                            }
                         }
                     }
                 }

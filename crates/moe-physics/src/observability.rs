@@ -8,6 +8,7 @@ use moe_geom::camera::ray_triangle;
 use moe_geom::{CameraIntrinsics, Iso3, Point3, Real, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::config::DepthNoise;
 use crate::error::PhysicsError;
 use crate::estimator::PhysicsEstimator;
 use crate::finger::FingerObservation;
@@ -132,13 +133,14 @@ pub struct DepthBoundModel {
 
 impl Default for DepthBoundModel {
     fn default() -> Self {
+        let noise = DepthNoise::default();
         Self {
             intrinsics: CameraIntrinsics::default(),
             hand_from_camera: Iso3::translation(0.0, 0.0, -0.02),
-            sigma_base_m: 0.0005,
-            sigma_per_m2: 0.0025,
-            correlated_sigma_m: 1e-4,
-            quantum_m: 0.0,
+            sigma_base_m: noise.sigma_base_m,
+            sigma_per_m2: noise.sigma_per_m2,
+            correlated_sigma_m: noise.correlated_sigma_m,
+            quantum_m: noise.quantum_m,
             min_range_m: 0.01,
             max_range_m: 3.0,
             grazing_deg: 85.0,
@@ -231,10 +233,19 @@ impl DepthBoundModel {
         Ok(())
     }
 
+    /// The camera's noise, as the estimator takes it ([`crate::DepthSettings::noise`]).
+    pub fn noise(&self) -> DepthNoise {
+        DepthNoise {
+            sigma_base_m: self.sigma_base_m,
+            sigma_per_m2: self.sigma_per_m2,
+            correlated_sigma_m: self.correlated_sigma_m,
+            quantum_m: self.quantum_m,
+        }
+    }
+
     /// The variance of one pixel's depth at range `z`: white noise and quantisation.
     pub(crate) fn pixel_variance(&self, z: Real) -> Real {
-        let sigma = self.sigma_base_m + self.sigma_per_m2 * z * z;
-        sigma * sigma + self.quantum_m * self.quantum_m / 12.0
+        self.noise().pixel_variance(z)
     }
 
     /// The vertices of `surface` (with unit `normals` and `faces`, in some frame) that the
@@ -362,6 +373,7 @@ impl PhysicsEstimator {
             world_from_finger: *hf.hand_from_finger.iso(),
             pulls,
             time_secs: None,
+            depth: &[],
         };
         f(self.finger_mut(finger), &obs, &hf)
     }

@@ -3,7 +3,11 @@
 //! model (`moe-tendon-sim` at its default 3.5 mm mesh and the nominal material), not the
 //! estimator's.
 
-use moe_geom::{HandKeypoints, HandModel, Point3, Real, Vector3, WorldFromHand};
+use moe_geom::zbuffer::ZBuffer;
+use moe_geom::{
+    CameraIntrinsics, HandFromCamera, HandKeypoints, HandModel, HandShape, OwnedDepthImage, Point3,
+    Real, Vector3, WorldFromHand,
+};
 use moe_tendon_sim::mechanics::{FemInputs, FingerBody, Integrator, PointTerm, StepContext, Terms};
 use moe_tendon_sim::{BodyState, Material, TendonCommand, TendonParams, VoxelParams};
 
@@ -33,6 +37,19 @@ pub fn static_markers(
     world_from_hand: &WorldFromHand,
     loads: &[PointLoad],
 ) -> Result<HandKeypoints, PhysicsError> {
+    Ok(static_hand(hand, pulls, world_from_hand, loads)?.0)
+}
+
+/// As [`static_markers`], with every finger's surface (hand frame).
+///
+/// # Errors
+/// As [`static_markers`].
+pub fn static_hand(
+    hand: &HandModel,
+    pulls: &[Vec<Real>],
+    world_from_hand: &WorldFromHand,
+    loads: &[PointLoad],
+) -> Result<(HandKeypoints, HandShape), PhysicsError> {
     if pulls.len() != hand.num_fingers() {
         return Err(PhysicsError::LengthMismatch {
             what: "fingers of the tendon pulls",
@@ -45,6 +62,7 @@ pub fn static_markers(
         .iso()
         .inverse_transform_vector(&Vector3::new(0.0, 0.0, -9.81));
     let mut fingers = Vec::with_capacity(hand.num_fingers());
+    let mut surfaces = Vec::with_capacity(hand.num_fingers());
     for (f, hf) in hand.fingers().iter().enumerate() {
         let body = FingerBody::new(&hf.model, &Material::default(), &VoxelParams::default())
             .map_err(model_error(f))?;
@@ -110,15 +128,47 @@ pub fn static_markers(
             )
             .map_err(model_error(f))?;
         let hand_from_finger = hf.hand_from_finger.iso();
+        let surface: Vec<Point3> = body
+            .surface()
+            .points()
+            .iter()
+            .map(|e| hand_from_finger * e.position(&state.x))
+            .collect();
         fingers.push(
             hf.model
                 .marker_vertices()
                 .iter()
-                .map(|&v| {
-                    Some(hand_from_finger * body.surface().points()[v as usize].position(&state.x))
-                })
+                .map(|&v| Some(surface[v as usize]))
                 .collect(),
         );
+        surfaces.push(surface);
     }
-    Ok(HandKeypoints { fingers })
+    Ok((HandKeypoints { fingers }, HandShape { fingers: surfaces }))
+}
+
+/// The depth image (no noise, holes where nothing is seen) that a camera with `intrinsics` at
+/// `hand_from_camera` takes of the fingers of `hand` with surfaces `shape` (hand frame).
+///
+/// # Errors
+/// Invalid intrinsics.
+pub fn render_depth(
+    hand: &HandModel,
+    shape: &HandShape,
+    intrinsics: CameraIntrinsics,
+    hand_from_camera: HandFromCamera,
+) -> Result<OwnedDepthImage, PhysicsError> {
+    let mut zbuffer = ZBuffer::new(intrinsics)?;
+    let camera_from_hand = hand_from_camera.iso().inverse();
+    for (f, (hf, surface)) in hand.fingers().iter().zip(&shape.fingers).enumerate() {
+        for (k, face) in hf.model.mesh().faces().iter().enumerate() {
+            let q = face.map(|i| camera_from_hand * surface[i as usize]);
+            zbuffer.draw(&q, f as u32, k as u32);
+        }
+    }
+    let depth = zbuffer
+        .hits()
+        .iter()
+        .map(|h| h.map_or(0.0, |h| h.z as f32))
+        .collect();
+    Ok(OwnedDepthImage::new(depth, intrinsics, hand_from_camera)?)
 }

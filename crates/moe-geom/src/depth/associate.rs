@@ -24,8 +24,17 @@ pub struct AssociationOptions {
     pub stride_px: u32,
     /// Pixels this close to a predicted silhouette are left out. Default 2.
     pub edge_band_px: u32,
-    /// Largest difference between measured and predicted depth, metres. Default 3 mm.
+    /// Largest depth by which a pixel may see the finger behind its predicted surface, metres.
+    /// Default 3 mm.
     pub gate_m: Real,
+    /// Largest depth by which a pixel may see the finger in front of its predicted surface,
+    /// metres: an object touching the finger lies in front of it, within millimetres, about the
+    /// contact. Default 3 mm.
+    pub front_gate_m: Real,
+    /// A pixel that sees something in front of the finger by more than the gate and at most
+    /// this much (an object near it, such as the one pressing it) is kept apart as a
+    /// [`FingerDepth::front`] point, metres; 0 keeps none. Default 1 cm.
+    pub reach_m: Real,
 }
 
 impl Default for AssociationOptions {
@@ -34,6 +43,8 @@ impl Default for AssociationOptions {
             stride_px: 4,
             edge_band_px: 2,
             gate_m: 0.003,
+            front_gate_m: 0.003,
+            reach_m: 0.01,
         }
     }
 }
@@ -69,6 +80,9 @@ pub struct FingerDepth {
     pub holes: usize,
     /// Left out for a depth outside the gate (something in front of the finger, or far off).
     pub gated: usize,
+    /// Of those, the pixels that see something in front of the finger within the reach: the
+    /// measured point is the object's, the predicted one the finger's surface it hides.
+    pub front: Vec<DepthPoint>,
 }
 
 /// The depth pixels of `depth` that see each finger of `hand` as `shape` predicts it (finger
@@ -124,21 +138,30 @@ pub fn associate_depth(
                 finger.holes += 1;
                 continue;
             };
-            if (measured.z - hit.z).abs() > options.gate_m {
-                finger.gated += 1;
-                continue;
-            }
             let normal = normals[hit.item as usize][hit.face as usize];
             let measured_in_hand = hand_from_camera.transform_point(&measured);
             let predicted_in_hand = hand_from_camera.transform_point(&hit.point);
-            finger.points.push(DepthPoint {
+            let point = DepthPoint {
                 pixel: [i, j],
                 face: hit.face,
                 measured_in_hand,
                 predicted_in_hand,
                 normal_in_hand: normal,
                 residual_m: normal.dot(&(measured_in_hand - predicted_in_hand)),
-            });
+            };
+            let ahead = hit.z - measured.z;
+            if ahead > options.front_gate_m {
+                finger.gated += 1;
+                if ahead <= options.reach_m {
+                    finger.front.push(point);
+                }
+                continue;
+            }
+            if -ahead > options.gate_m {
+                finger.gated += 1;
+                continue;
+            }
+            finger.points.push(point);
         }
     }
     Ok(out)
@@ -217,6 +240,20 @@ fn check(
             name: "gate_m",
             value: options.gate_m,
             reason: "must be finite and positive",
+        });
+    }
+    if !(options.front_gate_m.is_finite() && options.front_gate_m > 0.0) {
+        return Err(GeomError::InvalidParameter {
+            name: "front_gate_m",
+            value: options.front_gate_m,
+            reason: "must be finite and positive",
+        });
+    }
+    if !(options.reach_m.is_finite() && options.reach_m >= 0.0) {
+        return Err(GeomError::InvalidParameter {
+            name: "reach_m",
+            value: options.reach_m,
+            reason: "must be finite and non-negative",
         });
     }
     Ok(())
@@ -348,6 +385,31 @@ mod tests {
         assert!(out[0].gated > 100, "{:?}", out[0].gated);
         assert_eq!(out[1].gated, 0, "finger 1 is not behind the plate");
         assert!(out[0].points.iter().all(|p| p.residual_m.abs() < 1e-7));
+        // What the plate hides of the finger within the reach is kept apart, nothing beyond it.
+        let eye = mount().iso().translation.vector;
+        for p in &out[0].front {
+            let (seen, hidden) = (
+                p.measured_in_hand.coords - eye,
+                p.predicted_in_hand.coords - eye,
+            );
+            let ahead = hidden.z - seen.z;
+            assert!(
+                ahead > opts.front_gate_m && ahead <= opts.reach_m + 1e-6,
+                "{p:?}"
+            );
+        }
+        let all = |reach_m| {
+            let o = AssociationOptions { reach_m, ..opts };
+            associate_depth(&hand, &shape, &image, &o).unwrap()[0]
+                .front
+                .len()
+        };
+        assert_eq!(
+            all(1.0),
+            out[0].gated,
+            "the plate is in front of every gated pixel"
+        );
+        assert_eq!(all(0.0), 0);
         let holes = vec![f32::NAN; pixels.len()];
         let image = DepthImage::new(&holes, CameraIntrinsics::default(), mount()).unwrap();
         for d in associate_depth(&hand, &shape, &image, &opts).unwrap() {

@@ -1,5 +1,6 @@
-//! Compliance by reciprocity: the linear model of the markers about one configuration, from
-//! one factorisation of the static tangent and a solve per observed coordinate.
+//! Compliance by reciprocity: the linear model of the observations (marker coordinates, depth
+//! patches) about one configuration, from one factorisation of the static tangent and a solve
+//! per observed quantity.
 
 use faer::Mat;
 use moe_geom::{Point3, Real, Vector3};
@@ -78,10 +79,14 @@ impl FingerInverse {
                 let v = self.markers[slot];
                 let model = self.mech.surface_position(x, v);
                 for d in 0..3 {
-                    axes.push((v, Vector3::ith(d, 1.0)));
+                    axes.push(vec![(v, Vector3::ith(d, 1.0))]);
                     r.push(p[d] - model[d]);
                 }
             }
+        }
+        for row in obs.depth {
+            axes.push(row.terms.clone());
+            r.push(row.value - self.depth_predicted(x, row));
         }
         let patch_loads: Vec<PatchLoad> = loads
             .iter()

@@ -6,7 +6,7 @@ use moe_geom::math::UnitQuat;
 use moe_geom::{Iso3, Point3, Real, Vector3};
 use moe_tendon_sim::BodyState;
 
-use super::{Baseline, FingerEstimate, FingerInverse, FingerObservation, commands_of};
+use super::{Baseline, DepthRow, FingerEstimate, FingerInverse, FingerObservation, commands_of};
 use crate::error::PhysicsError;
 
 /// The free finger simulated through the stream, in the world frame with its base following
@@ -29,6 +29,7 @@ fn interpolate(p0: &Iso3, p1: &Iso3, a: Real) -> Iso3 {
 }
 
 /// What the free finger is compared with: the simulated one of a stream, or the static one.
+#[derive(Debug)]
 pub(super) struct FreeReference {
     /// Node positions.
     pub(super) x: Vec<Point3>,
@@ -42,6 +43,8 @@ pub(super) struct StaticStart {
     pub(super) x: Vec<Point3>,
     /// The markers as the static model sees them.
     pub(super) markers: Vec<Option<Point3>>,
+    /// The depth observations as the static model sees them.
+    pub(super) depth: Vec<DepthRow>,
 }
 
 impl FingerInverse {
@@ -60,8 +63,8 @@ impl FingerInverse {
                 x
             }
         };
-        let n = 3 * obs.markers.iter().filter(|m| m.is_some()).count();
-        Ok((self.marker_residual_sq(&x, obs.markers), n))
+        let n = 3 * obs.markers.iter().filter(|m| m.is_some()).count() + obs.depth.len();
+        Ok((self.residual_sq(&x, obs), n))
     }
 
     /// The static free shape under the observation's pulls and gravity, warm-started from the
@@ -201,11 +204,17 @@ impl FingerInverse {
                     })
                 })
                 .collect();
-            Ok(StaticStart { x, markers: moved })
+            let depth = self.shifted_rows(obs.depth, &free.x, &x);
+            Ok(StaticStart {
+                x,
+                markers: moved,
+                depth,
+            })
         } else {
             Ok(StaticStart {
                 x: free.x.clone(),
                 markers,
+                depth: obs.depth.to_vec(),
             })
         }
     }
@@ -229,6 +238,8 @@ impl FingerInverse {
             free_rms_m: rms,
             fit_rms_m: rms,
             observed_markers: base.observed,
+            depth_rows: base.depth.0,
+            depth_pixels: base.depth.1,
             solves,
         }
     }

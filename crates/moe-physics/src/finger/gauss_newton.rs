@@ -64,7 +64,7 @@ impl FingerInverse {
                 match self.solve(&mut x, obs, &loads, "(shape under the estimated loads)") {
                     Ok(it) => {
                         *solves += it;
-                        let chi = self.marker_residual_sq(&x, obs.markers);
+                        let chi = self.residual_sq(&x, obs);
                         if chi < state.chi {
                             accepted = Some(Solved { x, loads, chi });
                             break;
@@ -135,7 +135,7 @@ impl FingerInverse {
             let mut x = tracked.x;
             if let Ok(it) = self.solve(&mut x, sobs, &tracked.loads, "") {
                 *solves += it;
-                let chi = self.marker_residual_sq(&x, sobs.markers);
+                let chi = self.residual_sq(&x, sobs);
                 if chi < chi0 {
                     state = Solved {
                         x,

@@ -23,6 +23,7 @@
 //!    about the threshold.
 
 mod compliance;
+mod depth;
 mod free;
 mod gauss_newton;
 mod outliers;
@@ -38,7 +39,9 @@ use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
 use crate::mechanics::{FingerMechanics, PatchLoad, StaticSettings};
 
-use free::DynamicFree;
+use depth::DepthPatches;
+pub(crate) use depth::{DepthRow, FingerPixel};
+use free::{DynamicFree, FreeReference};
 use search::PAIR_SPACING_M;
 use stream::Tracked;
 use uncertainty::PressedLoads;
@@ -57,6 +60,8 @@ pub(crate) struct FingerObservation<'a> {
     pub(crate) pulls: &'a [Real],
     /// Time of the observation, seconds (`None`: a lone frame).
     pub(crate) time_secs: Option<Real>,
+    /// The depth image's observations of the surface (none without a depth image).
+    pub(crate) depth: &'a [DepthRow],
 }
 
 impl FingerObservation<'_> {
@@ -112,8 +117,19 @@ pub(crate) struct FingerEstimate {
     pub(crate) fit_rms_m: Real,
     /// Markers used.
     pub(crate) observed_markers: usize,
+    /// Depth observations used (patches of pooled pixels).
+    pub(crate) depth_rows: usize,
+    /// Depth pixels pooled into them.
+    pub(crate) depth_pixels: usize,
     /// Linear solves of the frame (Newton iterations and dynamic steps).
     pub(crate) solves: usize,
+}
+
+/// The start of an observation's estimate: the free finger it is compared with.
+#[derive(Debug)]
+pub(crate) struct Begun {
+    free: FreeReference,
+    solves: usize,
 }
 
 /// The per-finger estimator.
@@ -154,6 +170,11 @@ pub(crate) struct FingerInverse {
     press_belief: Option<(Real, Real)>,
     /// Per marker slot: seen in an observation of this stream (for `hidden_marker_prior`).
     seen_in_stream: Vec<bool>,
+    /// The patches depth pixels are pooled over.
+    depth_patches: DepthPatches,
+    /// The previous observation's dent (estimated surface minus free surface) while a press
+    /// is held in a stream: where the depth image is predicted to see the surface.
+    previous_dent: Option<Vec<Vector3>>,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -178,8 +199,10 @@ struct Baseline {
     chi0: Real,
     /// Markers used.
     observed: usize,
-    /// Observed coordinates (three per marker used).
+    /// Observed quantities (three per marker used, one per depth observation).
     n_obs: Real,
+    /// Depth observations and the pixels pooled into them.
+    depth: (usize, usize),
 }
 
 impl FingerInverse {
@@ -260,10 +283,13 @@ impl FingerInverse {
                 pair_subset.push(c);
             }
         }
+        let depth_patches = DepthPatches::new(&rest_surface, &faces, config.depth.patch_spacing_m);
         Ok(Self {
             index,
             mech,
             pair_subset,
+            depth_patches,
+            previous_dent: None,
             rest_normals: normals.clone(),
             markers: finger.marker_vertices().to_vec(),
             rest_surface,
@@ -305,6 +331,7 @@ impl FingerInverse {
         self.place_prior = None;
         self.press_belief = None;
         self.seen_in_stream.clear();
+        self.previous_dent = None;
     }
 
     fn settings(&self) -> StaticSettings {
@@ -348,13 +375,16 @@ impl FingerInverse {
         self.mech.body().surface().positions(x)
     }
 
-    /// ‖m − m(x)‖² over the observed coordinates.
-    fn marker_residual_sq(&self, x: &[Point3], markers: &[Option<Point3>]) -> Real {
-        markers
+    /// ‖m − m(x)‖² over the observed coordinates of `obs` and the whitened squared residuals
+    /// of its depth observations.
+    fn residual_sq(&self, x: &[Point3], obs: &FingerObservation<'_>) -> Real {
+        let markers: Real = obs
+            .markers
             .iter()
             .zip(&self.markers)
             .filter_map(|(m, &v)| m.map(|p| (p - self.mech.surface_position(x, v)).norm_squared()))
-            .sum()
+            .sum();
+        markers + self.depth_residual_sq(x, obs.depth)
     }
 
     /// Estimates the finger's loads and shape from one observation.
@@ -362,6 +392,13 @@ impl FingerInverse {
         &mut self,
         obs: &FingerObservation<'_>,
     ) -> Result<FingerEstimate, PhysicsError> {
+        let begun = self.begin(obs)?;
+        self.finish(obs, begun)
+    }
+
+    /// The first part of an estimate: the markers counted and the free finger found (the
+    /// simulated one advanced to the observation, in a stream).
+    pub(crate) fn begin(&mut self, obs: &FingerObservation<'_>) -> Result<Begun, PhysicsError> {
         let observed = obs.markers.iter().filter(|m| m.is_some()).count();
         if observed < self.config.min_markers {
             self.reset();
@@ -371,29 +408,73 @@ impl FingerInverse {
                 needed: self.config.min_markers,
             });
         }
-        let result = self.estimate_observed(obs, observed);
-        if result.is_err() {
-            self.tracked = None;
+        let mut solves = 0;
+        match self.free_reference(obs, &mut solves) {
+            Ok(free) => Ok(Begun { free, solves }),
+            Err(e) => {
+                self.tracked = None;
+                Err(e)
+            }
+        }
+    }
+
+    /// Where the surface is expected, finger frame: the free finger with the previous
+    /// observation's dent while a press is held.
+    pub(crate) fn predicted_surface(&self, begun: &Begun) -> Vec<Point3> {
+        let mut surface = self.surface_of(&begun.free.x);
+        if let Some(dent) = self.previous_dent.as_ref().filter(|_| begun.free.dynamic) {
+            surface.iter_mut().zip(dent).for_each(|(p, d)| *p += d);
+        }
+        surface
+    }
+
+    /// The rest of an estimate begun by [`Self::begin`] with the same observation (now with
+    /// its depth observations, when any).
+    pub(crate) fn finish(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        begun: Begun,
+    ) -> Result<FingerEstimate, PhysicsError> {
+        let result = self.estimate_observed(obs, begun);
+        match &result {
+            Ok(est) if !est.loads.is_empty() => {}
+            Ok(_) => self.previous_dent = None,
+            Err(_) => {
+                self.tracked = None;
+                self.previous_dent = None;
+            }
         }
         result
     }
 
-    /// Estimates the loads and shape from an observation with enough markers (`observed`).
+    /// Estimates the loads and shape from an observation with enough markers, from its free
+    /// finger.
     fn estimate_observed(
         &mut self,
         obs: &FingerObservation<'_>,
-        observed: usize,
+        begun: Begun,
     ) -> Result<FingerEstimate, PhysicsError> {
         let sigma2 = self.config.marker_sigma_m.powi(2);
-        let mut solves = 0;
-        let free = self.free_reference(obs, &mut solves)?;
+        let Begun { free, mut solves } = begun;
+        let observed = obs.markers.iter().filter(|m| m.is_some()).count();
         self.update_place_prior(obs, free.dynamic);
         let lag_corrected = self.contact_lag_corrected(obs, &free.x);
         let markers: Vec<Option<Point3>> = lag_corrected.unwrap_or_else(|| obs.markers.to_vec());
+        let depth = (
+            obs.depth.len(),
+            obs.depth.iter().map(|r| r.pixels).sum::<usize>(),
+        );
         let base = Baseline {
-            chi0: self.marker_residual_sq(&free.x, &markers),
+            chi0: self.residual_sq(
+                &free.x,
+                &FingerObservation {
+                    markers: &markers,
+                    ..*obs
+                },
+            ),
             observed,
-            n_obs: (3 * observed) as Real,
+            n_obs: (3 * observed + depth.0) as Real,
+            depth,
         };
         // The belief that the finger is pressed, before this observation's evidence (even odds
         // without memory); the evidence is the statistic against the detection threshold.
@@ -414,6 +495,7 @@ impl FingerInverse {
         let start = self.static_start(obs, &free, markers, &mut solves)?;
         let sobs = FingerObservation {
             markers: &start.markers,
+            depth: &start.depth,
             ..*obs
         };
         let (state, lin) = self.search_held_press(&sobs, &start.x, base.chi0, &mut solves)?;
@@ -451,6 +533,14 @@ impl FingerInverse {
         } = self.describe_loads(&lin, &state, pressed_probability);
         self.remember_press(posteriors, &state);
         let surface = self.estimated_surface(&free, &state.x, &start.x);
+        let free_surface = self.surface_of(&free.x);
+        self.previous_dent = Some(
+            surface
+                .iter()
+                .zip(&free_surface)
+                .map(|(p, q)| p - q)
+                .collect(),
+        );
         Ok(FingerEstimate {
             loads,
             surface,
@@ -461,6 +551,8 @@ impl FingerInverse {
             free_rms_m: (base.chi0 / base.n_obs).sqrt(),
             fit_rms_m: (state.chi / base.n_obs).sqrt(),
             observed_markers: base.observed,
+            depth_rows: base.depth.0,
+            depth_pixels: base.depth.1,
             solves,
         })
     }

@@ -46,21 +46,23 @@ impl FingerInverse {
     ) -> Result<(Baseline, Solved, Linear), PhysicsError> {
         let mut kept = start.markers.clone();
         kept[worst] = None;
-        let chi0 = self.marker_residual_sq(&start.x, &kept);
+        let kobs = FingerObservation {
+            markers: &kept,
+            depth: &start.depth,
+            ..*obs
+        };
+        let chi0 = self.residual_sq(&start.x, &kobs);
         let fresh = Solved {
             x: start.x.clone(),
             loads: Vec::new(),
             chi: chi0,
-        };
-        let kobs = FingerObservation {
-            markers: &kept,
-            ..*obs
         };
         let (state, lin) = self.search_loads(&kobs, fresh, solves)?;
         let base = Baseline {
             chi0,
             observed: base.observed - 1,
             n_obs: base.n_obs - 3.0,
+            depth: base.depth,
         };
         Ok((base, state, lin))
     }

@@ -9,6 +9,7 @@ use super::gauss_newton::Solved;
 use super::search::Fit;
 use super::{FingerInverse, FingerLoad, FingerObservation, to_physics};
 use crate::error::PhysicsError;
+use crate::mechanics::Axis;
 use crate::observability::BoundOptions;
 
 /// The loads of a press, described for the estimate.
@@ -316,14 +317,14 @@ impl FingerInverse {
         x: &[Point3],
         obs: &FingerObservation<'_>,
         options: &BoundOptions,
-    ) -> (Vec<(u32, Vector3)>, Vec<Real>) {
+    ) -> (Vec<Axis>, Vec<Real>) {
         let mut axes = Vec::new();
         let mut weights = Vec::new();
         if options.markers {
             let w = 1.0 / (options.marker_sigma_m * options.marker_sigma_m);
             for &v in &self.markers {
                 for d in 0..3 {
-                    axes.push((v, Vector3::ith(d, 1.0)));
+                    axes.push(vec![(v, Vector3::ith(d, 1.0))]);
                     weights.push(w);
                 }
             }
@@ -333,7 +334,7 @@ impl FingerInverse {
             for (vertex, depth_m, pixels) in seen {
                 let variance = depth.pixel_variance(depth_m) / pixels.max(1e-12)
                     + depth.correlated_sigma_m * depth.correlated_sigma_m;
-                axes.push((vertex, normals[vertex as usize]));
+                axes.push(vec![(vertex, normals[vertex as usize])]);
                 weights.push(1.0 / variance);
             }
         }

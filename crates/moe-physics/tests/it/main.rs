@@ -4,4 +4,5 @@
 mod bad_input;
 mod calibration;
 mod common;
+mod depth;
 mod recovery;
