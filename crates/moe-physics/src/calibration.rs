@@ -112,6 +112,7 @@ impl Problem<'_> {
                         pulls: &frame.tendon_pull_m[f],
                         time_secs: frame.time_secs,
                         depth: &[],
+                        covered: &[],
                     };
                     let (s, n) = finger.free_residual(&obs)?;
                     sum += s;

@@ -274,6 +274,21 @@ pub struct DepthSettings {
     /// Standard deviation of the model's surface about the true one at a patch, metres.
     /// Default 1e-4.
     pub model_sigma_m: Real,
+    /// Scale, in standard deviations, beyond which a patch whose pixels lie in front of the
+    /// model's surface counts less and less (a Cauchy loss: they may see an object, such as the
+    /// one pressing the finger); behind the surface the loss stays quadratic. 0: quadratic on
+    /// both sides. Default 1.
+    pub front_loss_sigma: Real,
+    /// A lost marker is covered when the depth image sees something in front of its predicted
+    /// place, by more than `front_gate_m` (not the finger's own surface) and at most this much,
+    /// metres. Default 0.01.
+    pub reach_m: Real,
+    /// How much more likely a press is near a marker the stream has lost when the depth image
+    /// shows it covered (something just in front of it, within `reach_m`, as an object
+    /// touching the finger is about the contact): the weight of
+    /// [`PhysicsConfig::hidden_marker_prior`]'s evidence for such a marker (a marker lost behind
+    /// an object further off keeps `hidden_marker_prior`). 0 turns it off. Default 20.
+    pub covered_marker_prior: Real,
 }
 
 impl Default for DepthSettings {
@@ -288,6 +303,9 @@ impl Default for DepthSettings {
             min_pixels: 8,
             noise: DepthNoise::default(),
             model_sigma_m: 1e-4,
+            front_loss_sigma: 1.0,
+            reach_m: 0.01,
+            covered_marker_prior: 20.0,
         }
     }
 }
@@ -312,12 +330,19 @@ impl DepthSettings {
                 });
             }
         }
-        if !(self.model_sigma_m.is_finite() && self.model_sigma_m >= 0.0) {
-            return Err(PhysicsError::InvalidParameter {
-                name: "depth.model_sigma_m",
-                value: self.model_sigma_m,
-                reason: "must be finite and non-negative",
-            });
+        for (name, v) in [
+            ("depth.model_sigma_m", self.model_sigma_m),
+            ("depth.front_loss_sigma", self.front_loss_sigma),
+            ("depth.reach_m", self.reach_m),
+            ("depth.covered_marker_prior", self.covered_marker_prior),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(PhysicsError::InvalidParameter {
+                    name,
+                    value: v,
+                    reason: "must be finite and non-negative",
+                });
+            }
         }
         if self.stride_px == 0 {
             return Err(PhysicsError::InvalidParameter {

@@ -213,7 +213,11 @@ struct FingerInput<'a> {
 }
 
 impl FingerInput<'_> {
-    fn observation<'b>(&'b self, depth: &'b [crate::finger::DepthRow]) -> FingerObservation<'b> {
+    fn observation<'b>(
+        &'b self,
+        depth: &'b [crate::finger::DepthRow],
+        covered: &'b [bool],
+    ) -> FingerObservation<'b> {
         FingerObservation {
             markers: &self.markers,
             gravity: self.gravity,
@@ -221,8 +225,39 @@ impl FingerInput<'_> {
             pulls: self.pulls,
             time_secs: self.time_secs,
             depth,
+            covered,
         }
     }
+}
+
+/// Per marker (its predicted place, hand frame): whether the depth image sees something in
+/// front of it by more than `front_gate_m` (not the finger's own surface) and at most
+/// `reach_m` (an object close to the finger, not one passing far in front); the nearest depth
+/// in the 3 × 3 pixels about its projection.
+fn covered_markers(
+    depth: &DepthImage<'_>,
+    markers_in_hand: impl Iterator<Item = Point3>,
+    front_gate_m: Real,
+    reach_m: Real,
+) -> Vec<bool> {
+    let camera_from_hand = depth.hand_from_camera().iso().inverse();
+    let k = depth.intrinsics();
+    markers_in_hand
+        .map(|p| {
+            let p = camera_from_hand * p;
+            let Some((u, v)) = k.project(&p) else {
+                return false;
+            };
+            let (i, j) = (u.round(), v.round());
+            let nearest = (-1..=1)
+                .flat_map(|dj| (-1..=1).map(move |di| (i + Real::from(di), j + Real::from(dj))))
+                .filter(|&(x, y)| x >= 0.0 && y >= 0.0)
+                .filter_map(|(x, y)| depth.depth(x as u32, y as u32))
+                .fold(Real::INFINITY, Real::min);
+            let ahead = p.z - nearest;
+            ahead > front_gate_m && ahead <= reach_m
+        })
+        .collect()
 }
 
 /// A finger's depth pixels (hand frame) in its own frame, each with the variance of its
@@ -363,7 +398,7 @@ impl PhysicsEstimator {
                 .par_iter_mut()
                 .zip(&inputs)
                 .map(|(inverse, input)| {
-                    let est = inverse.estimate(&input.observation(&[]));
+                    let est = inverse.estimate(&input.observation(&[], &[]));
                     (input.markers.clone(), est)
                 })
                 .collect(),
@@ -418,7 +453,7 @@ impl PhysicsEstimator {
             .fingers
             .par_iter_mut()
             .zip(inputs)
-            .map(|(inverse, input)| inverse.begin(&input.observation(&[])))
+            .map(|(inverse, input)| inverse.begin(&input.observation(&[], &[])))
             .collect();
         let predicted: Vec<Option<Vec<Point3>>> = self
             .fingers
@@ -438,7 +473,8 @@ impl PhysicsEstimator {
                 .collect(),
         };
         let found = associate_depth(&self.hand, &shape, depth, &self.config.depth.association())?;
-        let noise = self.config.depth.noise;
+        let settings = self.config.depth.clone();
+        let noise = settings.noise;
         Ok(self
             .fingers
             .par_iter_mut()
@@ -456,7 +492,20 @@ impl PhysicsEstimator {
                     let predicted = predicted.as_deref().unwrap_or(&[]);
                     let pixels = finger_pixels(&found.points, depth, &noise, &finger_from_hand);
                     let rows = inverse.depth_rows(&pixels, predicted);
-                    inverse.finish(&input.observation(&rows), begun)
+                    let covered = if predicted.is_empty() {
+                        Vec::new()
+                    } else {
+                        covered_markers(
+                            depth,
+                            inverse
+                                .marker_vertices()
+                                .iter()
+                                .map(|&v| input.hand_from_finger * predicted[v as usize]),
+                            settings.front_gate_m,
+                            settings.reach_m,
+                        )
+                    };
+                    inverse.finish(&input.observation(&rows, &covered), begun)
                 });
                 (input.markers.clone(), est)
             })
@@ -548,4 +597,40 @@ fn weighted(place: &[(u32, Real)], points: &[Point3]) -> Point3 {
         .map(|&(v, w)| points[v as usize].coords * w)
         .sum::<Vector3>()
         .into()
+}
+
+#[cfg(test)]
+mod tests {
+    use moe_geom::{CameraIntrinsics, HandFromCamera};
+
+    use super::*;
+
+    /// A marker is covered by what the image sees in front of it beyond the front gate and
+    /// within the reach: not by its own surface, not by an object far in front, not by a hole.
+    #[test]
+    fn a_marker_is_covered_by_an_object_just_in_front_of_it() {
+        let k = CameraIntrinsics::default();
+        let mount = HandFromCamera::identity();
+        // Markers 5 cm in front of the camera: on the axis and off it.
+        let markers = [Point3::new(0.0, 0.0, 0.05), Point3::new(0.01, -0.005, 0.05)];
+        let covered = |plate_m: f32| {
+            let pixels = vec![plate_m; (k.width * k.height) as usize];
+            let image = DepthImage::new(&pixels, k, mount).unwrap();
+            covered_markers(&image, markers.iter().copied(), 0.003, 0.01)
+        };
+        assert_eq!(covered(0.045), [true, true], "5 mm in front");
+        assert_eq!(
+            covered(0.0495),
+            [false, false],
+            "within the front gate: the surface"
+        );
+        assert_eq!(
+            covered(0.03),
+            [false, false],
+            "2 cm in front: passing, not touching"
+        );
+        assert_eq!(covered(0.06), [false, false], "behind");
+        assert_eq!(covered(0.0), [false, false], "holes");
+        assert_eq!(covered(f32::NAN), [false, false], "holes");
+    }
 }

@@ -374,6 +374,7 @@ impl PhysicsEstimator {
             pulls,
             time_secs: None,
             depth: &[],
+            covered: &[],
         };
         f(self.finger_mut(finger), &obs, &hf)
     }

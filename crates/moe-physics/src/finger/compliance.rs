@@ -84,9 +84,11 @@ impl FingerInverse {
                 }
             }
         }
+        // Each depth row weighted for its loss at `x` (iteratively reweighted least squares).
         for row in obs.depth {
-            axes.push(row.terms.clone());
-            r.push(row.value - self.depth_predicted(x, row));
+            let (residual, w) = self.depth_linearised(x, row);
+            axes.push(row.terms.iter().map(|&(v, a)| (v, a * w)).collect());
+            r.push(residual * w);
         }
         let patch_loads: Vec<PatchLoad> = loads
             .iter()

@@ -62,6 +62,9 @@ pub(crate) struct FingerObservation<'a> {
     pub(crate) time_secs: Option<Real>,
     /// The depth image's observations of the surface (none without a depth image).
     pub(crate) depth: &'a [DepthRow],
+    /// Per marker slot: the depth image sees an object just in front of the marker's
+    /// predicted place (empty without a depth image).
+    pub(crate) covered: &'a [bool],
 }
 
 impl FingerObservation<'_> {
@@ -309,6 +312,11 @@ impl FingerInverse {
             press_belief: None,
             seen_in_stream: Vec::new(),
         })
+    }
+
+    /// The surface vertices of the finger's markers, by slot.
+    pub(crate) fn marker_vertices(&self) -> &[u32] {
+        &self.markers
     }
 
     /// Replaces the material (and forgets the stream).

@@ -37,21 +37,20 @@ impl FingerInverse {
         }
     }
 
-    /// The place prior `prior` (area-weighted when `None`) with the evidence of markers `lost`
-    /// (per slot: seen earlier in the stream, hidden now): a marker the camera loses is most
-    /// often hidden by the object pressing the finger there, so places within
-    /// `hidden_marker_radius_m` of a lost marker are made `1 + hidden_marker_prior` times as
-    /// likely (a Gaussian falloff). Unchanged without lost markers or with
-    /// `hidden_marker_prior = 0`.
-    fn with_hidden_markers(&self, prior: Option<Vec<Real>>, lost: &[bool]) -> Option<Vec<Real>> {
-        let k = self.config.hidden_marker_prior;
-        let hidden: Vec<Point3> = lost
+    /// The place prior `prior` (area-weighted when `None`) with the evidence of lost markers
+    /// (per slot, the weight `k` of its evidence; 0 for a marker seen, or not lost): a marker
+    /// the camera loses is most often hidden by the object pressing the finger there, so places
+    /// within `hidden_marker_radius_m` of a lost marker are made `1 + k` times as likely (a
+    /// Gaussian falloff; the strongest marker's where several reach). Unchanged without
+    /// evidence.
+    fn with_hidden_markers(&self, prior: Option<Vec<Real>>, lost: &[Real]) -> Option<Vec<Real>> {
+        let hidden: Vec<(Point3, Real)> = lost
             .iter()
             .zip(&self.markers)
-            .filter(|(l, _)| **l)
-            .map(|(_, &v)| self.rest_surface[v as usize])
+            .filter(|(k, _)| **k > 0.0)
+            .map(|(&k, &v)| (self.rest_surface[v as usize], k))
             .collect();
-        if k <= 0.0 || hidden.is_empty() {
+        if hidden.is_empty() {
             return prior;
         }
         let s2 = 2.0 * self.config.hidden_marker_radius_m.powi(2);
@@ -60,13 +59,13 @@ impl FingerInverse {
                 let p = self.rest_surface[self.candidates[c] as usize];
                 let near: Real = hidden
                     .iter()
-                    .map(|h| (-(p - h).norm_squared() / s2).exp())
+                    .map(|(h, k)| k * (-(p - h).norm_squared() / s2).exp())
                     .fold(0.0, Real::max);
                 let base = match &prior {
                     Some(prior) => prior[c],
                     None => self.area[self.candidates[c] as usize],
                 };
-                base * (1.0 + k * near)
+                base * (1.0 + near)
             })
             .collect();
         let total: Real = out.iter().sum();
@@ -165,11 +164,25 @@ impl FingerInverse {
         if !dynamic || self.seen_in_stream.len() != obs.markers.len() {
             self.seen_in_stream = vec![false; obs.markers.len()];
         }
-        let lost: Vec<bool> = obs
+        // With a depth image, a lost marker with an object just in front of it is evidence of
+        // its own weight, one the object is far from (passing between the camera and the
+        // finger) none; without one, every lost marker is evidence.
+        let depth = obs.covered.len() == obs.markers.len();
+        let lost: Vec<Real> = obs
             .markers
             .iter()
             .zip(&self.seen_in_stream)
-            .map(|(m, &seen)| m.is_none() && seen)
+            .enumerate()
+            .map(|(slot, (m, &seen))| match (m.is_none() && seen, depth) {
+                (false, _) => 0.0,
+                (true, false) => self.config.hidden_marker_prior,
+                (true, true) if obs.covered[slot] => self
+                    .config
+                    .depth
+                    .covered_marker_prior
+                    .max(self.config.hidden_marker_prior),
+                (true, true) => self.config.hidden_marker_prior,
+            })
             .collect();
         for (seen, m) in self.seen_in_stream.iter_mut().zip(obs.markers) {
             *seen |= m.is_some();

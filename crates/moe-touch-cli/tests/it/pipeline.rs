@@ -861,3 +861,37 @@ fn the_estimator_sees_the_frames_depth_image_with_its_camera() {
         "{err}"
     );
 }
+
+/// With `fixtures/physics/depth.toml` the pipeline hands each frame's depth image to the
+/// physics estimator, which pools it into observations of both fingers in every frame; with
+/// the defaults it reads none.
+#[test]
+fn the_depth_settings_read_every_frames_depth_image() {
+    let hand = hand();
+    let episode = episode();
+    let settings: moe_physics::PhysicsConfig =
+        moe_io::read_config(&fixtures().join("physics/depth.toml")).unwrap();
+    assert!(settings.depth.enabled);
+    for (config, expect_depth) in [
+        (settings, true),
+        (moe_physics::PhysicsConfig::default(), false),
+    ] {
+        let mut p = PhysicsPipeline::physics(
+            hand.clone(),
+            detector(&hand, &episode),
+            &moe_physics::HandMaterial::default(),
+            &config,
+        )
+        .unwrap();
+        for (k, f) in episode.frames.iter().enumerate() {
+            let e = p.process(f.rgbd(), &f.observation()).unwrap();
+            for (finger, r) in e.details.fingers.iter().enumerate() {
+                assert_eq!(
+                    r.depth_rows > 0 && r.depth_pixels >= r.depth_rows,
+                    expect_depth,
+                    "frame {k}, finger {finger}: {r:?}"
+                );
+            }
+        }
+    }
+}
