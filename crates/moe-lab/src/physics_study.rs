@@ -42,6 +42,8 @@ pub enum PhysicsFrames {
         params: Box<RandomSceneParams>,
         /// Markers detected in the rendered frames rather than read off the surface.
         perceived: bool,
+        /// The wrist camera's noise for those frames (`None`: the scene's).
+        camera_noise: Option<moe_tendon_sim::camera::NoiseModel>,
     },
 }
 
@@ -334,6 +336,7 @@ fn simulated_streams(
     n: u64,
     seed: u64,
     perceived: bool,
+    camera_noise: Option<moe_tendon_sim::camera::NoiseModel>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Streams, LabError> {
     if let Some(preset) = marker_layout {
@@ -343,7 +346,10 @@ fn simulated_streams(
     let mut frames = Vec::new();
     let mut seen = Vec::new();
     for t in 0..n {
-        let sampled = sample_scene(&params, seed, t)?;
+        let mut sampled = sample_scene(&params, seed, t)?;
+        if let Some(noise) = camera_noise {
+            sampled.config.camera.noise = noise;
+        }
         if perceived {
             let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t)?;
             frames.extend(s);
@@ -436,12 +442,14 @@ pub fn physics_study(
             trajectories,
             params,
             perceived,
+            camera_noise,
         } => simulated_streams(
             (**params).clone(),
             options.marker_layout,
             options.max_trajectories.unwrap_or(*trajectories),
             options.seed,
             *perceived,
+            *camera_noise,
             progress,
         )?,
     };

@@ -18,7 +18,12 @@
 //! - missing depth (reported as 0): outside `[min_depth_m, max_depth_m]`, and where the surface is
 //!   seen at more than `grazing_dropout_deg` from its normal (stereo matching fails at grazing
 //!   angles);
-//! - colour: every channel `+ N(0, color_std²)` in 8-bit levels, clamped to `[0, 255]`.
+//! - colour: every channel `+ N(0, color_std²)` in 8-bit levels, clamped to `[0, 255]`;
+//! - optionally (off by default), a depth error shared by neighbouring pixels, as stereo
+//!   matching makes it: a field of `N(0, depth_correlated_std_m²)` values on a grid
+//!   `depth_correlation_px` pixels apart, interpolated bilinearly (drawn from its own stream of
+//!   the seed, so the white noise stays the same), and quantisation of the depth to
+//!   `depth_quantum_m` (a ROS 2 `16UC1` depth topic is whole millimetres).
 //!
 //! The noise is drawn from a [`SeededRng`](moe_geom::SeededRng) in pixel order, so a seed fixes the image bit for bit.
 
@@ -49,6 +54,25 @@ pub struct NoiseModel {
     pub max_depth_m: Real,
     /// Colour noise standard deviation, 8-bit levels. Default 2.0.
     pub color_std: Real,
+    /// Standard deviation of the depth error shared by neighbouring pixels, metres. Default 0.
+    /// (Left out of written settings while 0, as are the next two at their defaults, so that
+    /// scene files written before these fields existed stay the same.)
+    #[serde(skip_serializing_if = "is_zero")]
+    pub depth_correlated_std_m: Real,
+    /// Spacing of that error's independent values, pixels. Default 16.
+    #[serde(skip_serializing_if = "is_default_spacing")]
+    pub depth_correlation_px: u32,
+    /// Depth unit the image is quantised to, metres (0: none). Default 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub depth_quantum_m: Real,
+}
+
+fn is_zero(x: &Real) -> bool {
+    *x == 0.0
+}
+
+fn is_default_spacing(px: &u32) -> bool {
+    *px == 16
 }
 
 impl Default for NoiseModel {
@@ -60,6 +84,9 @@ impl Default for NoiseModel {
             min_depth_m: 0.01,
             max_depth_m: 3.0,
             color_std: 2.0,
+            depth_correlated_std_m: 0.0,
+            depth_correlation_px: 16,
+            depth_quantum_m: 0.0,
         }
     }
 }
@@ -74,6 +101,23 @@ impl NoiseModel {
             min_depth_m: 0.0,
             max_depth_m: Real::INFINITY,
             color_std: 0.0,
+            depth_correlated_std_m: 0.0,
+            depth_correlation_px: 16,
+            depth_quantum_m: 0.0,
+        }
+    }
+
+    /// The same camera with a harsher depth: twice the white noise, a correlated error of
+    /// 0.2 mm over 16 pixels, and whole millimetres.
+    #[must_use]
+    pub fn harsher(&self) -> Self {
+        Self {
+            depth_std_base_m: 2.0 * self.depth_std_base_m,
+            depth_std_per_m2: 2.0 * self.depth_std_per_m2,
+            depth_correlated_std_m: 2e-4,
+            depth_correlation_px: 16,
+            depth_quantum_m: 1e-3,
+            ..*self
         }
     }
 
@@ -95,6 +139,21 @@ impl NoiseModel {
                 self.depth_std_per_m2 >= 0.0,
             ),
             ("color_std", self.color_std, self.color_std >= 0.0),
+            (
+                "depth_correlated_std_m",
+                self.depth_correlated_std_m,
+                self.depth_correlated_std_m >= 0.0 && self.depth_correlated_std_m.is_finite(),
+            ),
+            (
+                "depth_correlation_px",
+                Real::from(self.depth_correlation_px),
+                self.depth_correlation_px >= 1,
+            ),
+            (
+                "depth_quantum_m",
+                self.depth_quantum_m,
+                self.depth_quantum_m >= 0.0 && self.depth_quantum_m.is_finite(),
+            ),
             (
                 "grazing_dropout_deg",
                 self.grazing_dropout_deg,
@@ -299,7 +358,13 @@ impl RgbdCamera {
         let mut rng = SeededRng::new(seed);
         let mut color = Vec::with_capacity(hits.len() * 3);
         let mut depth_m = Vec::with_capacity(hits.len());
-        for hit in hits {
+        let field = CorrelatedField::new(
+            self.intrinsics.width,
+            self.intrinsics.height,
+            noise,
+            &SeededRng::new(seed).split(CORRELATED_STREAM),
+        );
+        for (k, hit) in hits.iter().enumerate() {
             let (rgb, depth) = match hit {
                 None => (BACKGROUND.map(Real::from), 0.0),
                 Some(hit) => {
@@ -314,7 +379,14 @@ impl RgbdCamera {
                     let in_range = (noise.min_depth_m..=noise.max_depth_m).contains(&hit.z);
                     let seen = hit.cos_view >= cos_grazing - 1e-12;
                     let depth = if in_range && seen {
-                        (hit.z + noise.depth_std(hit.z) * rng.normal()).max(0.0)
+                        let width = self.intrinsics.width as usize;
+                        let shared = field.at((k % width) as u32, (k / width) as u32);
+                        let d = (hit.z + noise.depth_std(hit.z) * rng.normal() + shared).max(0.0);
+                        if noise.depth_quantum_m > 0.0 {
+                            (d / noise.depth_quantum_m).round() * noise.depth_quantum_m
+                        } else {
+                            d
+                        }
                     } else {
                         0.0
                     };
@@ -337,6 +409,57 @@ impl RgbdCamera {
             color,
             depth_m,
         }
+    }
+}
+
+/// The seed's stream of the correlated depth error (apart from the white noise's).
+const CORRELATED_STREAM: u64 = 0x636f_7272;
+
+/// A depth error shared by neighbouring pixels: independent values on a coarse grid,
+/// interpolated bilinearly (all zero when the model has none).
+struct CorrelatedField {
+    step: u32,
+    columns: usize,
+    values: Vec<Real>,
+}
+
+impl CorrelatedField {
+    fn new(width: u32, height: u32, noise: &NoiseModel, rng: &SeededRng) -> Self {
+        let step = noise.depth_correlation_px.max(1);
+        if noise.depth_correlated_std_m <= 0.0 {
+            return Self {
+                step,
+                columns: 0,
+                values: Vec::new(),
+            };
+        }
+        let columns = (width / step + 2) as usize;
+        let rows = (height / step + 2) as usize;
+        let mut rng = rng.clone();
+        let values = (0..columns * rows)
+            .map(|_| noise.depth_correlated_std_m * rng.normal())
+            .collect();
+        Self {
+            step,
+            columns,
+            values,
+        }
+    }
+
+    /// The error at pixel `(i, j)`, metres.
+    fn at(&self, i: u32, j: u32) -> Real {
+        if self.values.is_empty() {
+            return 0.0;
+        }
+        let (gx, gy) = (i / self.step, j / self.step);
+        let (fx, fy) = (
+            Real::from(i % self.step) / Real::from(self.step),
+            Real::from(j % self.step) / Real::from(self.step),
+        );
+        let v = |x: u32, y: u32| self.values[y as usize * self.columns + x as usize];
+        let top = v(gx, gy) * (1.0 - fx) + v(gx + 1, gy) * fx;
+        let bottom = v(gx, gy + 1) * (1.0 - fx) + v(gx + 1, gy + 1) * fx;
+        top * (1.0 - fy) + bottom * fy
     }
 }
 

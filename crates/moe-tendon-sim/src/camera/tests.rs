@@ -106,6 +106,66 @@ fn noisy_depth_stays_within_the_noise_model() {
     assert_ne!(img, camera.render(&[item(&v, &f, &[])], 8).unwrap());
 }
 
+/// The harsher depth: whole millimetres, twice the white noise, and an error shared by
+/// neighbouring pixels (nearby pixels' errors correlate, far ones' do not); the defaults write
+/// no new field.
+#[test]
+fn harsher_depth_is_quantised_and_correlated_between_neighbours() {
+    let camera = RgbdCamera {
+        noise: NoiseModel::ideal().harsher(),
+        ..RgbdCamera::default()
+    };
+    assert_eq!(
+        camera.noise.depth_std_base_m, 0.0,
+        "no white noise in this one"
+    );
+    let z = 0.05;
+    let (v, f) = plane_facing(&camera, z, 0.2, 0.0);
+    let img = camera.render(&[item(&v, &f, &[])], 3).unwrap();
+    for &d in &img.depth_m {
+        let mm = Real::from(d) * 1e3;
+        assert!(
+            (mm - mm.round()).abs() < 1e-3,
+            "{d} is not whole millimetres"
+        );
+    }
+    // Without quantisation, the shared error alone: its spread and its correlation.
+    let shared = RgbdCamera {
+        noise: NoiseModel {
+            depth_quantum_m: 0.0,
+            ..camera.noise
+        },
+        ..camera
+    };
+    let img = shared.render(&[item(&v, &f, &[])], 3).unwrap();
+    let e = |i: u32, j: u32| Real::from(img.depth(i, j)) - z;
+    let pairs = |di: u32| -> (Real, Real, Real) {
+        let (mut xy, mut xx, mut yy) = (0.0, 0.0, 0.0);
+        for j in (0..480).step_by(7) {
+            for i in (0..600).step_by(7) {
+                let (a, b) = (e(i, j), e(i + di, j));
+                xy += a * b;
+                xx += a * a;
+                yy += b * b;
+            }
+        }
+        (xy / (xx * yy).sqrt(), xx, yy)
+    };
+    let (near, xx, _) = pairs(1);
+    let (far, _, _) = pairs(40);
+    let n = (0..480).step_by(7).count() * (0..600).step_by(7).count();
+    let sd = (xx / n as Real).sqrt();
+    assert!(near > 0.9, "neighbours correlate: {near}");
+    assert!(far.abs() < 0.2, "pixels 40 apart hardly do: {far}");
+    assert!(sd > 0.5 * 2e-4 && sd < 1.5 * 2e-4, "spread {sd}");
+    // The defaults write no new field (scene files written before them stay the same).
+    let toml = toml::to_string(&RgbdCamera::default().noise).unwrap();
+    assert!(
+        !toml.contains("correlat") && !toml.contains("quantum"),
+        "{toml}"
+    );
+}
+
 #[test]
 fn grazing_surfaces_and_out_of_range_have_no_depth() {
     let camera = RgbdCamera::default();

@@ -47,6 +47,10 @@ pub(crate) struct PhysicsEvalArgs {
     /// Markers detected by the perception stage in the rendered frames (needs simulation).
     #[arg(long, conflicts_with_all = ["data", "marker_noise"])]
     perceived: bool,
+    /// With `--perceived`: render with a harsher depth (twice the white noise, a 0.2 mm error
+    /// shared by neighbouring pixels, whole millimetres, as a ROS 2 `16UC1` topic).
+    #[arg(long, requires = "perceived")]
+    harsher_camera_noise: bool,
     /// The hand's material (TOML, as `moe-touch calibrate` writes it); default: nominal.
     #[arg(long)]
     material: Option<PathBuf>,
@@ -89,6 +93,9 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
                 None => RandomSceneParams::default(),
             }),
             perceived: args.perceived,
+            camera_noise: args
+                .harsher_camera_noise
+                .then(|| moe_tendon_sim::camera::NoiseModel::default().harsher()),
         },
     };
     let options = PhysicsStudyOptions {
