@@ -343,10 +343,10 @@ impl BoundRecord {
                  correlated {:.2} mm, unit {:.1} mm)",
                 d.intrinsics.width,
                 d.intrinsics.height,
-                d.sigma_base_m * 1e3,
-                d.sigma_per_m2,
-                d.correlated_sigma_m * 1e3,
-                d.quantum_m * 1e3
+                d.noise.sigma_base_m * 1e3,
+                d.noise.sigma_per_m2,
+                d.noise.correlated_sigma_m * 1e3,
+                d.noise.quantum_m * 1e3
             )
         });
         let seen = self.depth_coverage.as_ref().map_or(String::new(), |c| {

@@ -511,7 +511,7 @@ mod tests {
         assert_eq!(model.hand_from_camera, *camera.hand_from_camera.iso());
         let n = camera.noise;
         assert_eq!(
-            (model.sigma_base_m, model.sigma_per_m2),
+            (model.noise.sigma_base_m, model.noise.sigma_per_m2),
             (n.depth_std_base_m, n.depth_std_per_m2)
         );
         assert_eq!(

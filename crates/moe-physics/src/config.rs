@@ -216,6 +216,18 @@ impl DepthNoise {
         sigma * sigma + self.quantum_m * self.quantum_m / 12.0
     }
 
+    /// The same camera with twice the white and correlated noise, quantised to whole
+    /// millimetres (as a ROS 2 `16UC1` depth topic is).
+    #[must_use]
+    pub fn harsher(&self) -> Self {
+        Self {
+            sigma_base_m: 2.0 * self.sigma_base_m,
+            sigma_per_m2: 2.0 * self.sigma_per_m2,
+            correlated_sigma_m: 2.0 * self.correlated_sigma_m,
+            quantum_m: 0.001,
+        }
+    }
+
     /// The variance of the mean of pixels whose white variances sum to `white_sum` over `n`
     /// pixels: the white part averaged, the correlated part whole.
     pub fn mean_variance(&self, white_sum: Real, n: usize) -> Real {
@@ -223,12 +235,16 @@ impl DepthNoise {
         white_sum / (n * n) + self.correlated_sigma_m * self.correlated_sigma_m
     }
 
-    fn validate(&self) -> Result<(), PhysicsError> {
+    /// Checks every figure.
+    ///
+    /// # Errors
+    /// [`PhysicsError::InvalidParameter`] naming the first bad one.
+    pub fn validate(&self) -> Result<(), PhysicsError> {
         for (name, v) in [
-            ("depth.noise.sigma_base_m", self.sigma_base_m),
-            ("depth.noise.sigma_per_m2", self.sigma_per_m2),
-            ("depth.noise.correlated_sigma_m", self.correlated_sigma_m),
-            ("depth.noise.quantum_m", self.quantum_m),
+            ("noise.sigma_base_m", self.sigma_base_m),
+            ("noise.sigma_per_m2", self.sigma_per_m2),
+            ("noise.correlated_sigma_m", self.correlated_sigma_m),
+            ("noise.quantum_m", self.quantum_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PhysicsError::InvalidParameter {
@@ -377,8 +393,6 @@ impl DepthSettings {
             edge_band_px: self.edge_band_px,
             gate_m: self.gate_m,
             front_gate_m: self.front_gate_m,
-            // The objects in front of the finger are not used yet.
-            reach_m: 0.0,
         }
     }
 }

@@ -96,11 +96,12 @@ impl BoundOptions {
 /// it at less than the grazing angle, not hidden by the finger's own surface) is observed along
 /// its normal: a depth pixel constrains only the distance to the surface, not where on it the
 /// pixel lies. Its pixels are those that fall on its share of the surface (a third of its faces'
-/// areas, foreshortened and at its range). Each pixel's depth error has a white part
-/// `σ(z) = sigma_base_m + sigma_per_m2 · z²` (stereo error grows with the square of the range),
-/// with quantisation to `quantum_m` adding `quantum_m² / 12` to its variance; averaging a
-/// vertex's `n` pixels divides the white variance by `n`, but a correlated part
-/// (`correlated_sigma_m`, shared by neighbouring pixels) does not average away. The defaults are
+/// areas, foreshortened and at its range). Each pixel's depth error is the camera's
+/// [`DepthNoise`], the estimator's own model: a white part `σ(z) = sigma_base_m + sigma_per_m2 ·
+/// z²` (stereo error grows with the square of the range), with quantisation to `quantum_m`
+/// adding `quantum_m² / 12` to its variance; averaging a vertex's `n` pixels divides the white
+/// variance by `n`, but a correlated part (`correlated_sigma_m`, shared by neighbouring pixels)
+/// does not average away. The defaults are
 /// the virtual camera's: mounted 2 cm behind the palm looking along the fingers, 640 × 480 at a
 /// 380-pixel focal length, σ = 0.5 mm + 0.0025 m⁻¹ · z², range 1 cm – 3 m, no depth beyond 85°
 /// from the normal; the correlated part (0.1 mm) and no quantisation are assumptions of the
@@ -113,15 +114,8 @@ pub struct DepthBoundModel {
     pub intrinsics: CameraIntrinsics,
     /// Where the camera is on the hand (camera frame to hand frame).
     pub hand_from_camera: Iso3,
-    /// White depth noise at zero range, metres.
-    pub sigma_base_m: Real,
-    /// Growth of the white depth noise with squared range, 1/metre.
-    pub sigma_per_m2: Real,
-    /// Depth error shared by neighbouring pixels (does not average over a vertex's pixels),
-    /// metres.
-    pub correlated_sigma_m: Real,
-    /// Depth unit the image is quantised to, metres (0: none).
-    pub quantum_m: Real,
+    /// The depth noise.
+    pub noise: DepthNoise,
     /// Nearest valid depth, metres.
     pub min_range_m: Real,
     /// Farthest valid depth, metres.
@@ -133,14 +127,10 @@ pub struct DepthBoundModel {
 
 impl Default for DepthBoundModel {
     fn default() -> Self {
-        let noise = DepthNoise::default();
         Self {
             intrinsics: CameraIntrinsics::default(),
             hand_from_camera: Iso3::translation(0.0, 0.0, -0.02),
-            sigma_base_m: noise.sigma_base_m,
-            sigma_per_m2: noise.sigma_per_m2,
-            correlated_sigma_m: noise.correlated_sigma_m,
-            quantum_m: noise.quantum_m,
+            noise: DepthNoise::default(),
             min_range_m: 0.01,
             max_range_m: 3.0,
             grazing_deg: 85.0,
@@ -178,10 +168,7 @@ impl DepthBoundModel {
     #[must_use]
     pub fn harsher(&self) -> Self {
         Self {
-            sigma_base_m: 2.0 * self.sigma_base_m,
-            sigma_per_m2: 2.0 * self.sigma_per_m2,
-            correlated_sigma_m: 2.0 * self.correlated_sigma_m,
-            quantum_m: 0.001,
+            noise: self.noise.harsher(),
             ..self.clone()
         }
     }
@@ -192,15 +179,8 @@ impl DepthBoundModel {
     /// [`PhysicsError::InvalidParameter`] naming the bad figure, or the intrinsics' error.
     pub fn validate(&self) -> Result<(), PhysicsError> {
         self.intrinsics.validate()?;
+        self.noise.validate()?;
         let checks = [
-            ("sigma_base_m", self.sigma_base_m, self.sigma_base_m >= 0.0),
-            ("sigma_per_m2", self.sigma_per_m2, self.sigma_per_m2 >= 0.0),
-            (
-                "correlated_sigma_m",
-                self.correlated_sigma_m,
-                self.correlated_sigma_m >= 0.0,
-            ),
-            ("quantum_m", self.quantum_m, self.quantum_m >= 0.0),
             ("min_range_m", self.min_range_m, self.min_range_m >= 0.0),
             (
                 "max_range_m",
@@ -222,30 +202,15 @@ impl DepthBoundModel {
                 });
             }
         }
-        let noise = self.sigma_base_m + self.correlated_sigma_m + self.quantum_m;
-        if !(noise > 0.0 || self.sigma_per_m2 > 0.0) {
+        let n = &self.noise;
+        if !(n.sigma_base_m + n.correlated_sigma_m + n.quantum_m > 0.0 || n.sigma_per_m2 > 0.0) {
             return Err(PhysicsError::InvalidParameter {
-                name: "sigma_base_m",
-                value: self.sigma_base_m,
+                name: "noise.sigma_base_m",
+                value: n.sigma_base_m,
                 reason: "a depth model without noise bounds nothing",
             });
         }
         Ok(())
-    }
-
-    /// The camera's noise, as the estimator takes it ([`crate::DepthSettings::noise`]).
-    pub fn noise(&self) -> DepthNoise {
-        DepthNoise {
-            sigma_base_m: self.sigma_base_m,
-            sigma_per_m2: self.sigma_per_m2,
-            correlated_sigma_m: self.correlated_sigma_m,
-            quantum_m: self.quantum_m,
-        }
-    }
-
-    /// The variance of one pixel's depth at range `z`: white noise and quantisation.
-    pub(crate) fn pixel_variance(&self, z: Real) -> Real {
-        self.noise().pixel_variance(z)
     }
 
     /// The vertices of `surface` (with unit `normals` and `faces`, in some frame) that the
@@ -621,10 +586,13 @@ mod tests {
         for (model, name) in [
             (
                 DepthBoundModel {
-                    sigma_base_m: -1e-3,
+                    noise: DepthNoise {
+                        sigma_base_m: -1e-3,
+                        ..DepthNoise::default()
+                    },
                     ..DepthBoundModel::default()
                 },
-                "sigma_base_m",
+                "noise.sigma_base_m",
             ),
             (
                 DepthBoundModel {
@@ -642,9 +610,12 @@ mod tests {
             ),
             (
                 DepthBoundModel {
-                    sigma_base_m: 0.0,
-                    sigma_per_m2: 0.0,
-                    correlated_sigma_m: 0.0,
+                    noise: DepthNoise {
+                        sigma_base_m: 0.0,
+                        sigma_per_m2: 0.0,
+                        correlated_sigma_m: 0.0,
+                        quantum_m: 0.0,
+                    },
                     ..DepthBoundModel::default()
                 },
                 "bounds nothing",
@@ -660,7 +631,9 @@ mod tests {
         // The harsher noise is harsher in every part.
         let d = DepthBoundModel::default();
         let h = d.harsher();
-        assert!(h.pixel_variance(0.05) > d.pixel_variance(0.05));
-        assert!(h.correlated_sigma_m > d.correlated_sigma_m);
+        assert_eq!((h.intrinsics, h.min_range_m), (d.intrinsics, d.min_range_m));
+        assert!(h.noise.pixel_variance(0.05) > d.noise.pixel_variance(0.05));
+        assert!(h.noise.correlated_sigma_m > d.noise.correlated_sigma_m);
+        assert_eq!(h.noise.quantum_m, 0.001);
     }
 }

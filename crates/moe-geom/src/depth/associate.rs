@@ -31,10 +31,6 @@ pub struct AssociationOptions {
     /// metres: an object touching the finger lies in front of it, within millimetres, about the
     /// contact. Default 3 mm.
     pub front_gate_m: Real,
-    /// A pixel that sees something in front of the finger by more than the gate and at most
-    /// this much (an object near it, such as the one pressing it) is kept apart as a
-    /// [`FingerDepth::front`] point, metres; 0 keeps none. Default 1 cm.
-    pub reach_m: Real,
 }
 
 impl Default for AssociationOptions {
@@ -44,7 +40,6 @@ impl Default for AssociationOptions {
             edge_band_px: 2,
             gate_m: 0.003,
             front_gate_m: 0.003,
-            reach_m: 0.01,
         }
     }
 }
@@ -78,11 +73,8 @@ pub struct FingerDepth {
     pub edge: usize,
     /// Left out for holding no depth.
     pub holes: usize,
-    /// Left out for a depth outside the gate (something in front of the finger, or far off).
+    /// Left out for a depth outside the gates (something in front of the finger, or far off).
     pub gated: usize,
-    /// Of those, the pixels that see something in front of the finger within the reach: the
-    /// measured point is the object's, the predicted one the finger's surface it hides.
-    pub front: Vec<DepthPoint>,
 }
 
 /// The depth pixels of `depth` that see each finger of `hand` as `shape` predicts it (finger
@@ -138,30 +130,22 @@ pub fn associate_depth(
                 finger.holes += 1;
                 continue;
             };
+            let ahead = hit.z - measured.z;
+            if ahead > options.front_gate_m || -ahead > options.gate_m {
+                finger.gated += 1;
+                continue;
+            }
             let normal = normals[hit.item as usize][hit.face as usize];
             let measured_in_hand = hand_from_camera.transform_point(&measured);
             let predicted_in_hand = hand_from_camera.transform_point(&hit.point);
-            let point = DepthPoint {
+            finger.points.push(DepthPoint {
                 pixel: [i, j],
                 face: hit.face,
                 measured_in_hand,
                 predicted_in_hand,
                 normal_in_hand: normal,
                 residual_m: normal.dot(&(measured_in_hand - predicted_in_hand)),
-            };
-            let ahead = hit.z - measured.z;
-            if ahead > options.front_gate_m {
-                finger.gated += 1;
-                if ahead <= options.reach_m {
-                    finger.front.push(point);
-                }
-                continue;
-            }
-            if -ahead > options.gate_m {
-                finger.gated += 1;
-                continue;
-            }
-            finger.points.push(point);
+            });
         }
     }
     Ok(out)
@@ -247,13 +231,6 @@ fn check(
             name: "front_gate_m",
             value: options.front_gate_m,
             reason: "must be finite and positive",
-        });
-    }
-    if !(options.reach_m.is_finite() && options.reach_m >= 0.0) {
-        return Err(GeomError::InvalidParameter {
-            name: "reach_m",
-            value: options.reach_m,
-            reason: "must be finite and non-negative",
         });
     }
     Ok(())
@@ -385,31 +362,18 @@ mod tests {
         assert!(out[0].gated > 100, "{:?}", out[0].gated);
         assert_eq!(out[1].gated, 0, "finger 1 is not behind the plate");
         assert!(out[0].points.iter().all(|p| p.residual_m.abs() < 1e-7));
-        // What the plate hides of the finger within the reach is kept apart, nothing beyond it.
-        let eye = mount().iso().translation.vector;
-        for p in &out[0].front {
-            let (seen, hidden) = (
-                p.measured_in_hand.coords - eye,
-                p.predicted_in_hand.coords - eye,
-            );
-            let ahead = hidden.z - seen.z;
-            assert!(
-                ahead > opts.front_gate_m && ahead <= opts.reach_m + 1e-6,
-                "{p:?}"
-            );
-        }
-        let all = |reach_m| {
-            let o = AssociationOptions { reach_m, ..opts };
-            associate_depth(&hand, &shape, &image, &o).unwrap()[0]
-                .front
-                .len()
+        // The gates are one-sided: with a front gate wider than the plate's distance the
+        // plate's pixels are kept (as the finger's), with a wide back gate they still are not.
+        let wide = |front_gate_m, gate_m| {
+            let o = AssociationOptions {
+                front_gate_m,
+                gate_m,
+                ..opts
+            };
+            associate_depth(&hand, &shape, &image, &o).unwrap()[0].gated
         };
-        assert_eq!(
-            all(1.0),
-            out[0].gated,
-            "the plate is in front of every gated pixel"
-        );
-        assert_eq!(all(0.0), 0);
+        assert_eq!(wide(1.0, opts.gate_m), 0);
+        assert_eq!(wide(opts.front_gate_m, 1.0), out[0].gated);
         let holes = vec![f32::NAN; pixels.len()];
         let image = DepthImage::new(&holes, CameraIntrinsics::default(), mount()).unwrap();
         for d in associate_depth(&hand, &shape, &image, &opts).unwrap() {

@@ -332,8 +332,8 @@ impl FingerInverse {
         if let Some(depth) = &options.depth {
             let (normals, seen) = self.seen_by(x, obs, depth);
             for (vertex, depth_m, pixels) in seen {
-                let variance = depth.pixel_variance(depth_m) / pixels.max(1e-12)
-                    + depth.correlated_sigma_m * depth.correlated_sigma_m;
+                let variance = depth.noise.pixel_variance(depth_m) / pixels.max(1e-12)
+                    + depth.noise.correlated_sigma_m * depth.noise.correlated_sigma_m;
                 axes.push(vec![(vertex, normals[vertex as usize])]);
                 weights.push(1.0 / variance);
             }

@@ -130,13 +130,18 @@ fn a_press_only_the_depth_image_shows_is_found_with_it_and_missed_without() {
     assert!(seen.details.fingers[0].depth_rows > 0);
 }
 
-#[test]
-fn a_free_hand_seen_in_depth_raises_no_press() {
+/// The free hand's markers and its depth image.
+fn free_hand_seen() -> (HandKeypoints, OwnedDepthImage) {
     let hand = hand();
     let pulls = no_pulls(&hand);
     let (markers, shape) = static_hand(&hand, &pulls, &WorldFromHand::identity(), &[]).unwrap();
     let (k, mount) = camera();
-    let depth = render_depth(&hand, &shape, k, mount).unwrap();
+    (markers, render_depth(&hand, &shape, k, mount).unwrap())
+}
+
+#[test]
+fn a_free_hand_seen_in_depth_raises_no_press() {
+    let (markers, depth) = free_hand_seen();
     let e = estimate(&with_depth(), &markers, Some(&depth));
     assert!(e.details.loads.is_empty(), "{:?}", e.details.loads);
     assert!(e.details.fingers.iter().all(|f| f.depth_rows > 0));
@@ -144,11 +149,8 @@ fn a_free_hand_seen_in_depth_raises_no_press() {
 
 #[test]
 fn broken_depth_images_give_a_frame_without_depth_or_a_typed_error_never_a_panic() {
-    let hand = hand();
-    let pulls = no_pulls(&hand);
-    let (markers, shape) = static_hand(&hand, &pulls, &WorldFromHand::identity(), &[]).unwrap();
+    let (markers, good) = free_hand_seen();
     let (k, mount) = camera();
-    let good = render_depth(&hand, &shape, k, mount).unwrap();
     let n = good.view().pixels().len();
     let config = with_depth();
     let without = estimate(&config, &markers, None);

@@ -53,9 +53,9 @@ pub(crate) struct HandArgs {
     #[arg(long, requires = "bound")]
     bound_harsher_depth: bool,
     /// With --bound and depth: another depth camera than the default wrist camera (TOML or JSON
-    /// `DepthBoundModel`: `intrinsics`, `hand_from_camera`, `sigma_base_m`, `sigma_per_m2`,
-    /// `correlated_sigma_m`, `quantum_m`, `min_range_m`, `max_range_m`, `grazing_deg`; fields
-    /// not given keep the default camera's).
+    /// `DepthBoundModel`: `intrinsics`, `hand_from_camera`, `noise` (`sigma_base_m`,
+    /// `sigma_per_m2`, `correlated_sigma_m`, `quantum_m`), `min_range_m`, `max_range_m`,
+    /// `grazing_deg`; fields not given keep the default camera's).
     #[arg(long, value_name = "CAMERA.toml", requires = "bound")]
     bound_camera: Option<PathBuf>,
     /// Output directory: finger_<i>.obj (rest mesh in the hand frame, metres) and hand.json.
