@@ -66,11 +66,13 @@ fn bench_pipeline(c: &mut Criterion) {
 }
 
 /// The pipeline with the physics estimator's stages (nominal material, default settings, then
-/// with the depth image as observation) on the pressed frame: a lone frame (the pipeline reset
-/// before each), and the frame held in a stream (each iteration 50 ms after the previous one).
+/// those of `fixtures/physics/depth.toml`, with the depth image as observation) on the pressed
+/// frame: a lone frame (the pipeline reset before each), and the frame held in a stream (each
+/// iteration 50 ms after the previous one).
 fn bench_physics_pipeline(c: &mut Criterion) {
-    let mut with_depth = moe_physics::PhysicsConfig::default();
-    with_depth.depth.enabled = true;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let with_depth: moe_physics::PhysicsConfig =
+        moe_io::read_config(&root.join("fixtures/physics/depth.toml")).expect("depth.toml reads");
     for (name, config) in [
         ("physics", moe_physics::PhysicsConfig::default()),
         ("physics with depth", with_depth),

@@ -161,10 +161,14 @@ pub struct PhysicsConfig {
     /// from one to the next (its lag behind the pulls is taken out of the markers). A longer
     /// gap starts the stream again. Seconds; default 0.2.
     pub stream_horizon_secs: Real,
-    /// How much of the contact response's lag is taken out of the markers in a stream (0: none,
-    /// 1: all, as a first-order lag with the body's damping time). Taking it out triples the
-    /// markers' noise (the lag is inverted from two frames), so the default is 0; with exact
-    /// markers 1 is better (measured in docs/results.md).
+    /// How much of the contact response's lag is taken out of the markers and the depth
+    /// patches in a stream (0: none, 1: all, as a first-order lag with the body's damping
+    /// time). With it, whether a finger is pressed and how hard are read from the corrected
+    /// observation, so an onset is weighed at its force and a release is seen in its frame,
+    /// while the place and the shape come from the observation as measured (the lag scales a
+    /// dent but does not move it, and the correction amplifies the noise 2.5–3 times at 20
+    /// frames/s). Default 0; 1 for exact markers and with the depth image
+    /// (`fixtures/physics/depth.toml`; measured in docs/results.md).
     pub contact_lag_gain: Real,
     /// Largest time step of the free finger's simulation between observations, seconds; 0
     /// turns the simulation off (the markers are then compared with the static free shape).

@@ -42,6 +42,10 @@ pub(crate) struct DepthRow {
     pub(crate) value: Real,
     /// Pixels pooled.
     pub(crate) pixels: usize,
+    /// The patch of the rest surface pooled.
+    pub(crate) patch: u32,
+    /// The whitening: a residual of `r` is a mean point-to-plane distance of `r / unit` metres.
+    pub(crate) unit: Real,
 }
 
 /// The patches pixels are pooled over: per face of the surface, its patch.
@@ -140,8 +144,9 @@ impl FingerInverse {
         let sigma_m = self.config.marker_sigma_m;
         pools
             .into_iter()
-            .filter(|p| p.pixels >= settings.min_pixels)
-            .map(|p| {
+            .zip(0u32..)
+            .filter(|(p, _)| p.pixels >= settings.min_pixels)
+            .map(|(p, patch)| {
                 let n = p.pixels as Real;
                 let variance = settings.noise.mean_variance(p.white, p.pixels)
                     + settings.model_sigma_m * settings.model_sigma_m;
@@ -150,6 +155,8 @@ impl FingerInverse {
                     terms: p.terms.into_iter().map(|(v, a)| (v, a * scale)).collect(),
                     value: p.value * scale,
                     pixels: p.pixels,
+                    patch,
+                    unit: scale * n,
                 }
             })
             .collect()

@@ -190,32 +190,45 @@ impl FingerInverse {
         markers: Vec<Option<Point3>>,
         solves: &mut usize,
     ) -> Result<StaticStart, PhysicsError> {
-        // The loads act on the static model: the markers are moved by the free finger's lag
-        // (static minus simulated), and the static free shape is the start.
-        if free.dynamic {
-            let x = self.static_free(obs, solves)?;
-            let moved = markers
-                .iter()
-                .zip(&self.markers)
-                .map(|(m, &v)| {
-                    m.map(|p| {
-                        p + (self.mech.surface_position(&x, v)
-                            - self.mech.surface_position(&free.x, v))
-                    })
-                })
-                .collect();
-            let depth = self.shifted_rows(obs.depth, &free.x, &x);
-            Ok(StaticStart {
-                x,
-                markers: moved,
-                depth,
-            })
+        let x = if free.dynamic {
+            self.static_free(obs, solves)?
         } else {
-            Ok(StaticStart {
-                x: free.x.clone(),
+            free.x.clone()
+        };
+        Ok(self.start_on(obs.depth, free, x, markers))
+    }
+
+    /// The markers and depth observations moved onto the static free shape `x`: in a stream,
+    /// the loads act on the static model, so the observations are moved by the free finger's
+    /// lag (static minus simulated).
+    pub(super) fn start_on(
+        &self,
+        depth: &[DepthRow],
+        free: &FreeReference,
+        x: Vec<Point3>,
+        markers: Vec<Option<Point3>>,
+    ) -> StaticStart {
+        if !free.dynamic {
+            return StaticStart {
+                x,
                 markers,
-                depth: obs.depth.to_vec(),
+                depth: depth.to_vec(),
+            };
+        }
+        let moved = markers
+            .iter()
+            .zip(&self.markers)
+            .map(|(m, &v)| {
+                m.map(|p| {
+                    p + (self.mech.surface_position(&x, v) - self.mech.surface_position(&free.x, v))
+                })
             })
+            .collect();
+        let depth = self.shifted_rows(depth, &free.x, &x);
+        StaticStart {
+            x,
+            markers: moved,
+            depth,
         }
     }
 

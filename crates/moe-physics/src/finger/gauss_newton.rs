@@ -114,12 +114,14 @@ impl FingerInverse {
     }
 
     /// Searches the loads of `sobs` from the previous frame's press (when it helps) and, if
-    /// that leaves too much of `chi0` unexplained, again from the static free shape `x_static`.
+    /// that leaves too much of `chi0` unexplained and `restart` allows, again from the static
+    /// free shape `x_static`.
     pub(super) fn search_held_press(
         &mut self,
         sobs: &FingerObservation<'_>,
         x_static: &[Point3],
         chi0: Real,
+        restart: bool,
         solves: &mut usize,
     ) -> Result<(Solved, Linear), PhysicsError> {
         let mut state = Solved {
@@ -149,7 +151,7 @@ impl FingerInverse {
         let (mut state, mut lin) = self.search_loads(sobs, state, solves)?;
         // The previous frame's loads can hold the search in a place the press has left: when
         // they leave a tenth of the residual unexplained, search from the free shape too.
-        if from_tracked && state.chi > RESTART_FRACTION * chi0 {
+        if restart && from_tracked && state.chi > RESTART_FRACTION * chi0 {
             let (other, other_lin) = self.search_loads(sobs, fresh, solves)?;
             if other.chi < state.chi {
                 state = other;

@@ -160,9 +160,12 @@ pub(crate) struct FingerInverse {
     beta: Real,
     warm_static: Option<Vec<Point3>>,
     tracked: Option<Tracked>,
+    /// With the lag taken out, the previous frame's loads placed on the observation as
+    /// measured, to start that search from.
+    tracked_measured: Option<Tracked>,
     dynamic: Option<DynamicFree>,
     /// The previous observation's contact residual and its time.
-    previous_residual: Option<(Real, Vec<Option<Vector3>>)>,
+    previous_residual: Option<stream::LagResidual>,
     /// The posterior over the candidates of the previous observation's press (one load, in a
     /// stream), for `place_memory_m`.
     place_memory: Option<Vec<Real>>,
@@ -305,6 +308,7 @@ impl FingerInverse {
             beta: material.material.rayleigh_stiffness,
             warm_static: None,
             tracked: None,
+            tracked_measured: None,
             dynamic: None,
             previous_residual: None,
             place_memory: None,
@@ -333,6 +337,7 @@ impl FingerInverse {
     pub(crate) fn reset(&mut self) {
         self.warm_static = None;
         self.tracked = None;
+        self.tracked_measured = None;
         self.dynamic = None;
         self.previous_residual = None;
         self.place_memory = None;
@@ -446,9 +451,13 @@ impl FingerInverse {
         let result = self.estimate_observed(obs, begun);
         match &result {
             Ok(est) if !est.loads.is_empty() => {}
-            Ok(_) => self.previous_dent = None,
+            Ok(_) => {
+                self.previous_dent = None;
+                self.tracked_measured = None;
+            }
             Err(_) => {
                 self.tracked = None;
+                self.tracked_measured = None;
                 self.previous_dent = None;
             }
         }
@@ -466,8 +475,17 @@ impl FingerInverse {
         let Begun { free, mut solves } = begun;
         let observed = obs.markers.iter().filter(|m| m.is_some()).count();
         self.update_place_prior(obs, free.dynamic);
-        let lag_corrected = self.contact_lag_corrected(obs, &free.x);
-        let markers: Vec<Option<Point3>> = lag_corrected.unwrap_or_else(|| obs.markers.to_vec());
+        // With the contact response's lag taken out, whether the finger is pressed and how hard
+        // are read from the corrected observation; `raw` keeps it as measured.
+        let raw = obs;
+        let corrected = self.contact_lag_corrected(obs, &free.x);
+        let lagged = corrected.is_some();
+        let (markers, depth_rows) =
+            corrected.unwrap_or_else(|| (obs.markers.to_vec(), obs.depth.to_vec()));
+        let obs = &FingerObservation {
+            depth: &depth_rows,
+            ..*obs
+        };
         let depth = (
             obs.depth.len(),
             obs.depth.iter().map(|r| r.pixels).sum::<usize>(),
@@ -506,13 +524,21 @@ impl FingerInverse {
             depth: &start.depth,
             ..*obs
         };
-        let (state, lin) = self.search_held_press(&sobs, &start.x, base.chi0, &mut solves)?;
+        // With the lag taken out, the model's misfit is amplified with the rest, so the share
+        // of the residual a held press leaves says little of whether the press moved: the
+        // place is searched again on the observation as measured, with that test.
+        let (state, lin) =
+            self.search_held_press(&sobs, &start.x, base.chi0, !lagged, &mut solves)?;
         // A marker the best fit leaves far off — a blob taken for the wrong marker; no load of
         // the model moves one marker millimetres away from where its neighbours put it — is
         // left out, and the loads are searched again from the free shape without it.
-        let (base, state, lin) = match self.outlier(&state.x, &start.markers, observed) {
-            Some(worst) => self.search_without_marker(obs, &start, worst, &base, &mut solves)?,
-            None => (base, state, lin),
+        let (base, state, lin, left_out) = match self.outlier(&state.x, &start.markers, observed) {
+            Some(worst) => {
+                let (base, state, lin) =
+                    self.search_without_marker(obs, &start, worst, &base, &mut solves)?;
+                (base, state, lin, Some(worst))
+            }
+            None => (base, state, lin, None),
         };
         // A second load that no longer pays its way is dropped by the test above; a pair
         // carried from the previous frame is kept while each load carries the minimum force.
@@ -533,14 +559,26 @@ impl FingerInverse {
             return Ok(self.free_estimate(&free.x, &base, statistic, solves));
         }
         remember(self, pressed_probability);
+        // The lag scales the dent but does not move it: with the lag taken out, the place and
+        // the shape come from the observation as measured, whose noise the correction does not
+        // amplify, and the forces from the corrected one.
+        let placed = if lagged {
+            self.place_as_measured(raw, &free, &start.x, left_out, &state, &mut solves)?
+        } else {
+            None
+        };
+        let (shape_state, shape_lin) = match &placed {
+            Some((s, l)) => (s, l),
+            None => (&state, &lin),
+        };
         let PressedLoads {
             loads,
             probability,
             vertex_force,
             posteriors,
-        } = self.describe_loads(&lin, &state, pressed_probability);
+        } = self.describe_loads(shape_lin, shape_state, pressed_probability);
         self.remember_press(posteriors, &state);
-        let surface = self.estimated_surface(&free, &state.x, &start.x);
+        let surface = self.estimated_surface(&free, &shape_state.x, &start.x);
         let free_surface = self.surface_of(&free.x);
         self.previous_dent = Some(
             surface
@@ -563,6 +601,51 @@ impl FingerInverse {
             depth_pixels: base.depth.1,
             solves,
         })
+    }
+
+    /// The loads of a pressed observation placed on `raw`, the observation as measured (with
+    /// the marker `left_out` of the corrected fit left out here too), with the total force of
+    /// `corrected`, the fit to the observation with the lag taken out; `None` when no load
+    /// explains `raw`.
+    fn place_as_measured(
+        &mut self,
+        raw: &FingerObservation<'_>,
+        free: &free::FreeReference,
+        x_static: &[Point3],
+        left_out: Option<usize>,
+        corrected: &gauss_newton::Solved,
+        solves: &mut usize,
+    ) -> Result<Option<(gauss_newton::Solved, compliance::Linear)>, PhysicsError> {
+        let mut markers = raw.markers.to_vec();
+        if let Some(worst) = left_out {
+            markers[worst] = None;
+        }
+        let start = self.start_on(raw.depth, free, x_static.to_vec(), markers);
+        let robs = FingerObservation {
+            markers: &start.markers,
+            depth: &start.depth,
+            ..*raw
+        };
+        let chi0 = self.residual_sq(&start.x, &robs);
+        // Started from the previous frame's loads on the measured observation; the corrected
+        // fit's loads are remembered apart.
+        let corrected_tracked = self.tracked.take();
+        self.tracked = self.tracked_measured.take();
+        let searched = self.search_held_press(&robs, &start.x, chi0, true, solves);
+        self.tracked = corrected_tracked;
+        let (mut state, lin) = searched?;
+        self.tracked_measured = Some(Tracked {
+            x: state.x.clone(),
+            loads: state.loads.clone(),
+        });
+        let measured: Real = state.loads.iter().map(|l| l.1.norm()).sum();
+        let wanted: Real = corrected.loads.iter().map(|l| l.1.norm()).sum();
+        if !(measured > 0.0 && state.chi < chi0) {
+            return Ok(None);
+        }
+        let scale = wanted / measured;
+        state.loads.iter_mut().for_each(|l| l.1 *= scale);
+        Ok(Some((state, lin)))
     }
 }
 

@@ -4,6 +4,7 @@
 
 use moe_geom::{Point3, Real, Vector3};
 
+use super::depth::DepthRow;
 use super::gauss_newton::Solved;
 use super::{FingerInverse, FingerObservation};
 
@@ -12,6 +13,15 @@ use super::{FingerInverse, FingerObservation};
 pub(super) struct Tracked {
     pub(super) x: Vec<Point3>,
     pub(super) loads: Vec<(usize, Vector3)>,
+}
+
+/// The part of an observation that contact moves (observed minus free), kept for the next
+/// observation's lag: per marker slot, and per depth patch as a point-to-plane distance.
+#[derive(Debug, Clone)]
+pub(super) struct LagResidual {
+    time_secs: Real,
+    markers: Vec<Option<Vector3>>,
+    depth: Vec<(u32, Real)>,
 }
 
 /// With memory of a press's place, the probability that the next observation's press is a new
@@ -111,45 +121,99 @@ impl FingerInverse {
         prior
     }
 
-    /// Markers with the lag of the contact response taken out. The part of the markers that
-    /// contact moves, `r = m − m_free`, follows its static value `u` with the body's damping
-    /// time `β` (a first-order lag); for `u` held over the interval since the previous
+    /// Markers and depth observations with the lag of the contact response taken out. The part
+    /// of an observation that contact moves, `r = m − m_free` (a marker's offset, or a depth
+    /// patch's mean point-to-plane distance), follows its static value `u` with the body's
+    /// damping time `β` (a first-order lag); for `u` held over the interval since the previous
     /// observation, `r_t = a r_{t−1} + (1 − a) u` with `a = exp(−Δt/β)`, so
-    /// `u = (r_t − a r_{t−1}) / (1 − a)`, taken with the configured gain. `None` without a
-    /// previous residual in the stream.
+    /// `u = (r_t − a r_{t−1}) / (1 − a)`, taken with the configured gain. A depth patch not seen
+    /// in the previous observation is left as measured. `None` without a previous residual in
+    /// the stream.
     pub(super) fn contact_lag_corrected(
         &mut self,
         obs: &FingerObservation<'_>,
         x_free: &[Point3],
-    ) -> Option<Vec<Option<Point3>>> {
+    ) -> Option<(Vec<Option<Point3>>, Vec<DepthRow>)> {
         let residual: Vec<Option<Vector3>> = obs
             .markers
             .iter()
             .zip(&self.markers)
             .map(|(m, &v)| m.map(|p| p - self.mech.surface_position(x_free, v)))
             .collect();
+        let depth: Vec<(u32, Real)> = obs
+            .depth
+            .iter()
+            .map(|row| {
+                (
+                    row.patch,
+                    (row.value - self.depth_predicted(x_free, row)) / row.unit,
+                )
+            })
+            .collect();
         let previous = self.previous_residual.take();
-        self.previous_residual = obs.time_secs.map(|t| (t, residual.clone()));
+        self.previous_residual = obs.time_secs.map(|time_secs| LagResidual {
+            time_secs,
+            markers: residual.clone(),
+            depth: depth.clone(),
+        });
         let gain = self.config.contact_lag_gain;
-        let (t, (t0, r0)) = (obs.time_secs?, previous?);
-        let dt = t - t0;
+        let (t, previous) = (obs.time_secs?, previous?);
+        let dt = t - previous.time_secs;
         if !(gain > 0.0 && self.beta > 0.0 && dt > 0.0 && dt <= self.config.stream_reach_secs()) {
             return None;
         }
         let a = (-dt / self.beta).exp();
-        Some(
-            obs.markers
-                .iter()
-                .zip(residual.iter().zip(&r0))
-                .map(|(m, (r, r0))| {
-                    let (p, r) = (m.as_ref()?, r.as_ref()?);
-                    Some(match r0 {
-                        Some(r0) => p + ((r - r0 * a) / (1.0 - a) - r) * gain,
-                        None => *p,
-                    })
+        // The change that takes the lag out of a residual `r` whose previous value was `r0`.
+        let unlag = |r: Real, r0: Real| ((r - r0 * a) / (1.0 - a) - r) * gain;
+        // The previous residual: while a press is held, the previous estimate's dent, which
+        // is the measured one without its noise and gives each depth patch's residual over this
+        // observation's pixels; otherwise the previous observation's.
+        let dent = self.previous_dent.as_deref();
+        let previous_markers: Vec<Option<Vector3>> = match dent {
+            Some(d) => self.markers.iter().map(|&v| Some(d[v as usize])).collect(),
+            None => previous.markers,
+        };
+        let markers = obs
+            .markers
+            .iter()
+            .zip(residual.iter().zip(&previous_markers))
+            .map(|(m, (r, r0))| {
+                let (p, r) = (m.as_ref()?, r.as_ref()?);
+                Some(match r0 {
+                    Some(r0) => p + r.zip_map(r0, unlag),
+                    None => *p,
                 })
-                .collect(),
-        )
+            })
+            .collect();
+        let rows = obs
+            .depth
+            .iter()
+            .zip(&depth)
+            .map(|(row, &(patch, d))| {
+                let d0 = match dent {
+                    Some(dent) => Some(
+                        row.terms
+                            .iter()
+                            .map(|(v, a)| a.dot(&dent[*v as usize]))
+                            .sum::<Real>()
+                            / row.unit,
+                    ),
+                    None => previous
+                        .depth
+                        .iter()
+                        .find(|(q, _)| *q == patch)
+                        .map(|q| q.1),
+                };
+                match d0 {
+                    Some(d0) => DepthRow {
+                        value: row.value + row.unit * unlag(d, d0),
+                        ..row.clone()
+                    },
+                    None => row.clone(),
+                }
+            })
+            .collect();
+        Some((markers, rows))
     }
 
     /// Sets this observation's place prior from the remembered press and the hidden markers.

@@ -28,20 +28,14 @@ fn recording(material: Material, seconds: Real) -> Vec<OwnedObservation> {
         .map(|f| {
             OwnedObservation::new()
                 .with_time(f.time_secs)
-                .with_keypoints(HandKeypoints {
-                    fingers: hand
-                        .fingers()
-                        .iter()
-                        .zip(&f.fingers)
-                        .map(|(hf, g)| {
-                            hf.model
-                                .marker_vertices()
-                                .iter()
-                                .map(|&v| Some(g.vertices_in_hand[v as usize]))
-                                .collect()
-                        })
-                        .collect(),
-                })
+                .with_keypoints(
+                    hand.keypoints_on(
+                        &f.fingers
+                            .iter()
+                            .map(|g| &g.vertices_in_hand)
+                            .collect::<Vec<_>>(),
+                    ),
+                )
                 .with_tendon_pulls(f.tendon_pulls_m().unwrap())
                 .with_world_from_hand(moe_geom::WorldFromHand::new(f.world_from_hand))
         })
