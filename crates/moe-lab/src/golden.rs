@@ -341,6 +341,7 @@ fn patting_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
         out: None,
         prior_gate_m: DEFAULT_PRIOR_GATE_M,
         estimated_noise_floor_m: DEFAULT_ESTIMATED_NOISE_FLOOR_M,
+        physics: moe_physics::PhysicsConfig::default(),
     };
     let knn = crate::contact_eval::build_knn_index(
         &DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?,
@@ -374,6 +375,7 @@ pub fn grasp_fixture_options() -> crate::grasp::GraspStudyOptions {
         source: GraspStudySource::Pipeline,
         threshold: None,
         grasp: GraspOptions::default(),
+        physics: moe_physics::PhysicsConfig::default(),
     }
 }
 

@@ -61,6 +61,8 @@ pub struct GraspStudyOptions {
     pub threshold: Option<Real>,
     /// The trials' settings.
     pub grasp: GraspOptions,
+    /// The physics estimator's settings, for [`GraspStudySource::Physics`].
+    pub physics: moe_physics::PhysicsConfig,
 }
 
 /// The trials on one incline.
@@ -146,7 +148,7 @@ pub fn run_grasp_study<E: From<LabError>>(
                 let contacts = match source {
                     GraspStudySource::Physics => GraspContacts::Physics {
                         material: moe_physics::HandMaterial::default(),
-                        config: moe_physics::PhysicsConfig::default(),
+                        config: options.physics.clone(),
                     },
                     GraspStudySource::Pipeline => GraspContacts::Pipeline {
                         contact: &estimator,

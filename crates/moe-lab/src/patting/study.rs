@@ -101,6 +101,8 @@ pub struct PattingStudyOptions {
     /// Lower bound of the GP's noise standard deviation on the estimated contacts (metres; 0
     /// leaves the fit's own bound). The true contacts keep the fit's own bound.
     pub estimated_noise_floor_m: Real,
+    /// The physics estimator's settings.
+    pub physics: moe_physics::PhysicsConfig,
 }
 
 /// The contact points of one estimator on one pair.
@@ -445,7 +447,7 @@ fn evaluate_pair(
         hand,
         &episode,
         &moe_physics::HandMaterial::default(),
-        &moe_physics::PhysicsConfig::default(),
+        &options.physics,
     )?;
     let true_contacts = true_pat_contacts(&episode);
     let prior_level = match options.size {

@@ -238,6 +238,41 @@ fn the_committed_physics_settings_load_and_find_the_press() {
     assert!(n >= 1, "the committed settings are found");
 }
 
+/// The application studies take the physics estimator's settings, and refuse a file they
+/// cannot read, or one given to the other pipeline, before any trial runs.
+#[test]
+fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
+    let dir = scratch("study-settings");
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "marker_sigma_m = -1.0\n").unwrap();
+    let depth = fixtures().join("physics/depth.toml");
+    for (args, needle) in [
+        (
+            vec![
+                "eval",
+                "grasp",
+                "--contact",
+                "dgcnn",
+                "--physics-config",
+                path(&depth),
+            ],
+            "--physics-config is for --contact physics",
+        ),
+        (
+            vec!["eval", "grasp", "--physics-config", path(&bad)],
+            "marker_sigma_m",
+        ),
+        (
+            vec!["eval", "patting", "--physics-config", path(&bad)],
+            "marker_sigma_m",
+        ),
+    ] {
+        let line = assert_one_line_error(&run(&args));
+        assert!(line.contains(needle), "{args:?}: {line}");
+        assert!(line.contains("--physics-config"), "{args:?}: {line}");
+    }
+}
+
 #[test]
 fn physics_contact_refuses_bad_input_in_one_line_and_writes_nothing() {
     let dir = scratch("physics-contact-errors");

@@ -58,6 +58,10 @@ pub(crate) struct GraspEvalArgs {
     /// loaded (by default their tips give the plane then).
     #[arg(long)]
     contact_plane_only: bool,
+    /// The physics estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`; default:
+    /// the documented ones), for `--contact physics`.
+    #[arg(long, value_name = "C.toml")]
+    physics_config: Option<PathBuf>,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
@@ -124,6 +128,10 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
     if let Some(m) = args.plane_threshold {
         grasp.ransac.distance_threshold_m = m;
     }
+    if args.physics_config.is_some() && source != GraspStudySource::Physics {
+        anyhow::bail!("--physics-config is for --contact physics");
+    }
+    let (physics, _) = crate::cli::load_physics_config(args.physics_config.as_deref())?;
     let options = GraspStudyOptions {
         trials: args.trials,
         model: args.model.clone(),
@@ -131,6 +139,7 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
         source,
         threshold: args.threshold,
         grasp,
+        physics,
     };
     let report = evaluate(&options, args.out.as_deref())?;
     if args.json {

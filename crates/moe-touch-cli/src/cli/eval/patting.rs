@@ -93,6 +93,10 @@ pub(crate) struct PattingEvalArgs {
     /// without the GP taking it for shape. The true contacts keep the fit's own bound.
     #[arg(long, value_name = "M", default_value_t = DEFAULT_ESTIMATED_NOISE_FLOOR_M)]
     estimated_noise_floor: Real,
+    /// The physics estimator's settings (TOML or JSON `moe_physics::PhysicsConfig`; default:
+    /// the documented ones).
+    #[arg(long, value_name = "C.toml")]
+    physics_config: Option<PathBuf>,
 }
 
 /// The `KNN[All]` index: from a file (of the patting hand, the two-finger preset), or built
@@ -105,7 +109,7 @@ fn knn_index(path: Option<&Path>) -> Result<KnnIndex> {
 }
 
 /// The study's options from the arguments.
-fn options(args: &PattingEvalArgs) -> PattingStudyOptions {
+fn options(args: &PattingEvalArgs, physics: moe_physics::PhysicsConfig) -> PattingStudyOptions {
     PattingStudyOptions {
         size: match args.size {
             Size::Small => PattingSize::Small,
@@ -118,6 +122,7 @@ fn options(args: &PattingEvalArgs) -> PattingStudyOptions {
         out: args.out.clone(),
         prior_gate_m: args.prior_gate,
         estimated_noise_floor_m: args.estimated_noise_floor,
+        physics,
     }
 }
 
@@ -132,14 +137,19 @@ fn evaluate(args: &PattingEvalArgs) -> Result<PattingStudyReport> {
             args.prior_gate
         );
     }
+    let (physics, _) = crate::cli::load_physics_config(args.physics_config.as_deref())?;
     let knn = knn_index(args.knn_index.as_deref())?;
     let mut started = std::time::Instant::now();
-    run_patting_study(&options(args), &knn, |body, k, pair| -> Result<()> {
-        let secs = started.elapsed().as_secs_f64();
-        eprintln!("{}", pair_progress(body, k, pair, secs));
-        started = std::time::Instant::now();
-        Ok(())
-    })
+    run_patting_study(
+        &options(args, physics),
+        &knn,
+        |body, k, pair| -> Result<()> {
+            let secs = started.elapsed().as_secs_f64();
+            eprintln!("{}", pair_progress(body, k, pair, secs));
+            started = std::time::Instant::now();
+            Ok(())
+        },
+    )
 }
 
 pub(crate) fn run(args: &PattingEvalArgs) -> Result<()> {
