@@ -31,6 +31,8 @@ mod search;
 mod stream;
 mod uncertainty;
 
+use std::borrow::Cow;
+
 use moe_geom::{FingerModel, Iso3, Point3, Real, Vector3};
 use moe_tendon_sim::mechanics::StepContext;
 use moe_tendon_sim::{SimError, TendonCommand};
@@ -480,8 +482,10 @@ impl FingerInverse {
         let raw = obs;
         let corrected = self.contact_lag_corrected(obs, &free.x);
         let lagged = corrected.is_some();
-        let (markers, depth_rows) =
-            corrected.unwrap_or_else(|| (obs.markers.to_vec(), obs.depth.to_vec()));
+        let (markers, depth_rows) = match corrected {
+            Some((markers, rows)) => (markers, Cow::Owned(rows)),
+            None => (obs.markers.to_vec(), Cow::Borrowed(obs.depth)),
+        };
         let obs = &FingerObservation {
             depth: &depth_rows,
             ..*obs

@@ -134,6 +134,11 @@ impl FingerInverse {
         obs: &FingerObservation<'_>,
         x_free: &[Point3],
     ) -> Option<(Vec<Option<Point3>>, Vec<DepthRow>)> {
+        let gain = self.config.contact_lag_gain;
+        if !(gain > 0.0 && self.beta > 0.0) {
+            self.previous_residual = None;
+            return None;
+        }
         let residual: Vec<Option<Vector3>> = obs
             .markers
             .iter()
@@ -156,10 +161,9 @@ impl FingerInverse {
             markers: residual.clone(),
             depth: depth.clone(),
         });
-        let gain = self.config.contact_lag_gain;
         let (t, previous) = (obs.time_secs?, previous?);
         let dt = t - previous.time_secs;
-        if !(gain > 0.0 && self.beta > 0.0 && dt > 0.0 && dt <= self.config.stream_reach_secs()) {
+        if !(dt > 0.0 && dt <= self.config.stream_reach_secs()) {
             return None;
         }
         let a = (-dt / self.beta).exp();

@@ -25,21 +25,37 @@ fn with_depth() -> PhysicsConfig {
     config
 }
 
-fn estimate(
-    config: &PhysicsConfig,
+fn estimator(config: &PhysicsConfig) -> PhysicsEstimator {
+    PhysicsEstimator::new(&hand(), &HandMaterial::default(), config).unwrap()
+}
+
+/// `est`'s estimate of the unpulled hand, held upright, with `markers`, `depth` and `time`.
+fn observe(
+    est: &mut PhysicsEstimator,
     markers: &HandKeypoints,
     depth: Option<&OwnedDepthImage>,
+    time: Option<Real>,
 ) -> PhysicsEstimate {
-    let hand = hand();
-    let pulls = no_pulls(&hand);
-    let mut est = PhysicsEstimator::new(&hand, &HandMaterial::default(), config).unwrap();
+    let pulls = no_pulls(&hand());
     let mut obs = Observation::from_keypoints(markers)
         .with_tendon_pulls(&pulls)
         .with_world_from_hand(WorldFromHand::identity());
     if let Some(d) = depth {
         obs = obs.with_depth(d.view());
     }
+    if let Some(t) = time {
+        obs = obs.with_time(t);
+    }
     est.estimate(&obs).unwrap()
+}
+
+/// A lone frame's estimate.
+fn estimate(
+    config: &PhysicsConfig,
+    markers: &HandKeypoints,
+    depth: Option<&OwnedDepthImage>,
+) -> PhysicsEstimate {
+    observe(&mut estimator(config), markers, depth, None)
 }
 
 /// A vertex of finger 0 that the camera sees face-on, nearest `z_m` along the finger.
@@ -207,22 +223,10 @@ fn second_frame(
     markers: &HandKeypoints,
     depth: &OwnedDepthImage,
 ) -> PhysicsEstimate {
-    let hand = hand();
-    let pulls = no_pulls(&hand);
     let (free_markers, free_depth) = free_hand_seen();
-    let mut est = PhysicsEstimator::new(&hand, &HandMaterial::default(), config).unwrap();
-    for (t, m, d) in [(0.0, &free_markers, &free_depth), (0.05, markers, depth)] {
-        let obs = Observation::from_keypoints(m)
-            .with_tendon_pulls(&pulls)
-            .with_world_from_hand(WorldFromHand::identity())
-            .with_time(t)
-            .with_depth(d.view());
-        let e = est.estimate(&obs).unwrap();
-        if t > 0.0 {
-            return e;
-        }
-    }
-    unreachable!("the stream has two frames")
+    let mut est = estimator(config);
+    observe(&mut est, &free_markers, Some(&free_depth), Some(0.0));
+    observe(&mut est, markers, Some(depth), Some(0.05))
 }
 
 #[test]
@@ -324,19 +328,13 @@ fn a_release_only_the_depth_image_shows_is_reported_in_its_frame_with_the_lag_ta
     let run = |gain: Real| {
         let mut config = with_depth();
         config.contact_lag_gain = gain;
-        let mut est = PhysicsEstimator::new(&hand, &HandMaterial::default(), &config).unwrap();
+        let mut est = estimator(&config);
         frames
             .iter()
             .map(|&(t, k_dent)| {
                 let shape = blend(&free, &pressed, k_dent);
-                let markers = markers_of(&shape);
                 let depth = render_depth(&hand, &shape, k, mount).unwrap();
-                let obs = Observation::from_keypoints(&markers)
-                    .with_tendon_pulls(&pulls)
-                    .with_world_from_hand(WorldFromHand::identity())
-                    .with_time(t)
-                    .with_depth(depth.view());
-                let e = est.estimate(&obs).unwrap();
+                let e = observe(&mut est, &markers_of(&shape), Some(&depth), Some(t));
                 e.details
                     .loads
                     .iter()
