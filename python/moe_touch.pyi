@@ -418,6 +418,7 @@ class Pipeline:
         *,
         iterations: Optional[int] = None,
         warm_start: bool = False,
+        shape: _Settings = None,
         detector: _Settings = None,
     ) -> Pipeline:
         """The paper's pipeline: SR-ARAP shape, then the trained network."""

@@ -120,9 +120,12 @@ impl Pipeline {
     /// The paper's pipeline: SR-ARAP shape (`iterations` per frame, default 50;
     /// `warm_start` starts each frame from the previous shape), then the trained network at
     /// `model` (`NAME.safetensors` with its card), contact where it reaches the card's
-    /// threshold (the tool's `--contact dgcnn`). `detector` as for `physics`.
+    /// threshold (the tool's `--contact dgcnn`). `shape` (`ShapeConfig`, the tool's
+    /// `--shape-config`; its `depth` part registers the shape to the depth image as well) and
+    /// `detector` as the settings of `physics`.
     #[staticmethod]
-    #[pyo3(signature = (hand, camera, model, *, iterations=None, warm_start=false, detector=None))]
+    #[pyo3(signature = (hand, camera, model, *, iterations=None, warm_start=false, shape=None, detector=None))]
+    #[allow(clippy::too_many_arguments)]
     fn paper(
         py: Python<'_>,
         hand: &Hand,
@@ -130,10 +133,11 @@ impl Pipeline {
         model: PathBuf,
         iterations: Option<usize>,
         warm_start: bool,
+        shape: Option<&Bound<'_, PyAny>>,
         detector: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let marker_detector = self::detector(camera, hand, detector)?;
-        let options = shape_config(iterations, warm_start);
+        let options = shape_config(settings(shape, "shape")?, iterations, warm_start);
         let pipeline = py.detach(|| {
             let network = ContactModel::estimator(&model, hand)?;
             moe_touch::Pipeline::paper(hand.model.clone(), marker_detector, network, options).py()

@@ -28,13 +28,17 @@ fn vertex_ids<'a>(ids: impl Iterator<Item = &'a i64>, what: &str) -> PyResult<Ve
         .collect()
 }
 
-/// `MultiShapeEstimator`'s settings with `iterations` per frame (default 50) and `warm_start`.
-pub(crate) fn shape_config(iterations: Option<usize>, warm_start: bool) -> ShapeConfig {
-    let defaults = ShapeConfig::default();
+/// `MultiShapeEstimator`'s settings: `given` (the defaults without) with `iterations` per
+/// frame and `warm_start` on top when set.
+pub(crate) fn shape_config(
+    given: ShapeConfig,
+    iterations: Option<usize>,
+    warm_start: bool,
+) -> ShapeConfig {
     ShapeConfig {
-        iterations: iterations.unwrap_or(defaults.iterations),
-        warm_start,
-        ..defaults
+        iterations: iterations.unwrap_or(given.iterations),
+        warm_start: warm_start || given.warm_start,
+        ..given
     }
 }
 
@@ -140,7 +144,7 @@ impl MultiShapeEstimator {
     fn new(hand: &Hand, iterations: Option<usize>, warm_start: bool) -> PyResult<Self> {
         let estimator = moe_arap::MultiShapeEstimator::new(
             hand.model.clone(),
-            shape_config(iterations, warm_start),
+            shape_config(ShapeConfig::default(), iterations, warm_start),
         )
         .py()?;
         Ok(Self {

@@ -77,6 +77,28 @@ def test_the_demo_episode_through_the_paper_pipeline_equals_the_tools_run(moe_to
         np.testing.assert_allclose(r.contacts_in_hand @ R.T + t, r.contacts_in_world, atol=1e-12)
 
 
+def test_the_paper_pipeline_registered_to_depth_equals_the_tools_run(moe_touch_bin, tmp_path):
+    shape = tmp_path / "shape.toml"
+    shape.write_text("[depth]\nenabled = true\n")
+    theirs = rust_report(moe_touch_bin, tmp_path, "--contact", "dgcnn", "--model", str(MODEL),
+                         "--shape-config", str(shape))
+    episode = mt.read_episode(EPISODE)
+    hand = mt.Hand.preset("two-finger")
+    as_file = mt.Pipeline.paper(hand, episode.camera, MODEL, shape=shape)
+    as_dict = mt.Pipeline.paper(hand, episode.camera, MODEL, shape={"depth": {"enabled": True}})
+    ours = python_run(as_file, episode)
+    assert_frames_equal(ours, theirs, episode)
+    for a, b in zip(ours, python_run(as_dict, episode)):
+        for p, q in zip(a.shape, b.shape):
+            np.testing.assert_array_equal(p, q)
+    # The depth image moved the shape: not the markers-only pipeline's.
+    plain = python_run(mt.Pipeline.paper(hand, episode.camera, MODEL), episode)
+    assert any(not np.array_equal(p, q)
+               for a, b in zip(ours, plain) for p, q in zip(a.shape, b.shape))
+    with pytest.raises(mt.MoeTouchValueError, match="depth.weight"):
+        mt.Pipeline.paper(hand, episode.camera, MODEL, shape={"depth": {"weight": -1.0}})
+
+
 def test_a_rosbags_recording_decodes_to_its_source_episode():
     source = mt.read_episode(EPISODE)
     bag = mt.read_episode(ROS2_EPISODE)

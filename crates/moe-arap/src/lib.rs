@@ -85,6 +85,17 @@
 //! (flat or inverted cells, counted in [`ArapInfo::svd_fallbacks`]). A solve from rest resets the
 //! warm start to the identity, so its result does not depend on earlier solves.
 //!
+//! # Registration to a depth image
+//!
+//! With [`ShapeConfig::depth`] enabled, [`MultiShapeEstimator::estimate_with`] also reads the
+//! wrist camera's depth image: after the markers-only solve, the pixels each finger's estimate
+//! predicts are pooled over patches of its surface, and every patch adds a soft point-to-plane
+//! term `w (aᵀp′ − c)²` to the energy (the markers stay hard handles). The term is split as in
+//! projective dynamics: the local step also projects the positions onto each patch's plane, the
+//! global step solves `K + diag(w‖a‖²/2)` (one numeric refactorisation per pass, on the same
+//! symbolic factor, and one solve per handle), so both steps stay exact block minimisers. See
+//! [`ShapeDepth`] for the weights, gates and passes.
+//!
 //! # Parallelism
 //!
 //! [`MultiShapeEstimator`] solves the fingers in parallel on the rayon pool, one finger per task,
@@ -101,6 +112,8 @@ mod cells;
 mod components;
 /// Solver configuration.
 mod config;
+/// Registration to the depth image.
+mod depth;
 /// The crate's error type.
 mod error;
 /// Multi-finger shape estimation over a hand model.
@@ -120,6 +133,7 @@ mod testmesh;
 
 pub use components::ArapSolver;
 pub use config::{ArapConfig, ArapEnergy};
+pub use depth::ShapeDepth;
 pub use error::ArapError;
 pub use moe_geom::HandShape;
 pub use multi::{FingerReport, MultiShapeEstimator, ShapeConfig, ShapeEstimate};

@@ -9,13 +9,19 @@
 //! then be relaxed when a marker is first seen. Missing markers are dropped for the frame without
 //! refactorising.
 
-use moe_geom::{HandKeypoints, HandModel, HandShape, Observation, Point3, PointIndex, Real};
+use moe_geom::depth::{
+    DepthImage, FingerDepth, SurfacePatches, associate_depth, pool_pixels, surface_pixels,
+};
+use moe_geom::{
+    HandFinger, HandKeypoints, HandModel, HandShape, Observation, Point3, PointIndex, Real,
+};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{ArapConfig, ArapEnergy};
+use crate::depth::ShapeDepth;
 use crate::error::ArapError;
-use crate::solver::{ArapInfo, ArapWorkspace, PartSolver, Start};
+use crate::solver::{ArapInfo, ArapWorkspace, PartSolver, Start, SurfaceRow};
 
 /// Number of nearest rest vertices examined when the nearest one is unusable for a handle.
 const HANDLE_CANDIDATES: usize = 32;
@@ -33,6 +39,8 @@ pub struct ShapeConfig {
     /// Start each frame from the previous frame's shape instead of the rest shape. Default
     /// `false` (the paper starts from rest).
     pub warm_start: bool,
+    /// Registration to the wrist camera's depth image as well (off by default).
+    pub depth: ShapeDepth,
 }
 
 impl Default for ShapeConfig {
@@ -42,7 +50,25 @@ impl Default for ShapeConfig {
             alpha: 0.01,
             energy: ArapEnergy::Smoothed,
             warm_start: false,
+            depth: ShapeDepth::default(),
         }
+    }
+}
+
+impl ShapeConfig {
+    /// Checks every setting.
+    ///
+    /// # Errors
+    /// [`ArapError::InvalidConfig`] naming the first bad one.
+    pub fn validate(&self) -> Result<(), ArapError> {
+        ArapConfig {
+            energy: self.energy,
+            alpha: self.alpha,
+            iterations: self.iterations,
+            parallel: false,
+        }
+        .validate()?;
+        self.depth.validate()
     }
 }
 
@@ -51,9 +77,11 @@ impl Default for ShapeConfig {
 pub struct FingerReport {
     /// Finger index.
     pub finger: usize,
-    /// Iterations run (0 when no marker was visible).
+    /// Iterations run, over the markers-only solve and every depth pass (0 when no marker was
+    /// visible).
     pub iterations: usize,
-    /// Energy per iteration (see [`ArapInfo::energy`]).
+    /// Energy per iteration of the last solve (see [`ArapInfo::energy`]; with a depth pass,
+    /// the depth patches' term included).
     pub energy: Vec<Real>,
     /// Indices of the markers used as handles in this frame.
     pub markers_used: Vec<usize>,
@@ -65,6 +93,12 @@ pub struct FingerReport {
     pub warm_started: bool,
     /// Rotations computed by the SVD fallback.
     pub svd_fallbacks: usize,
+    /// Depth patches the last registration pass pulled the surface with (0 without depth).
+    #[serde(default)]
+    pub depth_patches: usize,
+    /// Depth pixels pooled into them.
+    #[serde(default)]
+    pub depth_pixels: usize,
 }
 
 /// The result of one frame.
@@ -91,6 +125,8 @@ struct FingerState {
     marker_slot: Vec<Option<usize>>,
     handle_targets: Vec<Option<Point3>>,
     has_previous: bool,
+    /// The patches depth pixels are pooled over.
+    patches: SurfacePatches,
 }
 
 /// SR-ARAP shape estimation for every finger of a hand.
@@ -140,6 +176,8 @@ impl MultiShapeEstimator {
             parallel: false,
         };
         config.validate()?;
+        options.depth.validate()?;
+        let spacing = options.depth.patch_spacing_m;
         let fingers = hand
             .fingers()
             .par_iter()
@@ -163,6 +201,7 @@ impl MultiShapeEstimator {
                     marker_slot: vec![None; markers],
                     handle_targets: Vec::new(),
                     has_previous: false,
+                    patches: SurfacePatches::new(mesh.vertices(), mesh.faces(), spacing),
                     solver,
                 })
             })
@@ -237,6 +276,22 @@ impl MultiShapeEstimator {
     /// # Errors
     /// Keypoints that do not fit the hand (finger or marker counts), non-finite keypoints.
     pub fn estimate(&mut self, keypoints: &HandKeypoints) -> Result<ShapeEstimate, ArapError> {
+        self.estimate_with(keypoints, None)
+    }
+
+    /// As [`MultiShapeEstimator::estimate`], registered to `depth` as well when the options
+    /// enable it ([`ShapeDepth`]): after the markers-only solve, each pass associates the
+    /// depth pixels with the fingers as the current estimate predicts them and solves again
+    /// with the patches' soft pulls. A finger with no marker in view is left as the markers
+    /// left it.
+    ///
+    /// # Errors
+    /// As [`MultiShapeEstimator::estimate`].
+    pub fn estimate_with(
+        &mut self,
+        keypoints: &HandKeypoints,
+        depth: Option<&DepthImage<'_>>,
+    ) -> Result<ShapeEstimate, ArapError> {
         self.check_keypoints(keypoints)?;
         let warm = self.options.warm_start;
         let results = self
@@ -264,11 +319,30 @@ impl MultiShapeEstimator {
                 Ok((vertices, report))
             })
             .collect::<Result<Vec<_>, ArapError>>()?;
-        let (fingers, reports) = results.into_iter().unzip();
-        Ok(ShapeEstimate {
-            shape: HandShape { fingers },
-            reports,
-        })
+        let (fingers, mut reports): (Vec<_>, Vec<_>) = results.into_iter().unzip();
+        let mut shape = HandShape { fingers };
+        let settings = &self.options.depth;
+        if let (true, Some(depth)) = (settings.enabled, depth) {
+            for _ in 0..settings.passes {
+                let found = associate_depth(&self.hand, &shape, depth, &settings.association())?;
+                self.fingers
+                    .par_iter_mut()
+                    .zip(self.hand.fingers().par_iter())
+                    .zip(found.par_iter())
+                    .zip(reports.par_iter_mut().zip(shape.fingers.par_iter_mut()))
+                    .try_for_each(|(((state, finger), found), (report, vertices))| {
+                        if report.all_markers_missing {
+                            return Ok(());
+                        }
+                        state.register_depth(finger, found, depth, settings, report)?;
+                        *vertices = finger
+                            .hand_from_finger
+                            .transform_points(state.workspace.vertices());
+                        Ok::<_, ArapError>(())
+                    })?;
+            }
+        }
+        Ok(ShapeEstimate { shape, reports })
     }
 
     fn locate_non_finite(&self, keypoints: &HandKeypoints) -> ArapError {
@@ -308,6 +382,8 @@ impl FingerState {
                 all_markers_missing: true,
                 warm_started,
                 svd_fallbacks: 0,
+                depth_patches: 0,
+                depth_pixels: 0,
             });
         }
         for t in &mut self.handle_targets {
@@ -340,7 +416,62 @@ impl FingerState {
             all_markers_missing: false,
             warm_started,
             svd_fallbacks: self.info.svd_fallbacks,
+            depth_patches: 0,
+            depth_pixels: 0,
         })
+    }
+
+    /// One registration pass to the depth pixels `found` on this finger (hand frame), from
+    /// the shape the workspace holds, with the handles of the frame's markers.
+    fn register_depth(
+        &mut self,
+        finger: &HandFinger,
+        found: &FingerDepth,
+        depth: &DepthImage<'_>,
+        settings: &ShapeDepth,
+        report: &mut FingerReport,
+    ) -> Result<(), ArapError> {
+        let finger_from_hand = finger.hand_from_finger.inverse();
+        let pixels = surface_pixels(
+            &found.points,
+            depth,
+            &settings.noise,
+            finger_from_hand.iso(),
+        );
+        let predicted = self.workspace.vertices();
+        let pooled = pool_pixels(
+            &pixels,
+            finger.model.mesh().faces(),
+            predicted,
+            &self.patches,
+            settings.min_pixels,
+            &settings.noise,
+        );
+        report.depth_patches = pooled.len();
+        report.depth_pixels = pooled.iter().map(|p| p.pixels).sum();
+        if pooled.is_empty() {
+            return Ok(());
+        }
+        let rows: Vec<SurfaceRow> = pooled
+            .into_iter()
+            .map(|p| {
+                let at = p.predicted(|v| predicted[v as usize]);
+                settings.row(p, at)
+            })
+            .collect();
+        let terms = self.solver.surface_terms(rows)?;
+        self.solver.solve_in_with(
+            &mut self.workspace,
+            &self.base_targets,
+            &self.handle_targets,
+            Start::Previous,
+            &mut self.info,
+            Some(&terms),
+        )?;
+        report.iterations += self.info.iterations;
+        report.energy.clone_from(&self.info.energy);
+        report.svd_fallbacks += self.info.svd_fallbacks;
+        Ok(())
     }
 
     /// Gives every newly observed marker its handle vertex (the nearest usable rest vertex).
@@ -380,10 +511,13 @@ impl FingerState {
 impl moe_geom::ShapeEstimator for MultiShapeEstimator {
     type Error = ArapError;
 
-    /// The shape from the observation's markers (its pulls, pose and time are not used).
+    /// The shape from the observation's markers, and its depth image when the options
+    /// enable it (its pulls, pose and time are not used).
     fn estimate_shape(&mut self, observation: &Observation<'_>) -> Result<HandShape, ArapError> {
         let keypoints = observation.keypoints.ok_or(ArapError::MissingKeypoints)?;
-        Ok(self.estimate(keypoints)?.shape)
+        Ok(self
+            .estimate_with(keypoints, observation.depth.as_ref())?
+            .shape)
     }
 
     fn reset(&mut self) {

@@ -75,6 +75,8 @@ pub(crate) struct ArapWorkspace {
     active_targets: Vec<Point3>,
     chol: SmallCholesky,
     lambda: Vec<Real>,
+    /// Per vertex, the soft rows' pull `Σ μ y` of the current global step.
+    surface_rhs: Vec<Vector3>,
 }
 
 impl std::fmt::Debug for ArapWorkspace {
@@ -96,6 +98,80 @@ impl ArapWorkspace {
     #[cfg(test)]
     pub(crate) fn rotations(&self) -> &[Matrix3] {
         &self.rot_prev
+    }
+}
+
+/// A soft pull of the surface towards a plane: the mesh predicts `Σ a_v · x_v` over `terms`,
+/// an observation says `value`, and the energy gains `weight · (Σ a_v · x_v − value)²` (a
+/// depth patch's point-to-plane distance, [`moe_geom::depth::PooledPatch`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct SurfaceRow {
+    /// `(vertex, a_v)`.
+    pub(crate) terms: Vec<(u32, Vector3)>,
+    /// What the observation says, metres.
+    pub(crate) value: Real,
+    /// Weight of the squared residual, per square metre of residual.
+    pub(crate) weight: Real,
+}
+
+impl SurfaceRow {
+    /// `Σ a_v · x_v − value` at `x`.
+    fn residual(&self, x: &[Point3]) -> Real {
+        self.terms
+            .iter()
+            .map(|&(v, a)| a.dot(&x[v as usize].coords))
+            .sum::<Real>()
+            - self.value
+    }
+
+    fn norm_sq(&self) -> Real {
+        self.terms.iter().map(|(_, a)| a.norm_squared()).sum()
+    }
+}
+
+/// Soft rows and the global-step system that holds them.
+///
+/// A row's energy `w (aᵀx − c)²` is split as in projective dynamics: with `μ = w ‖a‖²` it is
+/// the minimum over `y` on the plane `aᵀy = c` of `μ Σ_v ‖x_v − y_v‖²`. The local step
+/// projects the current positions onto every row's plane (`y = x − a (aᵀx − c)/‖a‖²`), the
+/// global step solves `(K + diag(Σ μ/2)) x = b + Σ (μ/2) y`: the global-step system `K x = b`
+/// is the stationarity of a quarter of the ARAP energy (`½ xᵀK x − bᵀx = E/4 + const`), so
+/// the rows enter at half their weight. Both steps are exact block minimisers of the whole
+/// energy, so with `α = 0` it still never increases. The matrix is factorised once per set of
+/// rows.
+#[derive(Debug)]
+pub(crate) struct SurfaceTerms {
+    rows: Vec<SurfaceRow>,
+    /// Per row, `‖a‖²`.
+    norm_sq: Vec<Real>,
+    system: ReducedSystem,
+}
+
+impl SurfaceTerms {
+    /// The rows' energy `Σ w (aᵀx − c)²` at `x`.
+    fn energy(&self, x: &[Point3]) -> Real {
+        self.rows
+            .iter()
+            .map(|row| {
+                let r = row.residual(x);
+                row.weight * r * r
+            })
+            .sum()
+    }
+
+    /// Accumulates `Σ (μ/2) y` per vertex of the rows' planes' projections of `x` into `out`.
+    fn pull(&self, x: &[Point3], out: &mut [Vector3]) {
+        out.fill(Vector3::zeros());
+        for (row, &norm_sq) in self.rows.iter().zip(&self.norm_sq) {
+            if norm_sq <= 0.0 {
+                continue;
+            }
+            let step = row.residual(x) / norm_sq;
+            let half_mu = 0.5 * row.weight * norm_sq;
+            for &(v, a) in &row.terms {
+                out[v as usize] += (x[v as usize].coords - a * step) * half_mu;
+            }
+        }
     }
 }
 
@@ -191,6 +267,47 @@ impl PartSolver {
         Ok(())
     }
 
+    /// Soft `rows` on this solver's mesh, with the global-step matrix that holds them
+    /// factorised (on the same symbolic factor, for the current handles).
+    ///
+    /// # Errors
+    /// A row naming a vertex outside the mesh, a weight that is negative or not finite, a
+    /// term that is not finite, or a failed factorisation.
+    pub(crate) fn surface_terms(&self, rows: Vec<SurfaceRow>) -> Result<SurfaceTerms, ArapError> {
+        let n = self.rest.len();
+        let mut extra = vec![0.0; self.system.num_unknowns()];
+        let mut norm_sq = Vec::with_capacity(rows.len());
+        for (index, row) in rows.iter().enumerate() {
+            let finite = row.value.is_finite()
+                && row.weight.is_finite()
+                && row.weight >= 0.0
+                && row
+                    .terms
+                    .iter()
+                    .all(|(_, a)| a.iter().all(|c| c.is_finite()));
+            if !finite {
+                return Err(ArapError::NonFiniteTarget {
+                    what: "surface row",
+                    index,
+                });
+            }
+            let q = row.norm_sq();
+            for &(v, _) in &row.terms {
+                let v = check_id("surface row vertex", v, n)?;
+                let u = self.system.unknown_of[v];
+                if u != FIXED {
+                    extra[u as usize] += 0.5 * row.weight * q;
+                }
+            }
+            norm_sq.push(q);
+        }
+        Ok(SurfaceTerms {
+            system: self.system.with_diagonal(&extra)?,
+            rows,
+            norm_sq,
+        })
+    }
+
     /// Rest vertex positions.
     pub(crate) fn rest_vertices(&self) -> &[Point3] {
         &self.rest
@@ -218,6 +335,7 @@ impl PartSolver {
             active_targets: Vec::with_capacity(h),
             chol: SmallCholesky::default(),
             lambda: Vec::with_capacity(3 * h),
+            surface_rhs: vec![Vector3::zeros(); n],
         }
     }
 
@@ -256,6 +374,23 @@ impl PartSolver {
         start: Start<'_>,
         info: &mut ArapInfo,
     ) -> Result<(), ArapError> {
+        self.solve_in_with(ws, fixed_targets, handle_targets, start, info, None)
+    }
+
+    /// As [`PartSolver::solve_in`], with the soft rows of `surface` (made by this solver's
+    /// [`PartSolver::surface_terms`] for its current handles) in the energy.
+    ///
+    /// # Errors
+    /// As [`PartSolver::solve_in`].
+    pub(crate) fn solve_in_with(
+        &self,
+        ws: &mut ArapWorkspace,
+        fixed_targets: &[Point3],
+        handle_targets: &[Option<Point3>],
+        start: Start<'_>,
+        info: &mut ArapInfo,
+        surface: Option<&SurfaceTerms>,
+    ) -> Result<(), ArapError> {
         check_inputs(
             [self.rest.len(), self.fixed.len(), self.handles.len()],
             fixed_targets,
@@ -279,21 +414,24 @@ impl PartSolver {
             }
             Start::Previous => ws.rot_prev.iter_mut().for_each(|r| *r = orthonormalize(r)),
         }
-        self.prepare_frame(ws, fixed_targets, handle_targets, info);
+        let sys = surface.map_or(&self.system, |s| &s.system);
+        self.prepare_frame(sys, ws, fixed_targets, handle_targets, info);
+        let surface_energy = |x: &[Point3]| surface.map_or(0.0, |s| s.energy(x));
         let iterations = self.config.iterations;
         for t in 0..iterations {
             let (energy, fallbacks) = self.local_step(ws, t > 0);
             if t > 0 {
-                info.energy.push(energy);
+                info.energy.push(energy + surface_energy(&ws.deformed));
             }
             info.svd_fallbacks += fallbacks;
             std::mem::swap(&mut ws.rot, &mut ws.rot_prev);
-            self.global_step(ws, fixed_targets);
+            self.global_step(sys, ws, fixed_targets, surface);
             info.iterations += 1;
         }
         if iterations > 0 {
-            info.energy
-                .push(self.energy_expanded(&ws.deformed, &ws.rot_prev));
+            info.energy.push(
+                self.energy_expanded(&ws.deformed, &ws.rot_prev) + surface_energy(&ws.deformed),
+            );
         } else {
             self.place_constraints(ws, fixed_targets);
         }
@@ -335,12 +473,12 @@ impl PartSolver {
     /// the factor of their Schur block.
     fn prepare_frame(
         &self,
+        sys: &ReducedSystem,
         ws: &mut ArapWorkspace,
         fixed_targets: &[Point3],
         handle_targets: &[Option<Point3>],
         info: &mut ArapInfo,
     ) {
-        let sys = &self.system;
         for (u, acc) in ws.fixed_rhs.iter_mut().enumerate() {
             *acc = sys.coupling[sys.coupling_offsets[u]..sys.coupling_offsets[u + 1]]
                 .iter()
@@ -480,8 +618,17 @@ impl PartSolver {
 
     /// Right-hand side from the rotations in `ws.rot_prev` (the ones just fitted), sparse solve,
     /// handle correction, and write-back of the new positions.
-    fn global_step(&self, ws: &mut ArapWorkspace, fixed_targets: &[Point3]) {
+    fn global_step(
+        &self,
+        sys: &ReducedSystem,
+        ws: &mut ArapWorkspace,
+        fixed_targets: &[Point3],
+        surface: Option<&SurfaceTerms>,
+    ) {
         let cells = &self.cells;
+        if let Some(surface) = surface {
+            surface.pull(&ws.deformed, &mut ws.surface_rhs);
+        }
         let rot = &ws.rot_prev;
         if cells.edge_cells.len() == 2 * cells.edges.len() {
             // Spokes: the cells of edge `[a, b]` are exactly `a` and `b`.
@@ -503,10 +650,12 @@ impl PartSolver {
                 *out = sum * cells.rest_edges[e] * (0.5 * cells.weights[e]);
             }
         }
-        let sys = &self.system;
         for (u, &v) in sys.vertex_of.iter().enumerate() {
             let mut b = ws.fixed_rhs[u];
             let v = v as usize;
+            if surface.is_some() {
+                b += ws.surface_rhs[v];
+            }
             for (&e, &sign) in cells.ring_edge_ids(v).iter().zip(cells.ring_edge_signs(v)) {
                 // `b + (−1)·r` is `b − r` exactly.
                 b += ws.edge_rhs[e as usize] * sign;

@@ -25,6 +25,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Conj, Mat, MatMut, Par, Side};
 use moe_geom::Real;
+use std::sync::Arc;
 
 use crate::cells::Cells;
 use crate::error::ArapError;
@@ -39,8 +40,11 @@ pub(crate) struct ReducedSystem {
     pub(crate) unknown_of: Vec<u32>,
     /// Vertex of every unknown.
     pub(crate) vertex_of: Vec<u32>,
-    symbolic: Option<SymbolicCholesky<u32>>,
+    symbolic: Option<Arc<SymbolicCholesky<u32>>>,
     values: Vec<Real>,
+    /// `K`'s lower triangle, kept to factorise `K + D` for a diagonal `D`
+    /// ([`ReducedSystem::with_diagonal`]).
+    matrix: Option<SparseColMat<u32, Real>>,
     /// The factor's structure when faer chose a simplicial factorisation (small meshes), for the
     /// three-column solve of every iteration.
     simplicial: Option<SimplicialFactor>,
@@ -97,10 +101,9 @@ impl ReducedSystem {
             triplets.push(Triplet::new(u as u32, u as u32, diag));
             coupling_offsets.push(coupling.len());
         }
-        let (symbolic, values) = if m == 0 {
-            (None, Vec::new())
+        let (symbolic, values, matrix) = if m == 0 {
+            (None, Vec::new(), None)
         } else {
-            let factor_err = |reason: String| ArapError::Factorization { reason };
             let a = SparseColMat::<u32, Real>::try_new_from_triplets(m, m, &triplets)
                 .map_err(|e| factor_err(format!("{e:?}")))?;
             let symbolic = factorize_symbolic_cholesky(
@@ -110,29 +113,16 @@ impl ReducedSystem {
                 Default::default(),
             )
             .map_err(|e| factor_err(format!("{e:?}")))?;
-            let mut values = vec![0.0; symbolic.len_val()];
-            let mut buf = MemBuffer::new(
-                symbolic.factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
-            );
-            symbolic
-                .factorize_numeric_llt::<Real>(
-                    &mut values,
-                    a.as_ref(),
-                    Side::Lower,
-                    LltRegularization::default(),
-                    Par::Seq,
-                    MemStack::new(&mut buf),
-                    Default::default(),
-                )
-                .map_err(|e| factor_err(format!("{e:?}")))?;
-            (Some(symbolic), values)
+            let values = factorize(&symbolic, &a)?;
+            (Some(Arc::new(symbolic)), values, Some(a))
         };
-        let simplicial = symbolic.as_ref().and_then(SimplicialFactor::new);
+        let simplicial = symbolic.as_deref().and_then(SimplicialFactor::new);
         Ok(Self {
             unknown_of,
             vertex_of,
             symbolic,
             values,
+            matrix,
             simplicial,
             coupling_offsets,
             coupling,
@@ -140,6 +130,48 @@ impl ReducedSystem {
             z: Vec::new(),
             schur: Vec::new(),
         })
+    }
+
+    /// The same system with `K + diag(extra)` (one non-negative entry per unknown) factorised
+    /// in place of `K`, on the same symbolic factor, and its handle columns recomputed: the
+    /// global step of an energy with soft pulls on single vertices.
+    ///
+    /// # Errors
+    /// [`ArapError::Factorization`] when the numeric factorisation fails.
+    pub(crate) fn with_diagonal(&self, extra: &[Real]) -> Result<Self, ArapError> {
+        debug_assert_eq!(extra.len(), self.num_unknowns());
+        let (symbolic, values, matrix) = match (&self.symbolic, &self.matrix) {
+            (Some(symbolic), Some(k)) => {
+                let mut a = k.clone();
+                let col_ptr = a.symbolic().col_ptr().to_vec();
+                let row_idx = a.symbolic().row_idx().to_vec();
+                let val = a.val_mut();
+                for (j, &add) in extra.iter().enumerate() {
+                    let (start, end) = (col_ptr[j] as usize, col_ptr[j + 1] as usize);
+                    if let Some(k) = (start..end).find(|&k| row_idx[k] as usize == j) {
+                        val[k] += add;
+                    }
+                }
+                let values = factorize(symbolic, &a)?;
+                (Some(Arc::clone(symbolic)), values, Some(a))
+            }
+            _ => (None, Vec::new(), None),
+        };
+        let mut out = Self {
+            unknown_of: self.unknown_of.clone(),
+            vertex_of: self.vertex_of.clone(),
+            symbolic,
+            values,
+            matrix,
+            simplicial: self.simplicial.clone(),
+            coupling_offsets: self.coupling_offsets.clone(),
+            coupling: self.coupling.clone(),
+            handle_unknowns: Vec::new(),
+            z: Vec::new(),
+            schur: Vec::new(),
+        };
+        out.set_handles(self.handle_unknowns.clone());
+        Ok(out)
     }
 
     /// Number of unknowns.
@@ -163,7 +195,7 @@ impl ReducedSystem {
     /// `rhs ← K⁻¹ rhs`.
     pub(crate) fn solve_in_place(&self, rhs: MatMut<'_, Real>, buf: &mut MemBuffer) {
         if let Some(symbolic) = &self.symbolic {
-            LltRef::new(symbolic, &self.values).solve_in_place_with_conj(
+            LltRef::new(symbolic.as_ref(), &self.values).solve_in_place_with_conj(
                 Conj::No,
                 rhs,
                 Par::Seq,
@@ -227,6 +259,33 @@ impl ReducedSystem {
     pub(crate) fn schur(&self, i: usize, j: usize) -> Real {
         self.schur[i * self.num_handles() + j]
     }
+}
+
+fn factor_err(reason: String) -> ArapError {
+    ArapError::Factorization { reason }
+}
+
+/// The numeric Cholesky factor of `a` (lower triangle) on `symbolic`.
+fn factorize(
+    symbolic: &SymbolicCholesky<u32>,
+    a: &SparseColMat<u32, Real>,
+) -> Result<Vec<Real>, ArapError> {
+    let mut values = vec![0.0; symbolic.len_val()];
+    let mut buf = MemBuffer::new(
+        symbolic.factorize_numeric_llt_scratch::<Real>(Par::Seq, Default::default()),
+    );
+    symbolic
+        .factorize_numeric_llt::<Real>(
+            &mut values,
+            a.as_ref(),
+            Side::Lower,
+            LltRegularization::default(),
+            Par::Seq,
+            MemStack::new(&mut buf),
+            Default::default(),
+        )
+        .map_err(|e| factor_err(format!("{e:?}")))?;
+    Ok(values)
 }
 
 /// A simplicial Cholesky factor `P K Pᵀ = L Lᵀ` in compressed columns, diagonal first in every

@@ -11,7 +11,7 @@
 
 use std::time::Instant;
 
-use moe_arap::{MultiShapeEstimator, ShapeConfig};
+use moe_arap::{MultiShapeEstimator, ShapeConfig, ShapeDepth};
 use moe_contact::{ContactMetrics, ContactReport, DgcnnEstimator};
 use moe_geom::HandEstimator as _;
 use moe_geom::{
@@ -255,6 +255,13 @@ pub struct PhysicsEvaluation {
     pub dgcnn_on_physics: Option<ContactReport>,
     /// The paper's chain on the same markers: the DGCNN on SR-ARAP shapes.
     pub dgcnn_on_sr_arap: Option<ContactReport>,
+    /// The DGCNN on SR-ARAP shapes registered to the markers and the depth image (frames that
+    /// carry one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dgcnn_on_sr_arap_depth: Option<ContactReport>,
+    /// The DGCNN on the true shapes: what the network does when the shape is right.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dgcnn_on_true_shape: Option<ContactReport>,
     /// The two together: contact on the fingers the physics estimator finds pressed, where the
     /// DGCNN on its shape puts it (the physics estimator's region on a finger where the
     /// network finds none).
@@ -263,6 +270,9 @@ pub struct PhysicsEvaluation {
     pub physics_shape_bcd_mm: Real,
     /// Shape BCD of SR-ARAP from the same markers, mm (when the chain is evaluated).
     pub sr_arap_shape_bcd_mm: Real,
+    /// Shape BCD of SR-ARAP registered to the markers and the depth image, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sr_arap_depth_shape_bcd_mm: Option<Real>,
     /// The force table.
     pub forces: ForceTable,
     /// Onset, hold (flicker) and release of the presses through the streams.
@@ -549,7 +559,8 @@ pub fn with_physics_shapes(
 pub struct Comparison<'a> {
     /// The trained network: the DGCNN on the physics shapes, and on SR-ARAP shapes.
     pub dgcnn: Option<&'a DgcnnEstimator>,
-    /// SR-ARAP options of the paper's chain.
+    /// SR-ARAP options of the paper's chain (its depth settings are used, enabled, for the
+    /// row registered to the depth image; the paper's row reads markers only).
     pub shape: &'a ShapeConfig,
     /// Every frame on its own: the physics estimator is reset before each frame (no stream:
     /// the free finger starts from rest, nothing is carried over), the ablation of memory
@@ -575,18 +586,36 @@ pub fn evaluate_physics(
             reason: "no frames to evaluate".into(),
         });
     }
+    let markers_only = ShapeConfig {
+        depth: ShapeDepth {
+            enabled: false,
+            ..comparison.shape.depth.clone()
+        },
+        ..comparison.shape.clone()
+    };
+    let with_depth = ShapeConfig {
+        depth: ShapeDepth {
+            enabled: true,
+            ..comparison.shape.depth.clone()
+        },
+        ..comparison.shape.clone()
+    };
+    let has_depth = (0..frames.len()).any(|k| source.depth(k).is_some());
     let mut arap = match comparison.dgcnn {
-        Some(_) => Some(MultiShapeEstimator::new(
-            hand.clone(),
-            comparison.shape.clone(),
-        )?),
+        Some(_) => Some(MultiShapeEstimator::new(hand.clone(), markers_only)?),
         None => None,
+    };
+    let mut arap_depth = match comparison.dgcnn {
+        Some(_) if has_depth => Some(MultiShapeEstimator::new(hand.clone(), with_depth)?),
+        _ => None,
     };
     let mut physics = ContactMetrics::default();
     let mut on_physics = ContactMetrics::default();
     let mut on_arap = ContactMetrics::default();
+    let mut on_arap_depth = ContactMetrics::default();
+    let mut on_truth = ContactMetrics::default();
     let mut placed = ContactMetrics::default();
-    let (mut physics_bcd, mut arap_bcd) = (0.0, 0.0);
+    let (mut physics_bcd, mut arap_bcd, mut arap_depth_bcd) = (0.0, 0.0, 0.0);
     let mut outcomes = Vec::new();
     let mut times = Vec::with_capacity(frames.len());
     let mut failed = 0;
@@ -648,6 +677,24 @@ pub fn evaluate_physics(
                 &frame.contact,
                 &p.labels_at(dgcnn.threshold()),
             )?;
+            if let Some(arap_depth) = arap_depth.as_mut() {
+                let shape = arap_depth
+                    .estimate_with(&markers, observation.depth.as_ref())?
+                    .shape;
+                arap_depth_bcd += bcd_of(&shape, &frame.shape)?;
+                let p = dgcnn.estimate_map(&ContactInput::new(&shape, observation))?;
+                on_arap_depth.add(
+                    &frame.shape,
+                    &frame.contact,
+                    &p.labels_at(dgcnn.threshold()),
+                )?;
+            }
+            let p = dgcnn.estimate_map(&ContactInput::new(&frame.shape, observation))?;
+            on_truth.add(
+                &frame.shape,
+                &frame.contact,
+                &p.labels_at(dgcnn.threshold()),
+            )?;
         }
     }
     let n = frames.len() as Real;
@@ -661,6 +708,8 @@ pub fn evaluate_physics(
         physics: physics.report(),
         dgcnn_on_physics: comparison.dgcnn.map(|_| on_physics.report()),
         dgcnn_on_sr_arap: comparison.dgcnn.map(|_| on_arap.report()),
+        dgcnn_on_sr_arap_depth: arap_depth.as_ref().map(|_| on_arap_depth.report()),
+        dgcnn_on_true_shape: comparison.dgcnn.map(|_| on_truth.report()),
         physics_placed_by_dgcnn: comparison.dgcnn.map(|_| placed.report()),
         physics_shape_bcd_mm: 1e3 * physics_bcd / n,
         sr_arap_shape_bcd_mm: if comparison.dgcnn.is_some() {
@@ -668,6 +717,7 @@ pub fn evaluate_physics(
         } else {
             Real::NAN
         },
+        sr_arap_depth_shape_bcd_mm: arap_depth.as_ref().map(|_| 1e3 * arap_depth_bcd / n),
         forces: force_table(&outcomes, net),
         stream: stream_table(&outcomes, hand.num_fingers()),
         physics_ms_median: median(sorted.clone()),

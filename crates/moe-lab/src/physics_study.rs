@@ -69,6 +69,10 @@ pub struct PhysicsStudyOptions {
     pub config: PhysicsConfig,
     /// A contact model for the comparison rows.
     pub model: Option<PathBuf>,
+    /// SR-ARAP's settings for the comparison rows: the paper's chain reads the markers only;
+    /// on frames that carry a depth image a second row is registered to it as well, with these
+    /// settings' depth part (enabled for that row).
+    pub shape: ShapeConfig,
     /// Trials per plate scene (0: no Table 2).
     pub plates: u64,
     /// Every frame on its own (the estimator reset before each frame).
@@ -480,7 +484,6 @@ pub fn physics_study(
         },
         (None, None) => MarkerSource::Exact,
     };
-    let shape = ShapeConfig::default();
     let evaluation = evaluate_physics(
         &hand,
         &frames,
@@ -488,7 +491,7 @@ pub fn physics_study(
         &mut estimator,
         Comparison {
             dgcnn: dgcnn.as_ref(),
-            shape: &shape,
+            shape: &options.shape,
             forget_between_frames: options.no_memory,
         },
     )?;

@@ -28,8 +28,11 @@ use moe_io::{DatasetReader, Split, SplitFractions};
 use serde::{Deserialize, Serialize};
 
 use crate::LabError;
-use crate::contact_eval::{MarkerAugmentation, with_estimated_shapes};
+use crate::contact_eval::{
+    MarkerAugmentation, with_depth_registered_shapes, with_estimated_shapes,
+};
 use crate::datagen::{dataset_hand, dataset_params, label_rule};
+use moe_tendon_sim::camera::RgbdCamera;
 
 /// The shapes the network learns from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -46,16 +49,22 @@ pub enum InputShape {
     /// The physics estimator's dented shape from the frame's markers (nominal material, default
     /// settings; each trajectory run as a stream), for training and validation.
     Physics,
+    /// SR-ARAP from the frame's markers registered to a depth image of its true fingers as the
+    /// default wrist camera renders it with its noise (`ShapeDepth`'s defaults, enabled): what
+    /// the network sees at run time with SR-ARAP's `[depth]` enabled. For training and
+    /// validation.
+    SrArapDepth,
 }
 
 impl InputShape {
-    /// The name the card records (`sr-arap`, `simulated`, `both`, `physics`).
+    /// The name the card records (`sr-arap`, `simulated`, `both`, `physics`, `sr-arap-depth`).
     pub fn name(self) -> &'static str {
         match self {
             Self::SrArap => "sr-arap",
             Self::Simulated => "simulated",
             Self::Both => "both",
             Self::Physics => "physics",
+            Self::SrArapDepth => "sr-arap-depth",
         }
     }
 }
@@ -554,6 +563,27 @@ fn load_frames(
         }
         frames.train = train;
         frames.validation = validation;
+    }
+    if options.input_shape == InputShape::SrArapDepth {
+        let t = Instant::now();
+        let shape = moe_arap::ShapeConfig {
+            depth: moe_arap::ShapeDepth {
+                enabled: true,
+                ..moe_arap::ShapeDepth::default()
+            },
+            ..moe_arap::ShapeConfig::default()
+        };
+        let camera = RgbdCamera::default();
+        let seed = options.train.seed;
+        frames.train =
+            with_depth_registered_shapes(hand, &frames.train, &shape, augmentation, &camera, seed)?;
+        frames.validation =
+            with_depth_registered_shapes(hand, &frames.validation, &shape, None, &camera, seed)?;
+        log(&format!(
+            "train: SR-ARAP shapes registered to rendered depth of {} frames in {:.0} s",
+            frames.train.len() + frames.validation.len(),
+            t.elapsed().as_secs_f64()
+        ));
     }
     Ok(frames)
 }

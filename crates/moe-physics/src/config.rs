@@ -1,5 +1,6 @@
 //! The estimator's settings and the hand's material.
 
+pub use moe_geom::depth::DepthNoise;
 use moe_geom::{HandSignature, Real};
 use moe_tendon_sim::{Material, TendonParams, VoxelParams};
 use serde::{Deserialize, Serialize};
@@ -185,83 +186,6 @@ pub struct PhysicsConfig {
     pub depth: DepthSettings,
 }
 
-/// A depth camera's noise at the ranges a wrist camera sees a finger: white noise per pixel
-/// growing with the square of the range (stereo), a part shared by neighbouring pixels that
-/// does not average away, and quantisation to the image's depth unit.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DepthNoise {
-    /// White depth noise at zero range, metres. Default 0.0005 (the virtual camera's).
-    pub sigma_base_m: Real,
-    /// Growth of the white noise with squared range, 1/metre. Default 0.0025 (the virtual
-    /// camera's).
-    pub sigma_per_m2: Real,
-    /// Error shared by the pixels of a neighbourhood, metres. Default 1e-4 (an assumption).
-    pub correlated_sigma_m: Real,
-    /// Depth unit the image is quantised to, metres (0: none). Default 0.
-    pub quantum_m: Real,
-}
-
-impl Default for DepthNoise {
-    fn default() -> Self {
-        Self {
-            sigma_base_m: 0.0005,
-            sigma_per_m2: 0.0025,
-            correlated_sigma_m: 1e-4,
-            quantum_m: 0.0,
-        }
-    }
-}
-
-impl DepthNoise {
-    /// The variance of one pixel's depth at range `z`: white noise and quantisation.
-    pub fn pixel_variance(&self, z: Real) -> Real {
-        let sigma = self.sigma_base_m + self.sigma_per_m2 * z * z;
-        sigma * sigma + self.quantum_m * self.quantum_m / 12.0
-    }
-
-    /// The same camera with twice the white and correlated noise, quantised to whole
-    /// millimetres (as a ROS 2 `16UC1` depth topic is).
-    #[must_use]
-    pub fn harsher(&self) -> Self {
-        Self {
-            sigma_base_m: 2.0 * self.sigma_base_m,
-            sigma_per_m2: 2.0 * self.sigma_per_m2,
-            correlated_sigma_m: 2.0 * self.correlated_sigma_m,
-            quantum_m: 0.001,
-        }
-    }
-
-    /// The variance of the mean of pixels whose white variances sum to `white_sum` over `n`
-    /// pixels: the white part averaged, the correlated part whole.
-    pub fn mean_variance(&self, white_sum: Real, n: usize) -> Real {
-        let n = n.max(1) as Real;
-        white_sum / (n * n) + self.correlated_sigma_m * self.correlated_sigma_m
-    }
-
-    /// Checks every figure.
-    ///
-    /// # Errors
-    /// [`PhysicsError::InvalidParameter`] naming the first bad one.
-    pub fn validate(&self) -> Result<(), PhysicsError> {
-        for (name, v) in [
-            ("noise.sigma_base_m", self.sigma_base_m),
-            ("noise.sigma_per_m2", self.sigma_per_m2),
-            ("noise.correlated_sigma_m", self.correlated_sigma_m),
-            ("noise.quantum_m", self.quantum_m),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(PhysicsError::InvalidParameter {
-                    name,
-                    value: v,
-                    reason: "must be finite and non-negative",
-                });
-            }
-        }
-        Ok(())
-    }
-}
-
 /// How the physics estimator uses a depth image: which pixels it keeps, how it aggregates them
 /// into observations of the surface, and how much it trusts them.
 ///
@@ -336,7 +260,9 @@ impl DepthSettings {
     /// # Errors
     /// [`PhysicsError::InvalidParameter`] naming the first bad one.
     pub fn validate(&self) -> Result<(), PhysicsError> {
-        self.noise.validate()?;
+        self.noise
+            .validate()
+            .map_err(PhysicsError::from_parameter)?;
         for (name, v) in [
             ("depth.gate_m", self.gate_m),
             ("depth.front_gate_m", self.front_gate_m),

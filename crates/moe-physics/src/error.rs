@@ -111,6 +111,24 @@ pub enum PhysicsError {
 }
 
 impl PhysicsError {
+    /// A geometry parameter's error as this crate's own [`PhysicsError::InvalidParameter`] (for
+    /// the settings `moe-geom` checks on the physics estimator's behalf, such as the depth
+    /// noise); any other geometry error as [`PhysicsError::Geometry`].
+    pub fn from_parameter(error: GeomError) -> Self {
+        match error {
+            GeomError::InvalidParameter {
+                name,
+                value,
+                reason,
+            } => Self::InvalidParameter {
+                name,
+                value,
+                reason,
+            },
+            other => Self::Geometry(other),
+        }
+    }
+
     /// The finger an error is about, when it is about one finger (the estimator then reports it
     /// for that finger and goes on with the others).
     pub fn finger(&self) -> Option<usize> {

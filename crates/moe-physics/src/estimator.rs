@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
-use crate::finger::{Begun, FingerEstimate, FingerInverse, FingerObservation, FingerPixel};
+use crate::finger::{Begun, FingerEstimate, FingerInverse, FingerObservation};
 
 /// An observation with everything the physics estimator needs (hand frame).
 #[derive(Debug, Clone, Copy)]
@@ -260,36 +260,6 @@ fn covered_markers(
         .collect()
 }
 
-/// A finger's depth pixels (hand frame) in its own frame, each with the variance of its
-/// point-to-plane distance: the pixel's depth variance projected on the normal along the ray
-/// (`σ_z · |n · ray| / cos α`, α the ray's angle from the optical axis).
-fn finger_pixels(
-    found: &[moe_geom::depth::DepthPoint],
-    depth: &DepthImage<'_>,
-    noise: &crate::config::DepthNoise,
-    finger_from_hand: &Iso3,
-) -> Vec<FingerPixel> {
-    let hand_from_camera: Iso3 = *depth.hand_from_camera().iso();
-    let eye = Point3::from(hand_from_camera.translation.vector);
-    let axis = hand_from_camera.rotation * Vector3::z();
-    found
-        .iter()
-        .filter_map(|p| {
-            let z = depth.depth(p.pixel[0], p.pixel[1])?;
-            let ray = (p.measured_in_hand - eye).try_normalize(0.0)?;
-            let cos_axis = ray.dot(&axis).max(1e-6);
-            let along = p.normal_in_hand.dot(&ray) / cos_axis;
-            Some(FingerPixel {
-                face: p.face,
-                predicted: finger_from_hand * p.predicted_in_hand,
-                normal: finger_from_hand * p.normal_in_hand,
-                measured: finger_from_hand * p.measured_in_hand,
-                variance: noise.pixel_variance(z) * along * along,
-            })
-        })
-        .collect()
-}
-
 /// The physics estimator of a hand: per finger, the loads that explain its markers through its
 /// FEM model, and the shape they produce.
 #[derive(Debug)]
@@ -490,7 +460,12 @@ impl PhysicsEstimator {
                 let est = begun.and_then(|begun| {
                     let finger_from_hand = input.hand_from_finger.inverse();
                     let predicted = predicted.as_deref().unwrap_or(&[]);
-                    let pixels = finger_pixels(&found.points, depth, &noise, &finger_from_hand);
+                    let pixels = moe_geom::depth::surface_pixels(
+                        &found.points,
+                        depth,
+                        &noise,
+                        &finger_from_hand,
+                    );
                     let rows = inverse.depth_rows(&pixels, predicted);
                     let covered = if predicted.is_empty() {
                         Vec::new()

@@ -179,7 +179,9 @@ impl DepthBoundModel {
     /// [`PhysicsError::InvalidParameter`] naming the bad figure, or the intrinsics' error.
     pub fn validate(&self) -> Result<(), PhysicsError> {
         self.intrinsics.validate()?;
-        self.noise.validate()?;
+        self.noise
+            .validate()
+            .map_err(PhysicsError::from_parameter)?;
         let checks = [
             ("min_range_m", self.min_range_m, self.min_range_m >= 0.0),
             (

@@ -40,6 +40,12 @@ impl Validated for moe_physics::DepthBoundModel {
     }
 }
 
+impl Validated for moe_arap::ShapeConfig {
+    fn check(&self) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(self.validate()?)
+    }
+}
+
 /// Reads and checks the settings file at `path`.
 fn load<T: serde::de::DeserializeOwned + Validated>(path: &Path) -> Result<T, TouchError> {
     let value: T = moe_io::read_config(path)?;
@@ -58,6 +64,15 @@ fn load<T: serde::de::DeserializeOwned + Validated>(path: &Path) -> Result<T, To
 /// [`TouchError::Io`] for a missing, unreadable or malformed file (naming it, with the line),
 /// [`TouchError::InvalidSettings`] for a value out of range (naming the file and the field).
 pub fn load_detector_config(path: &Path) -> Result<DetectorConfig, TouchError> {
+    load(path)
+}
+
+/// SR-ARAP's settings (`ShapeConfig`: iterations, smoothing, warm start, registration to the
+/// depth image) from a TOML or JSON file, checked.
+///
+/// # Errors
+/// As [`load_detector_config`].
+pub fn load_shape_config(path: &Path) -> Result<moe_arap::ShapeConfig, TouchError> {
     load(path)
 }
 

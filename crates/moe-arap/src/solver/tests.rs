@@ -260,6 +260,83 @@ proptest! {
     }
 }
 
+/// Soft rows (depth patches) in plain ARAP: the energy with their term still never increases,
+/// a heavy row puts its vertex on its plane, and the vertex is free to slide along the plane
+/// (a row only sees the normal component): its tangential position is ARAP's.
+#[test]
+fn surface_rows_pull_along_their_normal_and_the_energy_never_increases() {
+    let mesh = jittered_sphere(8, 14, 0.1, 3);
+    let config = ArapConfig {
+        energy: ArapEnergy::Spokes,
+        alpha: 0.0,
+        iterations: 200,
+        parallel: false,
+    };
+    let fixed = [0, 1, 2, 3, 4];
+    let solver = PartSolver::new(&mesh, &config, &fixed, &[]).unwrap();
+    let v = 60u32;
+    let p = mesh.vertices()[v as usize];
+    let normal = (p - Point3::origin()).normalize();
+    let row = |weight| SurfaceRow {
+        terms: vec![(v, normal)],
+        value: normal.dot(&p.coords) - 0.02,
+        weight,
+    };
+    let fixed_targets = at(&mesh, &fixed);
+    let mut previous_slide = None;
+    for weight in [1.0, 1e6] {
+        let terms = solver.surface_terms(vec![row(weight)]).unwrap();
+        let mut ws = solver.workspace();
+        let mut info = ArapInfo::default();
+        solver
+            .solve_in_with(
+                &mut ws,
+                &fixed_targets,
+                &[],
+                Start::Rest,
+                &mut info,
+                Some(&terms),
+            )
+            .unwrap();
+        let e = &info.energy;
+        // Up to rounding: a heavy row makes the system stiff (condition ~ the weight).
+        let tolerance = 1e-12 * e[0].max(1.0);
+        for t in 1..e.len() {
+            assert!(
+                e[t] <= e[t - 1] + tolerance,
+                "iteration {t}: {} > {}",
+                e[t],
+                e[t - 1]
+            );
+        }
+        let moved = ws.vertices()[v as usize] - p;
+        let along = moved.dot(&normal);
+        assert!(along < -1e-3, "weight {weight}: {along}");
+        if weight > 1.0 {
+            assert!((along + 0.02).abs() < 1e-4, "heavy row: {along}");
+        }
+        previous_slide = Some((moved - normal * along).norm());
+    }
+    // Pushed in by 2 % of the radius, the vertex drags its ring in and slides little.
+    assert!(previous_slide.unwrap() < 0.01);
+    // Bad rows are refused by name.
+    let mut bad = row(1.0);
+    bad.weight = Real::NAN;
+    assert!(matches!(
+        solver.surface_terms(vec![row(1.0), bad]),
+        Err(ArapError::NonFiniteTarget {
+            what: "surface row",
+            index: 1
+        })
+    ));
+    let mut far = row(1.0);
+    far.terms[0].0 = 10_000;
+    assert!(matches!(
+        solver.surface_terms(vec![far]),
+        Err(ArapError::VertexOutOfRange { .. })
+    ));
+}
+
 /// The local step fits rotations two cells at a time, sequentially or in parallel chunks: both
 /// give the same positions and rotations bit for bit (an odd vertex count exercises the last,
 /// single cell), and the same energies up to the order of their summation.

@@ -1,6 +1,7 @@
 //! Integration tests of `moe-arap` on the parametric hand.
 
 mod arc;
+mod depth;
 mod estimator;
 
 use moe_geom::{FingerParams, HandKeypoints, HandModel, HandPreset, Point3, Real};

@@ -7,13 +7,19 @@
 //! depth, never an error. Only an image whose size does not fit the camera is refused.
 //!
 //! [`associate_depth`](crate::depth::associate_depth) tells which pixels see which finger, predicted from an estimated shape
-//! (a z-buffer of its meshes, not colour), and gives each a point-to-plane residual.
+//! (a z-buffer of its meshes, not colour), and gives each a point-to-plane residual;
+//! [`pool_pixels`](crate::depth::pool_pixels) pools a surface's pixels into observations of
+//! patches of it, with their variance under the camera's noise ([`DepthNoise`]).
 
 use serde::{Deserialize, Serialize};
 
 mod associate;
+mod pool;
 
 pub use associate::{AssociationOptions, DepthPoint, FingerDepth, associate_depth};
+pub use pool::{
+    DepthNoise, PooledPatch, SurfacePatches, SurfacePixel, barycentric, pool_pixels, surface_pixels,
+};
 
 use crate::camera::CameraIntrinsics;
 use crate::error::GeomError;

@@ -2,7 +2,9 @@
 //! fingertips, and frames whose shapes are estimated from the perturbed markers.
 
 use moe_arap::{MultiShapeEstimator, ShapeConfig};
+use moe_geom::depth::DepthImage;
 use moe_geom::{HandKeypoints, HandModel, LabelledFrame, Point3, Real, SeededRng, Vector3};
+use moe_tendon_sim::camera::{FINGER_ALBEDO, RenderItem, RgbdCamera, RgbdImage};
 
 use crate::error::LabError;
 
@@ -173,6 +175,35 @@ pub fn with_estimated_shapes(
     options: &ShapeConfig,
     augmentation: Option<&MarkerAugmentation>,
 ) -> Result<Vec<LabelledFrame>, LabError> {
+    estimated_shapes(hand, frames, options, augmentation, None)
+}
+
+/// As [`with_estimated_shapes`], with SR-ARAP registered to the frame's markers and to a depth
+/// image of its true fingers that `camera` renders with its noise (seeded by `seed`, the
+/// trajectory and the frame): what a contact model sees at run time with `options.depth`
+/// enabled. The object that touches a finger is not in the image (a data set does not keep
+/// it); at run time it is mostly left out by the front gate.
+///
+/// # Errors
+/// As [`with_estimated_shapes`], and a camera that cannot render.
+pub fn with_depth_registered_shapes(
+    hand: &HandModel,
+    frames: &[LabelledFrame],
+    options: &ShapeConfig,
+    augmentation: Option<&MarkerAugmentation>,
+    camera: &RgbdCamera,
+    seed: u64,
+) -> Result<Vec<LabelledFrame>, LabError> {
+    estimated_shapes(hand, frames, options, augmentation, Some((camera, seed)))
+}
+
+fn estimated_shapes(
+    hand: &HandModel,
+    frames: &[LabelledFrame],
+    options: &ShapeConfig,
+    augmentation: Option<&MarkerAugmentation>,
+    camera: Option<(&RgbdCamera, u64)>,
+) -> Result<Vec<LabelledFrame>, LabError> {
     use rayon::prelude::*;
     if let Some(a) = augmentation {
         a.validate()?;
@@ -185,13 +216,24 @@ pub fn with_estimated_shapes(
             || MultiShapeEstimator::new(hand.clone(), options.clone()),
             |arap, (k, frame)| {
                 let arap = arap.as_mut().map_err(|e| LabError::from(e.clone()))?;
-                let shape = match augmentation {
+                let markers = match augmentation {
                     Some(a) => {
                         let mut rng = SeededRng::new(a.seed).split(k as u64);
-                        arap.estimate(&a.apply(&frame.markers, &distal_order, &mut rng))?
-                            .shape
+                        a.apply(&frame.markers, &distal_order, &mut rng)
                     }
-                    None => arap.estimate(&frame.markers)?.shape,
+                    None => frame.markers.clone(),
+                };
+                let shape = match camera {
+                    Some((camera, seed)) => {
+                        let image = render_fingers(hand, frame, camera, seed)?;
+                        let depth = DepthImage::new(
+                            &image.depth_m,
+                            camera.intrinsics,
+                            camera.hand_from_camera,
+                        )?;
+                        arap.estimate_with(&markers, Some(&depth))?.shape
+                    }
+                    None => arap.estimate(&markers)?.shape,
                 };
                 Ok(LabelledFrame {
                     shape,
@@ -200,4 +242,32 @@ pub fn with_estimated_shapes(
             },
         )
         .collect()
+}
+
+/// The fingers of `frame` (its true surface) as `camera` renders them, with its noise seeded by
+/// `seed`, the frame's trajectory and its index.
+pub(crate) fn render_fingers(
+    hand: &HandModel,
+    frame: &LabelledFrame,
+    camera: &RgbdCamera,
+    seed: u64,
+) -> Result<RgbdImage, LabError> {
+    let items: Vec<RenderItem<'_>> = frame
+        .shape
+        .fingers
+        .iter()
+        .zip(hand.fingers())
+        .map(|(vertices, f)| RenderItem {
+            vertices_in_hand: vertices,
+            faces: f.model.mesh().faces(),
+            albedo: FINGER_ALBEDO,
+            markers_in_hand: &[],
+            marker_radius_m: 0.0,
+        })
+        .collect();
+    let stream = SeededRng::new(seed)
+        .split(frame.trajectory_id)
+        .split(u64::from(frame.frame_index))
+        .next_u64();
+    Ok(camera.render(&items, stream)?)
 }

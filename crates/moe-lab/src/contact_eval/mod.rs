@@ -29,7 +29,7 @@ mod text;
 
 pub use augmentation::{
     MAX_MARKER_NOISE_M, MarkerAugmentation, distal_marker_order, marker_subset,
-    with_estimated_shapes,
+    with_depth_registered_shapes, with_estimated_shapes,
 };
 pub use golden::{
     ArapGolden, ArapGoldenFrame, ArapGoldenShape, ArapGoldenShapes, Table1Golden, arap_golden,

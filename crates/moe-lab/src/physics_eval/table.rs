@@ -48,6 +48,12 @@ impl PhysicsEvaluation {
         if let Some(r) = &self.dgcnn_on_sr_arap {
             row("DGCNN on the SR-ARAP shape", r);
         }
+        if let Some(r) = &self.dgcnn_on_sr_arap_depth {
+            row("DGCNN on the SR-ARAP shape from markers and depth", r);
+        }
+        if let Some(r) = &self.dgcnn_on_true_shape {
+            row("DGCNN on the true shape", r);
+        }
         if let Some(r) = &self.physics_placed_by_dgcnn {
             row("physics, placed by the DGCNN on its shape", r);
         }
@@ -59,7 +65,11 @@ impl PhysicsEvaluation {
                 format!(", SR-ARAP {:.3} mm", self.sr_arap_shape_bcd_mm)
             } else {
                 String::new()
-            }
+            } + &self
+                .sr_arap_depth_shape_bcd_mm
+                .map_or_else(String::new, |b| {
+                    format!(", SR-ARAP from markers and depth {b:.3} mm")
+                })
         );
         let f = &self.forces;
         let _ = writeln!(

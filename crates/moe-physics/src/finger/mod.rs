@@ -41,8 +41,7 @@ use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
 use crate::mechanics::{FingerMechanics, PatchLoad, StaticSettings};
 
-use depth::DepthPatches;
-pub(crate) use depth::{DepthRow, FingerPixel};
+pub(crate) use depth::DepthRow;
 use free::{DynamicFree, FreeReference};
 use search::PAIR_SPACING_M;
 use stream::Tracked;
@@ -179,7 +178,7 @@ pub(crate) struct FingerInverse {
     /// Per marker slot: seen in an observation of this stream (for `hidden_marker_prior`).
     seen_in_stream: Vec<bool>,
     /// The patches depth pixels are pooled over.
-    depth_patches: DepthPatches,
+    depth_patches: moe_geom::depth::SurfacePatches,
     /// The previous observation's dent (estimated surface minus free surface) while a press
     /// is held in a stream: where the depth image is predicted to see the surface.
     previous_dent: Option<Vec<Vector3>>,
@@ -291,7 +290,11 @@ impl FingerInverse {
                 pair_subset.push(c);
             }
         }
-        let depth_patches = DepthPatches::new(&rest_surface, &faces, config.depth.patch_spacing_m);
+        let depth_patches = moe_geom::depth::SurfacePatches::new(
+            &rest_surface,
+            &faces,
+            config.depth.patch_spacing_m,
+        );
         Ok(Self {
             index,
             mech,

@@ -72,6 +72,18 @@ pub(crate) fn load_physics_config(
     Ok((config, path.display().to_string()))
 }
 
+/// SR-ARAP's settings from `--shape-config` (TOML or JSON `ShapeConfig`), checked; the
+/// paper's without one.
+pub(crate) fn load_shape_config(
+    path: Option<&std::path::Path>,
+) -> anyhow::Result<moe_arap::ShapeConfig> {
+    use anyhow::Context;
+    path.map_or_else(
+        || Ok(moe_arap::ShapeConfig::default()),
+        |p| moe_touch::settings::load_shape_config(p).context("--shape-config"),
+    )
+}
+
 /// The marker detector's parameters from `--config` (TOML or JSON `DetectorConfig`), checked;
 /// the defaults without one.
 pub(crate) fn load_detector_config(

@@ -159,6 +159,10 @@ pub(crate) struct RunArgs {
     /// Marker-detector parameters (TOML or JSON `DetectorConfig`).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
+    /// dgcnn: SR-ARAP's settings (TOML or JSON `ShapeConfig`; its `[depth]` part registers the
+    /// shape to the frames' depth image as well). `--iterations` and `--warm-start` override it.
+    #[arg(long, value_name = "FILE")]
+    shape_config: Option<PathBuf>,
     /// dgcnn: SR-ARAP iterations per frame [default: 50].
     #[arg(long)]
     iterations: Option<usize>,
@@ -189,6 +193,7 @@ pub(crate) fn check_force_scale(scale: f64) -> Result<f64> {
 pub(crate) fn run(args: RunArgs) -> Result<()> {
     args.estimator.check(
         &[
+            (args.shape_config.is_some(), "--shape-config"),
             (args.iterations.is_some(), "--iterations"),
             (args.warm_start, "--warm-start"),
         ],
@@ -221,10 +226,11 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             let model = load_contact_model(&model_path, &hand).with_context(|| {
                 format!("model {} on hand '{}'", model_path.display(), args.hand)
             })?;
+            let given = super::load_shape_config(args.shape_config.as_deref())?;
             let options = ShapeConfig {
-                iterations: args.iterations.unwrap_or(ShapeConfig::default().iterations),
-                warm_start: args.warm_start,
-                ..ShapeConfig::default()
+                iterations: args.iterations.unwrap_or(given.iterations),
+                warm_start: args.warm_start || given.warm_start,
+                ..given
             };
             let pipeline = Pipeline::paper(hand, detector, model, options)?;
             let model_name = model_path

@@ -44,7 +44,7 @@ pub(crate) fn run(args: ShapeArgs) -> Result<()> {
         iterations: args.iterations,
         alpha: args.alpha,
         energy: args.energy,
-        warm_start: false,
+        ..ShapeConfig::default()
     };
     let mut estimator = MultiShapeEstimator::new(hand, config)?;
     let output = estimate_hand_shape(&mut estimator, &keypoints, &args.hand, &args.keypoints)

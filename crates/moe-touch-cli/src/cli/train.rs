@@ -154,6 +154,10 @@ enum InputShapeArg {
     /// The physics estimator's dented shape from the frame's markers (nominal material, default
     /// settings; each trajectory run as a stream), for training and validation.
     Physics,
+    /// SR-ARAP from the frame's markers registered to a depth image of the true fingers as the
+    /// default wrist camera renders it (SR-ARAP's `[depth]` defaults, enabled), for training
+    /// and validation: run the model with `--shape-config` enabling `[depth]`.
+    SrArapDepth,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -217,6 +221,7 @@ fn options_of(args: &TrainArgs) -> Result<TrainingOptions> {
             InputShapeArg::Simulated => InputShape::Simulated,
             InputShapeArg::Both => InputShape::Both,
             InputShapeArg::Physics => InputShape::Physics,
+            InputShapeArg::SrArapDepth => InputShape::SrArapDepth,
         },
         init: args.init.clone(),
         augmentation: perturbed.then_some(MarkerAugmentation {

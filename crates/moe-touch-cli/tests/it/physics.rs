@@ -271,6 +271,21 @@ fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
         assert!(line.contains(needle), "{args:?}: {line}");
         assert!(line.contains("--physics-config"), "{args:?}: {line}");
     }
+    // SR-ARAP's settings of the comparison rows, checked before any trajectory is simulated.
+    let bad_shape = dir.join("bad-shape.toml");
+    std::fs::write(&bad_shape, "[depth]\npasses = 1000\n").unwrap();
+    let line = assert_one_line_error(&run(&[
+        "eval",
+        "physics",
+        "--trajectories",
+        "1",
+        "--shape-config",
+        path(&bad_shape),
+    ]));
+    assert!(
+        line.contains("depth.passes") && line.contains("--shape-config"),
+        "{line}"
+    );
 }
 
 #[test]
@@ -523,6 +538,8 @@ fn run_with_physics_reports_forces_and_draws_them_as_arrows_and_a_plot() {
     let model = fixtures().join("../models/contact-two-finger.safetensors");
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[material]\npoisson_ratio = 0.7\n").unwrap();
+    let bad_shape = dir.join("bad-shape.toml");
+    std::fs::write(&bad_shape, "[depth]\nenabled = true\nweight = -1.0\n").unwrap();
     // A material fitted to a hand of three fingers.
     let other_hand = dir.join("other-hand.toml");
     std::fs::write(
@@ -539,6 +556,21 @@ fn run_with_physics_reports_forces_and_draws_them_as_arrows_and_a_plot() {
         (
             vec!["--contact", "physics", "--iterations", "5"],
             "--iterations is for --contact dgcnn",
+        ),
+        (
+            vec!["--contact", "physics", "--shape-config", path(&bad_shape)],
+            "--shape-config is for --contact dgcnn",
+        ),
+        (
+            vec![
+                "--contact",
+                "dgcnn",
+                "--model",
+                path(&model),
+                "--shape-config",
+                path(&bad_shape),
+            ],
+            "depth.weight",
         ),
         (
             vec!["--contact", "dgcnn", "--material", path(&bad)],

@@ -71,6 +71,11 @@ pub(crate) struct PhysicsEvalArgs {
     /// (with `--model`) the DGCNN on its shapes; UCD predicted → true per region. 0 skips it.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u64).range(0..=100))]
     plates: u64,
+    /// SR-ARAP's settings for the comparison rows (TOML or JSON `ShapeConfig`); with
+    /// `--perceived` and `--model`, a row of the DGCNN on SR-ARAP registered to the markers and
+    /// the depth image uses its `[depth]` part. Default: the paper's settings.
+    #[arg(long, value_name = "FILE")]
+    shape_config: Option<PathBuf>,
     /// Every frame on its own (the estimator reset before each frame): Table 1 without memory
     /// across frames.
     #[arg(long)]
@@ -114,6 +119,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
         },
         config: crate::cli::load_physics_config(args.config.as_deref())?.0,
         model: args.model.clone(),
+        shape: crate::cli::load_shape_config(args.shape_config.as_deref())?,
         plates: args.plates,
         no_memory: args.no_memory,
     };
