@@ -11,8 +11,8 @@
 //! one's shape: the pixels are associated again and the robust weights recomputed, so a dent
 //! deeper than the association gates is followed.
 
-use moe_geom::Real;
 use moe_geom::depth::{AssociationOptions, DepthNoise, PooledPatch};
+use moe_geom::{GeomError, Real};
 use serde::{Deserialize, Serialize};
 
 use crate::error::ArapError;
@@ -82,8 +82,8 @@ impl ShapeDepth {
     /// # Errors
     /// [`ArapError::InvalidConfig`] naming the first bad one.
     pub fn validate(&self) -> Result<(), ArapError> {
-        self.noise.validate().map_err(|e| match e {
-            moe_geom::GeomError::InvalidParameter {
+        let named = |e: GeomError| match e {
+            GeomError::InvalidParameter {
                 name,
                 value,
                 reason,
@@ -93,20 +93,14 @@ impl ShapeDepth {
                 reason,
             },
             other => ArapError::Geom(other),
-        })?;
-        for (name, v) in [
-            ("depth.gate_m", self.gate_m),
-            ("depth.front_gate_m", self.front_gate_m),
-            ("depth.patch_spacing_m", self.patch_spacing_m),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(ArapError::InvalidConfig {
-                    name,
-                    value: v,
-                    reason: "must be finite and positive",
-                });
-            }
-        }
+        };
+        moe_geom::depth::check_depth_settings(
+            &self.noise,
+            &self.association(),
+            self.patch_spacing_m,
+            self.min_pixels,
+        )
+        .map_err(named)?;
         for (name, v) in [
             ("depth.weight", self.weight),
             ("depth.front_loss_sigma", self.front_loss_sigma),
@@ -116,18 +110,6 @@ impl ShapeDepth {
                     name,
                     value: v,
                     reason: "must be finite and non-negative",
-                });
-            }
-        }
-        for (name, v) in [
-            ("depth.stride_px", self.stride_px as usize),
-            ("depth.min_pixels", self.min_pixels),
-        ] {
-            if v == 0 {
-                return Err(ArapError::InvalidConfig {
-                    name,
-                    value: 0.0,
-                    reason: "must be at least 1",
                 });
             }
         }

@@ -1,5 +1,6 @@
-//! The whole per-frame pipeline on the committed example episode: markers → SR-ARAP → the
-//! shipped DGCNN → contact points in the world; and markers → the physics estimator (dented
+//! The whole per-frame pipeline on the committed example episode: markers → SR-ARAP (from the
+//! markers, or registered to the depth image as well) → the shipped DGCNN → contact points in
+//! the world; and markers → the physics estimator (dented
 //! shape, loads) → contact points.
 //!
 //! `cargo bench -p moe-lab --bench pipeline`
@@ -22,9 +23,13 @@ fn pipeline(
     episode: &moe_record::Episode,
     options: ShapeConfig,
 ) -> PaperPipeline {
+    let model = if options.depth.enabled {
+        "models/contact-two-finger-depth.safetensors"
+    } else {
+        "models/contact-two-finger.safetensors"
+    };
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let model = load_contact_model(&root.join("models/contact-two-finger.safetensors"), hand)
-        .expect("the shipped model loads");
+    let model = load_contact_model(&root.join(model), hand).expect("the shipped model loads");
     let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())
         .expect("detector");
     Pipeline::paper(hand.clone(), detector, model, options).expect("pipeline")
@@ -62,6 +67,20 @@ fn bench_pipeline(c: &mut Criterion) {
     c.bench_function(
         "pipeline/two-finger frame, tracked (10 iterations, warm start)",
         |b| b.iter(|| black_box(tracked.process(black_box(input), &pose).expect("runs"))),
+    );
+    // SR-ARAP registered to the frame's depth image ([depth] defaults) and the network trained
+    // on such shapes.
+    let depth_options = ShapeConfig {
+        depth: moe_arap::ShapeDepth {
+            enabled: true,
+            ..moe_arap::ShapeDepth::default()
+        },
+        ..ShapeConfig::default()
+    };
+    let mut with_depth = pipeline(&hand, &episode, depth_options);
+    c.bench_function(
+        "pipeline/two-finger frame, SR-ARAP registered to depth, from rest",
+        |b| b.iter(|| black_box(with_depth.process(black_box(input), &pose).expect("runs"))),
     );
 }
 

@@ -342,6 +342,7 @@ fn patting_small(progress: &mut dyn FnMut(&str)) -> Result<Value, LabError> {
         prior_gate_m: DEFAULT_PRIOR_GATE_M,
         estimated_noise_floor_m: DEFAULT_ESTIMATED_NOISE_FLOOR_M,
         physics: moe_physics::PhysicsConfig::default(),
+        shape: moe_arap::ShapeConfig::default(),
     };
     let knn = crate::contact_eval::build_knn_index(
         &DatasetReader::open(&workspace_root().join(HELDOUT_DIR))?,
@@ -376,6 +377,7 @@ pub fn grasp_fixture_options() -> crate::grasp::GraspStudyOptions {
         threshold: None,
         grasp: GraspOptions::default(),
         physics: moe_physics::PhysicsConfig::default(),
+        shape: moe_arap::ShapeConfig::default(),
     }
 }
 

@@ -260,22 +260,13 @@ impl DepthSettings {
     /// # Errors
     /// [`PhysicsError::InvalidParameter`] naming the first bad one.
     pub fn validate(&self) -> Result<(), PhysicsError> {
-        self.noise
-            .validate()
-            .map_err(PhysicsError::from_parameter)?;
-        for (name, v) in [
-            ("depth.gate_m", self.gate_m),
-            ("depth.front_gate_m", self.front_gate_m),
-            ("depth.patch_spacing_m", self.patch_spacing_m),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(PhysicsError::InvalidParameter {
-                    name,
-                    value: v,
-                    reason: "must be finite and positive",
-                });
-            }
-        }
+        moe_geom::depth::check_depth_settings(
+            &self.noise,
+            &self.association(),
+            self.patch_spacing_m,
+            self.min_pixels,
+        )
+        .map_err(PhysicsError::from_parameter)?;
         for (name, v) in [
             ("depth.model_sigma_m", self.model_sigma_m),
             ("depth.front_loss_sigma", self.front_loss_sigma),
@@ -289,20 +280,6 @@ impl DepthSettings {
                     reason: "must be finite and non-negative",
                 });
             }
-        }
-        if self.stride_px == 0 {
-            return Err(PhysicsError::InvalidParameter {
-                name: "depth.stride_px",
-                value: 0.0,
-                reason: "must be at least 1",
-            });
-        }
-        if self.min_pixels == 0 {
-            return Err(PhysicsError::InvalidParameter {
-                name: "depth.min_pixels",
-                value: 0.0,
-                reason: "must be at least 1",
-            });
         }
         let floor = self.model_sigma_m + self.noise.correlated_sigma_m;
         if floor <= 0.0 {

@@ -3,7 +3,6 @@
 //! model (`moe-tendon-sim` at its default 3.5 mm mesh and the nominal material), not the
 //! estimator's.
 
-use moe_geom::zbuffer::ZBuffer;
 use moe_geom::{
     CameraIntrinsics, HandFromCamera, HandKeypoints, HandModel, HandShape, OwnedDepthImage, Point3,
     Real, Vector3, WorldFromHand,
@@ -157,18 +156,11 @@ pub fn render_depth(
     intrinsics: CameraIntrinsics,
     hand_from_camera: HandFromCamera,
 ) -> Result<OwnedDepthImage, PhysicsError> {
-    let mut zbuffer = ZBuffer::new(intrinsics)?;
-    let camera_from_hand = hand_from_camera.iso().inverse();
-    for (f, (hf, surface)) in hand.fingers().iter().zip(&shape.fingers).enumerate() {
-        for (k, face) in hf.model.mesh().faces().iter().enumerate() {
-            let q = face.map(|i| camera_from_hand * surface[i as usize]);
-            zbuffer.draw(&q, f as u32, k as u32);
-        }
-    }
-    let depth = zbuffer
-        .hits()
-        .iter()
-        .map(|h| h.map_or(0.0, |h| h.z as f32))
-        .collect();
-    Ok(OwnedDepthImage::new(depth, intrinsics, hand_from_camera)?)
+    Ok(moe_geom::depth::render_hand(
+        hand,
+        shape,
+        &[],
+        intrinsics,
+        hand_from_camera,
+    )?)
 }

@@ -3,7 +3,6 @@
 use moe_arap::{MultiShapeEstimator, ShapeConfig, ShapeDepth};
 use moe_geom::depth::{AssociationOptions, DepthImage, associate_depth};
 use moe_geom::transform::HandFromCamera;
-use moe_geom::zbuffer::ZBuffer;
 use moe_geom::{CameraIntrinsics, HandModel, HandShape, Iso3, Point3, Real, Vector3};
 
 use crate::two_finger_hand;
@@ -15,21 +14,11 @@ fn mount() -> HandFromCamera {
 /// An exact depth image of `shape` (and of `extra` triangles, hand frame) through the default
 /// camera at [`mount`].
 fn render(hand: &HandModel, shape: &HandShape, extra: &[[Point3; 3]]) -> Vec<f32> {
-    let camera_from_hand = mount().inverse();
-    let mut z = ZBuffer::new(CameraIntrinsics::default()).unwrap();
-    for (f, vertices) in shape.fingers.iter().enumerate() {
-        let v = camera_from_hand.transform_points(vertices);
-        for face in hand.fingers()[f].model.mesh().faces() {
-            z.draw(&face.map(|i| v[i as usize]), f as u32, 0);
-        }
-    }
-    for t in extra {
-        z.draw(&t.map(|p| camera_from_hand.transform_point(&p)), 99, 0);
-    }
-    z.hits()
-        .iter()
-        .map(|h| h.map_or(0.0, |h| h.z as f32))
-        .collect()
+    moe_geom::depth::render_hand(hand, shape, extra, CameraIntrinsics::default(), mount())
+        .unwrap()
+        .view()
+        .pixels()
+        .to_vec()
 }
 
 /// The rest hand with finger 0 dented by `depth_m` (inwards along the surface normal, a smooth

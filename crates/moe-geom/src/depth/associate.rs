@@ -44,6 +44,37 @@ impl Default for AssociationOptions {
     }
 }
 
+impl AssociationOptions {
+    /// Checks every option.
+    ///
+    /// # Errors
+    /// [`GeomError::InvalidParameter`] for a zero stride or a gate that is not positive, named
+    /// as in a `[depth]` settings table (`depth.stride_px`, `depth.gate_m`,
+    /// `depth.front_gate_m`).
+    pub fn validate(&self) -> Result<(), GeomError> {
+        if self.stride_px == 0 {
+            return Err(GeomError::InvalidParameter {
+                name: "depth.stride_px",
+                value: 0.0,
+                reason: "must be at least 1",
+            });
+        }
+        for (name, v) in [
+            ("depth.gate_m", self.gate_m),
+            ("depth.front_gate_m", self.front_gate_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(GeomError::InvalidParameter {
+                    name,
+                    value: v,
+                    reason: "must be finite and positive",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
 /// One depth pixel associated with a finger's predicted surface.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthPoint {
@@ -212,28 +243,7 @@ fn check(
             });
         }
     }
-    if options.stride_px == 0 {
-        return Err(GeomError::InvalidParameter {
-            name: "stride_px",
-            value: 0.0,
-            reason: "must be at least 1",
-        });
-    }
-    if !(options.gate_m.is_finite() && options.gate_m > 0.0) {
-        return Err(GeomError::InvalidParameter {
-            name: "gate_m",
-            value: options.gate_m,
-            reason: "must be finite and positive",
-        });
-    }
-    if !(options.front_gate_m.is_finite() && options.front_gate_m > 0.0) {
-        return Err(GeomError::InvalidParameter {
-            name: "front_gate_m",
-            value: options.front_gate_m,
-            reason: "must be finite and positive",
-        });
-    }
-    Ok(())
+    options.validate()
 }
 
 #[cfg(test)]
@@ -255,22 +265,11 @@ mod tests {
 
     /// An exact depth image of `shape` (and of `extra` triangles, hand frame, in front of it).
     fn render(hand: &HandModel, shape: &HandShape, extra: &[[Point3; 3]]) -> Vec<f32> {
-        let k = CameraIntrinsics::default();
-        let camera_from_hand = mount().inverse();
-        let mut z = ZBuffer::new(k).unwrap();
-        for (f, vertices) in shape.fingers.iter().enumerate() {
-            let v = camera_from_hand.transform_points(vertices);
-            for face in hand.fingers()[f].model.mesh().faces() {
-                z.draw(&face.map(|i| v[i as usize]), f as u32, 0);
-            }
-        }
-        for q in extra {
-            z.draw(&q.map(|p| camera_from_hand.transform_point(&p)), 99, 0);
-        }
-        z.hits()
-            .iter()
-            .map(|h| h.map_or(0.0, |h| h.z as f32))
-            .collect()
+        crate::depth::render_hand(hand, shape, extra, CameraIntrinsics::default(), mount())
+            .unwrap()
+            .view()
+            .pixels()
+            .to_vec()
     }
 
     /// The depth image of the predicted shape itself: every kept pixel lies on its face's

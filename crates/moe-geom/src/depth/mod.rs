@@ -6,10 +6,12 @@
 //! are holes: [`DepthImage::depth`] gives `None` there, so a frame of holes is a frame without
 //! depth, never an error. Only an image whose size does not fit the camera is refused.
 //!
-//! [`associate_depth`](crate::depth::associate_depth) tells which pixels see which finger, predicted from an estimated shape
-//! (a z-buffer of its meshes, not colour), and gives each a point-to-plane residual;
-//! [`pool_pixels`](crate::depth::pool_pixels) pools a surface's pixels into observations of
-//! patches of it, with their variance under the camera's noise ([`DepthNoise`]).
+//! [`associate_depth`](crate::depth::associate_depth) tells which pixels see which finger,
+//! predicted from an estimated shape (a z-buffer of its meshes, not colour), and gives each a
+//! point-to-plane residual; [`pool_pixels`](crate::depth::pool_pixels) pools a surface's pixels
+//! into observations of patches of it, with their variance under the camera's noise
+//! ([`DepthNoise`](crate::depth::DepthNoise)); [`render_hand`](crate::depth::render_hand) draws
+//! a hand's noise-free depth image.
 
 use serde::{Deserialize, Serialize};
 
@@ -18,13 +20,51 @@ mod pool;
 
 pub use associate::{AssociationOptions, DepthPoint, FingerDepth, associate_depth};
 pub use pool::{
-    DepthNoise, PooledPatch, SurfacePatches, SurfacePixel, barycentric, pool_pixels, surface_pixels,
+    DepthNoise, PooledPatch, SurfacePatches, SurfacePixel, barycentric, check_depth_settings,
+    pool_pixels, surface_pixels,
 };
 
 use crate::camera::CameraIntrinsics;
 use crate::error::GeomError;
 use crate::math::{Point3, Real};
 use crate::transform::HandFromCamera;
+
+/// The depth image, without noise and with holes where nothing is seen, that a camera with
+/// `intrinsics` at `hand_from_camera` takes of the fingers of `hand` with surfaces `shape`
+/// (hand frame) and of `occluders` (triangles, hand frame): what tests and examples give an
+/// estimator that reads depth.
+///
+/// # Errors
+/// Invalid intrinsics, or a shape that does not fit the hand.
+pub fn render_hand(
+    hand: &crate::hand::HandModel,
+    shape: &crate::instant::HandShape,
+    occluders: &[[Point3; 3]],
+    intrinsics: CameraIntrinsics,
+    hand_from_camera: HandFromCamera,
+) -> Result<OwnedDepthImage, GeomError> {
+    shape.check_against(hand)?;
+    let mut zbuffer = crate::zbuffer::ZBuffer::new(intrinsics)?;
+    let camera_from_hand = hand_from_camera.inverse();
+    let fingers = hand.fingers().iter().zip(&shape.fingers);
+    for (f, (hf, surface)) in fingers.enumerate() {
+        let in_camera = camera_from_hand.transform_points(surface);
+        for (k, face) in hf.model.mesh().faces().iter().enumerate() {
+            zbuffer.draw(&face.map(|i| in_camera[i as usize]), f as u32, k as u32);
+        }
+    }
+    let item = shape.fingers.len() as u32;
+    for (k, t) in occluders.iter().enumerate() {
+        let q = t.map(|p| camera_from_hand.transform_point(&p));
+        zbuffer.draw(&q, item, k as u32);
+    }
+    let depth = zbuffer
+        .hits()
+        .iter()
+        .map(|h| h.map_or(0.0, |h| h.z as f32))
+        .collect();
+    OwnedDepthImage::new(depth, intrinsics, hand_from_camera)
+}
 
 /// A depth image with its camera, borrowed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -15,7 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::depth::{DepthImage, DepthPoint};
+use crate::depth::{AssociationOptions, DepthImage, DepthPoint};
 use crate::error::GeomError;
 use crate::math::{Iso3, Point3, Real, Vector3};
 
@@ -94,6 +94,37 @@ impl DepthNoise {
         }
         Ok(())
     }
+}
+
+/// Checks the settings every reader of the depth image shares: the camera's noise, the
+/// association's sampling and gates, the patches' spacing and their fewest pixels (named as in
+/// a `[depth]` settings table).
+///
+/// # Errors
+/// [`GeomError::InvalidParameter`] naming the first bad one.
+pub fn check_depth_settings(
+    noise: &DepthNoise,
+    association: &AssociationOptions,
+    patch_spacing_m: Real,
+    min_pixels: usize,
+) -> Result<(), GeomError> {
+    noise.validate()?;
+    association.validate()?;
+    if !(patch_spacing_m.is_finite() && patch_spacing_m > 0.0) {
+        return Err(GeomError::InvalidParameter {
+            name: "depth.patch_spacing_m",
+            value: patch_spacing_m,
+            reason: "must be finite and positive",
+        });
+    }
+    if min_pixels == 0 {
+        return Err(GeomError::InvalidParameter {
+            name: "depth.min_pixels",
+            value: 0.0,
+            reason: "must be at least 1",
+        });
+    }
+    Ok(())
 }
 
 /// One depth pixel seen on a surface, in the surface's frame.

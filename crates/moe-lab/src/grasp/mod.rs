@@ -197,6 +197,8 @@ pub enum GraspContacts<C> {
         contact: C,
         /// Its contact threshold.
         threshold: Real,
+        /// SR-ARAP's settings.
+        shape: moe_arap::ShapeConfig,
     },
     /// The simulator's contact vertices placed where the pipeline's estimated shape puts them
     /// (the pipeline runs with this contact estimator, whose own output is not used): a perfect
@@ -205,6 +207,8 @@ pub enum GraspContacts<C> {
     SimulatorLabelsOnEstimatedShape {
         /// The pipeline's contact stage (needed to run it; its probabilities are not used).
         contact: C,
+        /// SR-ARAP's settings.
+        shape: moe_arap::ShapeConfig,
     },
     /// The pipeline on the wrist camera's frames with the physics estimator as its shape and
     /// contact stages (the default of `moe-touch run`).

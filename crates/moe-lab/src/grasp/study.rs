@@ -63,6 +63,8 @@ pub struct GraspStudyOptions {
     pub grasp: GraspOptions,
     /// The physics estimator's settings, for [`GraspStudySource::Physics`].
     pub physics: moe_physics::PhysicsConfig,
+    /// SR-ARAP's settings, for the sources that run the paper's pipeline.
+    pub shape: moe_arap::ShapeConfig,
 }
 
 /// The trials on one incline.
@@ -153,10 +155,12 @@ pub fn run_grasp_study<E: From<LabError>>(
                     GraspStudySource::Pipeline => GraspContacts::Pipeline {
                         contact: &estimator,
                         threshold,
+                        shape: options.shape.clone(),
                     },
                     GraspStudySource::TrueLabels => {
                         GraspContacts::SimulatorLabelsOnEstimatedShape {
                             contact: &estimator,
+                            shape: options.shape.clone(),
                         }
                     }
                     GraspStudySource::TrueContacts => GraspContacts::Simulator,

@@ -50,9 +50,11 @@ impl HoldView<'_> {
         Ok((recorder, detector))
     }
 
-    /// [`HoldView::estimate`] with the paper's pipeline: SR-ARAP and `contact` at `threshold`.
+    /// [`HoldView::estimate`] with the paper's pipeline: SR-ARAP with `shape` and `contact` at
+    /// `threshold`.
     fn chain<C: ContactEstimator>(
         &self,
+        shape: &ShapeConfig,
         contact: C,
         threshold: Real,
         labels_only: bool,
@@ -60,7 +62,7 @@ impl HoldView<'_> {
         plane_points: &mut Vec<ContactPoint>,
     ) -> Result<(), LabError> {
         let (recorder, detector) = self.camera()?;
-        let shape = MultiShapeEstimator::new(self.hand.clone(), ShapeConfig::default())?;
+        let shape = MultiShapeEstimator::new(self.hand.clone(), shape.clone())?;
         let mut pipeline = Pipeline::new(
             self.hand.clone(),
             detector,
@@ -196,11 +198,22 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
             camera_seed,
         };
         match contacts {
-            GraspContacts::Pipeline { contact, threshold } => {
-                hold_view.chain(contact, *threshold, false, &mut shapes, &mut plane_points)?;
+            GraspContacts::Pipeline {
+                contact,
+                threshold,
+                shape,
+            } => {
+                hold_view.chain(
+                    shape,
+                    contact,
+                    *threshold,
+                    false,
+                    &mut shapes,
+                    &mut plane_points,
+                )?;
             }
-            GraspContacts::SimulatorLabelsOnEstimatedShape { contact } => {
-                hold_view.chain(contact, 1.0, true, &mut shapes, &mut plane_points)?;
+            GraspContacts::SimulatorLabelsOnEstimatedShape { contact, shape } => {
+                hold_view.chain(shape, contact, 1.0, true, &mut shapes, &mut plane_points)?;
             }
             GraspContacts::Physics { material, config } => {
                 let (recorder, detector) = hold_view.camera()?;

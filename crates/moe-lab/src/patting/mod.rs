@@ -177,7 +177,7 @@ pub fn pat_contacts<E: HandEstimator>(
     estimate_pat_contacts(&mut build(detector)?, episode)
 }
 
-/// The paper's pipeline's contacts on every pat: SR-ARAP (default options) and `contact` at
+/// The paper's pipeline's contacts on every pat: SR-ARAP with `shape` and `contact` at
 /// `threshold`.
 ///
 /// # Errors
@@ -185,11 +185,12 @@ pub fn pat_contacts<E: HandEstimator>(
 pub fn paper_pat_contacts<C: ContactEstimator>(
     hand: &HandModel,
     episode: &PattingEpisode,
+    shape: &ShapeConfig,
     contact: C,
     threshold: Real,
 ) -> Result<PatContacts, LabError> {
     pat_contacts(hand, episode, |detector| {
-        let shape = MultiShapeEstimator::new(hand.clone(), ShapeConfig::default())?;
+        let shape = MultiShapeEstimator::new(hand.clone(), shape.clone())?;
         Pipeline::new(
             hand.clone(),
             detector,

@@ -103,6 +103,9 @@ pub struct PattingStudyOptions {
     pub estimated_noise_floor_m: Real,
     /// The physics estimator's settings.
     pub physics: moe_physics::PhysicsConfig,
+    /// SR-ARAP's settings of the paper's pipeline (the DGCNN and KNN rows; with `[depth]`
+    /// enabled, registered to each frame's depth image as well).
+    pub shape: moe_arap::ShapeConfig,
 }
 
 /// The contact points of one estimator on one pair.
@@ -441,8 +444,8 @@ fn evaluate_pair(
     let episode = simulate_patting(body, truth_seed, pats, options.camera_seed)?;
     let dgcnn = load_contact_model(&options.model, hand)?;
     let threshold = dgcnn.threshold();
-    let dgcnn_contacts = paper_pat_contacts(hand, &episode, dgcnn, threshold)?;
-    let knn_contacts = paper_pat_contacts(hand, &episode, knn, 0.5)?;
+    let dgcnn_contacts = paper_pat_contacts(hand, &episode, &options.shape, dgcnn, threshold)?;
+    let knn_contacts = paper_pat_contacts(hand, &episode, &options.shape, knn, 0.5)?;
     let physics_contacts = physics_pat_contacts(
         hand,
         &episode,

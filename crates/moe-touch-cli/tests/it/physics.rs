@@ -271,21 +271,37 @@ fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
         assert!(line.contains(needle), "{args:?}: {line}");
         assert!(line.contains("--physics-config"), "{args:?}: {line}");
     }
-    // SR-ARAP's settings of the comparison rows, checked before any trajectory is simulated.
+    // SR-ARAP's settings of the paper's pipeline, checked before any trajectory is simulated.
     let bad_shape = dir.join("bad-shape.toml");
     std::fs::write(&bad_shape, "[depth]\npasses = 1000\n").unwrap();
+    let bad = path(&bad_shape);
+    for args in [
+        vec![
+            "eval",
+            "physics",
+            "--trajectories",
+            "1",
+            "--shape-config",
+            bad,
+        ],
+        vec!["eval", "patting", "--shape-config", bad],
+        vec!["eval", "grasp", "--contact", "dgcnn", "--shape-config", bad],
+    ] {
+        let line = assert_one_line_error(&run(&args));
+        assert!(
+            line.contains("depth.passes") && line.contains("--shape-config"),
+            "{args:?}: {line}"
+        );
+    }
     let line = assert_one_line_error(&run(&[
         "eval",
+        "grasp",
+        "--contact",
         "physics",
-        "--trajectories",
-        "1",
         "--shape-config",
-        path(&bad_shape),
+        bad,
     ]));
-    assert!(
-        line.contains("depth.passes") && line.contains("--shape-config"),
-        "{line}"
-    );
+    assert!(line.contains("--shape-config is for"), "{line}");
 }
 
 #[test]

@@ -62,6 +62,10 @@ pub(crate) struct GraspEvalArgs {
     /// the documented ones), for `--contact physics`.
     #[arg(long, value_name = "C.toml")]
     physics_config: Option<PathBuf>,
+    /// SR-ARAP's settings (TOML or JSON `ShapeConfig`; its `[depth]` registers the shape to
+    /// each frame's depth image), for `--contact dgcnn` and `--true-labels`.
+    #[arg(long, value_name = "S.toml")]
+    shape_config: Option<PathBuf>,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     json: bool,
@@ -132,6 +136,15 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
         anyhow::bail!("--physics-config is for --contact physics");
     }
     let (physics, _) = crate::cli::load_physics_config(args.physics_config.as_deref())?;
+    if args.shape_config.is_some()
+        && !matches!(
+            source,
+            GraspStudySource::Pipeline | GraspStudySource::TrueLabels
+        )
+    {
+        anyhow::bail!("--shape-config is for the sources that run SR-ARAP (--contact dgcnn)");
+    }
+    let shape = crate::cli::load_shape_config(args.shape_config.as_deref())?;
     let options = GraspStudyOptions {
         trials: args.trials,
         model: args.model.clone(),
@@ -140,6 +153,7 @@ pub(crate) fn run(args: &GraspEvalArgs) -> Result<()> {
         threshold: args.threshold,
         grasp,
         physics,
+        shape,
     };
     let report = evaluate(&options, args.out.as_deref())?;
     if args.json {

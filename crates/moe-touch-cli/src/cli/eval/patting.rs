@@ -97,6 +97,10 @@ pub(crate) struct PattingEvalArgs {
     /// the documented ones).
     #[arg(long, value_name = "C.toml")]
     physics_config: Option<PathBuf>,
+    /// SR-ARAP's settings of the paper's pipeline rows (TOML or JSON `ShapeConfig`; its
+    /// `[depth]` registers the shape to each frame's depth image; default: the paper's).
+    #[arg(long, value_name = "S.toml")]
+    shape_config: Option<PathBuf>,
 }
 
 /// The `KNN[All]` index: from a file (of the patting hand, the two-finger preset), or built
@@ -109,7 +113,11 @@ fn knn_index(path: Option<&Path>) -> Result<KnnIndex> {
 }
 
 /// The study's options from the arguments.
-fn options(args: &PattingEvalArgs, physics: moe_physics::PhysicsConfig) -> PattingStudyOptions {
+fn options(
+    args: &PattingEvalArgs,
+    physics: moe_physics::PhysicsConfig,
+    shape: moe_arap::ShapeConfig,
+) -> PattingStudyOptions {
     PattingStudyOptions {
         size: match args.size {
             Size::Small => PattingSize::Small,
@@ -123,6 +131,7 @@ fn options(args: &PattingEvalArgs, physics: moe_physics::PhysicsConfig) -> Patti
         prior_gate_m: args.prior_gate,
         estimated_noise_floor_m: args.estimated_noise_floor,
         physics,
+        shape,
     }
 }
 
@@ -138,10 +147,11 @@ fn evaluate(args: &PattingEvalArgs) -> Result<PattingStudyReport> {
         );
     }
     let (physics, _) = crate::cli::load_physics_config(args.physics_config.as_deref())?;
+    let shape = crate::cli::load_shape_config(args.shape_config.as_deref())?;
     let knn = knn_index(args.knn_index.as_deref())?;
     let mut started = std::time::Instant::now();
     run_patting_study(
-        &options(args, physics),
+        &options(args, physics, shape),
         &knn,
         |body, k, pair| -> Result<()> {
             let secs = started.elapsed().as_secs_f64();
