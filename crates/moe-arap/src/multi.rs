@@ -125,8 +125,8 @@ struct FingerState {
     marker_slot: Vec<Option<usize>>,
     handle_targets: Vec<Option<Point3>>,
     has_previous: bool,
-    /// The patches depth pixels are pooled over.
-    patches: SurfacePatches,
+    /// The patches depth pixels are pooled over (made when the options enable depth).
+    patches: Option<SurfacePatches>,
 }
 
 /// SR-ARAP shape estimation for every finger of a hand.
@@ -177,7 +177,7 @@ impl MultiShapeEstimator {
         };
         config.validate()?;
         options.depth.validate()?;
-        let spacing = options.depth.patch_spacing_m;
+        let (depth_on, spacing) = (options.depth.enabled, options.depth.patch_spacing_m);
         let fingers = hand
             .fingers()
             .par_iter()
@@ -201,7 +201,8 @@ impl MultiShapeEstimator {
                     marker_slot: vec![None; markers],
                     handle_targets: Vec::new(),
                     has_previous: false,
-                    patches: SurfacePatches::new(mesh.vertices(), mesh.faces(), spacing),
+                    patches: depth_on
+                        .then(|| SurfacePatches::new(mesh.vertices(), mesh.faces(), spacing)),
                     solver,
                 })
             })
@@ -431,6 +432,9 @@ impl FingerState {
         settings: &ShapeDepth,
         report: &mut FingerReport,
     ) -> Result<(), ArapError> {
+        let Some(patches) = &self.patches else {
+            return Ok(());
+        };
         let finger_from_hand = finger.hand_from_finger.inverse();
         let pixels = surface_pixels(
             &found.points,
@@ -443,7 +447,7 @@ impl FingerState {
             &pixels,
             finger.model.mesh().faces(),
             predicted,
-            &self.patches,
+            patches,
             settings.min_pixels,
             &settings.noise,
         );

@@ -271,8 +271,8 @@ impl PartSolver {
     /// factorised (on the same symbolic factor, for the current handles).
     ///
     /// # Errors
-    /// A row naming a vertex outside the mesh, a weight that is negative or not finite, a
-    /// term that is not finite, or a failed factorisation.
+    /// A row naming a vertex outside the mesh, a weight, value or term that is not finite, a
+    /// negative weight, or a failed factorisation.
     pub(crate) fn surface_terms(&self, rows: Vec<SurfaceRow>) -> Result<SurfaceTerms, ArapError> {
         let n = self.rest.len();
         let mut extra = vec![0.0; self.system.num_unknowns()];
@@ -280,7 +280,6 @@ impl PartSolver {
         for (index, row) in rows.iter().enumerate() {
             let finite = row.value.is_finite()
                 && row.weight.is_finite()
-                && row.weight >= 0.0
                 && row
                     .terms
                     .iter()
@@ -289,6 +288,13 @@ impl PartSolver {
                 return Err(ArapError::NonFiniteTarget {
                     what: "surface row",
                     index,
+                });
+            }
+            if row.weight < 0.0 {
+                return Err(ArapError::InvalidConfig {
+                    name: "surface row weight",
+                    value: row.weight,
+                    reason: "must be non-negative",
                 });
             }
             let q = row.norm_sq();
@@ -415,6 +421,10 @@ impl PartSolver {
             Start::Previous => ws.rot_prev.iter_mut().for_each(|r| *r = orthonormalize(r)),
         }
         let sys = surface.map_or(&self.system, |s| &s.system);
+        debug_assert_eq!(
+            sys.handle_unknowns, self.system.handle_unknowns,
+            "surface terms made for other handles"
+        );
         self.prepare_frame(sys, ws, fixed_targets, handle_targets, info);
         let surface_energy = |x: &[Point3]| surface.map_or(0.0, |s| s.energy(x));
         let iterations = self.config.iterations;

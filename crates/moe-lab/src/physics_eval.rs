@@ -255,8 +255,8 @@ pub struct PhysicsEvaluation {
     pub dgcnn_on_physics: Option<ContactReport>,
     /// The paper's chain on the same markers: the DGCNN on SR-ARAP shapes.
     pub dgcnn_on_sr_arap: Option<ContactReport>,
-    /// The DGCNN on SR-ARAP shapes registered to the markers and the depth image (frames that
-    /// carry one).
+    /// The DGCNN on SR-ARAP shapes registered to the markers and the depth image (when any
+    /// frame carries one; a frame without one is solved from its markers).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dgcnn_on_sr_arap_depth: Option<ContactReport>,
     /// The DGCNN on the true shapes: what the network does when the shape is right.
@@ -624,12 +624,17 @@ pub fn evaluate_physics(
     for (k, sf) in frames.iter().enumerate() {
         let frame = &sf.frame;
         frame.shape.check_against(hand)?;
-        if previous != Some(frame.trajectory_id) {
+        let new_trajectory = previous != Some(frame.trajectory_id);
+        if new_trajectory || comparison.forget_between_frames {
             estimator.reset();
+            // A warm-started SR-ARAP (the shape config's `warm_start`) forgets as well.
+            for a in [arap.as_mut(), arap_depth.as_mut()].into_iter().flatten() {
+                a.reset_tracking();
+            }
+        }
+        if new_trajectory {
             trajectories += 1;
             previous = Some(frame.trajectory_id);
-        } else if comparison.forget_between_frames {
-            estimator.reset();
         }
         let markers = source.markers(k, frame)?;
         let start = Instant::now();

@@ -129,7 +129,8 @@ impl TrainingOptions {
             if self.input_shape == InputShape::Simulated {
                 return Err(training(
                     "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb \
-                     estimated shapes: use --input-shape sr-arap, both or physics",
+                     estimated shapes: use --input-shape sr-arap, both, physics or \
+                     sr-arap-depth",
                 ));
             }
             a.validate()?;

@@ -337,6 +337,83 @@ fn surface_rows_pull_along_their_normal_and_the_energy_never_increases() {
     ));
 }
 
+/// The global step minimises the whole energy: a converged plain-ARAP solve with a soft row is
+/// a stationary point of `Σ_i min_R E_i(x, R) + w (aᵀx − c)²` (central differences at the
+/// row's vertex and its ring vanish), not of the energy with the row counted twice.
+#[test]
+fn a_converged_solve_with_a_row_is_stationary_for_the_whole_energy() {
+    use crate::rotation::fit_rotation;
+    let mesh = jittered_sphere(6, 10, 0.1, 5);
+    let config = ArapConfig {
+        energy: ArapEnergy::Spokes,
+        alpha: 0.0,
+        iterations: 4000,
+        parallel: false,
+    };
+    let fixed = [0, 1, 2, 3];
+    let solver = PartSolver::new(&mesh, &config, &fixed, &[]).unwrap();
+    let v = 40u32;
+    let p = mesh.vertices()[v as usize];
+    let normal = (p - Point3::origin()).normalize();
+    let row = SurfaceRow {
+        terms: vec![(v, normal)],
+        value: normal.dot(&p.coords) - 0.05,
+        weight: 2.0,
+    };
+    let terms = solver.surface_terms(vec![row.clone()]).unwrap();
+    let mut ws = solver.workspace();
+    let mut info = ArapInfo::default();
+    solver
+        .solve_in_with(
+            &mut ws,
+            &at(&mesh, &fixed),
+            &[],
+            Start::Rest,
+            &mut info,
+            Some(&terms),
+        )
+        .unwrap();
+    let x = ws.vertices().to_vec();
+    let arap = |x: &[Point3]| -> Real {
+        (0..x.len())
+            .map(|i| {
+                let (s, _) = solver.cell_covariance(i, x);
+                let (r, _) = fit_rotation(&s);
+                solver.cells.cell_energy(i, x, &r)
+            })
+            .sum()
+    };
+    let whole = |x: &[Point3]| arap(x) + terms.energy(x);
+    let slope = |f: &dyn Fn(&[Point3]) -> Real, k: usize, c: usize| {
+        let h = 1e-6;
+        let (mut plus, mut minus) = (x.clone(), x.clone());
+        plus[k][c] += h;
+        minus[k][c] -= h;
+        (f(&plus) - f(&minus)) / (2.0 * h)
+    };
+    // The row's own pull at the solution, the scale a wrong weighting would leave unbalanced.
+    let r = row.residual(&x);
+    let pull = 2.0 * row.weight * r.abs();
+    assert!(r.abs() > 1e-3, "the row is not met exactly: {r}");
+    let mut probed = vec![v as usize];
+    probed.extend(solver.cells.ring(v as usize).iter().map(|&w| w as usize));
+    for k in probed {
+        for c in 0..3 {
+            let g = slope(&whole, k, c);
+            assert!(
+                g.abs() < 1e-3 * pull,
+                "vertex {k}, axis {c}: slope {g:e} against the row's pull {pull:e}"
+            );
+        }
+    }
+    // Counted twice, the row's energy is not stationary there.
+    let twice = |x: &[Point3]| arap(x) + 2.0 * terms.energy(x);
+    let g = (0..3)
+        .map(|c| slope(&twice, v as usize, c).abs())
+        .fold(0.0, Real::max);
+    assert!(g > 0.1 * pull, "{g:e}");
+}
+
 /// The local step fits rotations two cells at a time, sequentially or in parallel chunks: both
 /// give the same positions and rotations bit for bit (an odd vertex count exercises the last,
 /// single cell), and the same energies up to the order of their summation.

@@ -392,7 +392,7 @@ mod tests {
                     "--input-shape",
                     "simulated",
                 ],
-                "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb estimated shapes: use --input-shape sr-arap, both or physics",
+                "--marker-noise, --marker-dropout and --marker-tip-occlusion perturb estimated shapes: use --input-shape sr-arap, both, physics or sr-arap-depth",
             ),
         ];
         for (extra, expected) in cases {

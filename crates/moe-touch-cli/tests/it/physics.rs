@@ -275,12 +275,15 @@ fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
     let bad_shape = dir.join("bad-shape.toml");
     std::fs::write(&bad_shape, "[depth]\npasses = 1000\n").unwrap();
     let bad = path(&bad_shape);
+    let model = fixtures().join("../models/contact-two-finger.safetensors");
     for args in [
         vec![
             "eval",
             "physics",
             "--trajectories",
             "1",
+            "--model",
+            path(&model),
             "--shape-config",
             bad,
         ],
@@ -302,6 +305,8 @@ fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
         bad,
     ]));
     assert!(line.contains("--shape-config is for"), "{line}");
+    let line = assert_one_line_error(&run(&["eval", "physics", "--shape-config", bad]));
+    assert!(line.contains("needs --model"), "{line}");
 }
 
 #[test]

@@ -86,6 +86,9 @@ pub(crate) struct PhysicsEvalArgs {
 }
 
 pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
+    if args.shape_config.is_some() && args.model.is_none() {
+        anyhow::bail!("--shape-config sets SR-ARAP of the comparison rows: it needs --model");
+    }
     let frames = match &args.data {
         Some(dir) => PhysicsFrames::Dataset {
             dir: dir.clone(),
