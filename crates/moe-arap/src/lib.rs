@@ -70,8 +70,10 @@
 //! of at most one row per marker (`system.rs`): `K⁻¹E_H` is precomputed with one
 //! solve per handle, and a frame only factorises the ≤ 7 × 7 block of its visible markers. Each
 //! iteration then costs the local step, a right-hand side, one 3-column triangular solve pair and
-//! an `O(n·h)` correction. The per-frame path of [`MultiShapeEstimator`] allocates nothing once warm (each finger
-//! keeps its workspace); [`ArapSolver::solve`] allocates its result.
+//! an `O(n·h)` correction. The per-finger solves of [`MultiShapeEstimator`] allocate nothing
+//! once warm (each finger keeps its workspace); registration to a depth image allocates in each
+//! pass (the association, the patches and the refactorised system), and [`ArapSolver::solve`]
+//! allocates its result.
 //!
 //! # Rotations
 //!

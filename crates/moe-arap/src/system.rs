@@ -22,7 +22,7 @@ use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
     LltRef, SymbolicCholesky, SymbolicCholeskyRaw, factorize_symbolic_cholesky,
 };
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use faer::{Conj, Mat, MatMut, Par, Side};
 use moe_geom::Real;
 use std::sync::Arc;
@@ -33,6 +33,29 @@ use crate::error::ArapError;
 /// Marker for a fixed vertex in `unknown_of`.
 pub(crate) const FIXED: u32 = u32::MAX;
 
+/// `K`'s lower triangle, with the index in its values of every column's diagonal entry.
+#[derive(Debug)]
+struct BaseMatrix {
+    k: SparseColMat<u32, Real>,
+    diagonal: Vec<usize>,
+}
+
+impl BaseMatrix {
+    fn new(k: SparseColMat<u32, Real>) -> Self {
+        let col_ptr = k.symbolic().col_ptr();
+        let row_idx = k.symbolic().row_idx();
+        // Every unknown has a diagonal triplet, so every column holds its entry.
+        let diagonal = (0..k.ncols())
+            .map(|j| {
+                (col_ptr[j] as usize..col_ptr[j + 1] as usize)
+                    .find(|&i| row_idx[i] as usize == j)
+                    .unwrap_or(col_ptr[j] as usize)
+            })
+            .collect();
+        Self { k, diagonal }
+    }
+}
+
 /// The factorised reduced system and the handle Schur data.
 #[derive(Debug)]
 pub(crate) struct ReducedSystem {
@@ -42,9 +65,10 @@ pub(crate) struct ReducedSystem {
     pub(crate) vertex_of: Vec<u32>,
     symbolic: Option<Arc<SymbolicCholesky<u32>>>,
     values: Vec<Real>,
-    /// `K`'s lower triangle, kept to factorise `K + D` for a diagonal `D`
+    /// `K`'s lower triangle and where its diagonal entries are, found once and shared with
+    /// the systems made from this one, to factorise `K + D` for a diagonal `D`
     /// ([`ReducedSystem::with_diagonal`]).
-    matrix: Option<SparseColMat<u32, Real>>,
+    matrix: Option<Arc<BaseMatrix>>,
     /// The factor's structure when faer chose a simplicial factorisation (small meshes), for the
     /// three-column solve of every iteration.
     simplicial: Option<SimplicialFactor>,
@@ -113,8 +137,12 @@ impl ReducedSystem {
                 Default::default(),
             )
             .map_err(|e| factor_err(format!("{e:?}")))?;
-            let values = factorize(&symbolic, &a)?;
-            (Some(Arc::new(symbolic)), values, Some(a))
+            let values = factorize(&symbolic, a.as_ref())?;
+            (
+                Some(Arc::new(symbolic)),
+                values,
+                Some(Arc::new(BaseMatrix::new(a))),
+            )
         };
         let simplicial = symbolic.as_deref().and_then(SimplicialFactor::new);
         Ok(Self {
@@ -132,37 +160,31 @@ impl ReducedSystem {
         })
     }
 
-    /// The same system with `K + diag(extra)` (one non-negative entry per unknown) factorised
-    /// in place of `K`, on the same symbolic factor, and its handle columns recomputed: the
-    /// global step of an energy with soft pulls on single vertices.
+    /// The same system with `K + diag(extra)` (one non-negative entry per unknown; `K` is
+    /// always this system's original matrix) factorised in place of `K`, on the same symbolic
+    /// factor, and its handle columns recomputed: the global step of an energy with soft pulls
+    /// on single vertices. Costs one numeric factorisation and one solve per handle.
     ///
     /// # Errors
     /// [`ArapError::Factorization`] when the numeric factorisation fails.
     pub(crate) fn with_diagonal(&self, extra: &[Real]) -> Result<Self, ArapError> {
         debug_assert_eq!(extra.len(), self.num_unknowns());
-        let (symbolic, values, matrix) = match (&self.symbolic, &self.matrix) {
-            (Some(symbolic), Some(k)) => {
-                let mut a = k.clone();
-                let col_ptr = a.symbolic().col_ptr().to_vec();
-                let row_idx = a.symbolic().row_idx().to_vec();
-                let val = a.val_mut();
-                for (j, &add) in extra.iter().enumerate() {
-                    let (start, end) = (col_ptr[j] as usize, col_ptr[j + 1] as usize);
-                    if let Some(k) = (start..end).find(|&k| row_idx[k] as usize == j) {
-                        val[k] += add;
-                    }
+        let values = match (&self.symbolic, &self.matrix) {
+            (Some(symbolic), Some(base)) => {
+                let mut val = base.k.val().to_vec();
+                for (&k, &add) in base.diagonal.iter().zip(extra) {
+                    val[k] += add;
                 }
-                let values = factorize(symbolic, &a)?;
-                (Some(Arc::clone(symbolic)), values, Some(a))
+                factorize(symbolic, SparseColMatRef::new(base.k.symbolic(), &val))?
             }
-            _ => (None, Vec::new(), None),
+            _ => Vec::new(),
         };
         let mut out = Self {
             unknown_of: self.unknown_of.clone(),
             vertex_of: self.vertex_of.clone(),
-            symbolic,
+            symbolic: self.symbolic.clone(),
             values,
-            matrix,
+            matrix: self.matrix.clone(),
             simplicial: self.simplicial.clone(),
             coupling_offsets: self.coupling_offsets.clone(),
             coupling: self.coupling.clone(),
@@ -268,7 +290,7 @@ fn factor_err(reason: String) -> ArapError {
 /// The numeric Cholesky factor of `a` (lower triangle) on `symbolic`.
 fn factorize(
     symbolic: &SymbolicCholesky<u32>,
-    a: &SparseColMat<u32, Real>,
+    a: SparseColMatRef<'_, u32, Real>,
 ) -> Result<Vec<Real>, ArapError> {
     let mut values = vec![0.0; symbolic.len_val()];
     let mut buf = MemBuffer::new(
@@ -277,7 +299,7 @@ fn factorize(
     symbolic
         .factorize_numeric_llt::<Real>(
             &mut values,
-            a.as_ref(),
+            a,
             Side::Lower,
             LltRegularization::default(),
             Par::Seq,

@@ -657,8 +657,12 @@ pub fn evaluate_physics(
             outcomes.push(finger_outcome(hand, sf, &est, f));
         }
         if let (Some(dgcnn), Some(arap)) = (comparison.dgcnn, arap.as_mut()) {
-            let p = dgcnn.estimate_map(&ContactInput::new(&est.shape, observation))?;
-            let network_labels = p.labels_at(dgcnn.threshold());
+            // The network's contact labels on a shape of this frame.
+            let labels_on = |shape: &HandShape| -> Result<Vec<Vec<bool>>, LabError> {
+                let p = dgcnn.estimate_map(&ContactInput::new(shape, observation))?;
+                Ok(p.labels_at(dgcnn.threshold()))
+            };
+            let network_labels = labels_on(&est.shape)?;
             on_physics.add(&frame.shape, &frame.contact, &network_labels)?;
             let together: Vec<Vec<bool>> = physics_labels
                 .iter()
@@ -676,30 +680,15 @@ pub fn evaluate_physics(
             placed.add(&frame.shape, &frame.contact, &together)?;
             let shape = arap.estimate(&markers)?.shape;
             arap_bcd += bcd_of(&shape, &frame.shape)?;
-            let p = dgcnn.estimate_map(&ContactInput::new(&shape, observation))?;
-            on_arap.add(
-                &frame.shape,
-                &frame.contact,
-                &p.labels_at(dgcnn.threshold()),
-            )?;
+            on_arap.add(&frame.shape, &frame.contact, &labels_on(&shape)?)?;
             if let Some(arap_depth) = arap_depth.as_mut() {
                 let shape = arap_depth
                     .estimate_with(&markers, observation.depth.as_ref())?
                     .shape;
                 arap_depth_bcd += bcd_of(&shape, &frame.shape)?;
-                let p = dgcnn.estimate_map(&ContactInput::new(&shape, observation))?;
-                on_arap_depth.add(
-                    &frame.shape,
-                    &frame.contact,
-                    &p.labels_at(dgcnn.threshold()),
-                )?;
+                on_arap_depth.add(&frame.shape, &frame.contact, &labels_on(&shape)?)?;
             }
-            let p = dgcnn.estimate_map(&ContactInput::new(&frame.shape, observation))?;
-            on_truth.add(
-                &frame.shape,
-                &frame.contact,
-                &p.labels_at(dgcnn.threshold()),
-            )?;
+            on_truth.add(&frame.shape, &frame.contact, &labels_on(&frame.shape)?)?;
         }
     }
     let n = frames.len() as Real;

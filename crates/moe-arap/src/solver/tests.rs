@@ -260,44 +260,71 @@ proptest! {
     }
 }
 
+/// Plain ARAP (spokes, α = 0) on `mesh` with `fixed` vertices and `iterations` per solve.
+fn plain(mesh: &TriMesh, fixed: &[u32], iterations: usize) -> PartSolver {
+    let config = ArapConfig {
+        energy: ArapEnergy::Spokes,
+        alpha: 0.0,
+        iterations,
+        parallel: false,
+    };
+    PartSolver::new(mesh, &config, fixed, &[]).unwrap()
+}
+
+/// A row of `weight` asking vertex `v` of a sphere about the origin to sink by `depth_m` along
+/// its radial normal; with the vertex's rest position and that normal.
+fn sinking_row(
+    mesh: &TriMesh,
+    v: u32,
+    depth_m: Real,
+    weight: Real,
+) -> (SurfaceRow, Point3, Vector3) {
+    let p = mesh.vertices()[v as usize];
+    let normal = (p - Point3::origin()).normalize();
+    let row = SurfaceRow {
+        terms: vec![(v, normal)],
+        value: normal.dot(&p.coords) - depth_m,
+        weight,
+    };
+    (row, p, normal)
+}
+
+/// A solve from rest with `rows`: the positions and what the solve recorded.
+fn solve_with_rows(
+    solver: &PartSolver,
+    mesh: &TriMesh,
+    fixed: &[u32],
+    rows: Vec<SurfaceRow>,
+) -> (Vec<Point3>, ArapInfo, SurfaceTerms) {
+    let terms = solver.surface_terms(rows).unwrap();
+    let mut ws = solver.workspace();
+    let mut info = ArapInfo::default();
+    solver
+        .solve_in_with(
+            &mut ws,
+            &at(mesh, fixed),
+            &[],
+            Start::Rest,
+            &mut info,
+            Some(&terms),
+        )
+        .unwrap();
+    (ws.vertices().to_vec(), info, terms)
+}
+
 /// Soft rows (depth patches) in plain ARAP: the energy with their term still never increases,
 /// a heavy row puts its vertex on its plane, and the vertex is free to slide along the plane
 /// (a row only sees the normal component): its tangential position is ARAP's.
 #[test]
 fn surface_rows_pull_along_their_normal_and_the_energy_never_increases() {
     let mesh = jittered_sphere(8, 14, 0.1, 3);
-    let config = ArapConfig {
-        energy: ArapEnergy::Spokes,
-        alpha: 0.0,
-        iterations: 200,
-        parallel: false,
-    };
     let fixed = [0, 1, 2, 3, 4];
-    let solver = PartSolver::new(&mesh, &config, &fixed, &[]).unwrap();
+    let solver = plain(&mesh, &fixed, 200);
     let v = 60u32;
-    let p = mesh.vertices()[v as usize];
-    let normal = (p - Point3::origin()).normalize();
-    let row = |weight| SurfaceRow {
-        terms: vec![(v, normal)],
-        value: normal.dot(&p.coords) - 0.02,
-        weight,
-    };
-    let fixed_targets = at(&mesh, &fixed);
-    let mut previous_slide = None;
+    let mut slide = Real::NAN;
     for weight in [1.0, 1e6] {
-        let terms = solver.surface_terms(vec![row(weight)]).unwrap();
-        let mut ws = solver.workspace();
-        let mut info = ArapInfo::default();
-        solver
-            .solve_in_with(
-                &mut ws,
-                &fixed_targets,
-                &[],
-                Start::Rest,
-                &mut info,
-                Some(&terms),
-            )
-            .unwrap();
+        let (row, p, normal) = sinking_row(&mesh, v, 0.02, weight);
+        let (x, info, _) = solve_with_rows(&solver, &mesh, &fixed, vec![row]);
         let e = &info.energy;
         // Up to rounding: a heavy row makes the system stiff (condition ~ the weight).
         let tolerance = 1e-12 * e[0].max(1.0);
@@ -309,27 +336,38 @@ fn surface_rows_pull_along_their_normal_and_the_energy_never_increases() {
                 e[t - 1]
             );
         }
-        let moved = ws.vertices()[v as usize] - p;
+        let moved = x[v as usize] - p;
         let along = moved.dot(&normal);
         assert!(along < -1e-3, "weight {weight}: {along}");
         if weight > 1.0 {
             assert!((along + 0.02).abs() < 1e-4, "heavy row: {along}");
         }
-        previous_slide = Some((moved - normal * along).norm());
+        slide = (moved - normal * along).norm();
     }
-    // Pushed in by 2 % of the radius, the vertex drags its ring in and slides little.
-    assert!(previous_slide.unwrap() < 0.01);
+    // Pushed in by 2 % of the radius, the heavily held vertex drags its ring in and slides
+    // little.
+    assert!(slide < 0.01, "{slide}");
     // Bad rows are refused by name.
-    let mut bad = row(1.0);
+    let row = || sinking_row(&mesh, v, 0.02, 1.0).0;
+    let mut bad = row();
     bad.weight = Real::NAN;
     assert!(matches!(
-        solver.surface_terms(vec![row(1.0), bad]),
+        solver.surface_terms(vec![row(), bad]),
         Err(ArapError::NonFiniteTarget {
             what: "surface row",
             index: 1
         })
     ));
-    let mut far = row(1.0);
+    let mut negative = row();
+    negative.weight = -1.0;
+    assert!(matches!(
+        solver.surface_terms(vec![negative]),
+        Err(ArapError::InvalidConfig {
+            name: "surface row weight",
+            ..
+        })
+    ));
+    let mut far = row();
     far.terms[0].0 = 10_000;
     assert!(matches!(
         solver.surface_terms(vec![far]),
@@ -344,36 +382,11 @@ fn surface_rows_pull_along_their_normal_and_the_energy_never_increases() {
 fn a_converged_solve_with_a_row_is_stationary_for_the_whole_energy() {
     use crate::rotation::fit_rotation;
     let mesh = jittered_sphere(6, 10, 0.1, 5);
-    let config = ArapConfig {
-        energy: ArapEnergy::Spokes,
-        alpha: 0.0,
-        iterations: 4000,
-        parallel: false,
-    };
     let fixed = [0, 1, 2, 3];
-    let solver = PartSolver::new(&mesh, &config, &fixed, &[]).unwrap();
+    let solver = plain(&mesh, &fixed, 4000);
     let v = 40u32;
-    let p = mesh.vertices()[v as usize];
-    let normal = (p - Point3::origin()).normalize();
-    let row = SurfaceRow {
-        terms: vec![(v, normal)],
-        value: normal.dot(&p.coords) - 0.05,
-        weight: 2.0,
-    };
-    let terms = solver.surface_terms(vec![row.clone()]).unwrap();
-    let mut ws = solver.workspace();
-    let mut info = ArapInfo::default();
-    solver
-        .solve_in_with(
-            &mut ws,
-            &at(&mesh, &fixed),
-            &[],
-            Start::Rest,
-            &mut info,
-            Some(&terms),
-        )
-        .unwrap();
-    let x = ws.vertices().to_vec();
+    let (row, _, _) = sinking_row(&mesh, v, 0.05, 2.0);
+    let (x, _, terms) = solve_with_rows(&solver, &mesh, &fixed, vec![row.clone()]);
     let arap = |x: &[Point3]| -> Real {
         (0..x.len())
             .map(|i| {

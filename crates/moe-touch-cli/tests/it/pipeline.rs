@@ -31,6 +31,27 @@ fn model_path() -> std::path::PathBuf {
     fixtures().join("../models/contact-two-finger.safetensors")
 }
 
+/// `moe-touch run` of `episode` through the paper's pipeline with `model`, into `out`; more
+/// arguments follow.
+fn dgcnn_run<'a>(
+    episode: &'a std::path::Path,
+    model: &'a std::path::Path,
+    out: &'a std::path::Path,
+) -> Vec<&'a str> {
+    let s = |p: &'a std::path::Path| p.to_str().unwrap();
+    vec![
+        "run",
+        "--episode",
+        s(episode),
+        "--contact",
+        "dgcnn",
+        "--model",
+        s(model),
+        "--out",
+        s(out),
+    ]
+}
+
 #[test]
 fn the_pipeline_equals_the_stages_run_one_by_one() {
     let hand = hand();
@@ -324,26 +345,11 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     let model = model_path();
     let out = dir.join("result.mcap");
     let report = dir.join("report.json");
-    let args = |out: &std::path::Path| {
-        vec![
-            "run".to_owned(),
-            "--episode".into(),
-            episode.display().to_string(),
-            "--contact".into(),
-            "dgcnn".into(),
-            "--model".into(),
-            model.display().to_string(),
-            "--out".into(),
-            out.display().to_string(),
-        ]
-    };
-    let mut a = args(&out);
-    a.extend([
-        "--report".into(),
-        report.display().to_string(),
-        "--json".into(),
-    ]);
-    let a: Vec<&str> = a.iter().map(String::as_str).collect();
+    let a = [
+        dgcnn_run(&episode, &model, &out).as_slice(),
+        &["--report", report.to_str().unwrap(), "--json"],
+    ]
+    .concat();
     let summary = run_json(&a);
     insta::assert_json_snapshot!("run_summary", stable(summary.clone(), &dir));
     assert_eq!(summary["frames"], 7);
@@ -356,9 +362,7 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     insta::assert_json_snapshot!("run_report", stable(full.clone(), &dir));
     // Same episode and model, same bytes.
     let again = dir.join("again.mcap");
-    let b = args(&again);
-    let b: Vec<&str> = b.iter().map(String::as_str).collect();
-    assert!(run(&b).status.success());
+    assert!(run(&dgcnn_run(&episode, &model, &again)).status.success());
     assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&again).unwrap());
 
     // An episode cut short runs its complete frames and says so.
@@ -366,18 +370,7 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     let cut = dir.join("cut.mcap");
     std::fs::write(&cut, &bytes[..bytes.len() * 3 / 5]).unwrap();
     let cut_out = dir.join("cut-result.mcap");
-    let o = run_ok(&[
-        "run",
-        "--episode",
-        cut.to_str().unwrap(),
-        "--contact",
-        "dgcnn",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        cut_out.to_str().unwrap(),
-        "--json",
-    ]);
+    let o = run_ok(&[dgcnn_run(&cut, &model, &cut_out).as_slice(), &["--json"]].concat());
     let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let frames = s["frames"].as_u64().unwrap();
     assert!((1..7).contains(&frames), "{frames} frames");
@@ -390,18 +383,10 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     // Another hand than the episode's and the model's: one clear error, nothing written.
     let wrong = dir.join("wrong.mcap");
     let o = run(&[
-        "run",
-        "--episode",
-        episode.to_str().unwrap(),
-        "--contact",
-        "dgcnn",
-        "--model",
-        model.to_str().unwrap(),
-        "--hand",
-        "three-finger",
-        "--out",
-        wrong.to_str().unwrap(),
-    ]);
+        dgcnn_run(&episode, &model, &wrong).as_slice(),
+        &["--hand", "three-finger"],
+    ]
+    .concat());
     let err = assert_one_line_error(&o);
     assert!(err.contains("three-finger"), "{err}");
     assert!(!wrong.exists());
@@ -413,17 +398,7 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     let repeated = dir.join("repeated.mcap");
     moe_record::write_episode(&repeated, &recorded.info, &frames).unwrap();
     let repeated_out = dir.join("repeated-result.mcap");
-    let o = run(&[
-        "run",
-        "--episode",
-        repeated.to_str().unwrap(),
-        "--contact",
-        "dgcnn",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        repeated_out.to_str().unwrap(),
-    ]);
+    let o = run(&dgcnn_run(&repeated, &model, &repeated_out));
     let err = assert_one_line_error(&o);
     assert!(
         err.contains("frame time 0.4 s is not after the previous frame's 0.4 s"),
@@ -912,20 +887,13 @@ fn run_registers_the_shape_to_the_depth_image_when_asked() {
     let depth_model = model_path().with_file_name("contact-two-finger-depth.safetensors");
     let summary = |model: &std::path::Path, extra: &[&str]| {
         let out = dir.join(format!("r{}.mcap", extra.len()));
-        let mut a = vec![
-            "run",
-            "--episode",
-            episode.to_str().unwrap(),
-            "--contact",
-            "dgcnn",
-            "--model",
-            model.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--json",
-        ];
-        a.extend_from_slice(extra);
-        run_json(&a)
+        let args = [
+            dgcnn_run(&episode, model, &out).as_slice(),
+            &["--json"],
+            extra,
+        ]
+        .concat();
+        run_json(&args)
     };
     let markers_only = summary(&model_path(), &[]);
     let registered = summary(&depth_model, &["--shape-config", shape.to_str().unwrap()]);
