@@ -42,8 +42,8 @@ pub enum PhysicsFrames {
         params: Box<RandomSceneParams>,
         /// Markers detected in the rendered frames rather than read off the surface.
         perceived: bool,
-        /// The wrist camera's noise for those frames (`None`: the scene's).
-        camera_noise: Option<moe_tendon_sim::camera::NoiseModel>,
+        /// The wrist camera that renders those frames (`None`: the scene's).
+        camera: Option<moe_tendon_sim::camera::RgbdCamera>,
     },
 }
 
@@ -340,7 +340,7 @@ fn simulated_streams(
     n: u64,
     seed: u64,
     perceived: bool,
-    camera_noise: Option<moe_tendon_sim::camera::NoiseModel>,
+    camera: Option<moe_tendon_sim::camera::RgbdCamera>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Streams, LabError> {
     if let Some(preset) = marker_layout {
@@ -351,8 +351,8 @@ fn simulated_streams(
     let mut seen = Vec::new();
     for t in 0..n {
         let mut sampled = sample_scene(&params, seed, t)?;
-        if let Some(noise) = camera_noise {
-            sampled.config.camera.noise = noise;
+        if let Some(camera) = camera {
+            sampled.config.camera = camera;
         }
         if perceived {
             let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t)?;
@@ -446,14 +446,14 @@ pub fn physics_study(
             trajectories,
             params,
             perceived,
-            camera_noise,
+            camera,
         } => simulated_streams(
             (**params).clone(),
             options.marker_layout,
             options.max_trajectories.unwrap_or(*trajectories),
             options.seed,
             *perceived,
-            *camera_noise,
+            *camera,
             progress,
         )?,
     };

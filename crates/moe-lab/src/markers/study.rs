@@ -41,6 +41,8 @@ pub struct MarkerStudyOptions {
     pub camera_seed: u64,
     /// Render without sensor noise.
     pub ideal: bool,
+    /// Render with this wrist camera instead of each scene's own (`None`: the scene's).
+    pub camera: Option<moe_tendon_sim::camera::RgbdCamera>,
     /// The detector's parameters.
     pub detector: DetectorConfig,
 }
@@ -85,6 +87,9 @@ pub struct MarkerStudyReport {
     pub seed: u64,
     /// Rendered without sensor noise.
     pub ideal: bool,
+    /// The camera that rendered every scene (absent: each scene's own).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera: Option<moe_tendon_sim::camera::RgbdCamera>,
     /// The detector's parameters.
     pub config: DetectorConfig,
     /// Every scene, in order.
@@ -252,6 +257,9 @@ pub fn run_marker_study<E: From<LabError>>(
     let mut reports: Vec<EpisodeMarkerReport> = Vec::new();
     for name in names {
         let mut scene_config = marker_scene(name)?;
+        if let Some(camera) = options.camera {
+            scene_config.camera = camera;
+        }
         if options.ideal {
             scene_config.camera.noise = NoiseModel::ideal();
         }
@@ -268,6 +276,7 @@ pub fn run_marker_study<E: From<LabError>>(
     Ok(MarkerStudyReport {
         seed: options.camera_seed,
         ideal: options.ideal,
+        camera: options.camera,
         config: options.detector,
         plates: pool_plates(&reports),
         scenes: reports,
@@ -329,6 +338,7 @@ mod tests {
             scenes: vec!["plate_tip_front".into()],
             camera_seed: 0,
             ideal: true,
+            camera: None,
             detector: DetectorConfig::default(),
         };
         let mut seen = Vec::new();

@@ -406,3 +406,175 @@ fn bad_intrinsics_are_rejected() {
         })
     ));
 }
+
+/// A noise-free D405-class camera with only the given stereo and flying-pixel settings.
+fn stereo_camera(baseline_m: Real, flying: Real) -> RgbdCamera {
+    RgbdCamera {
+        noise: NoiseModel {
+            stereo_baseline_m: baseline_m,
+            flying_pixel_fraction: flying,
+            ..NoiseModel::ideal()
+        },
+        ..RgbdCamera::d405_wrist()
+    }
+}
+
+/// The depth along the image's centre row.
+fn centre_row(img: &RgbdImage) -> Vec<f32> {
+    let j = img.height / 2;
+    (0..img.width).map(|i| img.depth(i, j)).collect()
+}
+
+#[test]
+fn the_second_imager_leaves_the_band_and_the_occlusion_shadow_a_stereo_camera_leaves() {
+    // A wall 10 cm away filling the view, and a 1 cm wide strip 6 cm away on the axis.
+    let (z_wall, z_strip) = (0.10, 0.06);
+    let camera = stereo_camera(D405_BASELINE_M, 0.0);
+    let (wall, wf) = plane_facing(&camera, z_wall, 1.0, 0.0);
+    let strip: Vec<Point3> = [(-0.005, -0.5), (0.005, -0.5), (0.005, 0.5), (-0.005, 0.5)]
+        .iter()
+        .map(|&(x, y)| {
+            camera
+                .hand_from_camera
+                .transform_point(&Point3::new(x, y, z_strip))
+        })
+        .collect();
+    let sf = vec![[0, 1, 2], [0, 2, 3]];
+    let items = [item(&wall, &wf, &[]), item(&strip, &sf, &[])];
+    let fx = camera.intrinsics.fx;
+    let disparity = |z: Real| fx * D405_BASELINE_M / z;
+
+    let row = centre_row(&camera.render(&items, 3).unwrap());
+    // The band: the columns whose wall point falls left of the second image.
+    let band = row.iter().take_while(|&&d| d == 0.0).count() as Real;
+    assert!(
+        (band - disparity(z_wall)).abs() <= 1.0,
+        "band {band} px, disparity {:.1} px",
+        disparity(z_wall)
+    );
+    // The shadow: wall columns beside the strip that only the first imager sees; its width is
+    // the difference of the two surfaces' disparities.
+    let strip_start = row
+        .iter()
+        .position(|&d| (Real::from(d) - z_strip).abs() < 1e-4)
+        .unwrap();
+    let shadow = row[..strip_start]
+        .iter()
+        .rev()
+        .take_while(|&&d| d == 0.0)
+        .count() as Real;
+    let expected = disparity(z_strip) - disparity(z_wall);
+    assert!(
+        (shadow - expected).abs() <= 1.5,
+        "shadow {shadow} px, expected {expected:.1} px"
+    );
+    // To the right of the strip the wall is seen by both imagers.
+    let after = row
+        .iter()
+        .rposition(|&d| (Real::from(d) - z_strip).abs() < 1e-4)
+        .unwrap();
+    assert!((Real::from(row[after + 1]) - z_wall).abs() < 1e-4);
+
+    // Without a second imager: neither band nor shadow.
+    let plain = centre_row(&stereo_camera(0.0, 0.0).render(&items, 3).unwrap());
+    assert!(plain.iter().all(|&d| d > 0.0));
+}
+
+#[test]
+fn flying_pixels_lie_between_the_surfaces_of_a_depth_step_and_only_there() {
+    let (z_wall, z_strip) = (0.10, 0.06);
+    let render = |flying: Real| {
+        let camera = stereo_camera(0.0, flying);
+        let (wall, wf) = plane_facing(&camera, z_wall, 1.0, 0.0);
+        let (strip, sf) = plane_facing(&camera, z_strip, 0.01, 0.0);
+        camera
+            .render(&[item(&wall, &wf, &[]), item(&strip, &sf, &[])], 5)
+            .unwrap()
+    };
+    let clean = render(0.0);
+    let flying = render(1.0);
+    let on = |d: f32, z: Real| (Real::from(d) - z).abs() < 1e-6;
+    let mut between = 0;
+    for (k, (&c, &f)) in clean.depth_m.iter().zip(&flying.depth_m).enumerate() {
+        assert!(on(c, z_wall) || on(c, z_strip), "pixel {k}: {c}");
+        if c != f {
+            // Only pixels with a neighbour across the step move, and only between the two.
+            let (i, j) = (k as u32 % clean.width, k as u32 / clean.width);
+            let neighbours = [
+                i.checked_sub(1).map(|a| (a, j)),
+                (i + 1 < clean.width).then_some((i + 1, j)),
+                j.checked_sub(1).map(|b| (i, b)),
+                (j + 1 < clean.height).then_some((i, j + 1)),
+            ];
+            assert!(
+                neighbours
+                    .iter()
+                    .flatten()
+                    .any(|&(a, b)| clean.depth(a, b) != c),
+                "pixel ({i},{j}) moved away from the step"
+            );
+            let f = Real::from(f);
+            assert!(f > z_strip && f < z_wall, "pixel ({i},{j}): {f}");
+            between += 1;
+        }
+    }
+    // Every pixel on either side of the strip's outline: 2 × 4 sides × about its 37 px.
+    assert!(between > 200, "{between} flying pixels");
+}
+
+#[test]
+fn the_d405_camera_file_is_the_preset_and_its_noise_is_documented() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/cameras/d405-wrist.toml"
+    ))
+    .unwrap();
+    let camera: RgbdCamera = toml::from_str(&text).unwrap();
+    assert_eq!(camera, RgbdCamera::d405_wrist());
+    camera.validate().unwrap();
+    // σ(z) = z² · s / (f · B): 0.12 mm at 5 cm, 0.50 mm at 10 cm.
+    assert!((camera.noise.depth_std(0.05) - 1.2434e-4).abs() < 1e-8);
+    assert!((camera.noise.depth_std(0.10) - 4.9736e-4).abs() < 1e-8);
+}
+
+#[test]
+fn a_camera_with_a_bad_stereo_setting_is_named() {
+    for (noise, name) in [
+        (
+            NoiseModel {
+                stereo_baseline_m: -0.01,
+                ..NoiseModel::default()
+            },
+            "stereo_baseline_m",
+        ),
+        (
+            NoiseModel {
+                flying_pixel_fraction: 1.5,
+                ..NoiseModel::default()
+            },
+            "flying_pixel_fraction",
+        ),
+        (
+            NoiseModel {
+                flying_pixel_step_m: Real::NAN,
+                ..NoiseModel::default()
+            },
+            "flying_pixel_step_m",
+        ),
+    ] {
+        let camera = RgbdCamera {
+            noise,
+            ..RgbdCamera::default()
+        };
+        let err = camera.validate().unwrap_err().to_string();
+        assert!(err.contains(name), "{err}");
+        assert!(camera.render(&[], 0).is_err());
+    }
+    // A mount whose rotation is not a unit quaternion would scale the scene.
+    let mut camera = RgbdCamera::d405_wrist();
+    let mut iso = *camera.hand_from_camera.iso();
+    iso.rotation = nalgebra::Unit::new_unchecked(iso.rotation.into_inner() * 2.0);
+    camera.hand_from_camera = Transform::new(iso);
+    let err = camera.validate().unwrap_err().to_string();
+    assert!(err.contains("hand_from_camera.rotation"), "{err}");
+}

@@ -110,9 +110,7 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
         }
     }
     let camera = match &args.bound_camera {
-        Some(path) => {
-            moe_touch::settings::load_depth_bound_model(path).context("--bound-camera")?
-        }
+        Some(path) => bound_camera(path).context("--bound-camera")?,
         None => moe_physics::DepthBoundModel::default(),
     };
     let depth = (args.bound_observe != BoundObserve::Markers).then(|| {
@@ -141,4 +139,37 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
     }
     super::outln!("{}", output.record.summary(&args.out));
     Ok(())
+}
+
+/// The bound's depth camera from a file: a rendering camera (`RgbdCamera`, as `eval physics
+/// --camera` takes it), told by the fields only it has (a `[noise]` with `depth_*`,
+/// `min_depth_m`, `stereo_baseline_m`, …), or else the bound's own `DepthBoundModel`.
+fn bound_camera(path: &std::path::Path) -> Result<moe_physics::DepthBoundModel> {
+    const CAMERA_NOISE: [&str; 7] = [
+        "grazing_dropout_deg",
+        "min_depth_m",
+        "max_depth_m",
+        "color_std",
+        "stereo_baseline_m",
+        "flying_pixel_fraction",
+        "flying_pixel_step_m",
+    ];
+    let value: serde_json::Value = moe_io::read_config(path)?;
+    let is_camera = value
+        .get("noise")
+        .and_then(serde_json::Value::as_object)
+        .is_some_and(|noise| {
+            noise
+                .keys()
+                .any(|k| k.starts_with("depth_") || CAMERA_NOISE.contains(&k.as_str()))
+        });
+    if !is_camera {
+        return Ok(moe_touch::settings::load_depth_bound_model(path)?);
+    }
+    let camera = super::load_camera(path)?;
+    let model = moe_lab::observability::depth_bound_model(&camera);
+    model
+        .validate()
+        .with_context(|| format!("{} (as the bound's depth model)", path.display()))?;
+    Ok(model)
 }

@@ -72,6 +72,39 @@ pub(crate) fn load_physics_config(
     Ok((config, path.display().to_string()))
 }
 
+/// A rendering camera from a file (TOML or JSON `RgbdCamera`), checked.
+pub(crate) fn load_camera(
+    path: &std::path::Path,
+) -> anyhow::Result<moe_tendon_sim::camera::RgbdCamera> {
+    use anyhow::Context;
+    let camera: moe_tendon_sim::camera::RgbdCamera = moe_io::read_config(path)?;
+    camera
+        .validate()
+        .with_context(|| path.display().to_string())?;
+    Ok(camera)
+}
+
+/// The wrist camera of a study's rendered frames from `--camera`, with its noise made harsher
+/// when `harsher` (the default camera's without a file); `None` (the scenes' own camera)
+/// without either.
+pub(crate) fn eval_camera(
+    path: Option<&std::path::Path>,
+    harsher: bool,
+) -> anyhow::Result<Option<moe_tendon_sim::camera::RgbdCamera>> {
+    use anyhow::Context;
+    let camera = path
+        .map(|p| load_camera(p).context("--camera"))
+        .transpose()?;
+    Ok(camera
+        .or_else(|| harsher.then(moe_tendon_sim::camera::RgbdCamera::default))
+        .map(|mut camera| {
+            if harsher {
+                camera.noise = camera.noise.harsher();
+            }
+            camera
+        }))
+}
+
 /// SR-ARAP's settings from `--shape-config` (TOML or JSON `ShapeConfig`), checked; the
 /// paper's without one.
 pub(crate) fn load_shape_config(

@@ -407,10 +407,10 @@ fn the_bound_with_depth_reports_what_the_camera_sees() {
     ]);
     let line = assert_one_line_error(&out);
     assert!(line.contains("--bound-harsher-depth"), "{line}");
-    // Another camera from a file: the committed D405-class example, mounted farther back, sees
+    // Another camera from a file: the committed D405-class wrist camera, mounted farther back, sees
     // fewer pixels and bounds less tightly than the default camera, still far below the markers
     // alone at the base.
-    let d405 = fixtures().join("cameras/d405-424x240.toml");
+    let d405 = fixtures().join("cameras/d405-wrist.toml");
     let other = bound(&[
         "--bound-observe",
         "both",
@@ -442,6 +442,41 @@ fn the_bound_with_depth_reports_what_the_camera_sees() {
     let line = assert_one_line_error(&out);
     assert!(
         line.contains("bad-camera.toml") && line.contains("max_range_m"),
+        "{line}"
+    );
+    assert!(!dir.join("never").exists());
+    // A rendering camera's file is told from the bound's own by its noise fields: a file with
+    // only intrinsics stays a bound model (its assumed correlated part kept), a camera file
+    // with a bad noise field is refused naming it.
+    let intrinsics_only = dir.join("intrinsics-only.toml");
+    std::fs::write(
+        &intrinsics_only,
+        "[intrinsics]\nwidth = 424\nheight = 240\nfx = 223.4\nfy = 216.5\ncx = 211.5\ncy = 119.5\n",
+    )
+    .unwrap();
+    let model = bound(&[
+        "--bound-observe",
+        "both",
+        "--bound-camera",
+        intrinsics_only.to_str().unwrap(),
+    ]);
+    assert_eq!(model["bound"]["depth"]["noise"]["correlated_sigma_m"], 1e-4);
+    assert_eq!(other["bound"]["depth"]["noise"]["quantum_m"], 1e-4);
+    let bad_camera = dir.join("bad-rgbd.toml");
+    std::fs::write(&bad_camera, "[noise]\nflying_pixel_fraction = 2.0\n").unwrap();
+    let out = run(&[
+        "hand",
+        "--out",
+        dir.join("never").to_str().unwrap(),
+        "--bound",
+        "--bound-observe",
+        "depth",
+        "--bound-camera",
+        bad_camera.to_str().unwrap(),
+    ]);
+    let line = assert_one_line_error(&out);
+    assert!(
+        line.contains("bad-rgbd.toml") && line.contains("flying_pixel_fraction"),
         "{line}"
     );
     assert!(!dir.join("never").exists());

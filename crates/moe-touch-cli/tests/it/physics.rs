@@ -307,6 +307,20 @@ fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
     assert!(line.contains("--shape-config is for"), "{line}");
     let line = assert_one_line_error(&run(&["eval", "physics", "--shape-config", bad]));
     assert!(line.contains("needs --model"), "{line}");
+    // A rendering camera, checked before any trajectory or scene is simulated.
+    let bad_camera = dir.join("bad-camera.toml");
+    std::fs::write(&bad_camera, "[noise]\nflying_pixel_fraction = 2.0\n").unwrap();
+    let bad = path(&bad_camera);
+    for args in [
+        vec!["eval", "physics", "--perceived", "--camera", bad],
+        vec!["eval", "markers", "--camera", bad],
+    ] {
+        let line = assert_one_line_error(&run(&args));
+        assert!(
+            line.contains("flying_pixel_fraction") && line.contains("--camera"),
+            "{args:?}: {line}"
+        );
+    }
 }
 
 #[test]

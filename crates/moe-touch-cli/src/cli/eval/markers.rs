@@ -25,6 +25,10 @@ pub(crate) struct MarkersEvalArgs {
     /// Render without sensor noise.
     #[arg(long)]
     ideal: bool,
+    /// Render with this wrist camera (TOML or JSON `RgbdCamera`, e.g.
+    /// fixtures/cameras/d405-wrist.toml) instead of each scene's own.
+    #[arg(long, value_name = "CAMERA.toml")]
+    camera: Option<PathBuf>,
     /// Detector parameters (TOML or JSON `DetectorConfig`; default: the documented defaults).
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
@@ -50,6 +54,7 @@ pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
         scenes: args.scenes.clone(),
         camera_seed: args.seed,
         ideal: args.ideal,
+        camera: crate::cli::eval_camera(args.camera.as_deref(), false)?,
         detector,
     };
     let mut started = std::time::Instant::now();

@@ -51,6 +51,11 @@ pub(crate) struct PhysicsEvalArgs {
     /// shared by neighbouring pixels, whole millimetres, as a ROS 2 `16UC1` topic).
     #[arg(long, requires = "perceived")]
     harsher_camera_noise: bool,
+    /// With `--perceived`: render with this wrist camera (TOML or JSON `RgbdCamera`:
+    /// `intrinsics`, `hand_from_camera`, `noise`; e.g. fixtures/cameras/d405-wrist.toml)
+    /// instead of the scenes' own; `--harsher-camera-noise` then applies to its noise.
+    #[arg(long, value_name = "CAMERA.toml", requires = "perceived")]
+    camera: Option<PathBuf>,
     /// The hand's material (TOML, as `moe-touch calibrate` writes it); default: nominal.
     #[arg(long)]
     material: Option<PathBuf>,
@@ -101,9 +106,7 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
                 None => RandomSceneParams::default(),
             }),
             perceived: args.perceived,
-            camera_noise: args
-                .harsher_camera_noise
-                .then(|| moe_tendon_sim::camera::NoiseModel::default().harsher()),
+            camera: crate::cli::eval_camera(args.camera.as_deref(), args.harsher_camera_noise)?,
         },
     };
     let options = PhysicsStudyOptions {
