@@ -521,6 +521,19 @@ mod tests {
         );
     }
 
+    /// The physics settings for the D405-class camera model that camera's depth noise.
+    #[test]
+    fn the_d405_physics_settings_carry_the_d405_cameras_noise() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
+        let camera: moe_tendon_sim::camera::RgbdCamera =
+            moe_io::read_config(&root.join("cameras/d405-wrist.toml")).unwrap();
+        let config =
+            moe_touch::settings::load_physics_config(&root.join("physics/depth-d405.toml"))
+                .unwrap();
+        assert!(config.depth.enabled);
+        assert_eq!(config.depth.noise, depth_bound_model(&camera).noise);
+    }
+
     /// The bound's default camera is the virtual camera that renders the episodes: the same
     /// intrinsics, mount, noise, range and grazing limit.
     #[test]
