@@ -124,7 +124,9 @@ impl Default for NoiseModel {
 }
 
 impl NoiseModel {
-    /// An ideal sensor: exact depth everywhere in range, no dropout, exact colour.
+    /// An ideal sensor: exact depth everywhere in range, no dropout, exact colour (the
+    /// correlated error, quantisation, second imager and flying pixels stay off, as by
+    /// default).
     pub fn ideal() -> Self {
         Self {
             depth_std_base_m: 0.0,
@@ -133,12 +135,7 @@ impl NoiseModel {
             min_depth_m: 0.0,
             max_depth_m: Real::INFINITY,
             color_std: 0.0,
-            depth_correlated_std_m: 0.0,
-            depth_correlation_px: 16,
-            depth_quantum_m: 0.0,
-            stereo_baseline_m: 0.0,
-            flying_pixel_fraction: 0.0,
-            flying_pixel_step_m: DEFAULT_FLYING_STEP_M,
+            ..Self::default()
         }
     }
 

@@ -52,10 +52,12 @@ pub(crate) struct HandArgs {
     /// to whole millimetres (as a ROS 2 16UC1 topic gives it).
     #[arg(long, requires = "bound")]
     bound_harsher_depth: bool,
-    /// With --bound and depth: another depth camera than the default wrist camera (TOML or JSON
-    /// `DepthBoundModel`: `intrinsics`, `hand_from_camera`, `noise` (`sigma_base_m`,
-    /// `sigma_per_m2`, `correlated_sigma_m`, `quantum_m`), `min_range_m`, `max_range_m`,
-    /// `grazing_deg`; fields not given keep the default camera's).
+    /// With --bound and depth: another depth camera than the default wrist camera, TOML or
+    /// JSON: a rendering camera (`RgbdCamera`, as `eval physics --camera` takes it, e.g.
+    /// fixtures/cameras/d405-wrist.toml) or the bound's own `DepthBoundModel` (`intrinsics`,
+    /// `hand_from_camera`, `noise` (`sigma_base_m`, `sigma_per_m2`, `correlated_sigma_m`,
+    /// `quantum_m`), `min_range_m`, `max_range_m`, `grazing_deg`); fields not given keep the
+    /// default camera's.
     #[arg(long, value_name = "CAMERA.toml", requires = "bound")]
     bound_camera: Option<PathBuf>,
     /// Output directory: finger_<i>.obj (rest mesh in the hand frame, metres) and hand.json.
@@ -141,35 +143,15 @@ pub(crate) fn run(args: HandArgs) -> Result<()> {
     Ok(())
 }
 
-/// The bound's depth camera from a file: a rendering camera (`RgbdCamera`, as `eval physics
-/// --camera` takes it), told by the fields only it has (a `[noise]` with `depth_*`,
-/// `min_depth_m`, `stereo_baseline_m`, …), or else the bound's own `DepthBoundModel`.
+/// The bound's depth camera from a file: the bound's own `DepthBoundModel` when the file reads
+/// as one (its fields and nothing else), or else a rendering camera (`RgbdCamera`, as `eval
+/// physics --camera` takes it), whose errors are then the ones reported.
 fn bound_camera(path: &std::path::Path) -> Result<moe_physics::DepthBoundModel> {
-    const CAMERA_NOISE: [&str; 7] = [
-        "grazing_dropout_deg",
-        "min_depth_m",
-        "max_depth_m",
-        "color_std",
-        "stereo_baseline_m",
-        "flying_pixel_fraction",
-        "flying_pixel_step_m",
-    ];
-    let value: serde_json::Value = moe_io::read_config(path)?;
-    let is_camera = value
-        .get("noise")
-        .and_then(serde_json::Value::as_object)
-        .is_some_and(|noise| {
-            noise
-                .keys()
-                .any(|k| k.starts_with("depth_") || CAMERA_NOISE.contains(&k.as_str()))
-        });
-    if !is_camera {
-        return Ok(moe_touch::settings::load_depth_bound_model(path)?);
-    }
-    let camera = super::load_camera(path)?;
-    let model = moe_lab::observability::depth_bound_model(&camera);
-    model
-        .validate()
-        .with_context(|| format!("{} (as the bound's depth model)", path.display()))?;
+    let context = || path.display().to_string();
+    let model = match moe_io::read_config::<moe_physics::DepthBoundModel>(path) {
+        Ok(model) => model,
+        Err(_) => moe_lab::observability::depth_bound_model(&super::load_camera(path)?),
+    };
+    model.validate().with_context(context)?;
     Ok(model)
 }
