@@ -729,8 +729,8 @@ fn bcd_of(a: &HandShape, b: &HandShape) -> Result<Real, LabError> {
 
 /// A simulated stream with the markers the perception stage detects in its rendered wrist
 /// camera frames: the scene is simulated, every saved frame rendered by the scene's camera
-/// (noise seeded by `seed`) and its markers detected and tracked by a detector with the
-/// default parameters. Returns the stream and, per frame, the detected keypoints and the depth
+/// (noise seeded by `seed`) and its markers detected and tracked by a detector with parameters
+/// `detector`. Returns the stream and, per frame, the detected keypoints and the depth
 /// image.
 ///
 /// # Errors
@@ -740,14 +740,12 @@ pub fn simulate_perceived(
     hand: &HandModel,
     trajectory_id: u64,
     seed: u64,
+    detector: moe_touch::perception::DetectorConfig,
 ) -> Result<(Vec<StreamFrame>, Vec<PerceivedFrame>), LabError> {
     let mut scene = Scene::with_hand(config.clone(), hand.clone())?;
     let recorder = crate::episode::EpisodeRecorder::new(&scene, "perceived", seed)?;
-    let mut detector = moe_touch::perception::MarkerDetector::for_episode(
-        recorder.info(),
-        hand,
-        moe_touch::perception::DetectorConfig::default(),
-    )?;
+    let mut detector =
+        moe_touch::perception::MarkerDetector::for_episode(recorder.info(), hand, detector)?;
     let steps = scene.num_steps();
     let mut stream = Vec::new();
     let mut seen = Vec::new();

@@ -44,6 +44,8 @@ pub enum PhysicsFrames {
         perceived: bool,
         /// The wrist camera that renders those frames (`None`: the scene's).
         camera: Option<moe_tendon_sim::camera::RgbdCamera>,
+        /// The marker detector's parameters for perceived frames.
+        detector: Box<moe_touch::perception::DetectorConfig>,
     },
 }
 
@@ -332,15 +334,18 @@ pub fn dataset_streams(
     })
 }
 
-/// Trajectories `0..n` of `seed` simulated afresh (rendered and perceived when `perceived`);
-/// `progress(t, n)` after each.
+/// Trajectories `0..n` of `seed` simulated afresh; with `perceived` = (camera, detector), each
+/// rendered by that camera (`None`: the scene's) and its markers detected; `progress(t, n)`
+/// after each.
 fn simulated_streams(
     mut params: RandomSceneParams,
     marker_layout: Option<MarkerLayoutPreset>,
     n: u64,
     seed: u64,
-    perceived: bool,
-    camera: Option<moe_tendon_sim::camera::RgbdCamera>,
+    perceived: Option<(
+        Option<moe_tendon_sim::camera::RgbdCamera>,
+        moe_touch::perception::DetectorConfig,
+    )>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Streams, LabError> {
     if let Some(preset) = marker_layout {
@@ -351,11 +356,11 @@ fn simulated_streams(
     let mut seen = Vec::new();
     for t in 0..n {
         let mut sampled = sample_scene(&params, seed, t)?;
-        if let Some(camera) = camera {
-            sampled.config.camera = camera;
-        }
-        if perceived {
-            let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t)?;
+        if let Some((camera, detector)) = perceived {
+            if let Some(camera) = camera {
+                sampled.config.camera = camera;
+            }
+            let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t, detector)?;
             frames.extend(s);
             seen.extend(k);
         } else {
@@ -366,7 +371,7 @@ fn simulated_streams(
     Ok(Streams {
         hand,
         frames,
-        perceived: perceived.then_some(seen),
+        perceived: perceived.map(|_| seen),
         params,
     })
 }
@@ -447,13 +452,13 @@ pub fn physics_study(
             params,
             perceived,
             camera,
+            detector,
         } => simulated_streams(
             (**params).clone(),
             options.marker_layout,
             options.max_trajectories.unwrap_or(*trajectories),
             options.seed,
-            *perceived,
-            *camera,
+            perceived.then_some((*camera, **detector)),
             progress,
         )?,
     };

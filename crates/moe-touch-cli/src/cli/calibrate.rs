@@ -184,7 +184,7 @@ fn episode_streams(
         MarkerSource::Truth => moe_lab::calibration_streams::MarkerSource::Truth,
     };
     let config = match &args.config {
-        Some(path) => Some(super::load_detector_config(Some(path))?),
+        Some(path) => Some(super::load_detector_config(Some(path), "--config")?),
         None => None,
     };
     let source = path.display().to_string();

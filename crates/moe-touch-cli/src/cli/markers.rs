@@ -39,7 +39,7 @@ pub(crate) struct MarkersArgs {
 }
 
 pub(crate) fn run(args: MarkersArgs) -> Result<()> {
-    let config = super::load_detector_config(args.config.as_deref())?;
+    let config = super::load_detector_config(args.config.as_deref(), "--config")?;
     let episode = moe_record::read_episode(&args.episode)?;
     let hand = super::load_hand(&args.hand)?;
     check_hand(&hand, &episode.info)

@@ -117,15 +117,16 @@ pub(crate) fn load_shape_config(
     )
 }
 
-/// The marker detector's parameters from `--config` (TOML or JSON `DetectorConfig`), checked;
-/// the defaults without one.
+/// The marker detector's parameters from the file given to `flag` (TOML or JSON
+/// `DetectorConfig`), checked; the defaults without one.
 pub(crate) fn load_detector_config(
     path: Option<&std::path::Path>,
+    flag: &'static str,
 ) -> anyhow::Result<moe_touch::perception::DetectorConfig> {
     use anyhow::Context;
     path.map_or_else(
         || Ok(moe_touch::perception::DetectorConfig::default()),
-        |p| moe_touch::settings::load_detector_config(p).context("--config"),
+        |p| moe_touch::settings::load_detector_config(p).context(flag),
     )
 }
 

@@ -206,7 +206,7 @@ pub(crate) fn run(args: RunArgs) -> Result<()> {
             dir.display()
         );
     }
-    let config = super::load_detector_config(args.config.as_deref())?;
+    let config = super::load_detector_config(args.config.as_deref(), "--config")?;
     let hand = super::load_hand(&args.hand)?;
     // The recording's topics and frames, read once: they name the input's and the results'.
     let ros = ros_config(&args)?;

@@ -321,6 +321,21 @@ fn the_studies_refuse_physics_settings_they_cannot_use_before_any_trial() {
             "{args:?}: {line}"
         );
     }
+    // The detector's settings for perceived frames, checked before any trajectory.
+    let bad_detector = dir.join("bad-detector.toml");
+    std::fs::write(&bad_detector, "dbscan_min_points = 1\n").unwrap();
+    let bad = path(&bad_detector);
+    let line = assert_one_line_error(&run(&[
+        "eval",
+        "physics",
+        "--perceived",
+        "--detector-config",
+        bad,
+    ]));
+    assert!(
+        line.contains("dbscan_min_points") && line.contains("--detector-config"),
+        "{line}"
+    );
 }
 
 #[test]

@@ -49,7 +49,7 @@ pub(crate) fn run(args: &MarkersEvalArgs) -> Result<()> {
             MARKER_SCENES.join(", ")
         );
     }
-    let detector = crate::cli::load_detector_config(args.config.as_deref())?;
+    let detector = crate::cli::load_detector_config(args.config.as_deref(), "--config")?;
     let options = MarkerStudyOptions {
         scenes: args.scenes.clone(),
         camera_seed: args.seed,

@@ -56,6 +56,10 @@ pub(crate) struct PhysicsEvalArgs {
     /// instead of the scenes' own; `--harsher-camera-noise` then applies to its noise.
     #[arg(long, value_name = "CAMERA.toml", requires = "perceived")]
     camera: Option<PathBuf>,
+    /// With `--perceived`: the marker detector's parameters (TOML or JSON `DetectorConfig`);
+    /// default: the documented ones.
+    #[arg(long, value_name = "FILE", requires = "perceived")]
+    detector_config: Option<PathBuf>,
     /// The hand's material (TOML, as `moe-touch calibrate` writes it); default: nominal.
     #[arg(long)]
     material: Option<PathBuf>,
@@ -107,6 +111,10 @@ pub(crate) fn run(args: &PhysicsEvalArgs) -> Result<()> {
             }),
             perceived: args.perceived,
             camera: crate::cli::eval_camera(args.camera.as_deref(), args.harsher_camera_noise)?,
+            detector: Box::new(crate::cli::load_detector_config(
+                args.detector_config.as_deref(),
+                "--detector-config",
+            )?),
         },
     };
     let options = PhysicsStudyOptions {
