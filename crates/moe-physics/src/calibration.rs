@@ -113,6 +113,7 @@ impl Problem<'_> {
                         time_secs: frame.time_secs,
                         depth: &[],
                         covered: &[],
+                        seen_through: &[],
                     };
                     let (s, n) = finger.free_residual(&obs)?;
                     sum += s;

@@ -233,7 +233,26 @@ pub struct DepthSettings {
     /// [`PhysicsConfig::hidden_marker_prior`]'s evidence for such a marker (a marker lost behind
     /// an object further off keeps `hidden_marker_prior`). 0 turns it off. Default 20.
     pub covered_marker_prior: Real,
+    /// How likely a press is at a candidate place where the depth image sees through the space
+    /// an object touching the finger there would fill, relative to a place where it does not:
+    /// the chance that the camera reports a surface behind a point inside an opaque object (a
+    /// gross depth error). A candidate is seen through when, [`SEEN_THROUGH_PROBE_M`] outside
+    /// the predicted surface along its normal, every valid pixel of the 3 × 3 about the probe's
+    /// projection sees more than `seen_through_margin_m` (plus three standard deviations of the
+    /// depth noise) behind the probe, unless the pixels about the place itself all see behind
+    /// it, some within `reach_m` (the finger pushed away from its predicted place). 1 turns it
+    /// off. Default 0.02, an assumed rate of gross errors, not fitted (docs/results.md, "The
+    /// space seen empty").
+    pub seen_through_prior: Real,
+    /// How far behind the probe a pixel must see for the probe's place to count as empty,
+    /// metres (before the noise allowance). Default 0.004.
+    pub seen_through_margin_m: Real,
 }
+
+/// How far outside the predicted surface, along its outward normal, the place a toucher would
+/// fill is probed in the depth image, metres: inside any object touching the finger there that
+/// is thicker than this (allowing for a dent of the same depth under the model's free surface).
+pub const SEEN_THROUGH_PROBE_M: Real = 0.0015;
 
 impl Default for DepthSettings {
     fn default() -> Self {
@@ -250,6 +269,8 @@ impl Default for DepthSettings {
             front_loss_sigma: 1.0,
             reach_m: 0.01,
             covered_marker_prior: 20.0,
+            seen_through_prior: 0.02,
+            seen_through_margin_m: 0.004,
         }
     }
 }
@@ -272,6 +293,7 @@ impl DepthSettings {
             ("depth.front_loss_sigma", self.front_loss_sigma),
             ("depth.reach_m", self.reach_m),
             ("depth.covered_marker_prior", self.covered_marker_prior),
+            ("depth.seen_through_margin_m", self.seen_through_margin_m),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(PhysicsError::InvalidParameter {
@@ -280,6 +302,13 @@ impl DepthSettings {
                     reason: "must be finite and non-negative",
                 });
             }
+        }
+        if !(self.seen_through_prior > 0.0 && self.seen_through_prior <= 1.0) {
+            return Err(PhysicsError::InvalidParameter {
+                name: "depth.seen_through_prior",
+                value: self.seen_through_prior,
+                reason: "must be in (0, 1]",
+            });
         }
         let floor = self.model_sigma_m + self.noise.correlated_sigma_m;
         if floor <= 0.0 {

@@ -217,6 +217,7 @@ impl FingerInput<'_> {
         &'b self,
         depth: &'b [crate::finger::DepthRow],
         covered: &'b [bool],
+        seen_through: &'b [bool],
     ) -> FingerObservation<'b> {
         FingerObservation {
             markers: &self.markers,
@@ -226,6 +227,7 @@ impl FingerInput<'_> {
             time_secs: self.time_secs,
             depth,
             covered,
+            seen_through,
         }
     }
 }
@@ -368,7 +370,7 @@ impl PhysicsEstimator {
                 .par_iter_mut()
                 .zip(&inputs)
                 .map(|(inverse, input)| {
-                    let est = inverse.estimate(&input.observation(&[], &[]));
+                    let est = inverse.estimate(&input.observation(&[], &[], &[]));
                     (input.markers.clone(), est)
                 })
                 .collect(),
@@ -423,7 +425,7 @@ impl PhysicsEstimator {
             .fingers
             .par_iter_mut()
             .zip(inputs)
-            .map(|(inverse, input)| inverse.begin(&input.observation(&[], &[])))
+            .map(|(inverse, input)| inverse.begin(&input.observation(&[], &[], &[])))
             .collect();
         let predicted: Vec<Option<Vec<Point3>>> = self
             .fingers
@@ -467,10 +469,10 @@ impl PhysicsEstimator {
                         &finger_from_hand,
                     );
                     let rows = inverse.depth_rows(&pixels, predicted);
-                    let covered = if predicted.is_empty() {
-                        Vec::new()
+                    let (covered, seen_through) = if predicted.is_empty() {
+                        (Vec::new(), Vec::new())
                     } else {
-                        covered_markers(
+                        let covered = covered_markers(
                             depth,
                             inverse
                                 .marker_vertices()
@@ -478,9 +480,15 @@ impl PhysicsEstimator {
                                 .map(|&v| input.hand_from_finger * predicted[v as usize]),
                             settings.front_gate_m,
                             settings.reach_m,
-                        )
+                        );
+                        let seen_through = if settings.seen_through_prior < 1.0 {
+                            inverse.seen_through(depth, predicted, &input.hand_from_finger)
+                        } else {
+                            Vec::new()
+                        };
+                        (covered, seen_through)
                     };
-                    inverse.finish(&input.observation(&rows, &covered), begun)
+                    inverse.finish(&input.observation(&rows, &covered, &seen_through), begun)
                 });
                 (input.markers.clone(), est)
             })

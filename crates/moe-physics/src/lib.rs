@@ -52,7 +52,7 @@ mod observability;
 pub mod testing;
 
 pub use calibration::{CalibrationOptions, CalibrationReport, calibrate};
-pub use config::{DepthNoise, DepthSettings, HandMaterial, PhysicsConfig};
+pub use config::{DepthNoise, DepthSettings, HandMaterial, PhysicsConfig, SEEN_THROUGH_PROBE_M};
 pub use error::PhysicsError;
 pub use estimator::{
     CONTACT_THRESHOLD, ContactLoad, FingerReport, PhysicsDetails, PhysicsEstimate, PhysicsEstimator,

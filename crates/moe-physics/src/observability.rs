@@ -342,6 +342,7 @@ impl PhysicsEstimator {
             time_secs: None,
             depth: &[],
             covered: &[],
+            seen_through: &[],
         };
         f(self.finger_mut(finger), &obs, &hf)
     }

@@ -6,8 +6,8 @@
 //! whitened to the markers' units (scaled by `marker_sigma / σ`), so markers and depth share
 //! one χ² and every test and search works on both unchanged.
 
-use moe_geom::depth::{SurfacePixel, pool_pixels};
-use moe_geom::{Point3, Real};
+use moe_geom::depth::{DepthImage, SurfacePixel, pool_pixels};
+use moe_geom::{Iso3, Point3, Real};
 
 use super::FingerInverse;
 use crate::mechanics::Axis;
@@ -59,6 +59,66 @@ impl FingerInverse {
             }
         })
         .collect()
+    }
+
+    /// Per candidate: whether the depth image sees through the place an object touching the
+    /// finger there would fill ([`crate::DepthSettings::seen_through_prior`]), for the
+    /// predicted surface `surface` (finger frame) of a finger at `hand_from_finger`.
+    ///
+    /// An opaque object touching the finger at a place fills the space just outside it, so the
+    /// line of sight to a point [`crate::SEEN_THROUGH_PROBE_M`] out along the normal enters the
+    /// object before reaching the point: no pixel there can see a surface well behind it. A
+    /// probe the finger itself or anything else hides (seen in front of it), or whose pixels
+    /// are holes, says nothing; nor does a place about which every pixel sees behind the
+    /// predicted surface (by more than `gate_m`), some of them within `reach_m`: a press the
+    /// free finger does not show has pushed the finger there, and the prediction is wrong.
+    pub(crate) fn seen_through(
+        &self,
+        depth: &DepthImage<'_>,
+        surface: &[Point3],
+        hand_from_finger: &Iso3,
+    ) -> Vec<bool> {
+        let settings = &self.config.depth;
+        let camera_from_finger = depth.hand_from_camera().iso().inverse() * hand_from_finger;
+        let k = depth.intrinsics();
+        let normals = self.normals_of(surface);
+        let sigma = |z: Real| 3.0 * settings.noise.pixel_variance(z).sqrt();
+        // The valid depths of the 3 × 3 pixels about `q`'s projection (camera frame).
+        let around = |q: &Point3| -> Vec<Real> {
+            let Some((u, w)) = k.project(q) else {
+                return Vec::new();
+            };
+            let (i, j) = (u.round(), w.round());
+            (-1..=1)
+                .flat_map(|dj| (-1..=1).map(move |di| (i + Real::from(di), j + Real::from(dj))))
+                .filter(|&(x, y)| x >= 0.0 && y >= 0.0)
+                .filter_map(|(x, y)| depth.depth(x as u32, y as u32))
+                .collect()
+        };
+        self.candidates
+            .iter()
+            .map(|&v| {
+                let p = camera_from_finger * surface[v as usize];
+                // Where the image sees a surface just behind the predicted place itself, and
+                // nothing at it, the finger has been pushed there by a press the free finger
+                // does not show (what is seen past the probe may be the finger itself or the
+                // object that pushed it): no evidence.
+                let seen = around(&p);
+                let gate = p.z + settings.gate_m + sigma(p.z);
+                let pushed = !seen.is_empty()
+                    && seen.iter().all(|&z| z > gate)
+                    && seen.iter().any(|&z| z <= p.z + settings.reach_m);
+                if pushed {
+                    return false;
+                }
+                let q = camera_from_finger
+                    * (surface[v as usize]
+                        + normals[v as usize] * crate::config::SEEN_THROUGH_PROBE_M);
+                let beyond = q.z + settings.seen_through_margin_m + sigma(q.z);
+                let probe = around(&q);
+                !probe.is_empty() && probe.iter().all(|&z| z > beyond)
+            })
+            .collect()
     }
 
     /// What row `row` predicts for nodes `x`.
@@ -156,5 +216,118 @@ mod tests {
         }
         // Without a scale, quadratic on both sides.
         assert_eq!(depth_loss(5.0, Real::INFINITY), 25.0);
+    }
+}
+
+#[cfg(test)]
+mod seen_through_tests {
+    use super::*;
+    use crate::config::{HandMaterial, PhysicsConfig};
+    use moe_geom::{CameraIntrinsics, FingerParams, HandFromCamera, HandModel, HandShape};
+    use moe_geom::{HandPreset, Vector3};
+
+    /// Finger 0's model, the hand at rest with finger 1 moved out of view, and the default
+    /// wrist camera.
+    fn scene() -> (HandModel, FingerInverse, HandShape, Iso3, HandFromCamera) {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let inverse = FingerInverse::new(
+            0,
+            &hand.fingers()[0].model,
+            &HandMaterial::default(),
+            &PhysicsConfig::default(),
+        )
+        .unwrap();
+        let away = Vector3::new(1.0, 0.0, 0.0);
+        let shape = HandShape {
+            fingers: vec![
+                hand.rest_vertices_in_hand(0),
+                hand.rest_vertices_in_hand(1)
+                    .into_iter()
+                    .map(|p| p + away)
+                    .collect(),
+            ],
+        };
+        let hand_from_finger = *hand.fingers()[0].hand_from_finger.iso();
+        let mount = HandFromCamera::new(Iso3::translation(0.0, 0.0, -0.02));
+        (hand, inverse, shape, hand_from_finger, mount)
+    }
+
+    /// Two triangles: the rectangle centred at `c` with edge vectors `x` and `y`.
+    fn rectangle(c: Point3, x: Vector3, y: Vector3) -> Vec<[Point3; 3]> {
+        let q = |s: Real, t: Real| c + x * (0.5 * s) + y * (0.5 * t);
+        vec![
+            [q(-1.0, -1.0), q(1.0, -1.0), q(1.0, 1.0)],
+            [q(-1.0, -1.0), q(1.0, 1.0), q(-1.0, 1.0)],
+        ]
+    }
+
+    fn flags(occluders: &[[Point3; 3]]) -> (FingerInverse, Vec<bool>, Vec<Point3>, Iso3) {
+        let (hand, inverse, shape, hand_from_finger, mount) = scene();
+        let image = moe_geom::depth::render_hand(
+            &hand,
+            &shape,
+            occluders,
+            CameraIntrinsics::default(),
+            mount,
+        )
+        .unwrap();
+        let surface = inverse.rest_surface.clone();
+        let seen = inverse.seen_through(&image.view(), &surface, &hand_from_finger);
+        (inverse, seen, surface, hand_from_finger)
+    }
+
+    /// Against a wall behind the finger, the camera sees past the finger's flanks, so the
+    /// places there are seen through; a place facing the camera is not (its probe's pixels see
+    /// the finger itself just behind it), nor a place with nothing behind it to see, and a
+    /// block laid on a flank place fills its space again.
+    #[test]
+    fn the_space_beside_a_flank_is_seen_through_unless_an_object_fills_it() {
+        let wall = rectangle(Point3::new(0.0, 0.0, 0.25), Vector3::x(), Vector3::y());
+        let (inverse, seen, surface, hand_from_finger) = flags(&wall);
+        let flagged: Vec<usize> = (0..seen.len()).filter(|&c| seen[c]).collect();
+        assert!(flagged.len() > 20, "{} places seen through", flagged.len());
+        let normals = inverse.normals_of(&surface);
+        let eye = Point3::new(0.0, 0.0, -0.02);
+        let facing = |c: usize| {
+            let v = inverse.candidates[c] as usize;
+            let p = hand_from_finger * surface[v];
+            let n = hand_from_finger * normals[v];
+            n.dot(&(eye - p).normalize())
+        };
+        assert!(flagged.iter().all(|&c| facing(c) < 0.7));
+        assert!((0..seen.len()).any(|c| facing(c) > 0.7 && !seen[c]));
+        // Without the wall most probes see holes, which say nothing; what is left is seen
+        // through to the finger's own surface further along.
+        let (_, bare, _, _) = flags(&[]);
+        let left = bare.iter().filter(|&&s| s).count();
+        assert!(left < flagged.len() / 2, "{left} of {}", flagged.len());
+        assert!((0..seen.len()).all(|c| !bare[c] || seen[c]));
+        // The flank place the camera sees most squarely of those seen through.
+        let &c = flagged
+            .iter()
+            .max_by(|&&a, &&b| facing(a).total_cmp(&facing(b)))
+            .unwrap();
+        let v = inverse.candidates[c] as usize;
+        let n = hand_from_finger * normals[v];
+        let p = hand_from_finger * surface[v] + n * 2e-4;
+        let a = n.cross(&Vector3::z()).normalize();
+        let b = n.cross(&a);
+        // A block 12 mm square and 6 mm thick on the place.
+        let (w, t) = (0.012, 0.006);
+        let mid = p + n * (t / 2.0);
+        let mut occluders = wall.clone();
+        for (c0, x, y) in [
+            (p, a * w, b * w),
+            (p + n * t, a * w, b * w),
+            (mid + a * (w / 2.0), n * t, b * w),
+            (mid - a * (w / 2.0), n * t, b * w),
+            (mid + b * (w / 2.0), n * t, a * w),
+            (mid - b * (w / 2.0), n * t, a * w),
+        ] {
+            occluders.extend(rectangle(c0, x, y));
+        }
+        let (_, covered, _, _) = flags(&occluders);
+        assert!(!covered[c]);
+        assert!(covered.contains(&true));
     }
 }

@@ -66,6 +66,9 @@ pub(crate) struct FingerObservation<'a> {
     /// Per marker slot: the depth image sees an object just in front of the marker's
     /// predicted place (empty without a depth image).
     pub(crate) covered: &'a [bool],
+    /// Per candidate: the depth image sees through the place an object touching the finger
+    /// there would fill (empty without a depth image or with the test off).
+    pub(crate) seen_through: &'a [bool],
 }
 
 impl FingerObservation<'_> {

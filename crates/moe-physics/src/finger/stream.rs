@@ -64,18 +64,30 @@ impl FingerInverse {
             return prior;
         }
         let s2 = 2.0 * self.config.hidden_marker_radius_m.powi(2);
+        self.reweighted(prior, |c| {
+            let p = self.rest_surface[self.candidates[c] as usize];
+            let near: Real = hidden
+                .iter()
+                .map(|(h, k)| k * (-(p - h).norm_squared() / s2).exp())
+                .fold(0.0, Real::max);
+            1.0 + near
+        })
+    }
+
+    /// `prior` (area-weighted without one) times `weight` per candidate, normalised; `prior`
+    /// itself when the product cannot be normalised.
+    fn reweighted(
+        &self,
+        prior: Option<Vec<Real>>,
+        weight: impl Fn(usize) -> Real,
+    ) -> Option<Vec<Real>> {
         let mut out: Vec<Real> = (0..self.candidates.len())
             .map(|c| {
-                let p = self.rest_surface[self.candidates[c] as usize];
-                let near: Real = hidden
-                    .iter()
-                    .map(|(h, k)| k * (-(p - h).norm_squared() / s2).exp())
-                    .fold(0.0, Real::max);
                 let base = match &prior {
                     Some(prior) => prior[c],
                     None => self.area[self.candidates[c] as usize],
                 };
-                base * (1.0 + near)
+                base * weight(c)
             })
             .collect();
         let total: Real = out.iter().sum();
@@ -255,7 +267,19 @@ impl FingerInverse {
         for (seen, m) in self.seen_in_stream.iter_mut().zip(obs.markers) {
             *seen |= m.is_some();
         }
-        self.place_prior = self.with_hidden_markers(remembered, &lost);
+        let prior = self.with_hidden_markers(remembered, &lost);
+        self.place_prior = self.with_seen_through(prior, obs.seen_through);
+    }
+
+    /// `prior` (area-weighted without one) with the candidates whose toucher's place the depth
+    /// image sees through made [`crate::DepthSettings::seen_through_prior`] times as likely, and
+    /// normalised. Unchanged when none is seen through or the test is off.
+    fn with_seen_through(&self, prior: Option<Vec<Real>>, seen: &[bool]) -> Option<Vec<Real>> {
+        let factor = self.config.depth.seen_through_prior;
+        if factor >= 1.0 || seen.len() != self.candidates.len() || !seen.contains(&true) {
+            return prior;
+        }
+        self.reweighted(prior, |c| if seen[c] { factor } else { 1.0 })
     }
 
     /// Remembers the press for the next observation: its place (one load only) and its loads.

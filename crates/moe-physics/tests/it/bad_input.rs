@@ -191,6 +191,36 @@ fn settings_out_of_range_are_named() {
             },
             "contact_radius_m",
         ),
+        (
+            PhysicsConfig {
+                depth: moe_physics::DepthSettings {
+                    seen_through_prior: 0.0,
+                    ..moe_physics::DepthSettings::default()
+                },
+                ..PhysicsConfig::default()
+            },
+            "depth.seen_through_prior",
+        ),
+        (
+            PhysicsConfig {
+                depth: moe_physics::DepthSettings {
+                    seen_through_prior: 1.5,
+                    ..moe_physics::DepthSettings::default()
+                },
+                ..PhysicsConfig::default()
+            },
+            "depth.seen_through_prior",
+        ),
+        (
+            PhysicsConfig {
+                depth: moe_physics::DepthSettings {
+                    seen_through_margin_m: Real::NAN,
+                    ..moe_physics::DepthSettings::default()
+                },
+                ..PhysicsConfig::default()
+            },
+            "depth.seen_through_margin_m",
+        ),
     ] {
         assert_err!(
             config.validate(),
