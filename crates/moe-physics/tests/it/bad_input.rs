@@ -191,40 +191,30 @@ fn settings_out_of_range_are_named() {
             },
             "contact_radius_m",
         ),
-        (
-            PhysicsConfig {
-                depth: moe_physics::DepthSettings {
-                    seen_through_prior: 0.0,
-                    ..moe_physics::DepthSettings::default()
-                },
-                ..PhysicsConfig::default()
-            },
-            "depth.seen_through_prior",
-        ),
-        (
-            PhysicsConfig {
-                depth: moe_physics::DepthSettings {
-                    seen_through_prior: 1.5,
-                    ..moe_physics::DepthSettings::default()
-                },
-                ..PhysicsConfig::default()
-            },
-            "depth.seen_through_prior",
-        ),
-        (
-            PhysicsConfig {
-                depth: moe_physics::DepthSettings {
-                    seen_through_margin_m: Real::NAN,
-                    ..moe_physics::DepthSettings::default()
-                },
-                ..PhysicsConfig::default()
-            },
-            "depth.seen_through_margin_m",
-        ),
     ] {
         assert_err!(
             config.validate(),
             PhysicsError::InvalidParameter { name: got, .. } if *got == name
         );
     }
+    // The depth settings' own ranges: a prior in (0, 1], a finite margin.
+    let depth = |prior: Real, margin: Real| PhysicsConfig {
+        depth: moe_physics::DepthSettings {
+            seen_through_prior: prior,
+            seen_through_margin_m: margin,
+            ..moe_physics::DepthSettings::default()
+        },
+        ..PhysicsConfig::default()
+    };
+    for (config, name) in [
+        (depth(0.0, 0.004), "depth.seen_through_prior"),
+        (depth(1.5, 0.004), "depth.seen_through_prior"),
+        (depth(0.02, Real::NAN), "depth.seen_through_margin_m"),
+    ] {
+        assert_err!(
+            config.validate(),
+            PhysicsError::InvalidParameter { name: got, .. } if *got == name
+        );
+    }
+    assert!(depth(1.0, 0.0).validate().is_ok());
 }
