@@ -114,6 +114,7 @@ impl Problem<'_> {
                         depth: &[],
                         covered: &[],
                         seen_through: &[],
+                        image: None,
                     };
                     let (s, n) = finger.free_residual(&obs)?;
                     sum += s;

@@ -240,8 +240,10 @@ pub struct DepthSettings {
     /// the predicted surface along its normal, every valid pixel of the 3 × 3 about the probe's
     /// projection sees more than `seen_through_margin_m` (plus three standard deviations of the
     /// depth noise) behind the probe, unless the pixels about the place itself all see behind
-    /// it, some within `reach_m` (the finger pushed away from its predicted place). 1 turns it
-    /// off. Default 0.02, an assumed rate of gross errors, not fitted (docs/results.md, "The
+    /// it, some within `reach_m` (the finger pushed away from its predicted place). The place
+    /// the search finds is probed again on the surface its load makes, without that exception;
+    /// seen through there, the places seen through on that surface are made less likely too
+    /// and the search runs again. 1 turns it off. Default 0.02, an assumed rate of gross errors, not fitted (docs/results.md, "The
     /// space seen empty").
     pub seen_through_prior: Real,
     /// How far behind the probe a pixel must see for the probe's place to count as empty,

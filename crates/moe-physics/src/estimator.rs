@@ -218,6 +218,7 @@ impl FingerInput<'_> {
         depth: &'b [crate::finger::DepthRow],
         covered: &'b [bool],
         seen_through: &'b [bool],
+        image: Option<(moe_geom::depth::DepthImage<'b>, Iso3)>,
     ) -> FingerObservation<'b> {
         FingerObservation {
             markers: &self.markers,
@@ -228,6 +229,7 @@ impl FingerInput<'_> {
             depth,
             covered,
             seen_through,
+            image,
         }
     }
 }
@@ -370,7 +372,7 @@ impl PhysicsEstimator {
                 .par_iter_mut()
                 .zip(&inputs)
                 .map(|(inverse, input)| {
-                    let est = inverse.estimate(&input.observation(&[], &[], &[]));
+                    let est = inverse.estimate(&input.observation(&[], &[], &[], None));
                     (input.markers.clone(), est)
                 })
                 .collect(),
@@ -425,7 +427,7 @@ impl PhysicsEstimator {
             .fingers
             .par_iter_mut()
             .zip(inputs)
-            .map(|(inverse, input)| inverse.begin(&input.observation(&[], &[], &[])))
+            .map(|(inverse, input)| inverse.begin(&input.observation(&[], &[], &[], None)))
             .collect();
         let predicted: Vec<Option<Vec<Point3>>> = self
             .fingers
@@ -482,13 +484,21 @@ impl PhysicsEstimator {
                             settings.reach_m,
                         );
                         let seen_through = if settings.seen_through_prior < 1.0 {
-                            inverse.seen_through(depth, predicted, &input.hand_from_finger)
+                            inverse.seen_through(depth, predicted, &input.hand_from_finger, true)
                         } else {
                             Vec::new()
                         };
                         (covered, seen_through)
                     };
-                    inverse.finish(&input.observation(&rows, &covered, &seen_through), begun)
+                    inverse.finish(
+                        &input.observation(
+                            &rows,
+                            &covered,
+                            &seen_through,
+                            Some((*depth, input.hand_from_finger)),
+                        ),
+                        begun,
+                    )
                 });
                 (input.markers.clone(), est)
             })

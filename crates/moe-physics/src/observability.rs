@@ -343,6 +343,7 @@ impl PhysicsEstimator {
             depth: &[],
             covered: &[],
             seen_through: &[],
+            image: None,
         };
         f(self.finger_mut(finger), &obs, &hf)
     }

@@ -349,8 +349,8 @@ mod tests {
     /// and the finger's own depth pixels the physics estimator places some contacts on the
     /// finger's flank, far from the head. The head is in view beyond the fingertips, and along
     /// the flank the camera sees past the finger to it: no object fills the space there. With
-    /// that evidence the contacts of the first three pats of the head come about a quarter
-    /// closer to it (14.8 → 10.9 mm at this change).
+    /// that evidence the contacts of the first three pats of the head come within a few
+    /// millimetres of it (14.8 → 3.8 mm at this change).
     #[test]
     fn the_space_seen_empty_about_the_finger_moves_a_pat_onto_the_fingertip() {
         let episode = simulate_patting(SceneKind::Head, paper_scenes::HEAD_SEED, 3, 0).unwrap();
@@ -373,7 +373,7 @@ mod tests {
         let (without, with) = (ucd(1.0), ucd(0.02));
         assert!(without > 12.0, "without the evidence: {without:.2} mm");
         assert!(
-            with < 0.8 * without,
+            with < 6.0,
             "with it: {with:.2} mm, without: {without:.2} mm"
         );
     }

@@ -69,14 +69,16 @@ impl FingerInverse {
     /// line of sight to a point [`crate::SEEN_THROUGH_PROBE_M`] out along the normal enters the
     /// object before reaching the point: no pixel there can see a surface well behind it. A
     /// probe the finger itself or anything else hides (seen in front of it), or whose pixels
-    /// are holes, says nothing; nor does a place about which every pixel sees behind the
-    /// predicted surface (by more than `gate_m`), some of them within `reach_m`: a press the
-    /// free finger does not show has pushed the finger there, and the prediction is wrong.
+    /// are holes, says nothing. With `guarded`, nor does a place about which every pixel sees
+    /// behind the surface (by more than `gate_m`), some of them within `reach_m`: a press the
+    /// free finger does not show has pushed the finger there, and the prediction is wrong (a
+    /// surface fitted with the press's load needs no guard).
     pub(crate) fn seen_through(
         &self,
         depth: &DepthImage<'_>,
         surface: &[Point3],
         hand_from_finger: &Iso3,
+        guarded: bool,
     ) -> Vec<bool> {
         let settings = &self.config.depth;
         let camera_from_finger = depth.hand_from_camera().iso().inverse() * hand_from_finger;
@@ -108,7 +110,7 @@ impl FingerInverse {
                 let pushed = !seen.is_empty()
                     && seen.iter().all(|&z| z > gate)
                     && seen.iter().any(|&z| z <= p.z + settings.reach_m);
-                if pushed {
+                if guarded && pushed {
                     return false;
                 }
                 let q = camera_from_finger
@@ -272,7 +274,7 @@ mod seen_through_tests {
         )
         .unwrap();
         let surface = inverse.rest_surface.clone();
-        let seen = inverse.seen_through(&image.view(), &surface, &hand_from_finger);
+        let seen = inverse.seen_through(&image.view(), &surface, &hand_from_finger, true);
         (inverse, seen, surface, hand_from_finger)
     }
 

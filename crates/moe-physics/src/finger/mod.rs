@@ -69,6 +69,8 @@ pub(crate) struct FingerObservation<'a> {
     /// Per candidate: the depth image sees through the place an object touching the finger
     /// there would fill (empty without a depth image or with the test off).
     pub(crate) seen_through: &'a [bool],
+    /// The depth image and where the finger is in the hand (none without a depth image).
+    pub(crate) image: Option<(moe_geom::depth::DepthImage<'a>, Iso3)>,
 }
 
 impl FingerObservation<'_> {
@@ -539,6 +541,25 @@ impl FingerInverse {
         // place is searched again on the observation as measured, with that test.
         let (state, lin) =
             self.search_held_press(&sobs, &start.x, base.chi0, !lagged, &mut solves)?;
+        // The place found, probed again on the surface its load makes: where that surface's
+        // own place is seen through, the places seen through on it are made less likely and
+        // the search runs again.
+        let (state, lin) = match (&obs.image, state.loads.as_slice()) {
+            (Some((image, hand_from_finger)), [(c, _)])
+                if self.config.depth.seen_through_prior < 1.0 =>
+            {
+                let fitted = self.surface_of(&state.x);
+                let flags = self.seen_through(image, &fitted, hand_from_finger, false);
+                if flags[*c] {
+                    let prior = self.place_prior.take();
+                    self.place_prior = self.with_seen_through(prior, &flags);
+                    self.search_held_press(&sobs, &start.x, base.chi0, !lagged, &mut solves)?
+                } else {
+                    (state, lin)
+                }
+            }
+            _ => (state, lin),
+        };
         // A marker the best fit leaves far off — a blob taken for the wrong marker; no load of
         // the model moves one marker millimetres away from where its neighbours put it — is
         // left out, and the loads are searched again from the free shape without it.

@@ -274,7 +274,11 @@ impl FingerInverse {
     /// `prior` (area-weighted without one) with the candidates whose toucher's place the depth
     /// image sees through made [`crate::DepthSettings::seen_through_prior`] times as likely, and
     /// normalised. Unchanged when none is seen through or the test is off.
-    fn with_seen_through(&self, prior: Option<Vec<Real>>, seen: &[bool]) -> Option<Vec<Real>> {
+    pub(super) fn with_seen_through(
+        &self,
+        prior: Option<Vec<Real>>,
+        seen: &[bool],
+    ) -> Option<Vec<Real>> {
         let factor = self.config.depth.seen_through_prior;
         if factor >= 1.0 || seen.len() != self.candidates.len() || !seen.contains(&true) {
             return prior;
