@@ -245,21 +245,13 @@ fn covered_markers(
     reach_m: Real,
 ) -> Vec<bool> {
     let camera_from_hand = depth.hand_from_camera().iso().inverse();
-    let k = depth.intrinsics();
     markers_in_hand
         .map(|p| {
             let p = camera_from_hand * p;
-            let Some((u, v)) = k.project(&p) else {
-                return false;
-            };
-            let (i, j) = (u.round(), v.round());
-            let nearest = (-1..=1)
-                .flat_map(|dj| (-1..=1).map(move |di| (i + Real::from(di), j + Real::from(dj))))
-                .filter(|&(x, y)| x >= 0.0 && y >= 0.0)
-                .filter_map(|(x, y)| depth.depth(x as u32, y as u32))
-                .fold(Real::INFINITY, Real::min);
-            let ahead = p.z - nearest;
-            ahead > front_gate_m && ahead <= reach_m
+            crate::finger::nearest_depth(depth, &p).is_some_and(|nearest| {
+                let ahead = p.z - nearest;
+                ahead > front_gate_m && ahead <= reach_m
+            })
         })
         .collect()
 }

@@ -80,47 +80,21 @@ impl FingerInverse {
         hand_from_finger: &Iso3,
         guarded: bool,
     ) -> Vec<bool> {
-        let settings = &self.config.depth;
-        let camera_from_finger = depth.hand_from_camera().iso().inverse() * hand_from_finger;
-        let k = depth.intrinsics();
-        let normals = self.normals_of(surface);
-        let sigma = |z: Real| 3.0 * settings.noise.pixel_variance(z).sqrt();
-        // The valid depths of the 3 × 3 pixels about `q`'s projection (camera frame).
-        let around = |q: &Point3| -> Vec<Real> {
-            let Some((u, w)) = k.project(q) else {
-                return Vec::new();
-            };
-            let (i, j) = (u.round(), w.round());
-            (-1..=1)
-                .flat_map(|dj| (-1..=1).map(move |di| (i + Real::from(di), j + Real::from(dj))))
-                .filter(|&(x, y)| x >= 0.0 && y >= 0.0)
-                .filter_map(|(x, y)| depth.depth(x as u32, y as u32))
-                .collect()
-        };
-        self.candidates
-            .iter()
-            .map(|&v| {
-                let p = camera_from_finger * surface[v as usize];
-                // Where the image sees a surface just behind the predicted place itself, and
-                // nothing at it, the finger has been pushed there by a press the free finger
-                // does not show (what is seen past the probe may be the finger itself or the
-                // object that pushed it): no evidence.
-                let seen = around(&p);
-                let gate = p.z + settings.gate_m + sigma(p.z);
-                let pushed = !seen.is_empty()
-                    && seen.iter().all(|&z| z > gate)
-                    && seen.iter().any(|&z| z <= p.z + settings.reach_m);
-                if guarded && pushed {
-                    return false;
-                }
-                let q = camera_from_finger
-                    * (surface[v as usize]
-                        + normals[v as usize] * crate::config::SEEN_THROUGH_PROBE_M);
-                let beyond = q.z + settings.seen_through_margin_m + sigma(q.z);
-                let probe = around(&q);
-                !probe.is_empty() && probe.iter().all(|&z| z > beyond)
-            })
+        let probe = SeenThrough::new(self, depth, surface, hand_from_finger);
+        (0..self.candidates.len())
+            .map(|c| probe.at(self, c, guarded))
             .collect()
+    }
+
+    /// [`Self::seen_through`] without the guard, for candidate `c` alone.
+    pub(crate) fn seen_through_at(
+        &self,
+        depth: &DepthImage<'_>,
+        surface: &[Point3],
+        hand_from_finger: &Iso3,
+        c: usize,
+    ) -> bool {
+        SeenThrough::new(self, depth, surface, hand_from_finger).at(self, c, false)
     }
 
     /// What row `row` predicts for nodes `x`.
@@ -170,6 +144,64 @@ impl FingerInverse {
             })
             .collect()
     }
+}
+
+/// A surface, its normals and the camera, ready to probe candidates for
+/// [`FingerInverse::seen_through`].
+struct SeenThrough<'a, 'b> {
+    depth: &'a DepthImage<'b>,
+    surface: &'a [Point3],
+    normals: Vec<moe_geom::Vector3>,
+    camera_from_finger: Iso3,
+}
+
+impl<'a, 'b> SeenThrough<'a, 'b> {
+    fn new(
+        inverse: &FingerInverse,
+        depth: &'a DepthImage<'b>,
+        surface: &'a [Point3],
+        hand_from_finger: &Iso3,
+    ) -> Self {
+        Self {
+            depth,
+            surface,
+            normals: inverse.normals_of(surface),
+            camera_from_finger: depth.hand_from_camera().iso().inverse() * hand_from_finger,
+        }
+    }
+
+    /// Whether candidate `c` of `inverse` is seen through (see
+    /// [`FingerInverse::seen_through`]).
+    fn at(&self, inverse: &FingerInverse, c: usize, guarded: bool) -> bool {
+        let settings = &inverse.config.depth;
+        let sigma = |z: Real| 3.0 * settings.noise.pixel_variance(z).sqrt();
+        let v = inverse.candidates[c] as usize;
+        let p = self.camera_from_finger * self.surface[v];
+        // Where the image sees a surface just behind the predicted place itself, and nothing at
+        // it, the finger has been pushed there by a press the free finger does not show (what
+        // is seen past the probe may be the finger itself or the object that pushed it).
+        let pushed =
+            |z: Real| z > p.z + settings.gate_m + sigma(p.z) && z <= p.z + settings.reach_m;
+        if guarded && nearest_depth(self.depth, &p).is_some_and(pushed) {
+            return false;
+        }
+        let q = self.camera_from_finger
+            * (self.surface[v] + self.normals[v] * crate::config::SEEN_THROUGH_PROBE_M);
+        nearest_depth(self.depth, &q)
+            .is_some_and(|z| z > q.z + settings.seen_through_margin_m + sigma(q.z))
+    }
+}
+
+/// The nearest valid depth among the 3 × 3 pixels about the projection of `q` (camera frame);
+/// `None` where they are all holes or `q` is not in front of the camera.
+pub(crate) fn nearest_depth(depth: &DepthImage<'_>, q: &Point3) -> Option<Real> {
+    let (u, w) = depth.intrinsics().project(q)?;
+    let (i, j) = (u.round(), w.round());
+    (-1..=1)
+        .flat_map(|dj| (-1..=1).map(move |di| (i + Real::from(di), j + Real::from(dj))))
+        .filter(|&(x, y)| x >= 0.0 && y >= 0.0)
+        .filter_map(|(x, y)| depth.depth(x as u32, y as u32))
+        .reduce(Real::min)
 }
 
 /// The loss of a depth observation's whitened residual `r` (positive: its pixels lie in front

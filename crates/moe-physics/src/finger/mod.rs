@@ -41,7 +41,7 @@ use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
 use crate::mechanics::{FingerMechanics, PatchLoad, StaticSettings};
 
-pub(crate) use depth::DepthRow;
+pub(crate) use depth::{DepthRow, nearest_depth};
 use free::{DynamicFree, FreeReference};
 use search::PAIR_SPACING_M;
 use stream::Tracked;
@@ -549,8 +549,8 @@ impl FingerInverse {
                 if self.config.depth.seen_through_prior < 1.0 =>
             {
                 let fitted = self.surface_of(&state.x);
-                let flags = self.seen_through(image, &fitted, hand_from_finger, false);
-                if flags[*c] {
+                if self.seen_through_at(image, &fitted, hand_from_finger, *c) {
+                    let flags = self.seen_through(image, &fitted, hand_from_finger, false);
                     let prior = self.place_prior.take();
                     self.place_prior = self.with_seen_through(prior, &flags);
                     self.search_held_press(&sobs, &start.x, base.chi0, !lagged, &mut solves)?
