@@ -3,6 +3,8 @@
 //! the world; and markers → the physics estimator (dented
 //! shape, loads) → contact points.
 //!
+//! And the committed episode replayed whole as a stream at 30, 10 and 5 Hz (`stream/…`).
+//!
 //! `cargo bench -p moe-lab --bench pipeline`
 
 use std::hint::black_box;
@@ -146,6 +148,55 @@ fn bench_physics_config(c: &mut Criterion, name: &str, config: &moe_physics::Phy
     );
 }
 
+/// The committed episode replayed as a stream, whole, as `moe-touch run` does it: every frame
+/// in order from a fresh stream (markers, the physics estimator with the default settings,
+/// contact points), with the frames re-timed to 30, 10 and 5 Hz (the recorded pulls and poses,
+/// the time between frames changed). One iteration is the whole episode; the name says how many
+/// frames, so the time per frame is the figure over that. `moe-touch run --report` gives the
+/// same streams' median, p99 and largest frame.
+fn bench_physics_stream(c: &mut Criterion) {
+    let (episode, hand) = committed_episode();
+    let detector = MarkerDetector::for_episode(&episode.info, &hand, DetectorConfig::default())
+        .expect("detector");
+    let mut pipeline = moe_touch::PhysicsPipeline::physics(
+        hand.clone(),
+        detector,
+        &moe_physics::HandMaterial::default(),
+        &moe_physics::PhysicsConfig::default(),
+    )
+    .expect("pipeline");
+    for hz in [30u64, 10, 5] {
+        let frames: Vec<_> = episode
+            .frames
+            .iter()
+            .enumerate()
+            .map(|(k, f)| {
+                let mut f = f.clone();
+                f.time_ns = k as u64 * 1_000_000_000 / hz;
+                f
+            })
+            .collect();
+        c.bench_function(
+            &format!(
+                "stream/committed episode at {hz} Hz, physics, {} frames from a fresh stream",
+                frames.len()
+            ),
+            |b| {
+                b.iter(|| {
+                    pipeline.reset();
+                    for f in &frames {
+                        black_box(
+                            pipeline
+                                .process(f.rgbd(), black_box(&f.observation()))
+                                .expect("runs"),
+                        );
+                    }
+                })
+            },
+        );
+    }
+}
+
 /// Which depth pixels see which finger on the pressed frame, predicted from the frame's true
 /// shape (the z-buffer of both fingers' meshes, then the grid, silhouette band and gate of the
 /// default options): what giving an estimator the depth image costs before it uses it. The
@@ -188,6 +239,6 @@ fn bench_depth_association(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(30);
-    targets = bench_pipeline, bench_physics_pipeline, bench_depth_association
+    targets = bench_pipeline, bench_physics_pipeline, bench_physics_stream, bench_depth_association
 }
 criterion_main!(benches);

@@ -284,6 +284,41 @@ pub struct PhysicsEvaluation {
     /// Finger-frames whose estimate failed (too few markers, a static solve that did not
     /// converge); they count as no contact.
     pub failed_fingers: u64,
+    /// Linear solves per finger-frame (Newton iterations, dynamic steps, tangents): what the
+    /// estimator's time grows with, and what `frame_solve_budget` bounds.
+    pub solves: SolveCounts,
+    /// Finger-frames whose load search stopped at the frame's budget of solves.
+    pub degraded_fingers: u64,
+}
+
+/// Median, 99th percentile and largest number of linear solves per finger-frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SolveCounts {
+    /// Median.
+    pub median: usize,
+    /// 99th percentile (nearest rank, rounded up).
+    pub p99: usize,
+    /// Largest.
+    pub max: usize,
+}
+
+impl SolveCounts {
+    fn of(mut counts: Vec<usize>) -> Self {
+        counts.sort_unstable();
+        let n = counts.len();
+        let at = |q: Real| {
+            if n == 0 {
+                0
+            } else {
+                counts[((q * n as Real).ceil() as usize).clamp(1, n) - 1]
+            }
+        };
+        Self {
+            median: at(0.5),
+            p99: at(0.99),
+            max: counts.last().copied().unwrap_or(0),
+        }
+    }
 }
 
 /// One pressed or unpressed finger-frame's outcome.
@@ -619,6 +654,8 @@ pub fn evaluate_physics(
     let mut outcomes = Vec::new();
     let mut times = Vec::with_capacity(frames.len());
     let mut failed = 0;
+    let mut degraded = 0;
+    let mut solves = Vec::with_capacity(frames.len() * hand.num_fingers());
     let mut trajectories = 0;
     let mut previous: Option<u64> = None;
     for (k, sf) in frames.iter().enumerate() {
@@ -650,6 +687,8 @@ pub fn evaluate_physics(
             .iter()
             .filter(|f| f.error.is_some())
             .count() as u64;
+        degraded += est.details.fingers.iter().filter(|f| f.degraded).count() as u64;
+        solves.extend(est.details.fingers.iter().map(|f| f.solves));
         let physics_labels = est.contact.labels_at(moe_physics::CONTACT_THRESHOLD);
         physics.add(&frame.shape, &frame.contact, &physics_labels)?;
         physics_bcd += bcd_of(&est.shape, &frame.shape)?;
@@ -717,6 +756,8 @@ pub fn evaluate_physics(
         physics_ms_median: median(sorted.clone()),
         physics_ms_p90: sorted[(sorted.len() * 9 / 10).min(sorted.len() - 1)],
         failed_fingers: failed,
+        solves: SolveCounts::of(solves),
+        degraded_fingers: degraded,
     })
 }
 

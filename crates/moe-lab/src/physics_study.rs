@@ -546,15 +546,22 @@ pub struct PhysicsGoldenFrame {
 /// timings, and per frame the loads and every finger's statistic.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PhysicsGolden {
-    /// The evaluation's fields but its wall times ([`PHYSICS_TIMING_KEYS`]).
+    /// The evaluation's fields but its wall times and work counts ([`PHYSICS_TIMING_KEYS`]).
     #[serde(flatten)]
     pub evaluation: serde_json::Map<String, serde_json::Value>,
     /// Per frame, the loads and statistics.
     pub per_frame: Vec<PhysicsGoldenFrame>,
 }
 
-/// The fields of [`PhysicsEvaluation`] that are wall times.
-pub const PHYSICS_TIMING_KEYS: [&str; 2] = ["physics_ms_median", "physics_ms_p90"];
+/// The fields of [`PhysicsEvaluation`] that are wall times, and the counts of the work done
+/// (solves, searches stopped at their budget): a Newton iteration more or less on another
+/// machine's round-off moves them without moving a result.
+pub const PHYSICS_TIMING_KEYS: [&str; 4] = [
+    "physics_ms_median",
+    "physics_ms_p90",
+    "solves",
+    "degraded_fingers",
+];
 
 /// [`PhysicsGolden`] of the physics estimator with `config` on the data set at `dir`.
 ///

@@ -53,6 +53,14 @@ pub struct FingerForceRecord {
     /// Loads found on the finger (the physics estimator).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loads: Option<usize>,
+    /// Linear solves the physics estimator made for the finger in this frame (Newton
+    /// iterations, dynamic steps, tangents): what its time grows with.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solves: Option<usize>,
+    /// Whether the physics estimator's load search stopped at the frame's budget of solves
+    /// (`frame_solve_budget`): the loads are the best it found within it.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub degraded: bool,
     /// Why the physics estimator has no estimate for the finger in this frame (too few
     /// markers, a static solve that did not converge): its force is then zero.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -113,6 +121,8 @@ pub fn finger_force_records(e: &PhysicsDetails) -> Vec<FingerForceRecord> {
             magnitude_n: force_n.norm(),
             pressed_probability: Some(r.pressed_probability),
             loads: Some(e.loads.iter().filter(|l| l.finger == f).count()),
+            solves: Some(r.solves),
+            degraded: r.degraded,
             error: r.error.clone(),
         })
         .collect()
@@ -137,6 +147,9 @@ pub struct FingerForceSummary {
     /// Frames in which the estimator had no estimate for the finger.
     #[serde(skip_serializing_if = "is_zero")]
     pub failed_frames: usize,
+    /// Frames in which the load search on the finger stopped at the frame's budget.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub degraded_frames: usize,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -155,6 +168,7 @@ impl ForceSummary {
                         max_magnitude_n: 0.0,
                         max_time_ns: None,
                         failed_frames: 0,
+                        degraded_frames: 0,
                     };
                     forces.len()
                 ];
@@ -168,37 +182,94 @@ impl ForceSummary {
                     s.max_time_ns = Some(frame.time_ns);
                 }
                 s.failed_frames += usize::from(f.error.is_some());
+                s.degraded_frames += usize::from(f.degraded);
             }
         }
         (!fingers.is_empty()).then_some(Self { fingers })
     }
 }
 
-/// Mean, median and largest time of one stage over a run, milliseconds.
+/// Mean, median, 99th percentile and largest time of one stage over a run, milliseconds.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct TimingSummary {
+    /// Frames summarised.
+    pub frames: usize,
     /// Mean.
     pub mean_ms: Real,
     /// Median.
     pub median_ms: Real,
+    /// 99th percentile (nearest rank: the largest of fewer than 51 frames).
+    pub p99_ms: Real,
     /// Largest.
     pub max_ms: Real,
 }
 
 impl TimingSummary {
-    fn of(mut values: Vec<Real>) -> Self {
+    /// The summary of `values` (all zero for none).
+    pub fn of(mut values: Vec<Real>) -> Self {
         if values.is_empty() {
             return Self {
+                frames: 0,
                 mean_ms: 0.0,
                 median_ms: 0.0,
+                p99_ms: 0.0,
                 max_ms: 0.0,
             };
         }
         values.sort_by(Real::total_cmp);
+        let n = values.len();
+        // Nearest rank, rounded up: the 99th percentile of a short run is its largest frame.
+        let rank = |q: Real| ((q * n as Real).ceil() as usize).clamp(1, n) - 1;
         Self {
-            mean_ms: values.iter().sum::<Real>() / values.len() as Real,
-            median_ms: values[values.len() / 2],
-            max_ms: values[values.len() - 1],
+            frames: n,
+            mean_ms: values.iter().sum::<Real>() / n as Real,
+            median_ms: values[rank(0.5)],
+            p99_ms: values[rank(0.99)],
+            max_ms: values[n - 1],
+        }
+    }
+}
+
+/// Whole-frame times of a stream as a robot lives with them: the first frame (from rest), the
+/// frames after it, and those split by whether the finger is pressed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StreamTimings {
+    /// The first frame, milliseconds (the estimator starts from rest).
+    pub first_ms: Real,
+    /// Every frame after the first.
+    pub after_first: TimingSummary,
+    /// The frames after the first with a press.
+    pub pressed: TimingSummary,
+    /// The frames after the first without one.
+    pub free: TimingSummary,
+    /// What says a frame is pressed: `"ground truth"` (a true contact vertex, for episodes
+    /// with ground truth) or `"estimate"` (a contact point estimated).
+    pub press_from: &'static str,
+}
+
+impl StreamTimings {
+    /// The timings of `per_frame` (`truth`: whether the frames have ground truth).
+    fn of(per_frame: &[FrameReport], truth: bool) -> Self {
+        let pressed = |f: &FrameReport| match (truth, f.true_contact_vertices) {
+            (true, Some(n)) => n > 0,
+            _ => f.contact_points > 0,
+        };
+        let after = per_frame.get(1..).unwrap_or(&[]);
+        let total = |keep: &dyn Fn(&FrameReport) -> bool| {
+            TimingSummary::of(
+                after
+                    .iter()
+                    .filter(|f| keep(f))
+                    .map(|f| f.timings.total_ms)
+                    .collect(),
+            )
+        };
+        Self {
+            first_ms: per_frame.first().map_or(0.0, |f| f.timings.total_ms),
+            after_first: total(&|_| true),
+            pressed: total(&|f| pressed(f)),
+            free: total(&|f| !pressed(f)),
+            press_from: if truth { "ground truth" } else { "estimate" },
         }
     }
 }
@@ -224,6 +295,9 @@ pub struct RunReport {
     pub points_ms: TimingSummary,
     /// The whole frame.
     pub total_ms: TimingSummary,
+    /// The whole frame as a stream sees it: the first frame, then the frames after it, with
+    /// and without a press.
+    pub stream_ms: StreamTimings,
     /// Frames per second from the mean frame time.
     pub frames_per_second: Real,
     /// The estimated forces per finger over the run (contact estimators that estimate force).
@@ -363,6 +437,7 @@ where
             0.0
         },
         total_ms,
+        stream_ms: StreamTimings::of(&per_frame, truth),
         forces: ForceSummary::of(&per_frame),
         per_frame,
     };
@@ -413,6 +488,8 @@ fn frame_forces<D: RunDetails>(
                         magnitude_n: force_n.norm(),
                         pressed_probability: None,
                         loads: None,
+                        solves: None,
+                        degraded: false,
                         error: None,
                     }
                 })
@@ -436,3 +513,71 @@ pub fn run_info(info: &EpisodeInfo, model: &str, threshold: Real) -> moe_record:
 /// The default length of a force arrow in a result file: 0.2 m per newton (a 50 mN press draws
 /// a 10 mm arrow).
 pub const DEFAULT_FORCE_ARROW_M_PER_N: Real = 0.2;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(total_ms: Real, truth: Option<usize>, contact_points: usize) -> FrameReport {
+        FrameReport {
+            time_ns: 0,
+            markers_found: 14,
+            fingers_without_markers: Vec::new(),
+            contact_points,
+            shape_bcd_mm: None,
+            true_contact_vertices: truth,
+            timings: StageTimings {
+                total_ms,
+                ..StageTimings::default()
+            },
+            stream: StreamEvent::Started,
+            finger_forces: None,
+            loads: None,
+        }
+    }
+
+    #[test]
+    fn percentiles_are_nearest_ranks_and_a_short_run_has_its_largest_as_p99() {
+        let t = TimingSummary::of((1..=200).rev().map(Real::from).collect());
+        assert_eq!(
+            (t.frames, t.median_ms, t.p99_ms, t.max_ms),
+            (200, 100.0, 198.0, 200.0)
+        );
+        assert_eq!(t.mean_ms, 100.5);
+        let short = TimingSummary::of(vec![3.0, 1.0, 2.0]);
+        assert_eq!(
+            (short.median_ms, short.p99_ms, short.max_ms),
+            (2.0, 3.0, 3.0)
+        );
+        assert_eq!(TimingSummary::of(Vec::new()).frames, 0);
+    }
+
+    #[test]
+    fn a_stream_splits_its_frames_after_the_first_by_the_truth_or_else_the_estimate() {
+        // The first frame (from rest) is apart; of the others, two pressed and one free.
+        let frames = [
+            frame(50.0, Some(0), 0),
+            frame(30.0, Some(4), 0),
+            frame(20.0, Some(0), 9),
+            frame(40.0, Some(7), 3),
+        ];
+        let by_truth = StreamTimings::of(&frames, true);
+        assert_eq!(by_truth.first_ms, 50.0);
+        assert_eq!(by_truth.after_first.frames, 3);
+        assert_eq!(by_truth.after_first.max_ms, 40.0);
+        assert_eq!(
+            (by_truth.pressed.frames, by_truth.pressed.max_ms),
+            (2, 40.0)
+        );
+        assert_eq!((by_truth.free.frames, by_truth.free.max_ms), (1, 20.0));
+        assert_eq!(by_truth.press_from, "ground truth");
+        // Without ground truth, a frame is pressed where contact points were estimated.
+        let by_estimate = StreamTimings::of(&frames, false);
+        assert_eq!(
+            (by_estimate.pressed.frames, by_estimate.pressed.median_ms),
+            (2, 20.0)
+        );
+        assert_eq!(by_estimate.free.max_ms, 30.0);
+        assert_eq!(by_estimate.press_from, "estimate");
+    }
+}

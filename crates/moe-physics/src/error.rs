@@ -44,6 +44,16 @@ pub enum PhysicsError {
         /// Size of the last Newton update, metres.
         update_m: Real,
     },
+    /// A load search spent the frame's budget of solves
+    /// ([`crate::PhysicsConfig::frame_solve_budget`]). The search keeps the best loads found
+    /// before it and reports the finger degraded; this error does not end an estimate.
+    #[error("finger {finger}: the load search spent its budget of {budget} solves this frame")]
+    FrameBudgetSpent {
+        /// Finger index.
+        finger: usize,
+        /// The budget.
+        budget: usize,
+    },
     /// A finger has fewer observed markers than the method needs.
     #[error(
         "finger {finger}: {observed} observed markers, the physics estimator needs at least \
@@ -135,6 +145,7 @@ impl PhysicsError {
         match self {
             Self::Model { finger, .. }
             | Self::StaticNotConverged { finger, .. }
+            | Self::FrameBudgetSpent { finger, .. }
             | Self::TooFewMarkers { finger, .. }
             | Self::FingerLengthMismatch { finger, .. }
             | Self::NonFinite { finger, .. } => Some(*finger),

@@ -100,8 +100,12 @@ pub struct FingerReport {
     pub depth_rows: usize,
     /// Depth pixels pooled into them.
     pub depth_pixels: usize,
-    /// Linear solves of the frame (static Newton iterations, dynamic steps, tangents).
+    /// Linear solves of the frame (static Newton iterations, dynamic steps, tangents;
+    /// those of solves that did not converge as well).
     pub solves: usize,
+    /// Whether the load search stopped at [`PhysicsConfig::frame_solve_budget`]: the loads
+    /// are the best it found within the budget, not its converged answer.
+    pub degraded: bool,
     /// Why there is no estimate for this finger in this frame (too few markers, a static solve
     /// that did not converge); its shape is then the rest shape and its map zero.
     pub error: Option<String>,
@@ -388,6 +392,7 @@ impl PhysicsEstimator {
                         depth_rows: 0,
                         depth_pixels: 0,
                         solves: 0,
+                        degraded: false,
                         error: Some(e.to_string()),
                     });
                 }
@@ -538,6 +543,7 @@ impl PhysicsEstimator {
             depth_rows: est.depth_rows,
             depth_pixels: est.depth_pixels,
             solves: est.solves,
+            degraded: est.degraded,
             error: None,
         });
     }

@@ -15,13 +15,18 @@ impl PhysicsEvaluation {
         let _ = writeln!(
             s,
             "{} frames of {} trajectories, markers: {}; physics estimator {:.1} ms per frame \
-             (median; p90 {:.1}); {} finger-frames failed",
+             (median; p90 {:.1}); {} finger-frames failed; solves per finger-frame {} \
+             (median; p99 {}, max {}), {} finger-frames stopped at the budget",
             self.frames,
             self.trajectories,
             self.markers,
             self.physics_ms_median,
             self.physics_ms_p90,
-            self.failed_fingers
+            self.failed_fingers,
+            self.solves.median,
+            self.solves.p99,
+            self.solves.max,
+            self.degraded_fingers
         );
         let _ = writeln!(
             s,

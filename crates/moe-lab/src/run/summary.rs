@@ -30,6 +30,22 @@ impl RunReport {
             r.total_ms.median_ms,
             out.display()
         );
+        let s = &r.stream_ms;
+        let row = |t: &super::TimingSummary| {
+            format!(
+                "{} frames, median {:.1}, p99 {:.1}, max {:.1} ms",
+                t.frames, t.median_ms, t.p99_ms, t.max_ms
+            )
+        };
+        let _ = writeln!(
+            text,
+            "whole frame: first {:.1} ms; after it {}; pressed ({}) {}; not pressed {}",
+            s.first_ms,
+            row(&s.after_first),
+            s.press_from,
+            row(&s.pressed),
+            row(&s.free)
+        );
         if let (Some(m), Some(bcd), Some(c)) = (&r.markers, r.shape_bcd_mm, &r.contact) {
             let _ = writeln!(
                 text,
@@ -71,6 +87,8 @@ impl RunReport {
                         .map_or(String::new(), |n| format!(", {}", count(n, "load")));
                     let failed = if x.error.is_some() {
                         ", no estimate"
+                    } else if x.degraded {
+                        ", search stopped at its budget"
                     } else {
                         ""
                     };

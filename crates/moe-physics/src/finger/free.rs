@@ -76,14 +76,13 @@ impl FingerInverse {
     ) -> Result<Vec<Point3>, PhysicsError> {
         const STAGE: &str = "(free shape under the pulls)";
         if let Some(mut x) = self.warm_static.take()
-            && let Ok(it) = self.solve(&mut x, obs, &[], STAGE)
+            && self.solve(&mut x, obs, &[], STAGE, solves).is_ok()
         {
-            *solves += it;
             self.warm_static = Some(x.clone());
             return Ok(x);
         }
         let mut x = self.mech.rest_nodes().to_vec();
-        *solves += self.solve(&mut x, obs, &[], STAGE)?;
+        self.solve(&mut x, obs, &[], STAGE, solves)?;
         self.warm_static = Some(x.clone());
         Ok(x)
     }
@@ -254,6 +253,7 @@ impl FingerInverse {
             depth_rows: base.depth.0,
             depth_pixels: base.depth.1,
             solves,
+            degraded: false,
         }
     }
 

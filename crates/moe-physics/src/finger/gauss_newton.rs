@@ -61,9 +61,14 @@ impl FingerInverse {
             for scale in [1.0, 0.5, 0.25] {
                 let loads = self.loads_of(&proposal, scale);
                 let mut x = state.x.clone();
-                match self.solve(&mut x, obs, &loads, "(shape under the estimated loads)") {
-                    Ok(it) => {
-                        *solves += it;
+                match self.solve(
+                    &mut x,
+                    obs,
+                    &loads,
+                    "(shape under the estimated loads)",
+                    solves,
+                ) {
+                    Ok(()) => {
                         let chi = self.residual_sq(&x, obs);
                         if chi < state.chi {
                             accepted = Some(Solved { x, loads, chi });
@@ -71,8 +76,13 @@ impl FingerInverse {
                         }
                     }
                     // A load the model cannot carry (an inverted element, no equilibrium):
-                    // try a smaller one.
-                    Err(PhysicsError::StaticNotConverged { .. } | PhysicsError::Model { .. }) => {}
+                    // try a smaller one. With the frame's budget spent, every further solve
+                    // stops at once and the search keeps what it has.
+                    Err(
+                        PhysicsError::StaticNotConverged { .. }
+                        | PhysicsError::Model { .. }
+                        | PhysicsError::FrameBudgetSpent { .. },
+                    ) => {}
                     Err(e) => return Err(e),
                 }
             }
@@ -135,8 +145,7 @@ impl FingerInverse {
         let mut from_tracked = false;
         if let Some(tracked) = self.tracked.take() {
             let mut x = tracked.x;
-            if let Ok(it) = self.solve(&mut x, sobs, &tracked.loads, "") {
-                *solves += it;
+            if self.solve(&mut x, sobs, &tracked.loads, "", solves).is_ok() {
                 let chi = self.residual_sq(&x, sobs);
                 if chi < chi0 {
                     state = Solved {

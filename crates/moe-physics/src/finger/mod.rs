@@ -132,6 +132,9 @@ pub(crate) struct FingerEstimate {
     pub(crate) depth_pixels: usize,
     /// Linear solves of the frame (Newton iterations and dynamic steps).
     pub(crate) solves: usize,
+    /// Whether the load search stopped at [`PhysicsConfig::frame_solve_budget`]: the estimate
+    /// is the best found within it.
+    pub(crate) degraded: bool,
 }
 
 /// The start of an observation's estimate: the free finger it is compared with.
@@ -187,6 +190,13 @@ pub(crate) struct FingerInverse {
     /// The previous observation's dent (estimated surface minus free surface) while a press
     /// is held in a stream: where the depth image is predicted to see the surface.
     previous_dent: Option<Vec<Vector3>>,
+    /// While a load search runs: the count of the frame's solves at which its budget is
+    /// spent ([`PhysicsConfig::frame_solve_budget`]).
+    budget_end: Option<usize>,
+    /// Whether this frame's search reached its budget.
+    degraded: bool,
+    /// Whether a load search is running (its solves get `search_max_iterations`).
+    searching: bool,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -306,6 +316,9 @@ impl FingerInverse {
             pair_subset,
             depth_patches,
             previous_dent: None,
+            budget_end: None,
+            degraded: false,
+            searching: false,
             rest_normals: normals.clone(),
             markers: finger.marker_vertices().to_vec(),
             rest_surface,
@@ -371,15 +384,40 @@ impl FingerInverse {
         }
     }
 
-    /// Solves the static shape from `x` under `loads`, naming `stage` on failure.
+    /// Solves the static shape from `x` under `loads`, naming `stage` on failure, and adds its
+    /// Newton iterations to `solves` (those of a solve that did not converge as well: they
+    /// took their time).
     fn solve(
         &mut self,
         x: &mut Vec<Point3>,
         obs: &FingerObservation<'_>,
         loads: &[(usize, Vector3)],
         stage: &'static str,
-    ) -> Result<usize, PhysicsError> {
-        let settings = self.settings();
+        solves: &mut usize,
+    ) -> Result<(), PhysicsError> {
+        let mut settings = self.settings();
+        // Within a load search, a solve gets at most its own iterations, and what is left of
+        // the frame's budget.
+        let mut capped = false;
+        if self.searching {
+            settings.max_iterations = settings
+                .max_iterations
+                .min(self.config.search_max_iterations);
+        }
+        if let Some(end) = self.budget_end {
+            let left = end.saturating_sub(*solves);
+            if left == 0 {
+                self.degraded = true;
+                return Err(PhysicsError::FrameBudgetSpent {
+                    finger: self.index,
+                    budget: self.config.frame_solve_budget,
+                });
+            }
+            if left < settings.max_iterations {
+                settings.max_iterations = left;
+                capped = true;
+            }
+        }
         let ctx = self.ctx();
         let patch: Vec<PatchLoad> = loads
             .iter()
@@ -388,9 +426,29 @@ impl FingerInverse {
                 force,
             })
             .collect();
-        self.mech
+        match self
+            .mech
             .solve_static(x, &obs.commands(), &obs.gravity, &patch, settings, ctx)
-            .map_err(|e| to_physics(self.index, stage, e))
+        {
+            Ok(iterations) => {
+                *solves += iterations;
+                Ok(())
+            }
+            Err(SimError::StaticNotConverged { iterations, .. }) if capped => {
+                *solves += iterations;
+                self.degraded = true;
+                Err(PhysicsError::FrameBudgetSpent {
+                    finger: self.index,
+                    budget: self.config.frame_solve_budget,
+                })
+            }
+            Err(e) => {
+                if let SimError::StaticNotConverged { iterations, .. } = e {
+                    *solves += iterations;
+                }
+                Err(to_physics(self.index, stage, e))
+            }
+        }
     }
 
     /// Surface positions for nodes `x`.
@@ -458,7 +516,13 @@ impl FingerInverse {
         obs: &FingerObservation<'_>,
         begun: Begun,
     ) -> Result<FingerEstimate, PhysicsError> {
-        let result = self.estimate_observed(obs, begun);
+        self.degraded = false;
+        let mut result = self.estimate_observed(obs, begun);
+        self.budget_end = None;
+        self.searching = false;
+        if let Ok(est) = result.as_mut() {
+            est.degraded = self.degraded;
+        }
         match &result {
             Ok(est) if !est.loads.is_empty() => {}
             Ok(_) => {
@@ -531,6 +595,11 @@ impl FingerInverse {
             return Ok(self.free_estimate(&free.x, &base, 0.0, solves));
         }
         let start = self.static_start(obs, &free, markers, &mut solves)?;
+        // The searches that follow share the frame's budget, in a stream: a lone frame or the
+        // first of a stream has no previous press to start from, and searches in full.
+        self.searching = true;
+        self.budget_end = (self.config.frame_solve_budget > 0 && free.dynamic)
+            .then(|| solves + self.config.frame_solve_budget);
         let sobs = FingerObservation {
             markers: &start.markers,
             depth: &start.depth,
@@ -631,6 +700,7 @@ impl FingerInverse {
             depth_rows: base.depth.0,
             depth_pixels: base.depth.1,
             solves,
+            degraded: false,
         })
     }
 

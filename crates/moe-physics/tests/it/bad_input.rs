@@ -191,6 +191,20 @@ fn settings_out_of_range_are_named() {
             },
             "contact_radius_m",
         ),
+        (
+            PhysicsConfig {
+                search_max_iterations: 0,
+                ..PhysicsConfig::default()
+            },
+            "search_max_iterations",
+        ),
+        (
+            PhysicsConfig {
+                frame_solve_budget: usize::MAX,
+                ..PhysicsConfig::default()
+            },
+            "frame_solve_budget",
+        ),
     ] {
         assert_err!(
             config.validate(),
@@ -217,4 +231,50 @@ fn settings_out_of_range_are_named() {
         );
     }
     assert!(depth(1.0, 0.0).validate().is_ok());
+}
+
+#[test]
+fn a_search_that_spends_its_frame_budget_keeps_its_best_loads_and_says_so() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let v = vertex_near(&hand, 0, Point3::new(-0.0095, 0.0, 0.045));
+    let keypoints = simulate(&hand, &pulls, &[press(&hand, v, 0.15)]);
+    let pose = WorldFromHand::identity();
+    // The press held over two frames of a stream 50 ms apart: the budget bounds the second
+    // (the first, from rest, searches in full).
+    let run = |budget: usize| {
+        let config = PhysicsConfig {
+            frame_solve_budget: budget,
+            ..PhysicsConfig::default()
+        };
+        let mut est = PhysicsEstimator::new(&hand, &HandMaterial::default(), &config).unwrap();
+        let first = est
+            .estimate(&observe(&keypoints, &pulls, &pose).with_time(0.0))
+            .unwrap();
+        assert!(!first.details.fingers[0].degraded, "{:?}", first.details);
+        est.estimate(&observe(&keypoints, &pulls, &pose).with_time(0.05))
+            .unwrap()
+    };
+    // Without a limit, and with the default one, the search converges on its own.
+    let free = run(0);
+    let default = run(PhysicsConfig::default().frame_solve_budget);
+    for e in [&free, &default] {
+        let f = &e.details.fingers[0];
+        assert!(!f.degraded && f.error.is_none(), "{f:?}");
+        assert_eq!(e.details.loads.iter().filter(|l| l.finger == 0).count(), 1);
+    }
+    assert_eq!(free.details.loads, default.details.loads);
+    // One solve for the whole search: the frame is still an estimate (no error), with fewer
+    // solves, and says that its search stopped at the budget.
+    let tight = run(1);
+    let f = &tight.details.fingers[0];
+    assert!(f.degraded && f.error.is_none(), "{f:?}");
+    assert!(
+        f.solves < free.details.fingers[0].solves,
+        "{} solves within a budget of 1, {} without",
+        f.solves,
+        free.details.fingers[0].solves
+    );
+    // The unpressed finger never searches, so its budget never bites.
+    assert!(!tight.details.fingers[1].degraded);
 }

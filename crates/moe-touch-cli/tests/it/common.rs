@@ -70,9 +70,11 @@ pub(crate) fn run_json(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("one JSON object on stdout")
 }
 
-/// Keys of the JSON reports whose values are wall-clock timings or rates.
-const TIMING_KEYS: [&str; 16] = [
+/// Keys of the JSON reports whose values are wall-clock timings or rates, or counts of the
+/// work done (solves) that another machine's round-off can move by an iteration.
+const TIMING_KEYS: [&str; 19] = [
     "contact_ms",
+    "degraded_fingers",
     "detect_ms",
     "estimate_ms",
     "fit_secs",
@@ -83,7 +85,9 @@ const TIMING_KEYS: [&str; 16] = [
     "poisson_secs",
     "query_secs",
     "shape_ms",
+    "solves",
     "steps_per_sec",
+    "stream_ms",
     "total_ms",
     "total_secs",
     "variance_secs",
