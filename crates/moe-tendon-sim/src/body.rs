@@ -18,7 +18,7 @@ use crate::voxelize::{VoxelParams, VoxelStats, voxelize};
 pub const BASE_TOLERANCE_M: Real = 1e-9;
 
 /// A finger ready to simulate, in its own (finger) frame at rest.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct FingerBody {
     fem: FemModel,
     surface: Embedding,

@@ -16,8 +16,9 @@ use moe_geom::{Matrix3, Real};
 /// Marker for a node that is not a free unknown.
 pub(crate) const FIXED: u32 = u32::MAX;
 
-/// Sparsity pattern and symbolic factorisation of a body's system matrix.
-#[derive(Debug)]
+/// Sparsity pattern and symbolic factorisation of a body's system matrix. Cloning shares the
+/// symbolic factorisation, which no solve changes.
+#[derive(Debug, Clone)]
 pub(crate) struct SparseSystem {
     /// Free index of each node, or [`FIXED`].
     free_of: Vec<u32>,
@@ -27,7 +28,7 @@ pub(crate) struct SparseSystem {
     row_ptr: Vec<usize>,
     row_nodes: Vec<u32>,
     matrix: SymbolicSparseColMat<u32>,
-    cholesky: SymbolicCholesky<u32>,
+    cholesky: std::sync::Arc<SymbolicCholesky<u32>>,
     max_rhs: usize,
 }
 
@@ -110,7 +111,7 @@ impl SparseSystem {
             row_ptr,
             row_nodes,
             matrix,
-            cholesky,
+            cholesky: std::sync::Arc::new(cholesky),
             max_rhs: max_rhs.max(1),
         }
     }

@@ -33,7 +33,7 @@ use crate::error::{SimError, require_positive};
 use crate::material::Material;
 use crate::obstacle::{Obstacle, ObstacleConfig, ObstacleShape};
 use crate::run::run_saving;
-use crate::scene::{PresetHandConfig, Scene, SceneConfig, SimFrame};
+use crate::scene::{HandBodies, PresetHandConfig, Scene, SceneConfig, SimFrame};
 use crate::surface::obstacle_surface;
 use crate::trajectory::{ActuationKeyframe, ActuationSchedule, PoseKeyframe, PoseTrajectory};
 use crate::voxelize::VoxelParams;
@@ -586,6 +586,34 @@ pub fn simulate_trajectory(
 ) -> Result<(SampledScene, Scene, Vec<SimFrame>), SimError> {
     let sampled = sample_scene(params, seed, trajectory_id)?;
     let mut scene = Scene::new(sampled.config.clone())?;
+    let steps = scene.num_steps();
+    let frames = run_saving(&mut scene, steps)?;
+    Ok((sampled, scene, frames))
+}
+
+/// The finger bodies every trajectory of a data set with `params` shares (its hand, material
+/// and resolution), for [`simulate_trajectory_with`].
+///
+/// # Errors
+/// An invalid hand, material or resolution.
+pub fn hand_bodies(params: &RandomSceneParams) -> Result<HandBodies, SimError> {
+    let hand = HandModel::preset(params.preset, &params.finger)?;
+    HandBodies::new(hand, &params.material, &params.voxel)
+}
+
+/// [`simulate_trajectory`] on finger bodies built once for the data set ([`hand_bodies`]):
+/// the same frames, without voxelising the fingers again for every trajectory.
+///
+/// # Errors
+/// As [`sample_scene`], [`Scene::with_bodies`] and [`run_saving`].
+pub fn simulate_trajectory_with(
+    params: &RandomSceneParams,
+    bodies: &HandBodies,
+    seed: u64,
+    trajectory_id: u64,
+) -> Result<(SampledScene, Scene, Vec<SimFrame>), SimError> {
+    let sampled = sample_scene(params, seed, trajectory_id)?;
+    let mut scene = Scene::with_bodies(sampled.config.clone(), bodies)?;
     let steps = scene.num_steps();
     let frames = run_saving(&mut scene, steps)?;
     Ok((sampled, scene, frames))

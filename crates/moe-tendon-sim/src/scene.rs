@@ -302,6 +302,46 @@ pub struct Scene {
     poses: (Vec<Iso3>, Vec<Iso3>),
 }
 
+/// The finger bodies of a hand at one material and tet resolution (voxelised, with their
+/// surfaces and tendon routes embedded), built once for the many scenes that share them
+/// ([`Scene::with_bodies`]): a data set's trajectories.
+#[derive(Debug, Clone)]
+pub struct HandBodies {
+    hand: HandModel,
+    material: Material,
+    voxel: VoxelParams,
+    bodies: Vec<FingerBody>,
+}
+
+impl HandBodies {
+    /// Builds every finger's body of `hand`.
+    ///
+    /// # Errors
+    /// The finger-building errors of [`FingerBody::new`].
+    pub fn new(
+        hand: HandModel,
+        material: &Material,
+        voxel: &VoxelParams,
+    ) -> Result<Self, SimError> {
+        let bodies = hand
+            .fingers()
+            .iter()
+            .map(|f| FingerBody::new(&f.model, material, voxel))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            hand,
+            material: material.clone(),
+            voxel: voxel.clone(),
+            bodies,
+        })
+    }
+
+    /// The hand.
+    pub fn hand(&self) -> &HandModel {
+        &self.hand
+    }
+}
+
 impl Scene {
     /// Builds the scene's parametric hand and everything else.
     ///
@@ -321,6 +361,39 @@ impl Scene {
     /// [`SimError::IndexOutOfRange`] (more schedules than fingers),
     /// [`SimError::InvalidObstacle`], and the finger-building errors of [`FingerBody::new`].
     pub fn with_hand(config: SceneConfig, hand: HandModel) -> Result<Self, SimError> {
+        Self::build(config, hand, None)
+    }
+
+    /// Builds a scene around the hand of `bodies`, reusing its finger bodies (no voxelising or
+    /// embedding again): the many scenes of a data set share one hand, material and
+    /// resolution. The `hand` section of `config` is ignored, as in [`Scene::with_hand`].
+    ///
+    /// # Errors
+    /// [`SimError::InvalidParameter`] when `config`'s material or voxel resolution is not the
+    /// one the bodies were built with, and the errors of [`Scene::with_hand`].
+    pub fn with_bodies(config: SceneConfig, bodies: &HandBodies) -> Result<Self, SimError> {
+        if config.material != bodies.material {
+            return Err(SimError::InvalidParameter {
+                name: "material",
+                value: config.material.youngs_modulus_pa,
+                reason: "is not the material the shared finger bodies were built with",
+            });
+        }
+        if config.voxel != bodies.voxel {
+            return Err(SimError::InvalidParameter {
+                name: "voxel cell_size_m",
+                value: config.voxel.cell_size_m,
+                reason: "is not the resolution the shared finger bodies were built with",
+            });
+        }
+        Self::build(config, bodies.hand.clone(), Some(bodies.bodies.clone()))
+    }
+
+    fn build(
+        config: SceneConfig,
+        hand: HandModel,
+        bodies: Option<Vec<FingerBody>>,
+    ) -> Result<Self, SimError> {
         config.material.validate()?;
         config.tendon.validate()?;
         config.contact.validate()?;
@@ -376,10 +449,10 @@ impl Scene {
                 len: hand.num_fingers(),
             });
         }
-        let mut bodies = Vec::with_capacity(hand.num_fingers());
-        for f in hand.fingers() {
-            bodies.push(FingerBody::new(&f.model, &config.material, &config.voxel)?);
-        }
+        let bodies = match bodies {
+            Some(bodies) => bodies,
+            None => HandBodies::new(hand.clone(), &config.material, &config.voxel)?.bodies,
+        };
         for (finger, (schedule, body)) in config.actuation.iter().zip(&bodies).enumerate() {
             schedule
                 .validate(body.tendons().len())

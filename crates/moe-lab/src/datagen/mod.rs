@@ -24,7 +24,8 @@ pub use plan::{
     GenPlan, MAX_TRAJECTORIES, MAX_TRAJECTORIES_PER_SHARD, SHARD_INDEX_VARIABLES, parse_shard_spec,
 };
 pub use simulated::{
-    MAX_DRAWS, dataset_hand, dataset_params, label_rule, simulated_frames, simulated_layout,
+    MAX_DRAWS, dataset_hand, dataset_params, label_rule, simulated_frames, simulated_frames_with,
+    simulated_layout,
 };
 
 use std::collections::BTreeMap;

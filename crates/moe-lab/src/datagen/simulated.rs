@@ -2,8 +2,10 @@
 //! simulator parameters and hand a data set records.
 
 use moe_io::dataset::{DatasetFrame, DatasetLayout};
+use moe_tendon_sim::HandBodies;
 use moe_tendon_sim::randomize::{
     OBJECT_PARAM_LEN, ObjectFamily, RandomSceneParams, simulate_trajectory,
+    simulate_trajectory_with,
 };
 
 use crate::error::LabError;
@@ -54,6 +56,21 @@ pub fn simulated_frames(
     seed: u64,
     trajectory_id: u64,
 ) -> Result<Vec<DatasetFrame>, LabError> {
+    simulated_frames_with(params, None, seed, trajectory_id)
+}
+
+/// [`simulated_frames`], on the finger bodies the data set's trajectories share when `bodies`
+/// are given (built once by [`moe_tendon_sim::randomize::hand_bodies`]): the same frames,
+/// without voxelising the fingers again for every trajectory.
+///
+/// # Errors
+/// As [`simulated_frames`].
+pub fn simulated_frames_with(
+    params: &RandomSceneParams,
+    bodies: Option<&HandBodies>,
+    seed: u64,
+    trajectory_id: u64,
+) -> Result<Vec<DatasetFrame>, LabError> {
     // A draw whose simulation diverges (an element inverted by an extreme press, say) is
     // replaced by a redraw from a derived seed; the redraws are part of the pure function of
     // (seed, trajectory), so determinism holds.
@@ -61,7 +78,11 @@ pub fn simulated_frames(
     let (sampled, scene, frames) = loop {
         let attempt_seed = seed ^ attempt.wrapping_mul(0x9E37_79B9_7F4A_7C15);
         attempt += 1;
-        match simulate_trajectory(params, attempt_seed, trajectory_id) {
+        let simulated = match bodies {
+            Some(bodies) => simulate_trajectory_with(params, bodies, attempt_seed, trajectory_id),
+            None => simulate_trajectory(params, attempt_seed, trajectory_id),
+        };
+        match simulated {
             Ok(r) => break r,
             Err(source) if attempt == MAX_DRAWS => {
                 return Err(LabError::Trajectory {

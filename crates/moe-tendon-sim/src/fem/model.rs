@@ -15,7 +15,7 @@ use crate::woodbury::Woodbury;
 
 /// A body ready to simulate: the tet mesh, per-element shape gradients, lumped masses, the
 /// fixed-node set and the analysed system pattern.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct FemModel {
     pub(super) mesh: TetMesh,
     pub(super) material: Material,

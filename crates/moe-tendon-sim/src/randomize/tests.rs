@@ -372,3 +372,36 @@ fn simulated_sample_is_sane() {
     let ratio = contact_vertices as Real / vertices_in_contact_frames as Real;
     assert!((0.001..0.15).contains(&ratio), "contact ratio {ratio}");
 }
+
+/// Finger bodies built once for a data set give every trajectory the frames it gets from bodies
+/// of its own, bit for bit, and a scene of another material or resolution refuses them.
+#[test]
+fn shared_finger_bodies_give_the_same_frames_and_refuse_another_material() {
+    let params = quick();
+    let bodies = hand_bodies(&params).unwrap();
+    for t in 0..2 {
+        let (sampled, _, own) = simulate_trajectory(&params, 11, t).unwrap();
+        let (again, _, shared) = simulate_trajectory_with(&params, &bodies, 11, t).unwrap();
+        assert_eq!(sampled, again);
+        assert_eq!(own, shared, "trajectory {t}");
+    }
+    let sampled = sample_scene(&params, 11, 0).unwrap();
+    let mut softer = sampled.config.clone();
+    softer.material.youngs_modulus_pa *= 0.5;
+    assert!(matches!(
+        Scene::with_bodies(softer, &bodies),
+        Err(SimError::InvalidParameter {
+            name: "material",
+            ..
+        })
+    ));
+    let mut finer = sampled.config;
+    finer.voxel.cell_size_m *= 0.5;
+    assert!(matches!(
+        Scene::with_bodies(finer, &bodies),
+        Err(SimError::InvalidParameter {
+            name: "voxel cell_size_m",
+            ..
+        })
+    ));
+}

@@ -9,7 +9,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use moe_geom::HandPreset;
 use moe_lab::datagen::{
-    GenPlan, generate, merge_card, parse_shard_spec, simulated_frames, simulated_layout,
+    GenPlan, generate, merge_card, parse_shard_spec, simulated_frames_with, simulated_layout,
 };
 use moe_tendon_sim::randomize::RandomSceneParams;
 
@@ -93,7 +93,11 @@ pub(crate) fn run(args: &GenDataArgs) -> Result<()> {
     );
     bar.enable_steady_tick(Duration::from_millis(250));
     let started = Instant::now();
-    let frames_of = |t| simulated_frames(&params, args.seed, t);
+    // The fingers are voxelised once for every trajectory (the data set shares its hand,
+    // material and resolution).
+    let bodies =
+        moe_tendon_sim::randomize::hand_bodies(&params).context("the data set's finger bodies")?;
+    let frames_of = |t| simulated_frames_with(&params, Some(&bodies), args.seed, t);
     let progress = |done: u64, total: u64| {
         bar.set_length(total);
         bar.set_position(done);
