@@ -312,6 +312,12 @@ class PhysicsEstimate:
     def loads(self) -> list[ContactLoad]: ...
     @property
     def finger_errors(self) -> list[Optional[str]]: ...
+    @property
+    def solves(self) -> list[int]:
+        """Per finger: the linear solves of the frame."""
+    @property
+    def degraded(self) -> list[bool]:
+        """Per finger: whether the load search stopped at the frame's budget."""
 
 class PhysicsEstimator:
     """The finger's FEM model read backwards from its markers (no camera)."""

@@ -108,6 +108,13 @@ impl PhysicsEstimator {
                 .iter()
                 .map(|f| f.error.clone())
                 .collect(),
+            solves: estimate.details.fingers.iter().map(|f| f.solves).collect(),
+            degraded: estimate
+                .details
+                .fingers
+                .iter()
+                .map(|f| f.degraded)
+                .collect(),
         })
     }
 
@@ -144,6 +151,11 @@ pub(crate) struct PhysicsEstimate {
     loads: Vec<Py<ContactLoad>>,
     /// Why a finger has no estimate (too few markers, a solve that did not converge), else None.
     finger_errors: Vec<Option<String>>,
+    /// Linear solves each finger took this frame (Newton iterations, dynamic steps, tangents).
+    solves: Vec<usize>,
+    /// Whether each finger's load search stopped at the frame's budget of solves (its loads
+    /// are then the best found within it).
+    degraded: Vec<bool>,
 }
 
 /// One load the physics estimator found on a finger (Rust's `moe_physics::ContactLoad`): hand

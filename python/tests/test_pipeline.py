@@ -153,6 +153,9 @@ def test_the_physics_estimator_at_rest_finds_no_press():
     estimator = mt.PhysicsEstimator(hand)
     e = estimator.estimate(hand.rest_keypoints(), np.zeros((2, 4)))
     assert e.loads == [] and e.finger_errors == [None, None]
+    # The free shapes from rest take solves; nothing is searched, so nothing is cut short.
+    assert len(e.solves) == 2 and all(n > 0 for n in e.solves)
+    assert e.degraded == [False, False]
     np.testing.assert_array_equal(e.finger_force_n, np.zeros((2, 3)))
     assert (e.pressed_probability < 0.5).all()
     with pytest.raises(mt.MoeTouchError, match=r"pulls: expected shape \[2, 4\]"):
