@@ -8,6 +8,10 @@ use super::{BodyState, Drive, FemModel, FemWorkspace, StepContext};
 use crate::error::SimError;
 use crate::terms::Terms;
 
+/// Consecutive Newton iterations with an indefinite exact tangent after which a static solve
+/// keeps to the corotated tangent.
+const INDEFINITE_RUN: usize = 3;
+
 impl FemModel {
     /// Newton iterations on the static equilibrium with a backtracking line search; the
     /// velocities are set to zero.
@@ -27,15 +31,26 @@ impl FemModel {
         let gravity = drive.inputs.gravity;
         state.v.iter_mut().for_each(|v| *v = Vector3::zeros());
         let mut update = Real::INFINITY;
+        // Consecutive iterations whose exact tangent was not positive definite: past
+        // `INDEFINITE_RUN`, the solve keeps to the corotated one instead of assembling and
+        // factorising twice an iteration (a load past the finger's stability limit).
+        let mut indefinite = 0;
         for it in 0..max_iterations.max(1) {
             drive.terms.clear();
             (drive.inputs.terms)(&state.x, &state.v, drive.terms);
             let (x, targets) = (&state.x, drive.inputs.targets);
             let moves_fixed = it == 0 && (0..x.len()).any(|i| self.fixed[i] && targets[i] != x[i]);
-            match self.solve(ws, ctx, c, state, drive, it == 0) {
-                Err(SimError::NotPositiveDefinite { .. }) if c.exact => {
+            let this = if indefinite >= INDEFINITE_RUN {
+                fallback
+            } else {
+                c
+            };
+            match self.solve(ws, ctx, this, state, drive, it == 0) {
+                Err(SimError::NotPositiveDefinite { .. }) if this.exact => {
+                    indefinite += 1;
                     self.solve(ws, ctx, fallback, state, drive, it == 0)?;
                 }
+                Ok(()) if this.exact => indefinite = 0,
                 other => other?,
             }
             let (x, t) = (&mut state.x, &*drive.terms);
