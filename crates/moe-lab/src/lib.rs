@@ -95,6 +95,13 @@ pub mod training;
 
 pub use error::LabError;
 
+/// The `q` quantile of `sorted` (ascending) by nearest rank, rounded up: the `⌈q·n⌉`-th value,
+/// so the 99th percentile of fewer than 100 values is the largest. `None` for no values.
+pub(crate) fn nearest_rank<T: Copy>(sorted: &[T], q: f64) -> Option<T> {
+    let n = sorted.len();
+    (n > 0).then(|| sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1])
+}
+
 /// `n` and `noun`, plural unless `n` is 1 ("1 load", "2 loads"), as the report tables say it.
 pub fn count(n: usize, noun: &str) -> String {
     if n == 1 {

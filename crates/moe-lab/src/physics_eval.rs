@@ -305,14 +305,7 @@ pub struct SolveCounts {
 impl SolveCounts {
     fn of(mut counts: Vec<usize>) -> Self {
         counts.sort_unstable();
-        let n = counts.len();
-        let at = |q: Real| {
-            if n == 0 {
-                0
-            } else {
-                counts[((q * n as Real).ceil() as usize).clamp(1, n) - 1]
-            }
-        };
+        let at = |q: Real| crate::nearest_rank(&counts, q).unwrap_or(0);
         Self {
             median: at(0.5),
             p99: at(0.99),

@@ -219,13 +219,13 @@ impl TimingSummary {
         values.sort_by(Real::total_cmp);
         let n = values.len();
         // Nearest rank, rounded up: the 99th percentile of a short run is its largest frame.
-        let rank = |q: Real| ((q * n as Real).ceil() as usize).clamp(1, n) - 1;
+        let at = |q: Real| crate::nearest_rank(&values, q).unwrap_or(0.0);
         Self {
             frames: n,
             mean_ms: values.iter().sum::<Real>() / n as Real,
-            median_ms: values[rank(0.5)],
-            p99_ms: values[rank(0.99)],
-            max_ms: values[n - 1],
+            median_ms: at(0.5),
+            p99_ms: at(0.99),
+            max_ms: at(1.0),
         }
     }
 }

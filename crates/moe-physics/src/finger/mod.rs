@@ -190,13 +190,12 @@ pub(crate) struct FingerInverse {
     /// The previous observation's dent (estimated surface minus free surface) while a press
     /// is held in a stream: where the depth image is predicted to see the surface.
     previous_dent: Option<Vec<Vector3>>,
-    /// While a load search runs: the count of the frame's solves at which its budget is
-    /// spent ([`PhysicsConfig::frame_solve_budget`]).
+    /// While a load search runs (its solves get `search_max_iterations`): the count of the
+    /// frame's solves at which its budget is spent ([`PhysicsConfig::frame_solve_budget`];
+    /// `usize::MAX` without one).
     budget_end: Option<usize>,
     /// Whether this frame's search reached its budget.
     degraded: bool,
-    /// Whether a load search is running (its solves get `search_max_iterations`).
-    searching: bool,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -318,7 +317,6 @@ impl FingerInverse {
             previous_dent: None,
             budget_end: None,
             degraded: false,
-            searching: false,
             rest_normals: normals.clone(),
             markers: finger.marker_vertices().to_vec(),
             rest_surface,
@@ -399,12 +397,10 @@ impl FingerInverse {
         // Within a load search, a solve gets at most its own iterations, and what is left of
         // the frame's budget.
         let mut capped = false;
-        if self.searching {
+        if let Some(end) = self.budget_end {
             settings.max_iterations = settings
                 .max_iterations
                 .min(self.config.search_max_iterations);
-        }
-        if let Some(end) = self.budget_end {
             let left = end.saturating_sub(*solves);
             if left == 0 {
                 self.degraded = true;
@@ -519,7 +515,6 @@ impl FingerInverse {
         self.degraded = false;
         let mut result = self.estimate_observed(obs, begun);
         self.budget_end = None;
-        self.searching = false;
         if let Ok(est) = result.as_mut() {
             est.degraded = self.degraded;
         }
@@ -597,9 +592,11 @@ impl FingerInverse {
         let start = self.static_start(obs, &free, markers, &mut solves)?;
         // The searches that follow share the frame's budget, in a stream: a lone frame or the
         // first of a stream has no previous press to start from, and searches in full.
-        self.searching = true;
-        self.budget_end = (self.config.frame_solve_budget > 0 && free.dynamic)
-            .then(|| solves + self.config.frame_solve_budget);
+        self.budget_end = Some(if self.config.frame_solve_budget > 0 && free.dynamic {
+            solves + self.config.frame_solve_budget
+        } else {
+            usize::MAX
+        });
         let sobs = FingerObservation {
             markers: &start.markers,
             depth: &start.depth,
