@@ -142,8 +142,10 @@ pub enum SimError {
         /// Finger index.
         finger: usize,
     },
-    /// An element turned inside out (det F ≤ 0): the simulation diverged or the load is far too
-    /// large for the resolution. Reduce the time step, the press depth or the contact stiffness.
+    /// An element inside out (det F ≤ 0) at a converged static equilibrium, or one whose
+    /// deformation gradient is not finite: the load is far too large for the resolution.
+    /// (A dynamic step that inverts an element goes on: the inversion-safe stress pushes it
+    /// back out.) Reduce the press depth or the contact stiffness, or refine the mesh.
     #[error("step {step}, finger {finger}: element {element} is inverted (det F = {det_f:e})")]
     InvertedElement {
         /// Step index.

@@ -28,8 +28,11 @@
 //!    must lie inside (else [`SimError::TendonOutsideBody`]).
 //! 3. **Elasticity** ([`mechanics::FemModel`]): linear tets with shape gradients `g_a`, deformation
 //!    gradient `F = Σ_a x_a g_aᵀ`, rotation `R` from the polar decomposition `F = R S`
-//!    ([`mechanics::polar_rotation`], Higham's scaled Newton iteration; `det F ≤ 0` is an inverted
-//!    element). Corotated linear stress `σ = λ tr(ε) I + 2μ ε` with `ε = S − I`, nodal force
+//!    ([`mechanics::polar_rotation`], Higham's scaled Newton iteration). An inverted element
+//!    (`det F ≤ 0`) gets a proper rotation from the SVD with the smallest singular value's sign
+//!    flipped ([`mechanics::corotation`], Irving, Teran and Fedkiw 2004): its stretch has a
+//!    negative eigenvalue and its stress pushes it back out, so a step that inverts an element
+//!    goes on. Corotated linear stress `σ = λ tr(ε) I + 2μ ε` with `ε = S − I`, nodal force
 //!    `f_a = −V R σ g_a` (the exact gradient of the energy `V (μ‖S − I‖² + ½λ tr²(S − I))`, zero
 //!    for rigid motions) and the per-step corotated stiffness blocks
 //!    `K_ab = V (λ r_a r_bᵀ + μ r_b r_aᵀ + μ (g_a·g_b) I)` with `r_a = R g_a` (= `R K⁰_ab Rᵀ`,
@@ -64,7 +67,8 @@
 //!    obstacle while its finger carries at least 10 mN of contact force.
 //! 7. **Scene** ([`Scene`]): a `HandModel` on a wrist trajectory, per-finger tendon schedules,
 //!    kinematic obstacles; `step(&mut state)` with the state explicit ([`SimState`]);
-//!    divergence (NaN, inverted element, kinetic energy above a limit) stops with a
+//!    divergence (NaN, kinetic energy above a limit, an element inverted at a static
+//!    equilibrium) stops with a
 //!    [`SimError`] naming the step, the finger and the element or node.
 
 // The user-facing API is re-exported at the root; the lower layers that tools and tests

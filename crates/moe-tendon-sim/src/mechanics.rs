@@ -4,7 +4,8 @@
 //! model and its step ([`FemModel`], [`FemModel::step`] with caller-supplied interaction
 //! [`Terms`]), a simulated finger gathering tendon and contact terms ([`FingerBody`]), the
 //! tendons themselves ([`Tendon`], [`TendonCommand`](crate::TendonCommand)), obstacles posed for a step
-//! ([`PosedObstacles`]) and the polar decomposition ([`polar_rotation`]).
+//! ([`PosedObstacles`]) and the polar decomposition ([`polar_rotation`], and its
+//! inversion-safe extension [`corotation`]).
 //!
 //! Configuration and results shared with scenes ([`Material`](crate::Material),
 //! [`VoxelParams`](crate::VoxelParams), [`TendonParams`](crate::TendonParams),
@@ -17,7 +18,7 @@ pub use crate::embedding::{Embedded, Embedding, INSIDE_TOLERANCE};
 pub use crate::fem::{
     FemInputs, FemModel, FemWorkspace, Integrator, StepContext, StepReport, Tangent, TermsFn,
 };
-pub use crate::polar::polar_rotation;
+pub use crate::polar::{corotation, polar_rotation};
 pub use crate::tendon::Tendon;
 pub use crate::terms::{PairTerm, PointTerm, RankOneTerm, Terms};
 pub use crate::tetmesh::TetMesh;

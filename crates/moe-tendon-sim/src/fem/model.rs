@@ -8,7 +8,7 @@ use super::{FemWorkspace, StepContext};
 use crate::error::SimError;
 use crate::linsys::SparseSystem;
 use crate::material::Material;
-use crate::polar::polar_rotation;
+use crate::polar::corotation;
 use crate::terms::Terms;
 use crate::tetmesh::TetMesh;
 use crate::woodbury::Woodbury;
@@ -262,7 +262,8 @@ impl FemModel {
         Ok(f)
     }
 
-    /// Rotation and corotated Cauchy stress `σ(S − I)` of element `t`.
+    /// Rotation and corotated Cauchy stress `σ(S − I)` of element `t` (inverted or not:
+    /// [`corotation`]).
     #[inline]
     pub(super) fn element_state(
         &self,
@@ -271,7 +272,10 @@ impl FemModel {
         ctx: StepContext,
     ) -> Result<(Matrix3, Matrix3), SimError> {
         let f = self.deformation_gradient(t, x);
-        let r = polar_rotation(&f).ok_or(SimError::InvertedElement {
+        // Inversion-safe: an inverted element has a proper rotation and a stretch with a
+        // negative eigenvalue, whose stress pushes it back out; only a non-finite gradient
+        // has none.
+        let r = corotation(&f).ok_or(SimError::InvertedElement {
             step: ctx.step,
             finger: ctx.finger,
             element: t,
