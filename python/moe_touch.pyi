@@ -397,7 +397,9 @@ class FrameEstimate:
     @property
     def timings(self) -> StageTimings: ...
     @property
-    def stream(self) -> Literal["untimed", "started", "continued", "restarted"]: ...
+    def stream(
+        self,
+    ) -> Literal["untimed", "started", "continued", "restarted", "recovered"]: ...
     @property
     def gap_secs(self) -> Optional[float]: ...
 
@@ -437,7 +439,15 @@ class Pipeline:
         time: Optional[float] = None,
     ) -> FrameEstimate:
         """color (h, w, 3) uint8 RGB, depth (h, w) float32 metres, world_from_hand 4 x 4,
-        pulls (fingers, tendons) metres, time seconds (memory across frames)."""
+        pulls (fingers, tendons) metres, time seconds (memory across frames).
+
+        A frame that cannot be estimated raises the MoeTouchError of its kind with the
+        frame's status as attributes: stage ("input", "markers", "estimate" or "contact
+        points"), keypoints (per finger, the markers found, NaN where unseen; None when
+        perception did not run), markers_found, stream and gap_secs (None for a frame refused
+        before it entered the stream). The pipeline stays usable: the next frame goes on
+        from the stream's memory, or after a failed estimate from an estimator at rest
+        (stream "recovered")."""
     def reset(self) -> None: ...
     @property
     def threshold(self) -> float: ...

@@ -7,7 +7,7 @@ use std::sync::Mutex;
 use moe_geom::{Observation, WorldFromHand};
 use moe_physics::{HandMaterial, PhysicsConfig, PhysicsDetails};
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
-use moe_touch::{PaperPipeline, PhysicsPipeline, RgbdFrame, StreamEvent};
+use moe_touch::{FrameFailure, PaperPipeline, PhysicsPipeline, RgbdFrame, StreamEvent};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
@@ -162,25 +162,31 @@ impl Pipeline {
         pulls: Option<PyReadonlyArray2<'py, f64>>,
         time: Option<f64>,
     ) -> PyResult<FrameEstimate> {
-        let (h, w) = self.size;
-        if color.shape() != [h, w, 3] {
-            return Err(invalid(format!(
-                "color: expected a ({h}, {w}, 3) uint8 array for the camera, got shape {:?}",
-                color.shape()
-            )));
-        }
-        if depth.shape() != [h, w] {
-            return Err(invalid(format!(
-                "depth: expected a ({h}, {w}) float32 array for the camera, got shape {:?}",
-                depth.shape()
-            )));
-        }
-        let world_from_hand =
-            WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
-        let pulls = pulls
-            .as_ref()
-            .map(|p| convert::to_hand_pulls(p, self.num_fingers, self.tendons))
-            .transpose()?;
+        // Refused before the pipeline sees the frame: the input stage, nothing changed.
+        let checked = || -> PyResult<_> {
+            let (h, w) = self.size;
+            if color.shape() != [h, w, 3] {
+                return Err(invalid(format!(
+                    "color: expected a ({h}, {w}, 3) uint8 array for the camera, got shape {:?}",
+                    color.shape()
+                )));
+            }
+            if depth.shape() != [h, w] {
+                return Err(invalid(format!(
+                    "depth: expected a ({h}, {w}) float32 array for the camera, got shape {:?}",
+                    depth.shape()
+                )));
+            }
+            let world_from_hand =
+                WorldFromHand::new(convert::to_iso(&world_from_hand, "world_from_hand")?);
+            let pulls = pulls
+                .as_ref()
+                .map(|p| convert::to_hand_pulls(p, self.num_fingers, self.tendons))
+                .transpose()?;
+            Ok((world_from_hand, pulls))
+        };
+        let (world_from_hand, pulls) =
+            checked().map_err(|e| with_status(py, e, "input", None, None, None))?;
         // C-contiguous arrays are read in place; others (Fortran order, strided views) are copied
         // once into row-major order (`as_slice` also accepts Fortran order, hence the check).
         let color_copy;
@@ -205,9 +211,18 @@ impl Pipeline {
                 color_rgb8,
                 depth_m,
             };
-            run(&mut inner, frame, world_from_hand, pulls.as_deref(), time)
+            Ok::<_, PyErr>(run(
+                &mut inner,
+                frame,
+                world_from_hand,
+                pulls.as_deref(),
+                time,
+            ))
         })?;
-        FrameEstimate::new(py, processed)
+        match processed {
+            Ok(p) => FrameEstimate::new(py, p),
+            Err(failure) => Err(frame_failure(py, *failure)),
+        }
     }
 
     /// Forgets the stream (marker tracks, warm starts, the physics estimator's memory).
@@ -242,23 +257,84 @@ fn run(
     world_from_hand: WorldFromHand,
     pulls: Option<&[Vec<f64>]>,
     time: Option<f64>,
-) -> PyResult<Processed> {
+) -> Result<Processed, Box<FrameFailure>> {
     let mut observation = Observation::new().with_world_from_hand(world_from_hand);
     observation.tendon_pull_m = pulls;
     observation.time_secs = time;
     Ok(match inner {
         Inner::Physics(p) => {
-            let (estimate, physics) = p.process(frame, &observation).py()?.into_parts();
+            let (estimate, physics) = p.process(frame, &observation)?.into_parts();
             Processed {
                 estimate,
                 physics: Some(physics),
             }
         }
         Inner::Paper(p) => Processed {
-            estimate: p.process(frame, &observation).py()?,
+            estimate: p.process(frame, &observation)?,
             physics: None,
         },
     })
+}
+
+/// A frame the pipeline could not estimate, raised as the `MoeTouchError` of its error's kind
+/// with the frame's status as attributes: `stage` (`"input"`, `"markers"`, `"estimate"` or
+/// `"contact points"`), `keypoints` (per finger, the markers found, NaN where unseen; `None`
+/// when perception did not run), `markers_found`, `stream` and `gap_secs` (`None` for a frame
+/// refused before it entered the stream). The pipeline goes on with the next frame.
+fn frame_failure(py: Python<'_>, failure: FrameFailure) -> PyErr {
+    let keypoints = failure.keypoints.as_ref().map(|k| {
+        k.fingers
+            .iter()
+            .map(|m| convert::optional_points(py, m).unbind())
+            .collect::<Vec<_>>()
+    });
+    with_status(
+        py,
+        convert::raise(&failure.error),
+        &failure.stage.to_string(),
+        keypoints,
+        failure.markers.as_ref().map(|m| m.found),
+        failure.stream,
+    )
+}
+
+/// `err` with a failed frame's status as attributes (see [`frame_failure`]).
+fn with_status(
+    py: Python<'_>,
+    err: PyErr,
+    stage: &str,
+    keypoints: Option<Vec<Py<PyArray2<f64>>>>,
+    markers_found: Option<usize>,
+    stream: Option<StreamEvent>,
+) -> PyErr {
+    let value = err.value(py);
+    let (stream, gap_secs) = stream.map_or((None, None), |e| {
+        let (kind, gap) = stream_kind(e);
+        (Some(kind), gap)
+    });
+    let set = || -> PyResult<()> {
+        value.setattr("stage", stage)?;
+        value.setattr("keypoints", keypoints)?;
+        value.setattr("markers_found", markers_found)?;
+        value.setattr("stream", stream)?;
+        value.setattr("gap_secs", gap_secs)?;
+        Ok(())
+    };
+    match set() {
+        Ok(()) => err,
+        Err(e) => e,
+    }
+}
+
+/// The stream event as the Python API names it, and its gap in seconds.
+fn stream_kind(e: StreamEvent) -> (&'static str, Option<f64>) {
+    match e {
+        StreamEvent::Untimed => ("untimed", None),
+        StreamEvent::Started => ("started", None),
+        StreamEvent::Continued { gap_secs } => ("continued", Some(gap_secs)),
+        StreamEvent::Restarted { gap_secs } => ("restarted", Some(gap_secs)),
+        StreamEvent::Recovered { gap_secs } => ("recovered", gap_secs),
+    }
 }
 
 /// The physics estimator's loads as `ContactLoad` objects.
@@ -347,9 +423,12 @@ pub struct FrameEstimate {
     world_from_hand: Py<PyArray2<f64>>,
     /// Per-stage wall time.
     timings: StageTimings,
-    /// Where the frame stands in the stream: "untimed", "started", "continued" or "restarted".
+    /// Where the frame stands in the stream: "untimed", "started", "continued", "restarted" or
+    /// "recovered" (the first frame after one whose estimate failed: the estimator starts
+    /// again from rest).
     stream: &'static str,
-    /// Seconds since the previous frame ("continued", "restarted"), else None.
+    /// Seconds since the previous frame ("continued", "restarted", a timed "recovered"), else
+    /// None.
     gap_secs: Option<f64>,
 }
 
@@ -359,12 +438,7 @@ impl FrameEstimate {
         let points = |f: &[moe_geom::ContactPoint]| {
             convert::points(py, &f.iter().map(|c| c.point).collect::<Vec<_>>()).unbind()
         };
-        let (stream, gap_secs) = match e.stream {
-            StreamEvent::Untimed => ("untimed", None),
-            StreamEvent::Started => ("started", None),
-            StreamEvent::Continued { gap_secs } => ("continued", Some(gap_secs)),
-            StreamEvent::Restarted { gap_secs } => ("restarted", Some(gap_secs)),
-        };
+        let (stream, gap_secs) = stream_kind(e.stream);
         let physics = p.physics.as_ref();
         let loads = physics.map_or_else(|| Ok(Vec::new()), |e| loads(py, &e.loads))?;
         Ok(Self {

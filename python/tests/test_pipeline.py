@@ -130,6 +130,31 @@ def test_frames_out_of_time_order_are_refused_and_change_nothing():
     assert late.stream == "restarted"
 
 
+def test_a_failed_frame_reports_its_status_and_the_stream_goes_on():
+    episode = mt.read_episode(EPISODE)
+    pipeline = mt.Pipeline.physics(mt.Hand.preset("two-finger"), episode.camera, config=OCCLUDING)
+    f, g, h = episode[0], episode[1], episode[2]
+    pipeline.process(f.color, f.depth, f.world_from_hand, f.pulls, time=1.0)
+    # Refused before the pipeline saw it: the input stage, nothing changed.
+    with pytest.raises(mt.MoeTouchValueError) as refused:
+        pipeline.process(f.color, f.depth, f.world_from_hand, f.pulls * np.nan, time=1.05)
+    assert refused.value.stage == "input" and refused.value.stream is None
+    assert refused.value.keypoints is None and refused.value.markers_found is None
+    # The physics estimator needs the pulls: the estimate stage fails, with the markers found.
+    with pytest.raises(mt.MoeTouchValueError, match="tendon pulls") as failed:
+        pipeline.process(g.color, g.depth, g.world_from_hand, None, time=1.1)
+    status = failed.value
+    assert status.stage == "estimate"
+    assert status.stream == "continued" and status.gap_secs == pytest.approx(0.1)
+    assert status.markers_found > 0
+    assert len(status.keypoints) == 2
+    assert sum(int(np.isfinite(k[:, 0]).sum()) for k in status.keypoints) == status.markers_found
+    # The next frame is estimated, the estimator started again from rest.
+    after = pipeline.process(h.color, h.depth, h.world_from_hand, h.pulls, time=1.2)
+    assert after.stream == "recovered" and after.gap_secs == pytest.approx(0.1)
+    assert after.shape[0].shape[1] == 3
+
+
 def test_the_physics_estimator_alone_gives_the_pipelines_estimate():
     """Fed the markers the pipeline found, the estimator gives the pipeline's shape and forces."""
     episode = mt.read_episode(EPISODE)

@@ -107,6 +107,14 @@ pub enum LabError {
     },
 }
 
+/// A frame the pipeline could not estimate, where an experiment cannot go on without it: its
+/// error, through [`LabError::Touch`].
+impl From<Box<moe_touch::FrameFailure>> for LabError {
+    fn from(f: Box<moe_touch::FrameFailure>) -> Self {
+        Self::Touch(f.error)
+    }
+}
+
 /// The runtime's errors reach an experiment's caller through [`LabError::Touch`], by one path.
 macro_rules! through_touch {
     ($($t:ty),*) => {$(

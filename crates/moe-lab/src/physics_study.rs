@@ -210,6 +210,10 @@ pub struct PhysicsStudyReport {
     pub evaluation: PhysicsEvaluation,
     /// Table 2 (no trials without plates).
     pub plates: PhysicsPlateTable,
+    /// Simulated trajectories left out because their simulation failed (the figures are over
+    /// the others).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub skipped_trajectories: Vec<SkippedTrajectory>,
 }
 
 /// What [`physics_study`] found: the report, and the calibration when there was one.
@@ -225,7 +229,20 @@ impl PhysicsStudyReport {
     /// The report as the Markdown tables `moe-touch eval physics` prints: Table 1 and the
     /// force table ([`PhysicsEvaluation::table`]), then Table 2 when plates were run.
     pub fn tables(&self) -> String {
-        let mut s = self.evaluation.table();
+        let mut s = String::new();
+        if !self.skipped_trajectories.is_empty() {
+            let named: Vec<String> = self
+                .skipped_trajectories
+                .iter()
+                .map(|t| format!("{} ({})", t.trajectory, t.error))
+                .collect();
+            s.push_str(&format!(
+                "{} trajectories skipped, their simulation failed: {}\n\n",
+                named.len(),
+                named.join("; ")
+            ));
+        }
+        s.push_str(&self.evaluation.table());
         if !self.plates.trials.is_empty() {
             s.push_str(&self.plates.regions.table());
         }
@@ -265,6 +282,17 @@ pub struct Streams {
     pub perceived: Option<Vec<PerceivedFrame>>,
     /// The randomisation the frames were made with.
     pub params: RandomSceneParams,
+    /// Simulated trajectories that failed and are not among the frames.
+    pub skipped: Vec<SkippedTrajectory>,
+}
+
+/// A simulated trajectory a study left out because its simulation (or its rendering) failed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SkippedTrajectory {
+    /// Its id (of the study's seed).
+    pub trajectory: u64,
+    /// Why.
+    pub error: String,
 }
 
 /// A data set's frames as streams; with `marker_layout`, that layout's markers read off each
@@ -331,12 +359,17 @@ pub fn dataset_streams(
         frames: out,
         perceived: None,
         params,
+        skipped: Vec::new(),
     })
 }
 
 /// Trajectories `0..n` of `seed` simulated afresh; with `perceived` = (camera, detector), each
 /// rendered by that camera (`None`: the scene's) and its markers detected; `progress(t, n)`
-/// after each.
+/// after each. A trajectory whose simulation or rendering fails is left out and named in
+/// [`Streams::skipped`]; the others are kept.
+///
+/// # Errors
+/// A hand the parameters do not make, or every trajectory failing (the first one's error).
 fn simulated_streams(
     mut params: RandomSceneParams,
     marker_layout: Option<MarkerLayoutPreset>,
@@ -352,28 +385,68 @@ fn simulated_streams(
         params.finger.marker_layout = preset.layout();
     }
     let hand = HandModel::preset(params.preset, &params.finger)?;
-    let mut frames = Vec::new();
-    let mut seen = Vec::new();
-    for t in 0..n {
+    let kept = keep_trajectories(n, progress, |t| {
         let mut sampled = sample_scene(&params, seed, t)?;
-        if let Some((camera, detector)) = perceived {
-            if let Some(camera) = camera {
-                sampled.config.camera = camera;
+        Ok(match perceived {
+            Some((camera, detector)) => {
+                if let Some(camera) = camera {
+                    sampled.config.camera = camera;
+                }
+                let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t, detector)?;
+                (s, Some(k))
             }
-            let (s, k) = simulate_perceived(&sampled.config, &hand, t, seed ^ t, detector)?;
-            frames.extend(s);
-            seen.extend(k);
-        } else {
-            frames.extend(simulate_stream(&sampled.config, &hand, t)?);
-        }
-        progress(t + 1, n);
-    }
+            None => (simulate_stream(&sampled.config, &hand, t)?, None),
+        })
+    })?;
+    let (frames, seen, skipped) = kept;
     Ok(Streams {
         hand,
         frames,
         perceived: perceived.map(|_| seen),
         params,
+        skipped,
     })
+}
+
+/// The frames kept of a study's trajectories, their perceived frames, and the trajectories
+/// skipped.
+type Kept<F, P> = (Vec<F>, Vec<P>, Vec<SkippedTrajectory>);
+
+/// The frames of trajectories `0..n`, `simulate(t)` each, with their perceived frames where
+/// it gives them; a trajectory that fails is named among the skipped ones and the others are
+/// kept. `progress(t, n)` after each.
+///
+/// # Errors
+/// Every trajectory failing: the first one's error.
+fn keep_trajectories<F, P>(
+    n: u64,
+    progress: &mut dyn FnMut(u64, u64),
+    mut simulate: impl FnMut(u64) -> Result<(Vec<F>, Option<Vec<P>>), LabError>,
+) -> Result<Kept<F, P>, LabError> {
+    let mut frames = Vec::new();
+    let mut seen = Vec::new();
+    let mut skipped = Vec::new();
+    let mut first_error = None;
+    for t in 0..n {
+        match simulate(t) {
+            Ok((s, k)) => {
+                frames.extend(s);
+                seen.extend(k.into_iter().flatten());
+            }
+            Err(e) => {
+                skipped.push(SkippedTrajectory {
+                    trajectory: t,
+                    error: e.to_string(),
+                });
+                first_error.get_or_insert(e);
+            }
+        }
+        progress(t + 1, n);
+    }
+    match first_error {
+        Some(e) if frames.is_empty() => Err(e),
+        _ => Ok((frames, seen, skipped)),
+    }
 }
 
 /// The material fitted to `scene` simulated with the hand's own material and mesh (`params`),
@@ -440,6 +513,7 @@ pub fn physics_study(
         frames,
         perceived,
         params,
+        skipped,
     } = match &options.frames {
         PhysicsFrames::Dataset { dir, frames } => dataset_streams(
             dir,
@@ -516,6 +590,7 @@ pub fn physics_study(
         report: PhysicsStudyReport {
             evaluation,
             plates: PhysicsPlateTable::new(trials),
+            skipped_trajectories: skipped,
         },
         calibration,
     })
@@ -616,4 +691,48 @@ pub fn physics_golden(dir: &Path, config: &PhysicsConfig) -> Result<PhysicsGolde
         evaluation,
         per_frame,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trajectory whose simulation fails is named and left out, the others kept in order;
+    /// only a study of which every trajectory fails fails, with the first error.
+    #[test]
+    fn a_failed_trajectory_is_skipped_and_named_and_the_others_are_kept() {
+        let fail = |t: u64| LabError::InvalidPlan {
+            reason: format!("trajectory {t} diverged"),
+        };
+        let mut calls = Vec::new();
+        let (frames, seen, skipped) = keep_trajectories(4, &mut |t, n| calls.push((t, n)), |t| {
+            if t == 1 || t == 2 {
+                Err(fail(t))
+            } else {
+                Ok((vec![10 * t, 10 * t + 1], Some(vec![t])))
+            }
+        })
+        .unwrap();
+        assert_eq!(frames, [0, 1, 30, 31]);
+        assert_eq!(seen, [0, 3]);
+        assert_eq!(
+            skipped,
+            [
+                SkippedTrajectory {
+                    trajectory: 1,
+                    error: "invalid generation plan: trajectory 1 diverged".into()
+                },
+                SkippedTrajectory {
+                    trajectory: 2,
+                    error: "invalid generation plan: trajectory 2 diverged".into()
+                }
+            ]
+        );
+        assert_eq!(calls, [(1, 4), (2, 4), (3, 4), (4, 4)]);
+        let all = keep_trajectories::<u64, u64>(3, &mut |_, _| {}, |t| Err(fail(t)));
+        assert!(
+            matches!(&all, Err(LabError::InvalidPlan { reason }) if reason == "trajectory 0 diverged"),
+            "{all:?}"
+        );
+    }
 }

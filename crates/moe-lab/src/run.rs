@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use crate::LabError;
 use crate::markers::{MarkerReport, MarkerScore, has_ground_truth, visible_markers};
-use moe_touch::{Pipeline, StageTimings, StreamEvent};
+use moe_touch::{FrameFailure, FrameStage, Pipeline, StageTimings, StreamEvent};
 
 mod summary;
 
@@ -30,14 +30,27 @@ pub struct FrameReport {
     pub true_contact_vertices: Option<usize>,
     /// Stage timings, milliseconds.
     pub timings: StageTimings,
-    /// Where the frame stands in the stream (a gap beyond the memory horizon restarts it).
-    pub stream: StreamEvent,
+    /// Where the frame stands in the stream (a gap beyond the memory horizon restarts it;
+    /// `null` for a frame refused before it entered the stream).
+    pub stream: Option<StreamEvent>,
+    /// Why the frame has no estimate, for a frame the pipeline could not estimate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<FailureRecord>,
     /// Per finger, the estimated force on it (contact estimators that estimate force).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub finger_forces: Option<Vec<FingerForceRecord>>,
     /// The loads the physics estimator found.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loads: Option<Vec<LoadRecord>>,
+}
+
+/// Why a frame of a run has no estimate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FailureRecord {
+    /// The stage that failed.
+    pub stage: FrameStage,
+    /// Its error.
+    pub error: String,
 }
 
 /// The estimated force on one finger in one frame.
@@ -279,6 +292,10 @@ impl StreamTimings {
 pub struct RunReport {
     /// Frames processed.
     pub frames: usize,
+    /// Frames the pipeline could not estimate (each marked in `per_frame`): the stream went
+    /// on after them, and the figures against the ground truth are over the others.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub failed_frames: usize,
     /// Why the episode ended early, if it was cut short (the frames before the cut ran).
     pub truncated: Option<String>,
     /// Marker detection against the visible true markers (episodes with ground truth).
@@ -311,8 +328,13 @@ pub struct RunReport {
 /// returns the result frames and the report (`truncated`: why the episode's frames stop early,
 /// if they do).
 ///
+/// A frame the pipeline cannot estimate does not end the run: its report names the failing
+/// stage and the error ([`FrameReport::failure`]), its result frame has the markers found and
+/// no estimate, and the stream goes on with the next frame. The figures against the ground
+/// truth are over the estimated frames; [`RunReport::failed_frames`] counts the others.
+///
 /// # Errors
-/// A stage's failure on a frame, or ground truth that does not fit the hand.
+/// Ground truth that does not fit the hand.
 ///
 /// Every frame carries the force on each finger where the estimator estimates per-vertex force
 /// (the sum over its vertices), and the estimator's details add what they know
@@ -334,13 +356,39 @@ where
     let mut score = MarkerScore::default();
     let mut contact = ContactMetrics::default();
     let mut bcd_sum = 0.0;
+    let mut estimated = 0usize;
     let mut out = Vec::with_capacity(frames.len());
     let mut per_frame = Vec::with_capacity(frames.len());
     for frame in frames {
-        let est = pipeline.process(frame.rgbd(), &frame.observation())?;
+        let run_truth = truth.then(|| RunTruth {
+            vertices_in_hand: frame.finger_vertices_in_hand.clone(),
+            contact_vertices: frame.contact_vertices.clone(),
+            obstacles: frame.obstacles.clone(),
+        });
+        let true_contact_vertices =
+            truth.then(|| frame.contact_vertices.iter().map(Vec::len).sum());
+        let est = match pipeline.process(frame.rgbd(), &frame.observation()) {
+            Ok(est) => est,
+            Err(failure) => {
+                if let (true, Some(keypoints)) = (truth, &failure.keypoints) {
+                    let visible = visible_markers(info, frame)?;
+                    score.add(keypoints, &frame.markers_in_hand, &visible)?;
+                }
+                let (report, result) = failed_frame::<E::Details>(pipeline.hand(), frame, *failure);
+                per_frame.push(FrameReport {
+                    true_contact_vertices,
+                    ..report
+                });
+                out.push(RunFrame {
+                    truth: run_truth,
+                    ..result
+                });
+                continue;
+            }
+        };
+        estimated += 1;
         let mut shape_bcd_mm = None;
-        let mut true_contact_vertices = None;
-        let run_truth = if truth {
+        if truth {
             let visible = visible_markers(info, frame)?;
             score.add(&est.keypoints, &frame.markers_in_hand, &visible)?;
             let true_shape = HandShape {
@@ -368,15 +416,7 @@ where
             let true_labels = labels(&frame.contact_vertices);
             let predicted = est.contact.vertices_above(pipeline.threshold());
             contact.add(&true_shape, &true_labels, &labels(&predicted))?;
-            true_contact_vertices = Some(frame.contact_vertices.iter().map(Vec::len).sum());
-            Some(RunTruth {
-                vertices_in_hand: frame.finger_vertices_in_hand.clone(),
-                contact_vertices: frame.contact_vertices.clone(),
-                obstacles: frame.obstacles.clone(),
-            })
-        } else {
-            None
-        };
+        }
         let (finger_forces, loads) = frame_forces(&est);
         let forces = finger_forces.as_ref().map(|fingers| RunForces {
             finger_force_n: fingers.iter().map(|f| f.force_n).collect(),
@@ -402,7 +442,8 @@ where
             shape_bcd_mm,
             true_contact_vertices,
             timings: est.timings,
-            stream: est.stream,
+            stream: Some(est.stream),
+            failure: None,
             finger_forces,
             loads,
         });
@@ -422,12 +463,14 @@ where
         TimingSummary::of(per_frame.iter().map(|r| f(&r.timings)).collect())
     };
     let total_ms = stage(|t| t.total_ms);
+    let scored = truth && estimated > 0;
     let report = RunReport {
         frames: frames.len(),
+        failed_frames: frames.len() - estimated,
         truncated,
         markers: truth.then(|| score.report()),
-        shape_bcd_mm: truth.then(|| 1e3 * bcd_sum / frames.len() as Real),
-        contact: truth.then(|| contact.report()),
+        shape_bcd_mm: scored.then(|| 1e3 * bcd_sum / estimated as Real),
+        contact: scored.then(|| contact.report()),
         markers_ms: stage(|t| t.markers_ms),
         estimate_ms: stage(|t| t.estimate_ms),
         points_ms: stage(|t| t.points_ms),
@@ -444,8 +487,79 @@ where
     Ok((out, report))
 }
 
+/// The report and the result frame of a frame the pipeline could not estimate (without the
+/// ground truth, which the caller adds): the markers found, when perception ran, and no
+/// estimate (no vertices; zero forces on every finger in a run whose estimator estimates force).
+fn failed_frame<D: RunDetails>(
+    hand: &moe_geom::HandModel,
+    frame: &EpisodeFrame,
+    failure: FrameFailure,
+) -> (FrameReport, RunFrame) {
+    let fingers = hand.num_fingers();
+    let error = FailureRecord {
+        stage: failure.stage,
+        error: failure.to_string(),
+    };
+    let markers_in_hand = match failure.keypoints {
+        Some(k) => k.fingers,
+        None => hand
+            .fingers()
+            .iter()
+            .map(|f| vec![None; f.model.marker_vertices().len()])
+            .collect(),
+    };
+    let finger_forces = D::ESTIMATES_FORCE.then(|| {
+        (0..fingers)
+            .map(|_| FingerForceRecord {
+                force_n: Vector3::zeros(),
+                magnitude_n: 0.0,
+                pressed_probability: None,
+                loads: None,
+                solves: None,
+                degraded: false,
+                error: Some(error.error.clone()),
+            })
+            .collect::<Vec<_>>()
+    });
+    let forces = D::ESTIMATES_FORCE.then(|| RunForces {
+        finger_force_n: vec![Vector3::zeros(); fingers],
+        pressed_probability: None,
+        loads: Vec::new(),
+    });
+    (
+        FrameReport {
+            time_ns: frame.time_ns,
+            markers_found: failure.markers.as_ref().map_or(0, |m| m.found),
+            fingers_without_markers: failure.fingers_without_markers,
+            contact_points: 0,
+            shape_bcd_mm: None,
+            true_contact_vertices: None,
+            timings: failure.timings,
+            stream: failure.stream,
+            failure: Some(error),
+            finger_forces,
+            loads: D::ESTIMATES_FORCE.then(Vec::new),
+        },
+        RunFrame {
+            time_ns: frame.time_ns,
+            color_rgb8: frame.color_rgb8.clone(),
+            world_from_hand: frame.world_from_hand,
+            markers_in_hand,
+            vertices_in_hand: vec![Vec::new(); fingers],
+            contact_probability: vec![Vec::new(); fingers],
+            contacts_in_world: Vec::new(),
+            truth: None,
+            forces,
+        },
+    )
+}
+
 /// What an estimator's details add to a run's report and result frames.
 pub trait RunDetails {
+    /// Whether the estimator's details give forces (a run with forces: a frame it could not
+    /// estimate carries zero forces).
+    const ESTIMATES_FORCE: bool;
+
     /// Per finger, the estimated force with what the estimator knows of it, and the loads it
     /// found; `None` for an estimator whose details say nothing of forces.
     fn forces(&self) -> Option<(Vec<FingerForceRecord>, Vec<LoadRecord>)>;
@@ -453,6 +567,8 @@ pub trait RunDetails {
 
 /// The paper's chain says nothing beyond shape and contact.
 impl RunDetails for () {
+    const ESTIMATES_FORCE: bool = false;
+
     fn forces(&self) -> Option<(Vec<FingerForceRecord>, Vec<LoadRecord>)> {
         None
     }
@@ -461,6 +577,8 @@ impl RunDetails for () {
 /// The physics estimator: per finger its force, pressed probability, loads and failure; every
 /// load with its place, force and uncertainty.
 impl RunDetails for PhysicsDetails {
+    const ESTIMATES_FORCE: bool = true;
+
     fn forces(&self) -> Option<(Vec<FingerForceRecord>, Vec<LoadRecord>)> {
         Some((
             finger_force_records(self),
@@ -530,7 +648,8 @@ mod tests {
                 total_ms,
                 ..StageTimings::default()
             },
-            stream: StreamEvent::Started,
+            stream: Some(StreamEvent::Started),
+            failure: None,
             finger_forces: None,
             loads: None,
         }

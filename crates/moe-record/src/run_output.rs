@@ -167,9 +167,10 @@ pub struct RunFrame {
     pub world_from_hand: Iso3,
     /// Detected markers of every finger, hand frame (`None`: not seen).
     pub markers_in_hand: Vec<Vec<Option<Point3>>>,
-    /// Estimated vertices of every finger, hand frame.
+    /// Estimated vertices of every finger, hand frame; a finger with no estimate in this frame
+    /// (a frame whose estimate failed) has none, and no contact probabilities either.
     pub vertices_in_hand: Vec<Vec<Point3>>,
-    /// Contact probability of every vertex.
+    /// Contact probability of every vertex (none for a finger without vertices).
     pub contact_probability: Vec<Vec<f64>>,
     /// Estimated contact points, world frame.
     pub contacts_in_world: Vec<Point3>,
@@ -404,7 +405,9 @@ impl<W: Write + Seek> RunWriter<W> {
         }
         for (f, &n) in info.finger_num_vertices.iter().enumerate() {
             let (v, p) = (&frame.vertices_in_hand[f], &frame.contact_probability[f]);
-            if v.len() != n || p.len() != n {
+            // Both empty: no estimate of the finger in this frame (a failed frame).
+            let unestimated = v.is_empty() && p.is_empty();
+            if !unestimated && (v.len() != n || p.len() != n) {
                 return refuse(format!(
                     "finger {f} has {} vertices and {} contact probabilities, expected {n}",
                     v.len(),
@@ -442,12 +445,24 @@ impl<W: Write + Seek> RunWriter<W> {
         transforms
     }
 
-    /// The `/estimate/mesh` update: every estimated finger mesh coloured by contact probability.
+    /// The `/estimate/mesh` update: every estimated finger mesh coloured by contact probability;
+    /// the mesh of a finger without an estimate in this frame is deleted.
     fn mesh_update(&self, frame: &RunFrame) -> Vec<u8> {
         let info = &self.info.episode;
         let t = frame.time_ns;
-        scene_update(
-            (0..info.finger_faces.len())
+        let unestimated = |f: usize| frame.vertices_in_hand[f].is_empty();
+        let deletions = (0..info.finger_faces.len())
+            .filter(|&f| unestimated(f))
+            .map(|f| fg::SceneEntityDeletion {
+                timestamp: timestamp(t),
+                r#type: fg::scene_entity_deletion::Type::MatchingId as i32,
+                id: format!("finger_{f}"),
+            })
+            .collect();
+        encode(&fg::SceneUpdate {
+            deletions,
+            entities: (0..info.finger_faces.len())
+                .filter(|&f| !unestimated(f))
                 .map(|f| {
                     let colors = frame.contact_probability[f]
                         .iter()
@@ -463,7 +478,7 @@ impl<W: Write + Seek> RunWriter<W> {
                     )
                 })
                 .collect(),
-        )
+        })
     }
 
     /// The `/estimate/forces` and `/estimate/finger_force` messages (`None` in a run without

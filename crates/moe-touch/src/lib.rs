@@ -43,7 +43,7 @@ pub use error::TouchError;
 pub use moe_geom::{Observation, RgbdFrame};
 #[cfg(feature = "physics")]
 pub use pipeline::PhysicsPipeline;
-pub use pipeline::{FrameEstimate, Pipeline, StageTimings, StreamEvent};
+pub use pipeline::{FrameEstimate, FrameFailure, FrameStage, Pipeline, StageTimings, StreamEvent};
 #[cfg(feature = "dgcnn")]
 pub use pipeline::{PaperEstimator, PaperPipeline};
 
@@ -73,7 +73,9 @@ pub mod prelude {
     pub use crate::perception::{DetectorConfig, MarkerDetector};
     #[cfg(feature = "physics")]
     pub use crate::pipeline::PhysicsPipeline;
-    pub use crate::pipeline::{FrameEstimate, Pipeline, StageTimings, StreamEvent};
+    pub use crate::pipeline::{
+        FrameEstimate, FrameFailure, FrameStage, Pipeline, StageTimings, StreamEvent,
+    };
     #[cfg(feature = "dgcnn")]
     pub use crate::pipeline::{PaperEstimator, PaperPipeline, load_contact_model};
     pub use moe_arap::ShapeConfig;

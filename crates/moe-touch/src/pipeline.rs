@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::TouchError;
 use crate::filter::{ContactSmoother, KeypointFilter};
-use crate::perception::{MarkerDetector, MarkerDiagnostics};
+use crate::perception::{MarkerDetection, MarkerDetector, MarkerDiagnostics};
 
 /// Wall time of each stage of one frame, milliseconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
@@ -124,6 +124,81 @@ pub enum StreamEvent {
         /// Time since the previous frame, seconds.
         gap_secs: Real,
     },
+    /// The first frame after one whose estimator failed ([`FrameFailure`] at
+    /// [`FrameStage::Estimate`]): the estimator starts again from rest, the marker tracks are
+    /// kept.
+    Recovered {
+        /// Time since the previous frame, seconds (`None` for an untimed frame).
+        gap_secs: Option<Real>,
+    },
+}
+
+/// The stage of a frame that failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrameStage {
+    /// The frame was refused before any stage saw it (no wrist pose, a time not after the
+    /// previous frame's, an observation that already carries markers): nothing changed.
+    Input,
+    /// Marker perception (images that do not fit the camera): the stream's memory is kept.
+    Markers,
+    /// The estimator (an observation that does not fit the hand, a failing solve): it is
+    /// reset, and the next frame starts it from rest ([`StreamEvent::Recovered`]).
+    Estimate,
+    /// Contact points from the estimate: the stream's memory is kept.
+    Points,
+}
+
+impl std::fmt::Display for FrameStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Input => "input",
+            Self::Markers => "markers",
+            Self::Estimate => "estimate",
+            Self::Points => "contact points",
+        })
+    }
+}
+
+/// A frame the pipeline could not estimate whole: what it found before the stage that failed,
+/// and why that stage failed. The pipeline goes on with the next frame (see [`FrameStage`] for
+/// what each failure does to the stream's memory).
+#[derive(Debug)]
+pub struct FrameFailure {
+    /// Why.
+    pub error: TouchError,
+    /// The stage that failed.
+    pub stage: FrameStage,
+    /// The markers found, hand frame, when perception ran (filtered, when the pipeline filters
+    /// keypoints).
+    pub keypoints: Option<HandKeypoints>,
+    /// What marker perception saw and decided, when it ran.
+    pub markers: Option<MarkerDiagnostics>,
+    /// Fingers none of whose markers were found, when perception ran.
+    pub fingers_without_markers: Vec<usize>,
+    /// Where the frame stood in the stream; `None` for a frame refused at
+    /// [`FrameStage::Input`].
+    pub stream: Option<StreamEvent>,
+    /// Per-stage wall time up to the failure (zero for the stages that did not run).
+    pub timings: StageTimings,
+}
+
+impl std::fmt::Display for FrameFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} stage: {}", self.stage, self.error)
+    }
+}
+
+impl std::error::Error for FrameFailure {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.error.source()
+    }
+}
+
+impl From<Box<FrameFailure>> for TouchError {
+    fn from(f: Box<FrameFailure>) -> Self {
+        f.error
+    }
 }
 
 /// Checks a contact threshold as [`Pipeline::new`] does, for callers that take one long before
@@ -230,6 +305,9 @@ pub struct Pipeline<E> {
     memory_horizon_secs: Real,
     /// The last timed frame's time, seconds.
     last_time_secs: Option<Real>,
+    /// Whether the previous frame's estimator failed (the next frame is
+    /// [`StreamEvent::Recovered`]).
+    recovering: bool,
 }
 
 impl<E: HandEstimator> Pipeline<E> {
@@ -256,6 +334,7 @@ impl<E: HandEstimator> Pipeline<E> {
             contact_smoother: None,
             memory_horizon_secs: DEFAULT_MEMORY_HORIZON_SECS,
             last_time_secs: None,
+            recovering: false,
         })
     }
     /// Sets how far apart, in seconds, two timed frames may be and still be one stream
@@ -320,6 +399,7 @@ impl<E: HandEstimator> Pipeline<E> {
             s.reset();
         }
         self.last_time_secs = None;
+        self.recovering = false;
     }
 
     /// Where a frame at `time_secs` stands in the stream: refuses a time that is not finite or
@@ -327,7 +407,12 @@ impl<E: HandEstimator> Pipeline<E> {
     /// after a gap beyond the horizon.
     fn enter_stream(&mut self, time_secs: Option<Real>) -> Result<StreamEvent, TouchError> {
         let Some(t) = time_secs else {
-            return Ok(StreamEvent::Untimed);
+            let recovered = std::mem::take(&mut self.recovering);
+            return Ok(if recovered {
+                StreamEvent::Recovered { gap_secs: None }
+            } else {
+                StreamEvent::Untimed
+            });
         };
         if !t.is_finite() {
             return Err(TouchError::InvalidParameter {
@@ -350,11 +435,15 @@ impl<E: HandEstimator> Pipeline<E> {
                     gap_secs: t - previous,
                 }
             }
+            Some(previous) if self.recovering => StreamEvent::Recovered {
+                gap_secs: Some(t - previous),
+            },
             Some(previous) => StreamEvent::Continued {
                 gap_secs: t - previous,
             },
         };
         self.last_time_secs = Some(t);
+        self.recovering = false;
         Ok(event)
     }
 
@@ -370,67 +459,146 @@ impl<E: HandEstimator> Pipeline<E> {
     /// Without one the frame is [`StreamEvent::Untimed`]. A recorded frame gives both halves:
     /// `pipeline.process(frame.rgbd(), &frame.observation())`.
     ///
+    /// A frame that fails is one frame: the pipeline stays usable, and the next frame goes on
+    /// from the stream's memory, or, after a failed estimate, from an estimator at rest
+    /// ([`StreamEvent::Recovered`]).
+    ///
     /// # Errors
+    /// A [`FrameFailure`] with what the frame gave before its failing stage (the markers
+    /// found, when perception ran) and the error: at [`FrameStage::Input`],
     /// [`TouchError::MissingObservation`] without the wrist pose,
     /// [`TouchError::InvalidObservation`] for an observation that already carries markers or a
     /// depth image (the pipeline finds the markers in the frame and passes its depth image on,
-    /// with the camera's intrinsics and mount, to the estimator), [`TouchError::StreamOutOfOrder`] for a time not after
-    /// the previous frame's (nothing changes), images that do not fit the camera, an
-    /// observation that does not fit the hand, or a failing estimator.
+    /// with the camera's intrinsics and mount, to the estimator), [`TouchError::StreamOutOfOrder`]
+    /// for a time not after the previous frame's, a time that is not finite; at
+    /// [`FrameStage::Markers`], images that do not fit the camera; at [`FrameStage::Estimate`],
+    /// an observation that does not fit the hand or a failing estimator.
     pub fn process(
         &mut self,
         frame: RgbdFrame<'_>,
         observation: &Observation<'_>,
-    ) -> Result<FrameEstimate<E::Details>, TouchError> {
+    ) -> Result<FrameEstimate<E::Details>, Box<FrameFailure>> {
+        let refused = |error: TouchError| {
+            Box::new(FrameFailure {
+                error,
+                stage: FrameStage::Input,
+                keypoints: None,
+                markers: None,
+                fingers_without_markers: Vec::new(),
+                stream: None,
+                timings: StageTimings::default(),
+            })
+        };
         if observation.keypoints.is_some() {
-            return Err(TouchError::InvalidObservation {
+            return Err(refused(TouchError::InvalidObservation {
                 reason: "it already carries markers; the pipeline finds them in the frame \
                          (give the keypoints to the estimator itself instead)",
-            });
+            }));
         }
         if observation.depth.is_some() {
-            return Err(TouchError::InvalidObservation {
+            return Err(refused(TouchError::InvalidObservation {
                 reason: "it already carries a depth image; the pipeline takes the frame's",
-            });
+            }));
         }
-        let world_from_hand =
-            observation
-                .world_from_hand
-                .ok_or(TouchError::MissingObservation {
-                    what: "the wrist pose (world_from_hand), for contact points in the world",
-                })?;
-        let stream = self.enter_stream(observation.time_secs)?;
+        let world_from_hand = observation.world_from_hand.ok_or_else(|| {
+            refused(TouchError::MissingObservation {
+                what: "the wrist pose (world_from_hand), for contact points in the world",
+            })
+        })?;
+        let stream = self.enter_stream(observation.time_secs).map_err(refused)?;
         let start = Instant::now();
-        let mut detection = self.detector.detect(frame.color_rgb8, frame.depth_m)?;
+        let ms = |a: Instant, b: Instant| 1e3 * (b - a).as_secs_f64();
+        let mut detection = match self.detector.detect(frame.color_rgb8, frame.depth_m) {
+            Ok(d) => d,
+            Err(error) => {
+                let markers_ms = ms(start, Instant::now());
+                return Err(Box::new(FrameFailure {
+                    error,
+                    stage: FrameStage::Markers,
+                    keypoints: None,
+                    markers: None,
+                    fingers_without_markers: Vec::new(),
+                    stream: Some(stream),
+                    timings: StageTimings {
+                        markers_ms,
+                        total_ms: markers_ms,
+                        ..StageTimings::default()
+                    },
+                }));
+            }
+        };
         if let Some(f) = &mut self.keypoint_filter {
             detection.keypoints = f.filter(&detection.keypoints);
         }
         let t_markers = Instant::now();
+        let fingers_without_markers: Vec<usize> = detection
+            .keypoints
+            .fingers
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.iter().all(Option::is_none))
+            .map(|(f, _)| f)
+            .collect();
         // The frame's size was checked by the detector, whose camera took it.
-        let depth = DepthImage::new(
+        let estimated = DepthImage::new(
             frame.depth_m,
             *self.detector.intrinsics(),
             self.detector.hand_from_camera(),
-        )?;
+        )
+        .map_err(TouchError::from)
+        .and_then(|depth| {
+            self.estimator
+                .estimate(
+                    &observation
+                        .with_keypoints(&detection.keypoints)
+                        .with_depth(depth),
+                )
+                .map_err(TouchError::from_estimator)
+        });
+        let t_estimate = Instant::now();
+        let failed = |error: TouchError, stage: FrameStage, detection: MarkerDetection| {
+            let end = Instant::now();
+            Box::new(FrameFailure {
+                error,
+                stage,
+                keypoints: Some(detection.keypoints),
+                markers: Some(detection.diagnostics),
+                fingers_without_markers: fingers_without_markers.clone(),
+                stream: Some(stream),
+                timings: StageTimings {
+                    markers_ms: ms(start, t_markers),
+                    estimate_ms: ms(t_markers, t_estimate),
+                    points_ms: ms(t_estimate, end),
+                    total_ms: ms(start, end),
+                },
+            })
+        };
         let HandEstimate {
             shape,
             contact,
             vertex_force_n,
             details,
-        } = self
-            .estimator
-            .estimate(
-                &observation
-                    .with_keypoints(&detection.keypoints)
-                    .with_depth(depth),
-            )
-            .map_err(TouchError::from_estimator)?;
-        let t_estimate = Instant::now();
+        } = match estimated {
+            Ok(e) => e,
+            Err(error) => {
+                // What the estimator carried may be half advanced: it starts again from rest,
+                // and so does what was smoothed of its maps. The marker tracks are kept.
+                self.estimator.reset();
+                if let Some(s) = &mut self.contact_smoother {
+                    s.reset();
+                }
+                self.recovering = true;
+                return Err(failed(error, FrameStage::Estimate, detection));
+            }
+        };
         let contact = match &mut self.contact_smoother {
             Some(s) => s.smooth(&contact),
             None => contact,
         };
-        let contacts_in_hand = contact.contacts_above(self.threshold, &shape)?;
+        let contacts_in_hand = match contact.contacts_above(self.threshold, &shape) {
+            Ok(c) => c,
+            Err(e) => return Err(failed(e.into(), FrameStage::Points, detection)),
+        };
         let contacts_in_world = contacts_in_hand
             .iter()
             .map(|c| ContactPoint {
@@ -439,15 +607,6 @@ impl<E: HandEstimator> Pipeline<E> {
             })
             .collect();
         let end = Instant::now();
-        let ms = |a: Instant, b: Instant| 1e3 * (b - a).as_secs_f64();
-        let fingers_without_markers = detection
-            .keypoints
-            .fingers
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.iter().all(Option::is_none))
-            .map(|(f, _)| f)
-            .collect();
         Ok(FrameEstimate {
             keypoints: detection.keypoints,
             shape,

@@ -135,6 +135,18 @@ pub struct PatContacts {
     pub points_in_world: Vec<Point3>,
     /// Contact points per pat.
     pub per_pat: Vec<usize>,
+    /// The pats whose frame the pipeline could not estimate (counted as pats without contact).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub failed_pats: Vec<FailedPat>,
+}
+
+/// A pat whose frame the pipeline could not estimate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FailedPat {
+    /// The pat's index.
+    pub pat: usize,
+    /// Why (the failing stage and its error).
+    pub error: String,
 }
 
 impl PatContacts {
@@ -145,36 +157,44 @@ impl PatContacts {
 }
 
 /// Runs `pipeline` on every pat of `episode`, each from a fresh stream (the pats are separate
-/// touches), and collects the contact points in the world frame.
-///
-/// # Errors
-/// As [`Pipeline::process`].
+/// touches), and collects the contact points in the world frame. A pat whose frame fails is
+/// named in [`PatContacts::failed_pats`] and gives no contact; the others go on.
 pub fn estimate_pat_contacts<E: HandEstimator>(
     pipeline: &mut Pipeline<E>,
     episode: &PattingEpisode,
-) -> Result<PatContacts, LabError> {
+) -> PatContacts {
     let mut out = PatContacts::default();
-    for frame in &episode.frames {
+    for (pat, frame) in episode.frames.iter().enumerate() {
         pipeline.reset();
-        let estimate = pipeline.process(frame.rgbd(), &frame.observation())?;
+        let estimate = match pipeline.process(frame.rgbd(), &frame.observation()) {
+            Ok(e) => e,
+            Err(failure) => {
+                out.per_pat.push(0);
+                out.failed_pats.push(FailedPat {
+                    pat,
+                    error: failure.to_string(),
+                });
+                continue;
+            }
+        };
         out.per_pat.push(estimate.contacts_in_world.len());
         out.points_in_world
             .extend(estimate.contacts_in_world.iter().map(|c| c.point));
     }
-    Ok(out)
+    out
 }
 
 /// The contacts on every pat of the pipeline `build` makes around the episode's detector.
 ///
 /// # Errors
-/// A detector for another hand than the episode's, and as [`estimate_pat_contacts`].
+/// A detector for another hand than the episode's, or a pipeline `build` cannot make.
 pub fn pat_contacts<E: HandEstimator>(
     hand: &HandModel,
     episode: &PattingEpisode,
     build: impl FnOnce(MarkerDetector) -> Result<Pipeline<E>, TouchError>,
 ) -> Result<PatContacts, LabError> {
     let detector = MarkerDetector::for_episode(&episode.info, hand, DetectorConfig::default())?;
-    estimate_pat_contacts(&mut build(detector)?, episode)
+    Ok(estimate_pat_contacts(&mut build(detector)?, episode))
 }
 
 /// The paper's pipeline's contacts on every pat: SR-ARAP with `shape` and `contact` at
@@ -324,11 +344,7 @@ mod tests {
                 frames: vec![frame.clone()],
                 ..episode.clone()
             };
-            all.extend(
-                estimate_pat_contacts(&mut pipeline, &one)
-                    .unwrap()
-                    .points_in_world,
-            );
+            all.extend(estimate_pat_contacts(&mut pipeline, &one).points_in_world);
         }
         // The frame chain (finger → hand → world) reproduces the simulator's contacts, and they
         // lie within the press rule's distance (1 mm) of the body's surface.

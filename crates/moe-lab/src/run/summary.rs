@@ -30,6 +30,20 @@ impl RunReport {
             r.total_ms.median_ms,
             out.display()
         );
+        if r.failed_frames > 0 {
+            let first = r.per_frame.iter().find_map(|f| {
+                f.failure
+                    .as_ref()
+                    .map(|e| format!("at {} ns, {}", f.time_ns, e.error))
+            });
+            let _ = writeln!(
+                text,
+                "{} of {} frames not estimated (marked in the report and the result; the stream went on), the first {}",
+                r.failed_frames,
+                r.frames,
+                first.unwrap_or_default()
+            );
+        }
         let s = &r.stream_ms;
         let row = |t: &super::TimingSummary| {
             format!(

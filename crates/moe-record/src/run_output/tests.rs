@@ -250,3 +250,44 @@ fn a_frame_that_does_not_fit_is_refused() {
     f.markers_in_hand.pop();
     does_not_fit(f, "0 marker lists for 1 fingers");
 }
+
+/// A frame without an estimate (a failed frame) is written with its image and markers, and its
+/// finger meshes are deleted from the scene rather than drawn; one list empty and the other
+/// not is still refused.
+#[test]
+fn a_frame_without_an_estimate_deletes_its_meshes() {
+    let mut failed = frame(true);
+    failed.time_ns = 9;
+    failed.vertices_in_hand = vec![Vec::new()];
+    failed.contact_probability = vec![Vec::new()];
+    failed.contacts_in_world.clear();
+    let bytes = write(&[frame(true), failed]).unwrap();
+    let mut meshes = Vec::new();
+    let mut images = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        match m.channel.topic.as_str() {
+            "/estimate/mesh" => {
+                let u = <fg::SceneUpdate as foxglove::Decode>::decode(&m.data[..]).unwrap();
+                meshes.push((
+                    m.log_time,
+                    u.entities.iter().map(|e| e.id.clone()).collect::<Vec<_>>(),
+                    u.deletions.iter().map(|d| d.id.clone()).collect::<Vec<_>>(),
+                ));
+            }
+            "/camera/color" => images += 1,
+            _ => {}
+        }
+    }
+    assert_eq!(images, 2);
+    assert_eq!(
+        meshes,
+        [
+            (5, vec!["finger_0".to_owned()], vec![]),
+            (9, vec![], vec!["finger_0".to_owned()]),
+        ]
+    );
+    let mut half = frame(true);
+    half.vertices_in_hand = vec![Vec::new()];
+    assert!(write(&[half]).is_err());
+}

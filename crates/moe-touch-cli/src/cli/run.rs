@@ -180,6 +180,11 @@ pub(crate) struct RunArgs {
     /// Print the report (without the per-frame list) as one JSON object.
     #[arg(long)]
     json: bool,
+    /// Fail (exit status non-zero, after writing the result and the report) when any frame
+    /// could not be estimated. Without it, failed frames are marked in the report and the
+    /// result, and only a run of which no frame was estimated fails.
+    #[arg(long)]
+    strict: bool,
 }
 
 /// Checks a force arrow scale.
@@ -315,8 +320,51 @@ where
             obj.remove("per_frame");
             obj.insert("out".into(), args.out.display().to_string().into());
         }
-        return super::print_json(&value);
+        super::print_json(&value)?;
+    } else {
+        super::print_text(&report.summary(&args.out));
     }
-    super::print_text(&report.summary(&args.out));
-    Ok(())
+    failed_frames_status(&report, args.strict)
+}
+
+/// The run's status from its failed frames: an error when no frame was estimated, or with
+/// `strict` when any frame was not (naming the first failure).
+fn failed_frames_status(report: &moe_lab::run::RunReport, strict: bool) -> Result<()> {
+    let first = report.per_frame.iter().find_map(|f| {
+        f.failure
+            .as_ref()
+            .map(|e| format!("frame at {} ns: {}", f.time_ns, e.error))
+    });
+    status_of(report.frames, report.failed_frames, first, strict)
+}
+
+fn status_of(frames: usize, failed: usize, first: Option<String>, strict: bool) -> Result<()> {
+    match first {
+        Some(first) if failed == frames => {
+            bail!("no frame of {failed} was estimated; the first: {first}")
+        }
+        Some(first) if strict => {
+            bail!("--strict: {failed} of {frames} frames were not estimated; the first: {first}")
+        }
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::status_of;
+
+    #[test]
+    fn a_run_fails_when_no_frame_was_estimated_or_strictly_when_any_was_not() {
+        let first = || Some("frame at 5 ns: estimate stage: x".to_owned());
+        assert!(status_of(7, 0, None, true).is_ok());
+        assert!(status_of(7, 1, first(), false).is_ok());
+        let strict = status_of(7, 1, first(), true).unwrap_err().to_string();
+        assert_eq!(
+            strict,
+            "--strict: 1 of 7 frames were not estimated; the first: frame at 5 ns: estimate stage: x"
+        );
+        let none = status_of(7, 7, first(), false).unwrap_err().to_string();
+        assert!(none.starts_with("no frame of 7 was estimated"), "{none}");
+    }
 }

@@ -8,7 +8,9 @@ use moe_geom::{
 };
 use moe_touch::perception::{DetectorConfig, MarkerDetector};
 use moe_touch::pipeline::load_contact_model;
-use moe_touch::{FrameEstimate, PhysicsPipeline, Pipeline, RgbdFrame, StreamEvent, TouchError};
+use moe_touch::{
+    FrameEstimate, FrameStage, PhysicsPipeline, Pipeline, RgbdFrame, StreamEvent, TouchError,
+};
 
 use crate::common::fixtures;
 
@@ -191,7 +193,10 @@ where
     assert!((gap - 0.2).abs() < 1e-9, "{gap}");
     // A repeated time and a time back in the stream are refused, naming both times.
     for k in [1, 0] {
-        let err = p.process(f[k].rgbd(), &f[k].observation()).unwrap_err();
+        let failure = p.process(f[k].rgbd(), &f[k].observation()).unwrap_err();
+        assert_eq!(failure.stage, FrameStage::Input);
+        assert_eq!(failure.stream, None);
+        let err = failure.error;
         assert!(
             matches!(err, TouchError::StreamOutOfOrder { time_secs, previous_secs }
                 if time_secs == 1e-9 * f[k].time_ns as f64 && previous_secs == 0.2),
@@ -203,7 +208,26 @@ where
             "{err}"
         );
     }
-    // The refused frames changed nothing: the next frame is an undisturbed stream's.
+    // Images that do not fit the camera fail perception alone: the markers stage, in the
+    // stream at the frame's time, with the stream's memory kept.
+    let mut cropped = f[2].clone();
+    cropped.depth_m.pop();
+    let failure = p
+        .process(cropped.rgbd(), &cropped.observation())
+        .unwrap_err();
+    assert_eq!(failure.stage, FrameStage::Markers);
+    assert!(
+        matches!(failure.error, TouchError::ImageSize { .. }),
+        "{}",
+        failure.error
+    );
+    assert!(matches!(
+        failure.stream,
+        Some(StreamEvent::Continued { .. })
+    ));
+    assert!(failure.keypoints.is_none());
+    // The refused frames changed nothing, nor did the failed perception but for the time it
+    // took in the stream: the next frame is that of a stream that skipped frame 2's time.
     let mut undisturbed = make();
     undisturbed
         .process(f[0].rgbd(), &f[0].observation())
@@ -211,6 +235,23 @@ where
     undisturbed
         .process(f[1].rgbd(), &f[1].observation())
         .unwrap();
+    let mut f2 = f[2].clone();
+    f2.time_ns += 1;
+    let skipped = p.process(f2.rgbd(), &f2.observation()).unwrap();
+    let mut after_skip = make();
+    after_skip
+        .process(f[0].rgbd(), &f[0].observation())
+        .unwrap();
+    after_skip
+        .process(f[1].rgbd(), &f[1].observation())
+        .unwrap();
+    same_estimate(
+        &skipped,
+        &after_skip.process(f2.rgbd(), &f2.observation()).unwrap(),
+    );
+    let mut p = make();
+    p.process(f[0].rgbd(), &f[0].observation()).unwrap();
+    p.process(f[1].rgbd(), &f[1].observation()).unwrap();
     same_estimate(
         &p.process(f[2].rgbd(), &f[2].observation()).unwrap(),
         &undisturbed
@@ -333,7 +374,8 @@ fn a_finger_without_markers_is_reported_and_the_stream_goes_on() {
             },
             &Observation::new().with_world_from_hand(WorldFromHand::identity()),
         )
-        .unwrap_err();
+        .unwrap_err()
+        .error;
     assert!(matches!(err, TouchError::ImageSize { .. }), "{err}");
 }
 
@@ -391,20 +433,54 @@ fn the_run_command_writes_a_deterministic_result_and_a_report() {
     assert!(err.contains("three-finger"), "{err}");
     assert!(!wrong.exists());
 
-    // An episode that repeats a frame's time: one clear error naming it, nothing written.
+    // An episode that repeats a frame's time: the repeat is refused and marked, naming the
+    // times, and the run goes on and writes the result and the report.
     let recorded = moe_record::read_episode(&episode).unwrap();
     let mut frames = recorded.frames[..3].to_vec();
     frames.push(recorded.frames[2].clone());
+    frames.push(recorded.frames[3].clone());
     let repeated = dir.join("repeated.mcap");
     moe_record::write_episode(&repeated, &recorded.info, &frames).unwrap();
     let repeated_out = dir.join("repeated-result.mcap");
-    let o = run(&dgcnn_run(&repeated, &model, &repeated_out));
+    let repeated_report = dir.join("repeated-report.json");
+    let args = [
+        dgcnn_run(&repeated, &model, &repeated_out).as_slice(),
+        &["--report", repeated_report.to_str().unwrap()],
+    ]
+    .concat();
+    let o = run(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("1 of 5 frames not estimated"), "{stdout}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&repeated_report).unwrap()).unwrap();
+    assert_eq!(report["failed_frames"], 1);
+    let marked = &report["per_frame"][3];
+    assert_eq!(marked["failure"]["stage"], "input");
+    assert!(
+        marked["failure"]["error"]
+            .as_str()
+            .unwrap()
+            .contains("frame time 0.4 s is not after the previous frame's 0.4 s"),
+        "{marked}"
+    );
+    assert!(marked["stream"].is_null());
+    // The refused frame changed nothing: the next one continues the stream.
+    assert_eq!(report["per_frame"][4]["stream"]["kind"], "continued");
+    assert!(repeated_out.exists());
+    // --strict: the same outputs, and a failed run naming the first failed frame.
+    std::fs::remove_file(&repeated_out).unwrap();
+    let o = run(&[args.as_slice(), &["--strict"]].concat());
     let err = assert_one_line_error(&o);
+    assert!(
+        err.contains("--strict: 1 of 5 frames were not estimated"),
+        "{err}"
+    );
     assert!(
         err.contains("frame time 0.4 s is not after the previous frame's 0.4 s"),
         "{err}"
     );
-    assert!(!repeated_out.exists());
+    assert!(repeated_out.exists());
 }
 
 #[test]
@@ -601,9 +677,11 @@ fn an_observation_with_markers_or_without_a_pose_is_refused() {
     let mut p = physics_pipeline(&hand, &episode);
     let f = &episode.frames;
     let keypoints = hand.rest_keypoints();
-    let err = p
+    let failure = p
         .process(f[0].rgbd(), &f[0].observation().with_keypoints(&keypoints))
         .unwrap_err();
+    assert_eq!(failure.stage, FrameStage::Input);
+    let err = failure.error;
     assert!(
         matches!(err, TouchError::InvalidObservation { .. }),
         "{err}"
@@ -611,28 +689,33 @@ fn an_observation_with_markers_or_without_a_pose_is_refused() {
     assert!(err.to_string().contains("already carries markers"), "{err}");
     let mut no_pose = Observation::new().with_tendon_pulls(&f[0].tendon_pull_m);
     no_pose = no_pose.with_time(f[0].time_secs());
-    let err = p.process(f[0].rgbd(), &no_pose).unwrap_err();
+    let err = p.process(f[0].rgbd(), &no_pose).unwrap_err().error;
     assert!(
         matches!(err, TouchError::MissingObservation { what } if what.contains("world_from_hand")),
         "{err}"
     );
-    // The physics estimator needs the pulls: its own error, through the pipeline.
+    // The physics estimator needs the pulls: its own error, through the pipeline, at the
+    // estimate stage, with the markers that were found.
     let no_pulls = Observation::new()
         .with_world_from_hand(WorldFromHand::new(f[0].world_from_hand))
         .with_time(f[0].time_secs());
-    let err = p.process(f[0].rgbd(), &no_pulls).unwrap_err();
+    let failure = p.process(f[0].rgbd(), &no_pulls).unwrap_err();
+    assert_eq!(failure.stage, FrameStage::Estimate);
+    assert_eq!(failure.stream, Some(StreamEvent::Started));
+    assert!(failure.markers.as_ref().is_some_and(|m| m.found > 0));
     assert!(
         matches!(
-            err,
+            failure.error,
             TouchError::Physics(moe_physics::PhysicsError::Missing { .. })
         ),
-        "{err}"
+        "{}",
+        failure.error
     );
     // The stream goes on: the estimator's refusal came after the frame had entered the stream
-    // at frame 0's time, so the next frame continues it.
+    // at frame 0's time, so the next frame continues it, the estimator from rest.
     let next = p.process(f[1].rgbd(), &f[1].observation()).unwrap();
     assert!(
-        matches!(next.stream, StreamEvent::Continued { .. }),
+        matches!(next.stream, StreamEvent::Recovered { gap_secs: Some(g) } if (g - 0.2).abs() < 1e-9),
         "{:?}",
         next.stream
     );
@@ -849,7 +932,8 @@ fn the_estimator_sees_the_frames_depth_image_with_its_camera() {
     let image = moe_geom::DepthImage::new(&f.depth_m, intrinsics, mount).unwrap();
     let err = pipeline
         .process(f.rgbd(), &f.observation().with_depth(image))
-        .unwrap_err();
+        .unwrap_err()
+        .error;
     assert!(
         matches!(err, TouchError::InvalidObservation { .. }),
         "{err}"
@@ -921,4 +1005,130 @@ fn run_registers_the_shape_to_the_depth_image_when_asked() {
         bcd(&markers_only)
     );
     assert_eq!(registered["frames"], 7);
+}
+
+/// A frame whose estimate fails mid-stream (a tendon pull read as NaN) is one failed frame: it
+/// reports the markers it found and why, and the next frame succeeds, its estimator started
+/// again from rest: the estimate of a fresh physics estimator given that frame's markers.
+#[test]
+fn a_frame_whose_estimate_fails_mid_stream_is_one_frame_and_the_next_recovers() {
+    let hand = hand();
+    let episode = episode();
+    let f = &episode.frames;
+    let mut p = physics_pipeline(&hand, &episode);
+    for frame in &f[..3] {
+        p.process(frame.rgbd(), &frame.observation()).unwrap();
+    }
+    let mut bad = f[3].clone();
+    bad.tendon_pull_m[1][0] = f64::NAN;
+    let failure = p.process(bad.rgbd(), &bad.observation()).unwrap_err();
+    assert_eq!(failure.stage, FrameStage::Estimate);
+    assert!(
+        matches!(
+            failure.error,
+            TouchError::Physics(moe_physics::PhysicsError::NonFinite {
+                what: "tendon pull",
+                finger: 1,
+                index: 0
+            })
+        ),
+        "{}",
+        failure.error
+    );
+    assert!(
+        failure.to_string().starts_with("estimate stage: "),
+        "{failure}"
+    );
+    let found = failure.keypoints.as_ref().expect("perception ran");
+    assert_eq!(
+        found.fingers.iter().flatten().flatten().count(),
+        failure.markers.as_ref().unwrap().found
+    );
+    assert!(matches!(
+        failure.stream,
+        Some(StreamEvent::Continued { .. })
+    ));
+    // The next frame: estimated, from an estimator at rest.
+    let next = p.process(f[4].rgbd(), &f[4].observation()).unwrap();
+    assert!(
+        matches!(next.stream, StreamEvent::Recovered { gap_secs: Some(g) } if (g - 0.2).abs() < 1e-9),
+        "{:?}",
+        next.stream
+    );
+    let mut fresh = moe_physics::PhysicsEstimator::new(
+        &hand,
+        &moe_physics::HandMaterial::default(),
+        &moe_physics::PhysicsConfig::default(),
+    )
+    .unwrap();
+    let detector = detector(&hand, &episode);
+    let depth = moe_geom::DepthImage::new(
+        &f[4].depth_m,
+        *detector.intrinsics(),
+        detector.hand_from_camera(),
+    )
+    .unwrap();
+    let alone = fresh
+        .estimate(
+            &f[4]
+                .observation()
+                .with_keypoints(&next.keypoints)
+                .with_depth(depth),
+        )
+        .unwrap();
+    assert_eq!(next.shape, alone.shape);
+    assert_eq!(next.details, alone.details);
+    // And the frame after it continues that stream.
+    let after = p.process(f[5].rgbd(), &f[5].observation()).unwrap();
+    assert!(matches!(after.stream, StreamEvent::Continued { .. }));
+}
+
+/// A run goes on past a frame it cannot estimate: the report marks that frame (stage, error),
+/// counts it, scores the others against the ground truth, and the result file has every frame.
+#[test]
+fn a_run_goes_on_past_a_failed_frame_and_marks_it() {
+    let hand = hand();
+    let episode = episode();
+    let mut frames = episode.frames.clone();
+    frames[3].tendon_pull_m[0][1] = f64::NAN;
+    let mut p = physics_pipeline(&hand, &episode);
+    let (out, report) = moe_lab::run::run_episode(&mut p, &episode.info, &frames, None).unwrap();
+    assert_eq!((report.frames, report.failed_frames), (frames.len(), 1));
+    assert_eq!(out.len(), frames.len());
+    let failed = &report.per_frame[3];
+    let failure = failed.failure.as_ref().expect("marked");
+    assert_eq!(failure.stage, FrameStage::Estimate);
+    assert!(failure.error.contains("tendon pull"), "{}", failure.error);
+    assert!(failed.markers_found > 0);
+    assert!(out[3].vertices_in_hand.iter().all(Vec::is_empty));
+    assert!(out[3].markers_in_hand.iter().flatten().any(Option::is_some));
+    assert!(
+        failed
+            .finger_forces
+            .as_ref()
+            .is_some_and(|f| f.iter().all(|f| f.magnitude_n == 0.0 && f.error.is_some()))
+    );
+    assert!(matches!(
+        report.per_frame[4].stream,
+        Some(StreamEvent::Recovered { .. })
+    ));
+    assert!(
+        report
+            .per_frame
+            .iter()
+            .enumerate()
+            .all(|(k, f)| (k == 3) == f.failure.is_some())
+    );
+    // The figures against the ground truth are over the six estimated frames.
+    let contact = report.contact.as_ref().expect("ground truth");
+    assert_eq!(contact.frames, frames.len() as u64 - 1);
+    assert!(report.shape_bcd_mm.is_some_and(f64::is_finite));
+    assert_eq!(report.forces.as_ref().unwrap().fingers[0].failed_frames, 1);
+    // The result file takes the failed frame.
+    let path = crate::common::scratch("failed-frame-run").join("r.mcap");
+    let mut info = moe_lab::run::run_info(&episode.info, "physics", p.threshold());
+    info.force_arrow_m_per_n = Some(0.2);
+    moe_record::write_run(&path, &info, &out).unwrap();
+    let summary = report.summary(&path);
+    assert!(summary.contains("1 of 7 frames not estimated"), "{summary}");
 }
