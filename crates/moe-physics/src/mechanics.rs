@@ -59,6 +59,9 @@ impl FingerMechanics {
         let mut body = FingerBody::new(finger, material, voxel)?;
         // Static solves converge quadratically, and the tangent is the true linear response.
         body.fem_mut().set_exact_static_tangent(true);
+        // The estimator's terms (tendons, dead loads) follow their quadratic models: its
+        // solves keep the cheaper line search, and their results as validated.
+        body.fem_mut().set_modelled_line_search(true);
         let ws = body.workspace(0);
         let tangent = body.fem().tangent();
         let rest_nodes = body.fem().mesh().nodes().to_vec();
@@ -289,8 +292,11 @@ fn add_terms(
     }
     for load in loads {
         for &(v, share) in &load.patch {
+            let point = load_points[v as usize];
+            // A dead load's potential, −f·p.
+            terms.point_energy_j -= (load.force * share).dot(&point.position(x).coords);
             terms.points.push(PointTerm {
-                point: load_points[v as usize],
+                point,
                 force: load.force * share,
                 stiffness: Default::default(),
                 damping: Default::default(),

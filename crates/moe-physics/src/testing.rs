@@ -114,8 +114,10 @@ pub fn static_hand(
                             tendon.add_terms(x, c, &params, t);
                         }
                         for l in loads.iter().filter(|l| l.finger == f) {
+                            let point = body.surface().points()[l.vertex as usize];
+                            t.point_energy_j -= l.force.dot(&point.position(x).coords);
                             t.points.push(PointTerm {
-                                point: body.surface().points()[l.vertex as usize],
+                                point,
                                 force: l.force,
                                 stiffness: Default::default(),
                                 damping: Default::default(),

@@ -198,6 +198,7 @@ pub(crate) fn add_contact_terms(
             } else {
                 Matrix3::zeros()
             };
+            terms.point_energy_j += 0.5 * k * sd.distance_m * sd.distance_m;
             terms.points.push(PointTerm {
                 point: *e,
                 force: n * (-k * sd.distance_m),

@@ -129,8 +129,9 @@ pub use material::Material;
 pub use obstacle::{Obstacle, ObstacleConfig, ObstacleShape, SignedDistance};
 pub use run::{RunOutcome, run_saving, run_with};
 pub use scene::{
-    FingerSimFrame, HandBodies, MAX_SAVED_FRAMES, MAX_STATIC_ITERATIONS, MAX_STEPS,
-    PresetHandConfig, Scene, SceneConfig, SimFrame, SimState, SolverConfig, SolverMode, StepInfo,
+    FingerSimFrame, HandBodies, MAX_SAVED_FRAMES, MAX_STATIC_ITERATIONS,
+    MAX_STATIC_SUBSTEP_HALVINGS, MAX_STEPS, PresetHandConfig, Scene, SceneConfig, SimFrame,
+    SimState, SolverConfig, SolverMode, StepInfo,
 };
 pub use surface::obstacle_surface;
 pub use tendon::{TendonCommand, TendonParams, TendonState};

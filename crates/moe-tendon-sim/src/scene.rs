@@ -94,6 +94,11 @@ pub const MAX_SAVED_FRAMES: u64 = 100_000;
 /// Most Newton iterations of a quasi-static step.
 pub const MAX_STATIC_ITERATIONS: usize = 10_000;
 
+/// Most times a quasi-static step whose equilibrium is not found in its iterations is halved:
+/// it is solved again from its start as 2, then 4, then 8 substeps (the wrist, the tendon
+/// schedules and the obstacles at the substeps' times), each with the step's iteration limit.
+pub const MAX_STATIC_SUBSTEP_HALVINGS: u32 = 3;
+
 /// A complete scripted scene (TOML/JSON through serde; every field has a default).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -218,6 +223,9 @@ pub struct StepInfo {
     pub kinetic_energy_j: Vec<Real>,
     /// Linear solves per finger.
     pub iterations: Vec<usize>,
+    /// Static mode: the substeps each finger's step took (1 where its equilibrium was found
+    /// in one; see [`MAX_STATIC_SUBSTEP_HALVINGS`]). Empty in dynamic mode.
+    pub substeps: Vec<usize>,
     /// Tendon lengths and tensions per finger.
     pub tendons: Vec<Vec<TendonState>>,
 }
@@ -300,6 +308,9 @@ pub struct Scene {
     commands: Vec<TendonCommand>,
     /// Per-step scratch: obstacle poses at the start and the end of the step.
     poses: (Vec<Iso3>, Vec<Iso3>),
+    /// Static mode: a finger's positions before its step, to substep from when the step's
+    /// equilibrium is not found in one.
+    backup: Vec<Point3>,
 }
 
 /// The finger bodies of a hand at one material and tet resolution (voxelised, with their
@@ -488,6 +499,7 @@ impl Scene {
                 Vec::with_capacity(obstacles.len()),
             ),
             obstacles,
+            backup: Vec::new(),
         })
     }
 
@@ -573,9 +585,11 @@ impl Scene {
     /// step and finger (and element or node); [`SimError::StaticNotConverged`] in static mode.
     pub fn step(&mut self, state: &mut SimState) -> Result<StepInfo, SimError> {
         let fingers = self.bodies.len();
+        let statics = self.config.solver.mode == SolverMode::Static;
         let mut info = StepInfo {
             kinetic_energy_j: Vec::with_capacity(fingers),
             iterations: Vec::with_capacity(fingers),
+            substeps: Vec::with_capacity(if statics { fingers } else { 0 }),
             ..StepInfo::default()
         };
         self.step_into(state, &mut info)?;
@@ -606,32 +620,44 @@ impl Scene {
         info.time_secs = t1;
         info.kinetic_energy_j.clear();
         info.iterations.clear();
+        info.substeps.clear();
         info.tendons.resize_with(self.bodies.len(), Vec::new);
+        let statics = matches!(integrator, Integrator::Static { .. });
         let mut result = Ok(());
         for i in 0..self.bodies.len() {
-            let pose = self.world_from_finger(i, t1);
             let body = &self.bodies[i];
-            for (t, p) in self.targets[i].iter_mut().zip(body.fem().mesh().nodes()) {
-                *t = pose * p;
-            }
-            let schedule = self.config.actuation.get(i);
-            self.commands.clear();
-            self.commands
-                .extend((0..body.tendons().len()).map(|j| command(schedule, j, t1)));
-            let inputs = FingerInputs {
-                targets: &self.targets[i],
+            let finger = FingerStep {
+                body,
+                hand_from_finger: *self.hand.fingers()[i].hand_from_finger.iso(),
+                config: &self.config,
                 gravity,
-                commands: &self.commands,
-                tendon: &self.config.tendon,
-                obstacles: &posed,
-                contact: &self.config.contact,
-            };
-            let ctx = StepContext {
-                step: state.step,
-                finger: i,
+                integrator,
+                ctx: StepContext {
+                    step: state.step,
+                    finger: i,
+                },
             };
             let fs = &mut state.fingers[i];
-            let report = match body.advance(&mut self.workspaces[i], ctx, integrator, fs, &inputs) {
+            if statics {
+                self.backup.clear();
+                self.backup.extend_from_slice(&fs.x);
+            }
+            let (ws, targets) = (&mut self.workspaces[i], &mut self.targets[i]);
+            let mut substeps = 1;
+            let mut advanced = finger.advance(ws, targets, &mut self.commands, t1, &posed, fs);
+            if statics && matches!(advanced, Err(SimError::StaticNotConverged { .. })) {
+                (advanced, substeps) = finger.substepped(
+                    ws,
+                    targets,
+                    &mut self.commands,
+                    &self.obstacles,
+                    (t0, t1),
+                    &self.backup,
+                    fs,
+                    advanced,
+                );
+            }
+            let report = match advanced {
                 Ok(r) => r,
                 Err(e) => {
                     result = Err(e);
@@ -654,6 +680,9 @@ impl Scene {
             }
             info.kinetic_energy_j.push(report.kinetic_energy_j);
             info.iterations.push(report.iterations);
+            if statics {
+                info.substeps.push(substeps);
+            }
             let tendons = &mut info.tendons[i];
             tendons.clear();
             tendons.extend(
@@ -720,6 +749,109 @@ impl Scene {
     /// Convenience: the contact parameters (label rule).
     pub fn contact_params(&self) -> &ContactParams {
         &self.config.contact
+    }
+}
+
+/// What one finger's step of a scene needs beside its buffers.
+struct FingerStep<'a> {
+    body: &'a FingerBody,
+    hand_from_finger: Iso3,
+    config: &'a SceneConfig,
+    gravity: Vector3,
+    integrator: Integrator,
+    ctx: StepContext,
+}
+
+impl FingerStep<'_> {
+    /// Advances `fs` to time `t` (the wrist and the tendon schedules at `t`) against `posed`;
+    /// leaves the finger's tendon commands in `commands`.
+    fn advance(
+        &self,
+        ws: &mut FemWorkspace,
+        targets: &mut [Point3],
+        commands: &mut Vec<TendonCommand>,
+        t: Real,
+        posed: &PosedObstacles<'_>,
+        fs: &mut BodyState,
+    ) -> Result<crate::fem::Advance, SimError> {
+        let pose = self.config.wrist.pose_at(t) * self.hand_from_finger;
+        for (target, p) in targets.iter_mut().zip(self.body.fem().mesh().nodes()) {
+            *target = pose * p;
+        }
+        let schedule = self.config.actuation.get(self.ctx.finger);
+        commands.clear();
+        commands.extend((0..self.body.tendons().len()).map(|j| command(schedule, j, t)));
+        let inputs = FingerInputs {
+            targets,
+            gravity: self.gravity,
+            commands,
+            tendon: &self.config.tendon,
+            obstacles: posed,
+            contact: &self.config.contact,
+        };
+        self.body
+            .advance(ws, self.ctx, self.integrator, fs, &inputs)
+    }
+
+    /// A static step from `start` over `(t0, t1)` solved again as 2, 4, then 8 substeps, until
+    /// every substep's equilibrium is found; the report (iterations summed over the attempts)
+    /// and the substeps, or the last failure with `whole`'s substep count of 1.
+    #[allow(clippy::too_many_arguments)]
+    fn substepped(
+        &self,
+        ws: &mut FemWorkspace,
+        targets: &mut [Point3],
+        commands: &mut Vec<TendonCommand>,
+        obstacles: &[Obstacle],
+        (t0, t1): (Real, Real),
+        start: &[Point3],
+        fs: &mut BodyState,
+        whole: Result<crate::fem::Advance, SimError>,
+    ) -> (Result<crate::fem::Advance, SimError>, usize) {
+        let mut spent = match &whole {
+            Err(SimError::StaticNotConverged { iterations, .. }) => *iterations,
+            _ => 0,
+        };
+        let mut last = whole;
+        for halvings in 1..=MAX_STATIC_SUBSTEP_HALVINGS {
+            let n = 1usize << halvings;
+            fs.x.copy_from_slice(start);
+            fs.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+            let mut outcome = Ok(());
+            for j in 1..=n {
+                let ta = t0 + (t1 - t0) * (j - 1) as Real / n as Real;
+                let tb = if j == n {
+                    t1
+                } else {
+                    t0 + (t1 - t0) * j as Real / n as Real
+                };
+                let posed = PosedObstacles::new(obstacles, ta, tb);
+                match self.advance(ws, targets, commands, tb, &posed, fs) {
+                    Ok(a) => spent += a.iterations,
+                    Err(e) => {
+                        if let SimError::StaticNotConverged { iterations, .. } = &e {
+                            spent += iterations;
+                        }
+                        outcome = Err(e);
+                        break;
+                    }
+                }
+            }
+            match outcome {
+                Ok(()) => {
+                    return (
+                        Ok(crate::fem::Advance {
+                            kinetic_energy_j: 0.0,
+                            iterations: spent,
+                        }),
+                        n,
+                    );
+                }
+                Err(e @ SimError::StaticNotConverged { .. }) => last = Err(e),
+                Err(e) => return (Err(e), n),
+            }
+        }
+        (last, 1)
     }
 }
 

@@ -227,6 +227,8 @@ impl Tendon {
             }
             TendonCommand::Force { tension_n } => {
                 let t = tension_n.max(0.0);
+                // The cable's potential: its tension times its length.
+                terms.point_energy_j += t * length;
                 if t > 0.0 {
                     for (k, e) in self.points.iter().enumerate() {
                         terms.points.push(PointTerm {

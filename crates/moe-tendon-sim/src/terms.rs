@@ -69,6 +69,13 @@ pub struct Terms {
     pub pairs: Vec<PairTerm>,
     /// Rank-one penalties.
     pub rank_ones: Vec<RankOneTerm>,
+    /// The potential energy of the point terms' forces at the configuration the terms were
+    /// made at, joules: what a static solve's line search adds to the elastic, gravity,
+    /// nodal-force and rank-one energies (which it computes itself) to decrease the total
+    /// potential. Each producer of point terms adds its own: `½ k d²` for a penalty contact at
+    /// depth `d`, `T·L` for a cable of tension `T` and length `L`, `−f·p` for a dead load `f` at
+    /// `p`. Pair terms (geometric stiffness) carry none.
+    pub point_energy_j: Real,
     /// Emptied gradient vectors of cleared rank-one terms, for reuse.
     spare_gradients: Vec<Vec<(u32, Vector3)>>,
 }
@@ -77,6 +84,7 @@ impl PartialEq for Terms {
     /// Compares the terms (not the spare buffers).
     fn eq(&self, other: &Self) -> bool {
         self.nodal_forces == other.nodal_forces
+            && self.point_energy_j == other.point_energy_j
             && self.points == other.points
             && self.pairs == other.pairs
             && self.rank_ones == other.rank_ones
@@ -86,6 +94,7 @@ impl PartialEq for Terms {
 impl Terms {
     /// Removes every term, keeping the allocations.
     pub fn clear(&mut self) {
+        self.point_energy_j = 0.0;
         self.nodal_forces.clear();
         self.points.clear();
         self.pairs.clear();

@@ -29,6 +29,8 @@ pub struct FemModel {
     pub(super) max_rank_ones: usize,
     /// Static solves and tangents use the exact Hessian of the corotated energy.
     pub(super) exact_static_tangent: bool,
+    /// See [`FemModel::set_modelled_line_search`].
+    pub(super) modelled_line_search: bool,
     /// Per element and ordered corner pair `4a + b` with free nodes `a > b` (as free indices):
     /// the slot of the pair's block in the pattern ([`SparseSystem::lower_slot`]); [`NO_SLOT`]
     /// otherwise. The element loop adds its blocks without searching the pattern.
@@ -133,6 +135,7 @@ impl FemModel {
             system,
             max_rank_ones,
             exact_static_tangent: false,
+            modelled_line_search: false,
             element_slots,
         })
     }
@@ -166,6 +169,21 @@ impl FemModel {
     /// See [`FemModel::set_exact_static_tangent`].
     pub fn exact_static_tangent(&self) -> bool {
         self.exact_static_tangent
+    }
+
+    /// Whether the static line search decreases the total potential with the interaction
+    /// terms replaced by their quadratic models around the iterate (cheaper: no terms are made
+    /// along the step) instead of every term made where the step leads (the default). The
+    /// exact potential sees a contact begin or end along the step, which the models cannot;
+    /// for terms their models follow closely (tendons, dead loads: the physics estimator's)
+    /// the two agree, and a slow solve lengthens its steps only with the exact one.
+    pub fn set_modelled_line_search(&mut self, modelled: bool) {
+        self.modelled_line_search = modelled;
+    }
+
+    /// See [`FemModel::set_modelled_line_search`].
+    pub fn modelled_line_search(&self) -> bool {
+        self.modelled_line_search
     }
 
     /// The tet mesh (rest shape).
@@ -206,6 +224,7 @@ impl FemModel {
             dx: vec![Vector3::zeros(); n],
             trial: vec![Point3::origin(); n],
             slope: 0.0,
+            trial_terms: terms.clone(),
             terms,
             grads: Vec::with_capacity(3 * self.system.n_free() * m),
             shifted: Vec::with_capacity(m),

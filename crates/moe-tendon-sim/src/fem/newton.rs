@@ -12,6 +12,14 @@ use crate::terms::Terms;
 /// keeps to the corotated tangent.
 const INDEFINITE_RUN: usize = 3;
 
+/// Newton iterations after which a static solve is slow: it goes on with the exact Hessian
+/// (where it was asked for the corotated stiffness), and lengthens the full steps the energy
+/// lets it.
+const SLOW_RUN: usize = 20;
+
+/// The longest a slow solve's step is stretched: 64 Newton steps.
+const MAX_STRETCH: Real = 64.0;
+
 impl FemModel {
     /// Newton iterations on the static equilibrium with a backtracking line search; the
     /// velocities are set to zero.
@@ -25,7 +33,7 @@ impl FemModel {
         drive: &mut Drive<'_, '_>,
     ) -> Result<Advance, SimError> {
         crate::error::require_positive("tolerance_m", tolerance_m)?;
-        let c = Coefficients::statics(self.exact_static_tangent);
+        let mut c = Coefficients::statics(self.exact_static_tangent);
         // The corotated stiffness, positive definite, where the exact Hessian is not.
         let fallback = Coefficients { exact: false, ..c };
         let gravity = drive.inputs.gravity;
@@ -36,6 +44,13 @@ impl FemModel {
         // factorising twice an iteration (a load past the finger's stability limit).
         let mut indefinite = 0;
         for it in 0..max_iterations.max(1) {
+            // The corotated stiffness omits the rotations' derivative: its Newton converges
+            // linearly, too slowly where the rotations matter (a finger pressed along its
+            // axis). A solve that has not converged in `SLOW_RUN` iterations goes on with the
+            // exact Hessian, which converges quadratically.
+            if it == SLOW_RUN {
+                c = Coefficients::statics(true);
+            }
             drive.terms.clear();
             (drive.inputs.terms)(&state.x, &state.v, drive.terms);
             let (x, targets) = (&state.x, drive.inputs.targets);
@@ -53,33 +68,74 @@ impl FemModel {
                 Ok(()) if this.exact => indefinite = 0,
                 other => other?,
             }
-            let (x, t) = (&mut state.x, &*drive.terms);
-            // Backtracking line search on the total potential (exact elastic energy,
-            // quadratic models of the interaction terms): the corotational tangent omits
-            // the derivative of the rotations, so a full step can overshoot.
+            // Backtracking line search on the total potential, every term evaluated exactly
+            // where the step leads (contacts that begin or end along it included): the
+            // corotational tangent omits the derivative of the rotations, and the interaction
+            // terms are linearised at `x`, so a full step can overshoot.
             let mut alpha: Real = 1.0;
             if !moves_fixed {
                 let slope: Real = ws.force_dot_dx();
-                let e0 = self.potential(x, &ws.dx, 0.0, &gravity, t, &mut ws.trial)?;
-                let mut accepted = false;
+                let modelled = self.modelled_line_search;
+                let e0 = if modelled {
+                    self.modelled_potential(
+                        &state.x,
+                        &ws.dx,
+                        0.0,
+                        &gravity,
+                        drive.terms,
+                        &mut ws.trial,
+                    )?
+                } else {
+                    self.potential(&state.x, &gravity, drive.terms)?
+                };
+                let mut accepted = None;
                 for _ in 0..30 {
-                    match self.potential(x, &ws.dx, alpha, &gravity, t, &mut ws.trial) {
+                    let e = if modelled {
+                        self.modelled_potential(
+                            &state.x,
+                            &ws.dx,
+                            alpha,
+                            &gravity,
+                            drive.terms,
+                            &mut ws.trial,
+                        )
+                    } else {
+                        self.trial_potential(state, alpha, &gravity, drive, ws)
+                    };
+                    match e {
                         Ok(e) if e <= e0 - 1e-4 * alpha * slope.max(0.0) => {
-                            accepted = true;
+                            accepted = Some(e);
                             break;
                         }
                         _ => alpha *= 0.5,
                     }
                 }
-                // No decrease found: the energy change is below round-off (near the
-                // solution) or the model is poor; take the Newton step and let the
-                // convergence test below judge it.
-                if !accepted {
-                    alpha = 1.0;
+                match accepted {
+                    // No decrease found: the energy change is below round-off (near the
+                    // solution) or the model is poor; take the Newton step and let the
+                    // convergence test below judge it.
+                    None => alpha = 1.0,
+                    // A slow solve whose full step is accepted creeps along a direction its
+                    // model thinks stiffer than it is (a tip sliding off a convex obstacle): the
+                    // step is lengthened while the energy keeps falling.
+                    Some(mut best) if it >= SLOW_RUN && alpha == 1.0 && !modelled => {
+                        while alpha < MAX_STRETCH {
+                            let e =
+                                self.trial_potential(state, 2.0 * alpha, &gravity, drive, ws)?;
+                            if e < best {
+                                best = e;
+                                alpha *= 2.0;
+                            } else {
+                                break;
+                            }
+                        }
+                    }
+                    Some(_) => {}
                 }
             }
             // Convergence is judged on the full Newton step, not the damped one: a
             // heavily damped step is small without the state being near equilibrium.
+            let x = &mut state.x;
             update = 0.0;
             for (xi, d) in x.iter_mut().zip(&ws.dx) {
                 *xi += d * alpha;
@@ -102,10 +158,59 @@ impl FemModel {
         })
     }
 
-    /// Total potential at `x + α·d`: exact corotated elastic energy
-    /// `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the gravity and nodal-load potentials, and the quadratic
-    /// models of the interaction terms around `x`.
-    fn potential(
+    /// Total potential at `x + α·Δx` (`Δx` the workspace's step), with the interaction terms
+    /// made there (velocities `v`).
+    fn trial_potential(
+        &self,
+        state: &BodyState,
+        alpha: Real,
+        gravity: &Vector3,
+        drive: &mut Drive<'_, '_>,
+        ws: &mut FemWorkspace,
+    ) -> Result<Real, SimError> {
+        for ((t, xi), di) in ws.trial.iter_mut().zip(&state.x).zip(&ws.dx) {
+            *t = xi + di * alpha;
+        }
+        ws.trial_terms.clear();
+        (drive.inputs.terms)(&ws.trial, &state.v, &mut ws.trial_terms);
+        self.potential(&ws.trial, gravity, &ws.trial_terms)
+    }
+
+    /// Total potential at `x` with the interaction `terms` made there: the corotated elastic
+    /// energy `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the potentials of gravity and of the nodal
+    /// forces, the rank-one penalties `½ k g²` (`g > 0` only, for a unilateral one) and the
+    /// point terms' own ([`Terms::point_energy_j`]).
+    fn potential(&self, x: &[Point3], gravity: &Vector3, terms: &Terms) -> Result<Real, SimError> {
+        let mut e = 0.0;
+        for t in 0..self.mesh.num_tets() {
+            let (r, _) = self.element_state(t, x, StepContext::default())?;
+            let f = self.deformation_gradient(t, x);
+            let eps = r.transpose() * f - Matrix3::identity();
+            let eps = (eps + eps.transpose()) * 0.5;
+            e += self.volumes[t]
+                * (self.mu * eps.norm_squared() + 0.5 * self.lambda * eps.trace().powi(2));
+        }
+        for (p, m) in x.iter().zip(&self.mass) {
+            e -= m * gravity.dot(&p.coords);
+        }
+        for &(n, f) in &terms.nodal_forces {
+            e -= f.dot(&x[n as usize].coords);
+        }
+        for r in &terms.rank_ones {
+            let g = if r.unilateral {
+                r.value.max(0.0)
+            } else {
+                r.value
+            };
+            e += 0.5 * r.stiffness * g * g;
+        }
+        Ok(e + terms.point_energy_j)
+    }
+
+    /// Total potential at `x + α·d` for the modelled line search (relative to `x`): exact
+    /// corotated elastic energy `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the gravity and nodal-load
+    /// potentials, and the quadratic models of the interaction terms around `x`.
+    fn modelled_potential(
         &self,
         x: &[Point3],
         d: &[Vector3],

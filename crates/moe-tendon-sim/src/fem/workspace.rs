@@ -21,6 +21,8 @@ pub struct FemWorkspace {
     pub(super) trial: Vec<Point3>,
     pub(super) slope: Real,
     pub(super) terms: Terms,
+    /// Static line search: the interaction terms at the positions along the Newton step.
+    pub(super) trial_terms: Terms,
     /// Free-node gradients of the rank-one terms, one column of `3·n_free` per term.
     pub(super) grads: Vec<Real>,
     /// Rank-one values shifted by the prescribed motion of the fixed nodes.
@@ -43,6 +45,8 @@ impl FemWorkspace {
         gradient_len: usize,
     ) {
         self.terms.reserve(points, pairs, rank_ones, gradient_len);
+        self.trial_terms
+            .reserve(points, pairs, rank_ones, gradient_len);
     }
 }
 

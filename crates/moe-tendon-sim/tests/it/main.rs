@@ -5,5 +5,6 @@ mod contact;
 mod fixtures;
 mod mechanics;
 mod scene;
+mod static_presses;
 mod tangent;
 mod tendons;

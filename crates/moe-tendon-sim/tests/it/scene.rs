@@ -454,3 +454,50 @@ fn runs_do_not_go_beyond_the_scene() {
         2
     );
 }
+
+/// A static step whose equilibrium its Newton iterations do not reach — the plate's whole
+/// 3.5 mm travel in one step, with few iterations allowed — is solved again in substeps, and
+/// lands where the same travel taken in small steps does. (Before substepping, the step
+/// stopped with `SimError::StaticNotConverged`.)
+#[test]
+fn a_static_step_that_stalls_is_solved_in_substeps() {
+    let mut config = short_scene();
+    config.solver.mode = moe_tendon_sim::SolverMode::Static;
+    config.gravity_m_s2 = [0.0; 3];
+    config.actuation.clear();
+    config.wrist.keyframes.truncate(1);
+    let iterations = |config: &SceneConfig| {
+        let mut scene = Scene::new(config.clone()).unwrap();
+        let mut state = scene.initial_state();
+        let mut infos = Vec::new();
+        for _ in 0..scene.num_steps() {
+            infos.push(scene.step(&mut state).unwrap());
+        }
+        (state, infos)
+    };
+    // One step of 80 ms, 10 Newton iterations at most.
+    let mut coarse = config.clone();
+    coarse.solver.dt_secs = 0.08;
+    coarse.solver.static_max_iterations = 10;
+    let (state, infos) = iterations(&coarse);
+    assert_eq!(infos.len(), 1);
+    let substeps = &infos[0].substeps;
+    assert_eq!(substeps[0], 1, "finger 0 is not touched: solved whole");
+    assert!(substeps[1] > 1, "finger 1 substepped: {substeps:?}");
+    // The same travel in 16 steps, with iterations enough.
+    let mut fine = config;
+    fine.solver.dt_secs = 0.005;
+    let (reference, fine_infos) = iterations(&fine);
+    assert!(
+        fine_infos
+            .iter()
+            .all(|i| i.substeps.iter().all(|&n| n == 1))
+    );
+    let off = state.fingers[1]
+        .x
+        .iter()
+        .zip(&reference.fingers[1].x)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    assert!(off < 1e-6, "{off:e} m from the fine path's equilibrium");
+}

@@ -59,6 +59,7 @@ fn static_shape(
                     for (tendon, &c) in body.tendons().iter().zip(&commands) {
                         tendon.add_terms(x, c, &params, t);
                     }
+                    t.point_energy_j -= load.dot(&point.position(x).coords);
                     t.points.push(PointTerm {
                         point,
                         force: load,
