@@ -48,3 +48,21 @@ def test_the_rust_and_python_examples_print_the_same_contacts():
     python_lines = run([sys.executable, str(QUICKSTART)]).splitlines()
     rust_lines = run([rust]).splitlines()
     assert rust_lines == python_lines
+
+
+def test_the_soak_runs_two_pipelines_in_two_threads_and_no_frame_fails(monkeypatch):
+    """The short form of python/examples/soak.py (run by hand with 20,000 frames)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("soak", REPO / "python/examples/soak.py")
+    soak = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(soak)
+    monkeypatch.chdir(REPO)
+    monkeypatch.setattr(soak, "GAP_EVERY", 15)
+    monkeypatch.setattr(soak, "RESET_EVERY", 31)
+    monkeypatch.setattr(soak, "REFUSE_EVERY", 23)
+    summary = soak.main(frames=50, window=25)
+    assert summary["failed"] == 0
+    # Frames 23 and 46 of each thread are refused, and only they.
+    assert summary["refused"] == 4
+    assert summary["frames_per_thread"] == 50 and len(summary["p99_drift"]) == 2

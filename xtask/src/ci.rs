@@ -14,8 +14,8 @@ pub(crate) struct CiArgs {
     /// Skip `cargo deny` (for quick local runs; CI never skips it).
     #[arg(long)]
     skip_deny: bool,
-    /// The Python interpreter of a virtual environment with pip, pytest and numpy, in which the
-    /// Python package is installed (`pip install ./python`) and tested [default:
+    /// The Python interpreter of a virtual environment with pip, pytest, numpy and hypothesis,
+    /// in which the Python package is installed (`pip install ./python`) and tested [default:
     /// $MOE_TOUCH_PYTHON; `.ci/run` makes a fresh one].
     #[arg(long, value_name = "PYTHON")]
     python: Option<PathBuf>,
@@ -135,7 +135,7 @@ fn python_package(args: &CiArgs) -> Result<()> {
         None => std::env::var_os("MOE_TOUCH_PYTHON")
             .map(PathBuf::from)
             .context(
-                "the Python package needs a virtual environment with pytest and numpy: \
+                "the Python package needs a virtual environment with pytest, numpy and hypothesis: \
              --python PATH or $MOE_TOUCH_PYTHON (.ci/run makes one), or --skip-python",
             )?,
     };

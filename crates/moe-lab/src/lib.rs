@@ -86,6 +86,9 @@ pub mod run;
 pub mod shape_job;
 /// A scripted scene's run written out: meshes per saved frame with a summary, or an episode.
 pub mod sim_output;
+/// Long runs: an episode looped for thousands of frames with gaps, resets and refused frames;
+/// memory and frame times window by window.
+pub mod soak;
 /// The occluded-surface reconstruction benchmark (paper Table 3) with its typed report.
 pub mod surface_eval;
 /// An occluded surface from contact points in files (`moe-touch surface`) with its report.

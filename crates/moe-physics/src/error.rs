@@ -89,6 +89,37 @@ pub enum PhysicsError {
         /// Count given.
         got: usize,
     },
+    /// A tendon pull no tendon of the hand can take: longer than a quarter of the tendon's
+    /// length either way (the generator's are within ±6 mm of an 80 mm tendon).
+    #[error(
+        "finger {finger}: tendon pull {tendon} = {pull_m} m is out of range (at most {limit_m:.4} m either way)"
+    )]
+    PullOutOfRange {
+        /// Finger index.
+        finger: usize,
+        /// Tendon index.
+        tendon: usize,
+        /// The pull, metres.
+        pull_m: Real,
+        /// The largest pull taken either way, metres.
+        limit_m: Real,
+    },
+    /// A marker further from the finger's base than twice the finger's length: not a marker of
+    /// this finger, however it bends (markers in another frame than the hand's, a blob taken
+    /// for one). The finger has no estimate in the frame; the others go on.
+    #[error(
+        "finger {finger}: marker {marker} is {distance_m:.3} m from the finger's base, further than it can reach ({reach_m:.3} m)"
+    )]
+    MarkerOffFinger {
+        /// Finger index.
+        finger: usize,
+        /// Marker slot.
+        marker: usize,
+        /// Its distance from the finger's base, metres.
+        distance_m: Real,
+        /// Twice the finger's length, metres.
+        reach_m: Real,
+    },
     /// A non-finite input value.
     #[error("finger {finger}: {what} {index} is not finite")]
     NonFinite {
@@ -147,6 +178,8 @@ impl PhysicsError {
             | Self::StaticNotConverged { finger, .. }
             | Self::FrameBudgetSpent { finger, .. }
             | Self::TooFewMarkers { finger, .. }
+            | Self::PullOutOfRange { finger, .. }
+            | Self::MarkerOffFinger { finger, .. }
             | Self::FingerLengthMismatch { finger, .. }
             | Self::NonFinite { finger, .. } => Some(*finger),
             _ => None,

@@ -176,6 +176,17 @@ pub(crate) fn check_observation(
                 });
             }
         }
+        for (tendon, (route, &pull_m)) in hf.model.tendon_routes().iter().zip(pulls).enumerate() {
+            let limit_m = MAX_PULL_FRACTION * route.length();
+            if pull_m.is_finite() && pull_m.abs() > limit_m {
+                return Err(PhysicsError::PullOutOfRange {
+                    finger: f,
+                    tendon,
+                    pull_m,
+                    limit_m,
+                });
+            }
+        }
         let bad_marker = markers
             .iter()
             .position(|m| m.is_some_and(|p| !p.coords.iter().all(|c| c.is_finite())));
@@ -200,8 +211,20 @@ pub(crate) fn check_observation(
             reason: "must be finite",
         });
     }
+    // A rotation whose quaternion is not of unit length scales as it turns: not a rigid pose.
+    let norm = iso.rotation.coords.norm();
+    if (norm - 1.0).abs() > 1e-6 {
+        return Err(PhysicsError::InvalidParameter {
+            name: "world_from_hand",
+            value: norm,
+            reason: "its rotation's quaternion must have unit length (a rigid pose)",
+        });
+    }
     Ok(())
 }
+
+/// The largest tendon pull taken either way, as a fraction of the tendon's length.
+pub const MAX_PULL_FRACTION: Real = 0.25;
 
 /// One finger's observed markers (finger frame) and its estimate.
 type FingerResult = (Vec<Option<Point3>>, Result<FingerEstimate, PhysicsError>);

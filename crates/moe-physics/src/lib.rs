@@ -55,7 +55,8 @@ pub use calibration::{CalibrationOptions, CalibrationReport, calibrate};
 pub use config::{DepthNoise, DepthSettings, HandMaterial, PhysicsConfig, SEEN_THROUGH_PROBE_M};
 pub use error::PhysicsError;
 pub use estimator::{
-    CONTACT_THRESHOLD, ContactLoad, FingerReport, PhysicsDetails, PhysicsEstimate, PhysicsEstimator,
+    CONTACT_THRESHOLD, ContactLoad, FingerReport, MAX_PULL_FRACTION, PhysicsDetails,
+    PhysicsEstimate, PhysicsEstimator,
 };
 /// What a fitted material records of its hand (the one signature type, `moe_geom`'s).
 pub use moe_geom::HandSignature;

@@ -476,6 +476,28 @@ impl FingerInverse {
     /// The first part of an estimate: the markers counted and the free finger found (the
     /// simulated one advanced to the observation, in a stream).
     pub(crate) fn begin(&mut self, obs: &FingerObservation<'_>) -> Result<Begun, PhysicsError> {
+        // A marker further from the finger's base than twice the finger's length is not on
+        // it, however the finger bends or stretches.
+        let reach_m = 2.0
+            * self
+                .rest_surface
+                .iter()
+                .map(|p| p.coords.norm())
+                .fold(0.0, Real::max);
+        for (marker, m) in obs.markers.iter().enumerate() {
+            if let Some(p) = m {
+                let distance_m = p.coords.norm();
+                if distance_m > reach_m {
+                    self.reset();
+                    return Err(PhysicsError::MarkerOffFinger {
+                        finger: self.index,
+                        marker,
+                        distance_m,
+                        reach_m,
+                    });
+                }
+            }
+        }
         let observed = obs.markers.iter().filter(|m| m.is_some()).count();
         if observed < self.config.min_markers {
             self.reset();

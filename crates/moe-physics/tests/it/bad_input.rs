@@ -88,6 +88,59 @@ fn observations_that_do_not_fit_the_hand_are_refused_naming_the_item() {
             index: 2
         }
     );
+    // A pull no tendon takes (a quarter of its length, 20 mm here): refused, not solved for
+    // seconds. The generator's ±6 mm are taken.
+    let limit =
+        moe_physics::MAX_PULL_FRACTION * hand.fingers()[0].model.tendon_routes()[3].length();
+    let mut far = pulls.clone();
+    far[0][3] = -1.01 * limit;
+    assert_err!(
+        est.estimate(&observe(&keypoints, &far, &pose)),
+        PhysicsError::PullOutOfRange {
+            finger: 0,
+            tendon: 3,
+            ..
+        }
+    );
+    far[0][3] = 0.006;
+    assert!(est.estimate(&observe(&keypoints, &far, &pose)).is_ok());
+    // A pose that is not rigid (its quaternion twice unit length).
+    let scaled = WorldFromHand::new(moe_geom::Iso3::from_parts(
+        moe_geom::nalgebra::Translation3::identity(),
+        moe_geom::nalgebra::UnitQuaternion::new_unchecked(moe_geom::nalgebra::Quaternion::new(
+            2.0, 0.0, 0.0, 0.0,
+        )),
+    ));
+    assert_err!(
+        est.estimate(&observe(&keypoints, &pulls, &scaled)),
+        PhysicsError::InvalidParameter {
+            name: "world_from_hand",
+            value: 2.0,
+            ..
+        }
+    );
+}
+
+/// A marker further from its finger's base than twice the finger's length (markers given in
+/// the wrong frame, a blob taken for one) fails that finger alone, at once.
+#[test]
+fn a_marker_off_its_finger_fails_that_finger_alone() {
+    let hand = hand();
+    let pulls = no_pulls(&hand);
+    let mut keypoints = simulate(&hand, &pulls, &[]);
+    let far = keypoints.fingers[1][2].unwrap() + moe_geom::Vector3::new(0.0, 0.5, 0.0);
+    keypoints.fingers[1][2] = Some(far);
+    let pose = WorldFromHand::identity();
+    let mut est =
+        PhysicsEstimator::new(&hand, &HandMaterial::default(), &PhysicsConfig::default()).unwrap();
+    let e = est.estimate(&observe(&keypoints, &pulls, &pose)).unwrap();
+    let message = e.details.fingers[1].error.as_deref().unwrap();
+    assert!(
+        message.contains("finger 1: marker 2 is") && message.contains("further than it can reach"),
+        "{message}"
+    );
+    assert!(e.details.fingers[0].error.is_none());
+    assert_eq!(e.shape.fingers[1], hand.rest_vertices_in_hand(1));
 }
 
 #[test]

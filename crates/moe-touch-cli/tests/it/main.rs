@@ -5,6 +5,7 @@ mod args;
 mod common;
 mod contact;
 mod episode;
+mod fuzz_boundaries;
 mod hand;
 mod markers;
 mod models;

@@ -14,11 +14,11 @@ use moe_touch::{
 
 use crate::common::fixtures;
 
-fn hand() -> HandModel {
+pub(crate) fn hand() -> HandModel {
     HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap()
 }
 
-fn episode() -> moe_record::Episode {
+pub(crate) fn episode() -> moe_record::Episode {
     moe_record::read_episode(&fixtures().join("episodes/plate_tip_front_small.mcap")).unwrap()
 }
 
@@ -163,7 +163,7 @@ fn frames_out_of_order_are_refused_and_a_gap_or_reset_starts_a_fresh_stream() {
 }
 
 /// The physics pipeline with the default material and settings.
-fn physics_pipeline(hand: &HandModel, episode: &moe_record::Episode) -> PhysicsPipeline {
+pub(crate) fn physics_pipeline(hand: &HandModel, episode: &moe_record::Episode) -> PhysicsPipeline {
     PhysicsPipeline::physics(
         hand.clone(),
         detector(hand, episode),
@@ -1131,4 +1131,80 @@ fn a_run_goes_on_past_a_failed_frame_and_marks_it() {
     moe_record::write_run(&path, &info, &out).unwrap();
     let summary = report.summary(&path);
     assert!(summary.contains("1 of 7 frames not estimated"), "{summary}");
+}
+
+/// The short form of the soak: the committed episode looped for 80 frames with gaps, resets
+/// and refused frames at periods that never coincide. Every refused frame is counted and
+/// nothing else fails; the stream restarts after every gap, reset and refusal (whose frame's
+/// time is skipped: the next frame comes two spacings, 0.4 s, after the last one estimated,
+/// beyond the 0.2 s horizon) and nowhere else.
+#[test]
+fn a_looped_stream_with_gaps_resets_and_refusals_goes_on() {
+    let hand = hand();
+    let episode = episode();
+    let mut p = physics_pipeline(&hand, &episode);
+    let options = moe_lab::soak::SoakOptions {
+        frames: 80,
+        window: 40,
+        gap_every: 25,
+        reset_every: 51,
+        refuse_every: 37,
+        ..Default::default()
+    };
+    let mut progress = Vec::new();
+    let report = moe_lab::soak::soak(&mut p, &episode.frames, &options, &mut |k, n| {
+        progress.push((k, n))
+    })
+    .unwrap();
+    assert_eq!(progress, [(40, 80), (80, 80)]);
+    assert_eq!(report.refused_on_purpose, 2, "frames 37 and 74");
+    assert_eq!(
+        report.unexpected_failures, 0,
+        "{:?}",
+        report.first_unexpected_failure
+    );
+    assert_eq!(report.windows.len(), 2);
+    let restarts: usize = report.windows.iter().map(|w| w.restarts).sum();
+    assert_eq!(
+        restarts,
+        1 + 3 + 1 + 1,
+        "the start, gaps at 25, 50, 75, the reset at 51, frame 38 after the refusal"
+    );
+    let estimated: usize = report.windows.iter().map(|w| w.frame_ms.frames).sum();
+    assert_eq!(estimated, 78);
+    assert!(report.p99_drift.is_some() && report.median_drift.is_some());
+    if cfg!(target_os = "linux") {
+        assert!(
+            report
+                .windows
+                .iter()
+                .all(|w| w.resident_mib.is_some_and(|m| m > 0.0))
+        );
+        assert!(report.resident_growth.is_some());
+    }
+    // The command runs the same study.
+    let o = crate::common::run(&[
+        "eval",
+        "soak",
+        "--episode",
+        fixtures()
+            .join("episodes/plate_tip_front_small.mcap")
+            .to_str()
+            .unwrap(),
+        "--frames",
+        "12",
+        "--window",
+        "6",
+        "--refuse-every",
+        "5",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["refused_on_purpose"], 2);
+    assert_eq!(json["unexpected_failures"], 0);
+    // Bad options are refused in one line.
+    let o = crate::common::run(&["eval", "soak", "--episode", "x.mcap", "--window", "0"]);
+    let err = crate::common::assert_one_line_error(&o);
+    assert!(err.contains("window"), "{err}");
 }

@@ -15,6 +15,7 @@ pub(crate) mod markers;
 pub(crate) mod observability;
 pub(crate) mod patting;
 pub(crate) mod physics;
+pub(crate) mod soak;
 
 use std::path::{Path, PathBuf};
 
@@ -55,6 +56,9 @@ pub(crate) enum EvalTarget {
     /// The Cramér–Rao bound of a press's place and force for each marker layout of the study
     /// (camera row, two rows, sides, tip ring), per region, and the bound map figure.
     Observability(observability::ObservabilityEvalArgs),
+    /// A long run: an episode looped for thousands of frames with gaps, resets and refused
+    /// frames mixed in; frame times, failures and resident memory window by window.
+    Soak(soak::SoakEvalArgs),
 }
 
 /// Benchmark size.
@@ -102,6 +106,7 @@ pub(crate) fn run(args: &EvalArgs) -> Result<()> {
         EvalTarget::Grasp(a) => grasp::run(a),
         EvalTarget::Physics(a) => physics::run(a),
         EvalTarget::Observability(a) => observability::run(a),
+        EvalTarget::Soak(a) => soak::run(a),
     }
 }
 
