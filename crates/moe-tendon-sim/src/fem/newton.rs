@@ -176,11 +176,8 @@ impl FemModel {
         self.potential(&ws.trial, gravity, &ws.trial_terms)
     }
 
-    /// Total potential at `x` with the interaction `terms` made there: the corotated elastic
-    /// energy `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the potentials of gravity and of the nodal
-    /// forces, the rank-one penalties `½ k g²` (`g > 0` only, for a unilateral one) and the
-    /// point terms' own ([`Terms::point_energy_j`]).
-    fn potential(&self, x: &[Point3], gravity: &Vector3, terms: &Terms) -> Result<Real, SimError> {
+    /// The corotated elastic energy `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))` at `x`.
+    fn elastic_energy(&self, x: &[Point3]) -> Result<Real, SimError> {
         let mut e = 0.0;
         for t in 0..self.mesh.num_tets() {
             let (r, _) = self.element_state(t, x, StepContext::default())?;
@@ -190,6 +187,15 @@ impl FemModel {
             e += self.volumes[t]
                 * (self.mu * eps.norm_squared() + 0.5 * self.lambda * eps.trace().powi(2));
         }
+        Ok(e)
+    }
+
+    /// Total potential at `x` with the interaction `terms` made there: the corotated elastic
+    /// energy `Σ_e V_e (μ‖S−I‖² + ½λ tr²(S−I))`, the potentials of gravity and of the nodal
+    /// forces, the rank-one penalties `½ k g²` (`g > 0` only, for a unilateral one) and the
+    /// point terms' own ([`Terms::point_energy_j`]).
+    fn potential(&self, x: &[Point3], gravity: &Vector3, terms: &Terms) -> Result<Real, SimError> {
+        let mut e = self.elastic_energy(x)?;
         for (p, m) in x.iter().zip(&self.mass) {
             e -= m * gravity.dot(&p.coords);
         }
@@ -222,15 +228,7 @@ impl FemModel {
         for ((t, xi), di) in trial.iter_mut().zip(x).zip(d) {
             *t = xi + di * alpha;
         }
-        let mut e = 0.0;
-        for t in 0..self.mesh.num_tets() {
-            let (r, _) = self.element_state(t, trial, StepContext::default())?;
-            let f = self.deformation_gradient(t, trial);
-            let eps = r.transpose() * f - Matrix3::identity();
-            let eps = (eps + eps.transpose()) * 0.5;
-            e += self.volumes[t]
-                * (self.mu * eps.norm_squared() + 0.5 * self.lambda * eps.trace().powi(2));
-        }
+        let mut e = self.elastic_energy(trial)?;
         let disp = |i: u32| d[i as usize] * alpha;
         for (i, m) in self.mass.iter().enumerate() {
             e -= m * gravity.dot(&disp(i as u32));

@@ -18,6 +18,7 @@ use moe_geom::{
     CameraIntrinsics, DepthImage, HandEstimator, HandKeypoints, Iso3, Observation, Point3, Real,
     SeededRng, Vector3, WorldFromHand,
 };
+use moe_physics::FingerReport;
 use moe_record::EpisodeFrame;
 
 use super::pipeline::{episode, hand, physics_pipeline};
@@ -90,6 +91,9 @@ fn bad_pose(rng: &mut SeededRng, pose: &Iso3) -> Iso3 {
     }
 }
 
+/// An estimate's finger reports, and why it is not acceptable (if it is not).
+type Checked = (Vec<FingerReport>, Option<String>);
+
 /// Tally of one boundary's cases.
 #[derive(Debug, Default)]
 struct Tally {
@@ -102,6 +106,29 @@ struct Tally {
 }
 
 impl Tally {
+    /// Counts one case's outcome (its finger reports and why its estimate is not acceptable,
+    /// or its error, or its panic); whether it panicked.
+    fn record<E>(&mut self, case: usize, outcome: std::thread::Result<Result<Checked, E>>) -> bool {
+        match outcome {
+            Ok(Ok((fingers, why))) => {
+                self.estimated += 1;
+                self.degraded += usize::from(fingers.iter().any(|r| r.degraded));
+                if let Some(why) = why {
+                    self.bad.push(format!("case {case}: {why}"));
+                }
+                false
+            }
+            Ok(Err(_)) => {
+                self.errors += 1;
+                false
+            }
+            Err(_) => {
+                self.bad.push(format!("case {case}: panicked"));
+                true
+            }
+        }
+    }
+
     fn time(&mut self, start: Instant, applied: &[&str]) {
         let ms = 1e3 * start.elapsed().as_secs_f64();
         if ms > self.slowest_ms {
@@ -203,7 +230,7 @@ fn pipeline_case(
             }
             8 => f
                 .color_rgb8
-                .chunks_mut(3)
+                .chunks_exact_mut(3)
                 .for_each(|p| p.copy_from_slice(&[230, 20, 20])),
             9 => f
                 .color_rgb8
@@ -244,19 +271,16 @@ fn fuzz_boundaries_the_pipeline_never_panics_and_never_gives_a_non_finite_estima
             pipeline.process(f.rgbd(), &observation)
         }));
         tally.time(start, &applied);
-        match outcome {
-            Ok(Ok(est)) => {
-                tally.estimated += 1;
-                tally.degraded += usize::from(est.details.fingers.iter().any(|r| r.degraded));
-                if let Some(why) = non_finite(&est.shape.fingers, &est.contact.fingers) {
-                    tally.bad.push(format!("case {case}: {why}"));
-                }
-            }
-            Ok(Err(_)) => tally.errors += 1,
-            Err(_) => {
-                tally.bad.push(format!("case {case}: panicked"));
-                pipeline = physics_pipeline(&hand, &episode);
-            }
+        let outcome = outcome.map(|r| {
+            r.map(|e| {
+                (
+                    e.details.fingers,
+                    non_finite(&e.shape.fingers, &e.contact.fingers),
+                )
+            })
+        });
+        if tally.record(case, outcome) {
+            pipeline = physics_pipeline(&hand, &episode);
         }
     }
     tally.report("Pipeline::process", n);
@@ -390,19 +414,16 @@ fn fuzz_boundaries_the_physics_estimator_never_panics_and_never_gives_a_non_fini
         let start = Instant::now();
         let outcome = catch_unwind(AssertUnwindSafe(|| estimator.estimate(&observation)));
         tally.time(start, &applied);
-        match outcome {
-            Ok(Ok(est)) => {
-                tally.estimated += 1;
-                tally.degraded += usize::from(est.details.fingers.iter().any(|r| r.degraded));
-                if let Some(why) = non_finite(&est.shape.fingers, &est.contact.fingers) {
-                    tally.bad.push(format!("case {case}: {why}"));
-                }
-            }
-            Ok(Err(_)) => tally.errors += 1,
-            Err(_) => {
-                tally.bad.push(format!("case {case}: panicked"));
-                estimator.reset();
-            }
+        let outcome = outcome.map(|r| {
+            r.map(|e| {
+                (
+                    e.details.fingers,
+                    non_finite(&e.shape.fingers, &e.contact.fingers),
+                )
+            })
+        });
+        if tally.record(case, outcome) {
+            estimator.reset();
         }
     }
     tally.report("PhysicsEstimator::estimate", n);
