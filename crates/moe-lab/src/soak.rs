@@ -151,7 +151,6 @@ pub fn soak<E: HandEstimator>(
     let mut first_unexpected = None;
     let mut offset_ns = 0u64;
     let mut previous_ns = None;
-    let mut frame = episode[0].clone();
     for start in (0..options.frames).step_by(options.window) {
         let end = (start + options.window).min(options.frames);
         let mut times = Vec::with_capacity(end - start);
@@ -163,16 +162,17 @@ pub fn soak<E: HandEstimator>(
             if k > 0 && k % options.reset_every == 0 {
                 pipeline.reset();
             }
-            let source = &episode[k % episode.len()];
+            let frame = &episode[k % episode.len()];
             let refuse = k > 0 && k % options.refuse_every == 0;
-            frame.clone_from(source);
-            frame.time_ns = match (refuse, previous_ns) {
+            let time_ns = match (refuse, previous_ns) {
                 (true, Some(t)) => t,
                 _ => episode[0].time_ns + k as u64 * spacing_ns + offset_ns,
             };
-            match pipeline.process(frame.rgbd(), &frame.observation()) {
+            // The frame's own images, at the looped time: no copy of them per frame.
+            let observation = frame.observation().with_time(1e-9 * time_ns as Real);
+            match pipeline.process(frame.rgbd(), &observation) {
                 Ok(est) => {
-                    previous_ns = Some(frame.time_ns);
+                    previous_ns = Some(time_ns);
                     times.push(est.timings.total_ms);
                     restarts += usize::from(matches!(
                         est.stream,
@@ -186,7 +186,7 @@ pub fn soak<E: HandEstimator>(
                     } else {
                         unexpected += 1;
                         first_unexpected.get_or_insert_with(|| format!("frame {k}: {failure}"));
-                        previous_ns = Some(frame.time_ns);
+                        previous_ns = Some(time_ns);
                     }
                 }
             }

@@ -50,8 +50,11 @@
 //!    free nodes; its block pattern (element couplings plus tendon-segment couplings) is
 //!    analysed once (AMD + symbolic Cholesky) and refactorised numerically every step.
 //!    **Quasi-static mode** ([`mechanics::Integrator::Static`]): Newton iterations `K Δx = f(x)` with a
-//!    backtracking line search on the total potential (needed because the corotated tangent
-//!    omits `∂R/∂x`, so a full step can overshoot under large stress).
+//!    backtracking line search on the total potential, every interaction term made where the
+//!    step leads (needed because the corotated tangent omits `∂R/∂x` and the terms are
+//!    linearised, so a full step can overshoot or miss a contact beginning); a solve slow after
+//!    20 iterations goes on with the exact Hessian and lengthens its full steps while the
+//!    energy falls, and a scene's static step that does not converge is substepped.
 //! 5. **Tendons** ([`mechanics::Tendon`], [`TendonParams`]): polylines through the body, cable force
 //!    `f_k = T (u_k − u_{k−1})` at each embedded point, distributed by barycentric weights.
 //!    Displacement drive (the paper's input): `T = k_t max(0, L − (L₀ − pull))`, the

@@ -196,6 +196,9 @@ pub(crate) struct FingerInverse {
     budget_end: Option<usize>,
     /// Whether this frame's search reached its budget.
     degraded: bool,
+    /// How far from its base the finger can put a marker, however it bends or stretches:
+    /// twice its rest surface's furthest point, metres.
+    reach_m: Real,
 }
 
 fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
@@ -309,9 +312,15 @@ impl FingerInverse {
             &faces,
             config.depth.patch_spacing_m,
         );
+        let reach_m = 2.0
+            * rest_surface
+                .iter()
+                .map(|p| p.coords.norm())
+                .fold(0.0, Real::max);
         Ok(Self {
             index,
             mech,
+            reach_m,
             pair_subset,
             depth_patches,
             previous_dent: None,
@@ -476,14 +485,8 @@ impl FingerInverse {
     /// The first part of an estimate: the markers counted and the free finger found (the
     /// simulated one advanced to the observation, in a stream).
     pub(crate) fn begin(&mut self, obs: &FingerObservation<'_>) -> Result<Begun, PhysicsError> {
-        // A marker further from the finger's base than twice the finger's length is not on
-        // it, however the finger bends or stretches.
-        let reach_m = 2.0
-            * self
-                .rest_surface
-                .iter()
-                .map(|p| p.coords.norm())
-                .fold(0.0, Real::max);
+        // A marker further from the finger's base than it can reach is not on it.
+        let reach_m = self.reach_m;
         for (marker, m) in obs.markers.iter().enumerate() {
             if let Some(p) = m {
                 let distance_m = p.coords.norm();

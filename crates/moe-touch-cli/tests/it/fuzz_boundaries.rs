@@ -129,6 +129,21 @@ impl Tally {
         }
     }
 
+    /// Runs one case (`applied`: its faults), timed and with panics caught, checks its
+    /// estimate with `check` and counts it; whether it panicked.
+    fn run<T, E>(
+        &mut self,
+        case: usize,
+        applied: &[&str],
+        call: impl FnOnce() -> Result<T, E>,
+        check: impl FnOnce(T) -> Checked,
+    ) -> bool {
+        let start = Instant::now();
+        let outcome = catch_unwind(AssertUnwindSafe(call));
+        self.time(start, applied);
+        self.record(case, outcome.map(|r| r.map(check)))
+    }
+
     fn time(&mut self, start: Instant, applied: &[&str]) {
         let ms = 1e3 * start.elapsed().as_secs_f64();
         if ms > self.slowest_ms {
@@ -266,20 +281,13 @@ fn fuzz_boundaries_the_pipeline_never_panics_and_never_gives_a_non_finite_estima
         let mut observation = Observation::new().with_tendon_pulls(&f.tendon_pull_m);
         observation.world_from_hand = pose;
         observation.time_secs = t;
-        let start = Instant::now();
-        let outcome = catch_unwind(AssertUnwindSafe(|| {
-            pipeline.process(f.rgbd(), &observation)
-        }));
-        tally.time(start, &applied);
-        let outcome = outcome.map(|r| {
-            r.map(|e| {
-                (
-                    e.details.fingers,
-                    non_finite(&e.shape.fingers, &e.contact.fingers),
-                )
-            })
-        });
-        if tally.record(case, outcome) {
+        let call = || pipeline.process(f.rgbd(), &observation);
+        if tally.run(case, &applied, call, |e| {
+            (
+                e.details.fingers,
+                non_finite(&e.shape.fingers, &e.contact.fingers),
+            )
+        }) {
             pipeline = physics_pipeline(&hand, &episode);
         }
     }
@@ -411,18 +419,13 @@ fn fuzz_boundaries_the_physics_estimator_never_panics_and_never_gives_a_non_fini
         if let Some(image) = image {
             observation = observation.with_depth(image);
         }
-        let start = Instant::now();
-        let outcome = catch_unwind(AssertUnwindSafe(|| estimator.estimate(&observation)));
-        tally.time(start, &applied);
-        let outcome = outcome.map(|r| {
-            r.map(|e| {
-                (
-                    e.details.fingers,
-                    non_finite(&e.shape.fingers, &e.contact.fingers),
-                )
-            })
-        });
-        if tally.record(case, outcome) {
+        let call = || estimator.estimate(&observation);
+        if tally.run(case, &applied, call, |e| {
+            (
+                e.details.fingers,
+                non_finite(&e.shape.fingers, &e.contact.fingers),
+            )
+        }) {
             estimator.reset();
         }
     }
