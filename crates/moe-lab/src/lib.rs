@@ -105,6 +105,37 @@ pub(crate) fn nearest_rank<T: Copy>(sorted: &[T], q: f64) -> Option<T> {
     (n > 0).then(|| sorted[((q * n as f64).ceil() as usize).clamp(1, n) - 1])
 }
 
+/// What running each item of a study gave: the results of the items that ran, in order, the
+/// items that failed (id and error message), and the first error itself.
+pub(crate) struct EachRun<T> {
+    pub(crate) ran: Vec<T>,
+    pub(crate) failed: Vec<(u64, String)>,
+    pub(crate) first_error: Option<LabError>,
+}
+
+/// Runs `run` on every id, going on past the ones that fail: a study's trajectories or trials,
+/// of which one failing must not lose the others.
+pub(crate) fn run_each<T>(
+    ids: impl IntoIterator<Item = u64>,
+    mut run: impl FnMut(u64) -> Result<T, LabError>,
+) -> EachRun<T> {
+    let mut each = EachRun {
+        ran: Vec::new(),
+        failed: Vec::new(),
+        first_error: None,
+    };
+    for id in ids {
+        match run(id) {
+            Ok(t) => each.ran.push(t),
+            Err(e) => {
+                each.failed.push((id, e.to_string()));
+                each.first_error.get_or_insert(e);
+            }
+        }
+    }
+    each
+}
+
 /// `n` and `noun`, plural unless `n` is 1 ("1 load", "2 loads"), as the report tables say it.
 pub fn count(n: usize, noun: &str) -> String {
     if n == 1 {

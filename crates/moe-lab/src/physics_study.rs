@@ -423,27 +423,23 @@ fn keep_trajectories<F, P>(
     progress: &mut dyn FnMut(u64, u64),
     mut simulate: impl FnMut(u64) -> Result<(Vec<F>, Option<Vec<P>>), LabError>,
 ) -> Result<Kept<F, P>, LabError> {
+    let each = crate::run_each(0..n, |t| {
+        let simulated = simulate(t);
+        progress(t + 1, n);
+        simulated
+    });
     let mut frames = Vec::new();
     let mut seen = Vec::new();
-    let mut skipped = Vec::new();
-    let mut first_error = None;
-    for t in 0..n {
-        match simulate(t) {
-            Ok((s, k)) => {
-                frames.extend(s);
-                seen.extend(k.into_iter().flatten());
-            }
-            Err(e) => {
-                skipped.push(SkippedTrajectory {
-                    trajectory: t,
-                    error: e.to_string(),
-                });
-                first_error.get_or_insert(e);
-            }
-        }
-        progress(t + 1, n);
+    for (s, k) in each.ran {
+        frames.extend(s);
+        seen.extend(k.into_iter().flatten());
     }
-    match first_error {
+    let skipped = each
+        .failed
+        .into_iter()
+        .map(|(trajectory, error)| SkippedTrajectory { trajectory, error })
+        .collect();
+    match each.first_error {
         Some(e) if frames.is_empty() => Err(e),
         _ => Ok((frames, seen, skipped)),
     }

@@ -103,8 +103,9 @@ pub struct FingerReport {
     /// Linear solves of the frame (static Newton iterations, dynamic steps, tangents;
     /// those of solves that did not converge as well).
     pub solves: usize,
-    /// Whether the load search stopped at [`PhysicsConfig::frame_solve_budget`]: the loads
-    /// are the best it found within the budget, not its converged answer.
+    /// Whether the load search stopped short of its converged answer: it spent
+    /// [`PhysicsConfig::frame_solve_budget`], or the model could carry no step of the loads
+    /// it proposed, even in substeps. The loads are the best it found.
     pub degraded: bool,
     /// Why there is no estimate for this finger in this frame (too few markers, a static solve
     /// that did not converge); its shape is then the rest shape and its map zero.

@@ -42,7 +42,7 @@ pub use plane::{
 pub use press::plate_normal;
 pub use study::{
     GraspInclineRow, GraspStudyOptions, GraspStudyReport, GraspStudySource, PAPER_INCLINES,
-    run_grasp_study, trial_point_clouds,
+    SkippedTrial, run_grasp_study, trial_point_clouds,
 };
 pub use trial::run_grasp_trial;
 
@@ -131,6 +131,9 @@ pub struct PlaneStep {
     /// Contact points of the press's hold (the pipeline's estimates, or the simulator's
     /// labels).
     pub estimated_contacts: usize,
+    /// Hold frames the pipeline could not estimate: they gave no contact points and no finger
+    /// states, and the plane came from the others.
+    pub failed_frames: Vec<FailedHoldFrame>,
     /// RANSAC inliers among them (0 when the plane went through the fingertips).
     pub inliers: usize,
     /// The seen tips of the loaded fingers, world frame, in finger order (what a fingertip
@@ -147,6 +150,15 @@ pub struct PlaneStep {
     /// The press with the hand's axis turned onto this plane's normal, at
     /// [`GraspOptions::press_m`] (the judged depth).
     pub press: Option<PressOutcome>,
+}
+
+/// A hold frame the pipeline could not estimate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FailedHoldFrame {
+    /// Its index among the press's simulated frames.
+    pub frame: usize,
+    /// Why (the failing stage and its error).
+    pub error: String,
 }
 
 /// One trial on one incline.

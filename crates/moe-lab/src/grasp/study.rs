@@ -72,8 +72,11 @@ pub struct GraspStudyOptions {
 pub struct GraspInclineRow {
     /// The plate's incline, degrees.
     pub incline_deg: Real,
-    /// Trials run.
+    /// Trials run to the end (the counts below are of these).
     pub trials: u64,
+    /// Trials that could not be run (a simulation that failed, a camera that could not be
+    /// made), named with why; the others are counted without them.
+    pub skipped_trials: Vec<SkippedTrial>,
     /// Trials whose judged press succeeded (with MOE-Touch).
     pub success_with: usize,
     /// Trials whose first press succeeded (without MOE-Touch).
@@ -104,6 +107,15 @@ impl GraspInclineRow {
     }
 }
 
+/// A grasp trial the study left out because it could not be run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SkippedTrial {
+    /// Its number (seed).
+    pub trial: u64,
+    /// Why.
+    pub error: String,
+}
+
 /// The grasp study's report.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GraspStudyReport {
@@ -123,9 +135,13 @@ pub struct GraspStudyReport {
 /// incline's row as it is done (to report progress or write its trials; its error ends the
 /// study).
 ///
+/// A trial that cannot be run ([`run_grasp_trial`]'s error) is named among its incline's
+/// [`GraspInclineRow::skipped_trials`] and the study goes on.
+///
 /// # Errors
 /// A threshold outside [0, 1], an invalid RANSAC configuration, a model that cannot be loaded
-/// for the three-finger hand, a trial's error ([`run_grasp_trial`]), or `after_incline`'s.
+/// for the three-finger hand, every trial failing (the first one's error), or
+/// `after_incline`'s.
 pub fn run_grasp_study<E: From<LabError>>(
     options: &GraspStudyOptions,
     mut after_incline: impl FnMut(&GraspInclineRow) -> Result<(), E>,
@@ -144,44 +160,51 @@ pub fn run_grasp_study<E: From<LabError>>(
     };
     let trials = options.trials;
     let mut rows = Vec::new();
+    let mut first_error = None;
     for (incline, paper_with, paper_without) in PAPER_INCLINES {
-        let results: Vec<GraspTrial> = (0..trials)
-            .map(|k| {
-                let contacts = match source {
-                    GraspStudySource::Physics => GraspContacts::Physics {
-                        material: moe_physics::HandMaterial::default(),
-                        config: options.physics.clone(),
-                    },
-                    GraspStudySource::Pipeline => GraspContacts::Pipeline {
-                        contact: &estimator,
-                        threshold,
-                        shape: options.shape.clone(),
-                    },
-                    GraspStudySource::TrueLabels => {
-                        GraspContacts::SimulatorLabelsOnEstimatedShape {
-                            contact: &estimator,
-                            shape: options.shape.clone(),
-                        }
-                    }
-                    GraspStudySource::TrueContacts => GraspContacts::Simulator,
-                };
-                run_grasp_trial(
-                    &hand,
-                    contacts,
-                    incline,
-                    k,
-                    options.camera_seed,
-                    &options.grasp,
-                )
-            })
-            .collect::<Result<_, _>>()?;
+        let each = crate::run_each(0..trials, |k| {
+            let contacts = match source {
+                GraspStudySource::Physics => GraspContacts::Physics {
+                    material: moe_physics::HandMaterial::default(),
+                    config: options.physics.clone(),
+                },
+                GraspStudySource::Pipeline => GraspContacts::Pipeline {
+                    contact: &estimator,
+                    threshold,
+                    shape: options.shape.clone(),
+                },
+                GraspStudySource::TrueLabels => GraspContacts::SimulatorLabelsOnEstimatedShape {
+                    contact: &estimator,
+                    shape: options.shape.clone(),
+                },
+                GraspStudySource::TrueContacts => GraspContacts::Simulator,
+            };
+            run_grasp_trial(
+                &hand,
+                contacts,
+                incline,
+                k,
+                options.camera_seed,
+                &options.grasp,
+            )
+        });
+        if let Some(e) = each.first_error {
+            first_error.get_or_insert(e);
+        }
+        let results: Vec<GraspTrial> = each.ran;
+        let skipped_trials = each
+            .failed
+            .into_iter()
+            .map(|(trial, error)| SkippedTrial { trial, error })
+            .collect();
         let max_incline_error_deg = results
             .iter()
             .filter_map(|r| r.estimated_incline_deg.map(|e| (e - incline).abs()))
             .fold(None, |m: Option<Real>, e| Some(m.map_or(e, |m| m.max(e))));
         let row = GraspInclineRow {
             incline_deg: incline,
-            trials,
+            trials: results.len() as u64,
+            skipped_trials,
             success_with: results.iter().filter(|r| r.success_with).count(),
             success_without: results.iter().filter(|r| r.success_without).count(),
             paper_with_of_5: paper_with,
@@ -196,6 +219,11 @@ pub fn run_grasp_study<E: From<LabError>>(
         };
         after_incline(&row)?;
         rows.push(row);
+    }
+    if let Some(e) = first_error
+        && rows.iter().all(|r| r.trials == 0)
+    {
+        return Err(e.into());
     }
     Ok(GraspStudyReport {
         options: options.grasp,
@@ -232,6 +260,15 @@ impl GraspStudyReport {
                 row.fits_failed,
             );
         }
+        for row in &self.rows {
+            for skipped in &row.skipped_trials {
+                let _ = writeln!(
+                    s,
+                    "skipped: {:?}° trial {}, it could not be run: {}",
+                    row.incline_deg, skipped.trial, skipped.error
+                );
+            }
+        }
         let _ = writeln!(
             s,
             "\nper trial: true incline → estimated incline (per fit: plane through, error of the normal; \
@@ -250,7 +287,7 @@ impl GraspStudyReport {
                     .iter()
                     .map(|f| {
                         format!(
-                            "{} {}{}",
+                            "{} {}{}{}",
                             f.source.map_or("no fit", PlaneSource::name),
                             f.normal_error_deg
                                 .map_or("—".to_owned(), |e| format!("{e:.1}°")),
@@ -258,6 +295,10 @@ impl GraspStudyReport {
                                 format!(" (pressed {:.0} mm)", f.press_depth_m * 1e3)
                             } else {
                                 String::new()
+                            },
+                            match f.failed_frames.len() {
+                                0 => String::new(),
+                                n => format!(" ({n} hold frames failed)"),
                             }
                         )
                     })

@@ -158,6 +158,82 @@ fn a_refining_press_that_loads_too_few_fingers_is_pressed_deeper() {
     assert!(refined.normal_error_deg.unwrap() < 2.0, "{refined:?}");
 }
 
+/// A contact stage whose every other estimate fails (when `failing`), with zero probability
+/// everywhere otherwise: the labels-on-the-estimated-shape source does not use its output, so
+/// only the failures matter.
+struct EveryOtherFails {
+    failing: bool,
+    calls: usize,
+}
+
+impl moe_geom::ContactEstimator for EveryOtherFails {
+    type Error = std::io::Error;
+    fn estimate(
+        &mut self,
+        input: &moe_geom::ContactInput<'_>,
+    ) -> Result<moe_geom::ContactEstimate, std::io::Error> {
+        self.calls += 1;
+        if self.failing && self.calls.is_multiple_of(2) {
+            return Err(std::io::Error::other("the contact stage failed on purpose"));
+        }
+        Ok(moe_geom::ContactEstimate::from_map(moe_geom::ContactMap {
+            fingers: input
+                .shape
+                .fingers
+                .iter()
+                .map(|f| vec![0.0; f.len()])
+                .collect(),
+        }))
+    }
+}
+
+/// A hold frame the pipeline cannot estimate is named in its plane's step and left out of the
+/// fit; the trial goes on (it used to end with the frame's error).
+#[test]
+fn a_failing_hold_frame_is_named_and_the_trial_goes_on() {
+    let options = GraspOptions {
+        refinements: 0,
+        fingertip_plane: false,
+        ..GraspOptions::default()
+    };
+    let trial = |failing| {
+        run_grasp_trial(
+            &hand_model(),
+            GraspContacts::SimulatorLabelsOnEstimatedShape {
+                contact: EveryOtherFails { failing, calls: 0 },
+                shape: moe_arap::ShapeConfig::default(),
+            },
+            0.0,
+            0,
+            0,
+            &options,
+        )
+    };
+    let whole = trial(false).unwrap();
+    let halved = trial(true).unwrap();
+    let (all, half) = (&whole.fits[0], &halved.fits[0]);
+    assert!(all.failed_frames.is_empty(), "{all:?}");
+    // Every second frame failed, each named with its stage's error, and only the others'
+    // contact points reached the fit.
+    assert!(half.failed_frames.len() >= 2, "{half:?}");
+    assert!(
+        half.failed_frames
+            .iter()
+            .all(|f| f.error.contains("failed on purpose")),
+        "{half:?}"
+    );
+    let frames: Vec<usize> = half.failed_frames.iter().map(|f| f.frame).collect();
+    assert!(frames.windows(2).all(|w| w[0] < w[1]), "{frames:?}");
+    assert!(
+        half.estimated_contacts > 0 && half.estimated_contacts < all.estimated_contacts,
+        "{} of {}",
+        half.estimated_contacts,
+        all.estimated_contacts
+    );
+    assert!(half.estimated_normal.is_some(), "{half:?}");
+    assert_eq!(halved.first_press, whole.first_press);
+}
+
 fn hold_frames(frames: &[SimFrame]) -> impl Iterator<Item = &SimFrame> {
     frames.iter().filter(|f| in_hold(f))
 }

@@ -16,7 +16,7 @@ use super::press::{
     angle_deg, in_hold, labelled_points, outcome, plate_normal, simulate_press,
     simulated_hold_shape, trial_start,
 };
-use super::{GraspContacts, GraspOptions, GraspTrial, PlaneStep, PressOutcome};
+use super::{FailedHoldFrame, GraspContacts, GraspOptions, GraspTrial, PlaneStep, PressOutcome};
 use crate::LabError;
 use crate::episode::EpisodeRecorder;
 
@@ -58,8 +58,7 @@ impl HoldView<'_> {
         contact: C,
         threshold: Real,
         labels_only: bool,
-        shapes: &mut Vec<Vec<FingerView>>,
-        plane_points: &mut Vec<ContactPoint>,
+        views: &mut HoldEstimates,
     ) -> Result<(), LabError> {
         let (recorder, detector) = self.camera()?;
         let shape = MultiShapeEstimator::new(self.hand.clone(), shape.clone())?;
@@ -69,25 +68,40 @@ impl HoldView<'_> {
             Staged::new(shape, contact),
             threshold,
         )?;
-        self.estimate(&mut pipeline, &recorder, labels_only, shapes, plane_points)
+        self.estimate(&mut pipeline, &recorder, labels_only, views)
     }
 
     /// Runs `pipeline` on every hold frame (each from a fresh stream, as the paper estimates
     /// each frame), appending each frame's finger states to `shapes` and its contact points
     /// (world frame) to `plane_points`: the pipeline's own, or with `labels_only` the
-    /// simulator's contact vertices placed on the estimated shape.
+    /// simulator's contact vertices placed on the estimated shape. A frame the pipeline cannot
+    /// estimate gives neither and is named in `failed` (the plane comes from the others).
     fn estimate<E: HandEstimator>(
         &self,
         pipeline: &mut Pipeline<E>,
         recorder: &EpisodeRecorder,
         labels_only: bool,
-        shapes: &mut Vec<Vec<FingerView>>,
-        plane_points: &mut Vec<ContactPoint>,
+        views: &mut HoldEstimates,
     ) -> Result<(), LabError> {
+        let HoldEstimates {
+            shapes,
+            plane_points,
+            failed,
+        } = views;
         for (k, f) in self.hold {
             let episode_frame = recorder.frame(self.scene, f, *k as u64)?;
             pipeline.reset();
-            let estimate = pipeline.process(episode_frame.rgbd(), &episode_frame.observation())?;
+            let estimate =
+                match pipeline.process(episode_frame.rgbd(), &episode_frame.observation()) {
+                    Ok(estimate) => estimate,
+                    Err(failure) => {
+                        failed.push(FailedHoldFrame {
+                            frame: *k,
+                            error: failure.to_string(),
+                        });
+                        continue;
+                    }
+                };
             let to_world = |p: &Point3| estimate.world_from_hand.transform_point(p);
             shapes.push(finger_views(&estimate, self.rest, self.distal));
             if labels_only {
@@ -108,6 +122,15 @@ impl HoldView<'_> {
         }
         Ok(())
     }
+}
+
+/// What the contact source made of a press's hold: per estimated frame its finger states, the
+/// contact points of all of them (world frame), and the frames it could not estimate.
+#[derive(Default)]
+struct HoldEstimates {
+    shapes: Vec<Vec<FingerView>>,
+    plane_points: Vec<ContactPoint>,
+    failed: Vec<FailedHoldFrame>,
 }
 
 /// What every press of one trial shares: the hand and its rest shape, the contact source, the
@@ -179,9 +202,8 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
         let wrist = hold.last().map_or_else(Point3::origin, |(_, f)| {
             Point3::from(f.world_from_hand.translation.vector)
         });
-        let mut plane_points: Vec<ContactPoint> = Vec::new();
+        let mut views = HoldEstimates::default();
         let mut true_points: Vec<ContactPoint> = Vec::new();
-        let mut shapes: Vec<Vec<FingerView>> = Vec::new();
         for (_, f) in &hold {
             true_points.extend(labelled_points(
                 f,
@@ -203,35 +225,29 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
                 threshold,
                 shape,
             } => {
-                hold_view.chain(
-                    shape,
-                    contact,
-                    *threshold,
-                    false,
-                    &mut shapes,
-                    &mut plane_points,
-                )?;
+                hold_view.chain(shape, contact, *threshold, false, &mut views)?;
             }
             GraspContacts::SimulatorLabelsOnEstimatedShape { contact, shape } => {
-                hold_view.chain(shape, contact, 1.0, true, &mut shapes, &mut plane_points)?;
+                hold_view.chain(shape, contact, 1.0, true, &mut views)?;
             }
             GraspContacts::Physics { material, config } => {
                 let (recorder, detector) = hold_view.camera()?;
                 let mut pipeline =
                     PhysicsPipeline::physics((*hand).clone(), detector, material, config)?;
-                hold_view.estimate(
-                    &mut pipeline,
-                    &recorder,
-                    false,
-                    &mut shapes,
-                    &mut plane_points,
-                )?;
+                hold_view.estimate(&mut pipeline, &recorder, false, &mut views)?;
             }
             GraspContacts::Simulator => {
-                plane_points.clone_from(&true_points);
-                shapes.extend(hold.iter().map(|(_, f)| simulated_hold_shape(f, rest)));
+                views.plane_points.clone_from(&true_points);
+                views
+                    .shapes
+                    .extend(hold.iter().map(|(_, f)| simulated_hold_shape(f, rest)));
             }
         }
+        let HoldEstimates {
+            shapes,
+            plane_points,
+            failed,
+        } = views;
 
         let axis = rotation * Vector3::z();
         let fit = fit_grasp_plane(&plane_points, &shapes, &axis, &wrist, options);
@@ -241,6 +257,7 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
             loaded_fingers: fit.loaded_fingers,
             tips: fit.tips.iter().map(|p| [p.x, p.y, p.z]).collect(),
             estimated_contacts: plane_points.len(),
+            failed_frames: failed,
             inliers: 0,
             estimated_normal: None,
             estimated_incline_deg: None,

@@ -22,7 +22,65 @@ pub(super) struct Solved {
 /// residual unexplained is repeated from the free shape.
 const RESTART_FRACTION: Real = 0.1;
 
+/// A loaded solve that does not converge is repeated in this many halvings of the step from
+/// the loads its start is in equilibrium with (2, then 4 substeps).
+const SUBSTEP_HALVINGS: u32 = 2;
+
 impl FingerInverse {
+    /// Solves the static shape under `loads` from `x`, the equilibrium under `from`; a solve
+    /// that does not converge, or meets an element the model cannot carry, is repeated from `x`
+    /// in 2, then 4 substeps, each moving the loads part of the way from `from` to `loads` (both
+    /// sets applied, scaled by `1 − t` and `t`) and starting from the substep before. A spent
+    /// budget ends it at once.
+    fn solve_from(
+        &mut self,
+        x: &mut Vec<Point3>,
+        obs: &FingerObservation<'_>,
+        from: &[(usize, Vector3)],
+        loads: &[(usize, Vector3)],
+        solves: &mut usize,
+    ) -> Result<(), PhysicsError> {
+        const STAGE: &str = "(shape under the estimated loads)";
+        let start = x.clone();
+        let mut error = match self.solve(x, obs, loads, STAGE, solves) {
+            Ok(()) => return Ok(()),
+            Err(e @ (PhysicsError::StaticNotConverged { .. } | PhysicsError::Model { .. })) => e,
+            Err(e) => return Err(e),
+        };
+        for halvings in 1..=SUBSTEP_HALVINGS {
+            let n = 1usize << halvings;
+            let mut y = start.clone();
+            let mut done = true;
+            for k in 1..=n {
+                let t = k as Real / n as Real;
+                let step: Vec<(usize, Vector3)> = if k == n {
+                    loads.to_vec()
+                } else {
+                    from.iter()
+                        .map(|&(c, f)| (c, f * (1.0 - t)))
+                        .chain(loads.iter().map(|&(c, f)| (c, f * t)))
+                        .collect()
+                };
+                match self.solve(&mut y, obs, &step, STAGE, solves) {
+                    Ok(()) => {}
+                    Err(
+                        e @ (PhysicsError::StaticNotConverged { .. } | PhysicsError::Model { .. }),
+                    ) => {
+                        error = e;
+                        done = false;
+                        break;
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            if done {
+                *x = y;
+                return Ok(());
+            }
+        }
+        Err(error)
+    }
+
     /// Gauss–Newton on `count` loads from `state` (updated in place); returns the linear model
     /// about the final state.
     fn gauss_newton(
@@ -58,17 +116,13 @@ impl FingerInverse {
                 break;
             }
             let mut accepted = None;
+            let mut carried = false;
             for scale in [1.0, 0.5, 0.25] {
                 let loads = self.loads_of(&proposal, scale);
                 let mut x = state.x.clone();
-                match self.solve(
-                    &mut x,
-                    obs,
-                    &loads,
-                    "(shape under the estimated loads)",
-                    solves,
-                ) {
+                match self.solve_from(&mut x, obs, &state.loads, &loads, solves) {
                     Ok(()) => {
+                        carried = true;
                         let chi = self.residual_sq(&x, obs);
                         if chi < state.chi {
                             accepted = Some(Solved { x, loads, chi });
@@ -87,6 +141,11 @@ impl FingerInverse {
                 }
             }
             let Some(next) = accepted else {
+                // No step of the proposal could be solved for, even in substeps: the loads
+                // are not the search's converged answer, and the finger says so.
+                if !carried {
+                    self.degraded = true;
+                }
                 break;
             };
             *state = next;
@@ -168,5 +227,77 @@ impl FingerInverse {
             }
         }
         Ok((state, lin))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{HandMaterial, PhysicsConfig};
+    use moe_geom::{FingerParams, HandModel, HandPreset, Iso3};
+
+    /// A loaded solve that stalls within its iterations (a 1 N press on the middle of the
+    /// finger, from the free shape, with 6 Newton iterations) is substepped from the free
+    /// shape's loads, and reaches the same equilibrium as a solve given all the iterations it
+    /// needs.
+    #[test]
+    fn a_stalled_loaded_solve_substeps_to_the_same_equilibrium() {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let model = &hand.fingers()[0].model;
+        let mut inverse = FingerInverse::new(
+            0,
+            model,
+            &HandMaterial::default(),
+            &PhysicsConfig::default(),
+        )
+        .unwrap();
+        let markers = vec![None; model.marker_vertices().len()];
+        let pulls = vec![0.0; model.tendon_routes().len()];
+        let obs = FingerObservation {
+            markers: &markers,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            world_from_finger: Iso3::identity(),
+            pulls: &pulls,
+            time_secs: None,
+            depth: &[],
+            covered: &[],
+            seen_through: &[],
+            image: None,
+        };
+        let mut solves = 0;
+        let free = inverse.static_free(&obs, &mut solves).unwrap();
+        let c = inverse.candidates.len() / 2;
+        let v = inverse.candidates[c] as usize;
+        let loads = [(c, -inverse.rest_normals[v])];
+        let mut converged = free.clone();
+        inverse
+            .solve(&mut converged, &obs, &loads, "", &mut solves)
+            .unwrap();
+
+        inverse.config.static_max_iterations = 6;
+        let mut direct = free.clone();
+        assert!(matches!(
+            inverse.solve(&mut direct, &obs, &loads, "", &mut solves),
+            Err(PhysicsError::StaticNotConverged { .. })
+        ));
+        let mut x = free.clone();
+        let before = solves;
+        inverse
+            .solve_from(&mut x, &obs, &[], &loads, &mut solves)
+            .unwrap();
+        // The direct attempt and at least two substeps.
+        assert!(solves - before > 6 + 2, "{}", solves - before);
+        let gap = x
+            .iter()
+            .zip(&converged)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        let moved = x
+            .iter()
+            .zip(&free)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        assert!(moved > 1e-3, "the press moves the finger: {moved} m");
+        assert!(gap < 1e-5, "{gap} m from the converged solve");
     }
 }

@@ -132,8 +132,8 @@ pub(crate) struct FingerEstimate {
     pub(crate) depth_pixels: usize,
     /// Linear solves of the frame (Newton iterations and dynamic steps).
     pub(crate) solves: usize,
-    /// Whether the load search stopped at [`PhysicsConfig::frame_solve_budget`]: the estimate
-    /// is the best found within it.
+    /// Whether the load search stopped short of its converged answer (the budget spent, or
+    /// a proposal the model could not carry even in substeps): the estimate is the best found.
     pub(crate) degraded: bool,
 }
 
@@ -194,7 +194,7 @@ pub(crate) struct FingerInverse {
     /// frame's solves at which its budget is spent ([`PhysicsConfig::frame_solve_budget`];
     /// `usize::MAX` without one).
     budget_end: Option<usize>,
-    /// Whether this frame's search reached its budget.
+    /// Whether this frame's search stopped short (its budget, or a proposal not carried).
     degraded: bool,
     /// How far from its base the finger can put a marker, however it bends or stretches:
     /// twice its rest surface's furthest point, metres.
