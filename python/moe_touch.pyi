@@ -317,7 +317,8 @@ class PhysicsEstimate:
         """Per finger: the linear solves of the frame."""
     @property
     def degraded(self) -> list[bool]:
-        """Per finger: whether the load search stopped at the frame's budget."""
+        """Per finger: whether the load search stopped short of its converged answer (the
+        frame's budget spent, or a proposed load of which the model could carry no part)."""
 
 class PhysicsEstimator:
     """The finger's FEM model read backwards from its markers (no camera)."""

@@ -153,8 +153,9 @@ pub(crate) struct PhysicsEstimate {
     finger_errors: Vec<Option<String>>,
     /// Linear solves each finger took this frame (Newton iterations, dynamic steps, tangents).
     solves: Vec<usize>,
-    /// Whether each finger's load search stopped at the frame's budget of solves (its loads
-    /// are then the best found within it).
+    /// Whether each finger's load search stopped short of its converged answer: the frame's
+    /// budget of solves spent, or a proposed load of which the model could carry no part (its
+    /// loads are then the best found).
     degraded: Vec<bool>,
 }
 

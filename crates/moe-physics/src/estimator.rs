@@ -104,8 +104,8 @@ pub struct FingerReport {
     /// those of solves that did not converge as well).
     pub solves: usize,
     /// Whether the load search stopped short of its converged answer: it spent
-    /// [`PhysicsConfig::frame_solve_budget`], or the model could carry no step of the loads
-    /// it proposed, even in substeps. The loads are the best it found.
+    /// [`PhysicsConfig::frame_solve_budget`], or the model could carry no part of the loads it
+    /// proposed. The loads are the best it found.
     pub degraded: bool,
     /// Why there is no estimate for this finger in this frame (too few markers, a static solve
     /// that did not converge); its shape is then the rest shape and its map zero.

@@ -22,63 +22,71 @@ pub(super) struct Solved {
 /// residual unexplained is repeated from the free shape.
 const RESTART_FRACTION: Real = 0.1;
 
-/// A loaded solve that does not converge is repeated in this many halvings of the step from
-/// the loads its start is in equilibrium with (2, then 4 substeps).
-const SUBSTEP_HALVINGS: u32 = 2;
-
 impl FingerInverse {
-    /// Solves the static shape under `loads` from `x`, the equilibrium under `from`; a solve
-    /// that does not converge, or meets an element the model cannot carry, is repeated from `x`
-    /// in 2, then 4 substeps, each moving the loads part of the way from `from` to `loads` (both
-    /// sets applied, scaled by `1 − t` and `t`) and starting from the substep before. A spent
-    /// budget ends it at once.
-    fn solve_from(
+    /// [`FingerInverse::solve`] within the load search: `Ok(false)` for a load the model
+    /// cannot carry (a stall, an inverted element, no equilibrium) or a spent budget, after
+    /// which every further solve stops at once.
+    fn try_solve(
         &mut self,
         x: &mut Vec<Point3>,
         obs: &FingerObservation<'_>,
-        from: &[(usize, Vector3)],
         loads: &[(usize, Vector3)],
         solves: &mut usize,
-    ) -> Result<(), PhysicsError> {
-        const STAGE: &str = "(shape under the estimated loads)";
-        let start = x.clone();
-        let mut error = match self.solve(x, obs, loads, STAGE, solves) {
-            Ok(()) => return Ok(()),
-            Err(e @ (PhysicsError::StaticNotConverged { .. } | PhysicsError::Model { .. })) => e,
-            Err(e) => return Err(e),
-        };
-        for halvings in 1..=SUBSTEP_HALVINGS {
-            let n = 1usize << halvings;
-            let mut y = start.clone();
-            let mut done = true;
-            for k in 1..=n {
-                let t = k as Real / n as Real;
-                let step: Vec<(usize, Vector3)> = if k == n {
-                    loads.to_vec()
-                } else {
-                    from.iter()
-                        .map(|&(c, f)| (c, f * (1.0 - t)))
-                        .chain(loads.iter().map(|&(c, f)| (c, f * t)))
-                        .collect()
-                };
-                match self.solve(&mut y, obs, &step, STAGE, solves) {
-                    Ok(()) => {}
-                    Err(
-                        e @ (PhysicsError::StaticNotConverged { .. } | PhysicsError::Model { .. }),
-                    ) => {
-                        error = e;
-                        done = false;
-                        break;
-                    }
-                    Err(e) => return Err(e),
+    ) -> Result<bool, PhysicsError> {
+        match self.solve(x, obs, loads, "(shape under the estimated loads)", solves) {
+            Ok(()) => Ok(true),
+            Err(
+                PhysicsError::StaticNotConverged { .. }
+                | PhysicsError::Model { .. }
+                | PhysicsError::FrameBudgetSpent { .. },
+            ) => Ok(false),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The proposal's loads solved for from `state`: the whole proposal, else half of it, else
+    /// a quarter. A part that the model carries is the first of substeps: the larger parts are
+    /// solved for in turn, each from the equilibrium of the one before, up to the whole
+    /// proposal or the first that does not converge, and the best fit of them kept. Returns the
+    /// first fit better than `state`'s, and whether any solve converged.
+    fn carry(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        state: &Solved,
+        proposal: &super::search::Fit,
+        solves: &mut usize,
+    ) -> Result<(Option<Solved>, bool), PhysicsError> {
+        const SCALES: [Real; 3] = [1.0, 0.5, 0.25];
+        let mut carried = false;
+        for (k, &scale) in SCALES.iter().enumerate() {
+            let loads = self.loads_of(proposal, scale);
+            let mut x = state.x.clone();
+            if !self.try_solve(&mut x, obs, &loads, solves)? {
+                continue;
+            }
+            carried = true;
+            let chi = self.residual_sq(&x, obs);
+            let mut best = Solved { x, loads, chi };
+            let mut last = best.x.clone();
+            for &larger in SCALES[..k].iter().rev() {
+                let loads = self.loads_of(proposal, larger);
+                if !self.try_solve(&mut last, obs, &loads, solves)? {
+                    break;
+                }
+                let chi = self.residual_sq(&last, obs);
+                if chi < best.chi {
+                    best = Solved {
+                        x: last.clone(),
+                        loads,
+                        chi,
+                    };
                 }
             }
-            if done {
-                *x = y;
-                return Ok(());
+            if best.chi < state.chi {
+                return Ok((Some(best), true));
             }
         }
-        Err(error)
+        Ok((None, carried))
     }
 
     /// Gauss–Newton on `count` loads from `state` (updated in place); returns the linear model
@@ -115,31 +123,7 @@ impl FingerInverse {
             if change <= self.config.force_tolerance * total.max(self.config.min_force_n) {
                 break;
             }
-            let mut accepted = None;
-            let mut carried = false;
-            for scale in [1.0, 0.5, 0.25] {
-                let loads = self.loads_of(&proposal, scale);
-                let mut x = state.x.clone();
-                match self.solve_from(&mut x, obs, &state.loads, &loads, solves) {
-                    Ok(()) => {
-                        carried = true;
-                        let chi = self.residual_sq(&x, obs);
-                        if chi < state.chi {
-                            accepted = Some(Solved { x, loads, chi });
-                            break;
-                        }
-                    }
-                    // A load the model cannot carry (an inverted element, no equilibrium):
-                    // try a smaller one. With the frame's budget spent, every further solve
-                    // stops at once and the search keeps what it has.
-                    Err(
-                        PhysicsError::StaticNotConverged { .. }
-                        | PhysicsError::Model { .. }
-                        | PhysicsError::FrameBudgetSpent { .. },
-                    ) => {}
-                    Err(e) => return Err(e),
-                }
-            }
+            let (accepted, carried) = self.carry(obs, state, &proposal, solves)?;
             let Some(next) = accepted else {
                 // No step of the proposal could be solved for, even in substeps: the loads
                 // are not the search's converged answer, and the finger says so.
@@ -236,10 +220,9 @@ mod tests {
     use crate::config::{HandMaterial, PhysicsConfig};
     use moe_geom::{FingerParams, HandModel, HandPreset, Iso3};
 
-    /// A loaded solve that stalls within its iterations (a 1 N press on the middle of the
-    /// finger, from the free shape, with 6 Newton iterations) is substepped from the free
-    /// shape's loads, and reaches the same equilibrium as a solve given all the iterations it
-    /// needs.
+    /// A proposed load whose solve stalls within its iterations (a 1 N press on the middle of
+    /// the finger, from the free shape, with 6 Newton iterations) is carried in a substep
+    /// through a quarter and a half of it, to the same equilibrium as a solve given all the iterations it needs.
     #[test]
     fn a_stalled_loaded_solve_substeps_to_the_same_equilibrium() {
         let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
@@ -251,10 +234,11 @@ mod tests {
             &PhysicsConfig::default(),
         )
         .unwrap();
-        let markers = vec![None; model.marker_vertices().len()];
         let pulls = vec![0.0; model.tendon_routes().len()];
-        let obs = FingerObservation {
-            markers: &markers,
+        let observe = |markers: &[Option<Point3>]| -> Vec<Option<Point3>> { markers.to_vec() };
+        let unseen = vec![None; model.marker_vertices().len()];
+        let obs_of = |markers| FingerObservation {
+            markers,
             gravity: Vector3::new(0.0, 0.0, -9.81),
             world_from_finger: Iso3::identity(),
             pulls: &pulls,
@@ -265,14 +249,24 @@ mod tests {
             image: None,
         };
         let mut solves = 0;
-        let free = inverse.static_free(&obs, &mut solves).unwrap();
+        let free = inverse.static_free(&obs_of(&unseen), &mut solves).unwrap();
         let c = inverse.candidates.len() / 2;
         let v = inverse.candidates[c] as usize;
-        let loads = [(c, -inverse.rest_normals[v])];
+        let force = -inverse.rest_normals[v];
+        let loads = [(c, force)];
         let mut converged = free.clone();
         inverse
-            .solve(&mut converged, &obs, &loads, "", &mut solves)
+            .solve(&mut converged, &obs_of(&unseen), &loads, "", &mut solves)
             .unwrap();
+        // The markers where the press puts them.
+        let seen = observe(
+            &inverse
+                .markers
+                .iter()
+                .map(|&m| Some(inverse.mech.surface_position(&converged, m)))
+                .collect::<Vec<_>>(),
+        );
+        let obs = obs_of(&seen);
 
         inverse.config.static_max_iterations = 6;
         let mut direct = free.clone();
@@ -280,24 +274,33 @@ mod tests {
             inverse.solve(&mut direct, &obs, &loads, "", &mut solves),
             Err(PhysicsError::StaticNotConverged { .. })
         ));
-        let mut x = free.clone();
-        let before = solves;
-        inverse
-            .solve_from(&mut x, &obs, &[], &loads, &mut solves)
-            .unwrap();
-        // The direct attempt and at least two substeps.
-        assert!(solves - before > 6 + 2, "{}", solves - before);
-        let gap = x
+        let state = Solved {
+            chi: inverse.residual_sq(&free, &obs),
+            x: free.clone(),
+            loads: Vec::new(),
+        };
+        let proposal = super::super::search::Fit {
+            candidates: vec![c],
+            forces: vec![force],
+            residual_sq: 0.0,
+        };
+        let (carried, any) = inverse.carry(&obs, &state, &proposal, &mut solves).unwrap();
+        let carried = carried.expect("the whole press, carried in substeps");
+        assert!(any);
+        assert_eq!(carried.loads, loads);
+        let gap = carried
+            .x
             .iter()
             .zip(&converged)
             .map(|(a, b)| (a - b).norm())
             .fold(0.0, Real::max);
-        let moved = x
+        let moved = converged
             .iter()
             .zip(&free)
             .map(|(a, b)| (a - b).norm())
             .fold(0.0, Real::max);
         assert!(moved > 1e-3, "the press moves the finger: {moved} m");
         assert!(gap < 1e-5, "{gap} m from the converged solve");
+        assert!(carried.chi < 1e-12 * state.chi.max(1.0), "{}", carried.chi);
     }
 }

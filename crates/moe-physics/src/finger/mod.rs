@@ -133,7 +133,7 @@ pub(crate) struct FingerEstimate {
     /// Linear solves of the frame (Newton iterations and dynamic steps).
     pub(crate) solves: usize,
     /// Whether the load search stopped short of its converged answer (the budget spent, or
-    /// a proposal the model could not carry even in substeps): the estimate is the best found.
+    /// a proposal of which the model could carry no part): the estimate is the best found.
     pub(crate) degraded: bool,
 }
 
