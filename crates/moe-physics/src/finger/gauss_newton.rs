@@ -18,6 +18,14 @@ pub(super) struct Solved {
     pub(super) chi: Real,
 }
 
+/// A single load that the model could not carry in a stream is not solved for again at this
+/// fraction of its force or more, at the same place, for [`UNCARRIED_MEMORY_SECS`]: the finger
+/// buckles under it (an axial press on the apex), and its state changes little in that time.
+const UNCARRIED_FORCE_FRACTION: Real = 0.75;
+
+/// How long a stream remembers a load that could not be carried, seconds.
+const UNCARRIED_MEMORY_SECS: Real = 0.25;
+
 /// A search from the previous frame's loads that leaves more than this fraction of the free
 /// residual unexplained is repeated from the free shape.
 const RESTART_FRACTION: Real = 0.1;
@@ -49,6 +57,10 @@ impl FingerInverse {
     /// solved for in turn, each from the equilibrium of the one before, up to the whole
     /// proposal or the first that does not converge, and the best fit of them kept. Returns the
     /// first fit better than `state`'s, and whether any solve converged.
+    ///
+    /// In a stream, the smallest single load the model could not carry is remembered with its
+    /// place, and for [`UNCARRIED_MEMORY_SECS`] a load at that place of
+    /// [`UNCARRIED_FORCE_FRACTION`] of its force or more is not solved for.
     fn carry(
         &mut self,
         obs: &FingerObservation<'_>,
@@ -57,27 +69,50 @@ impl FingerInverse {
         solves: &mut usize,
     ) -> Result<(Option<Solved>, bool), PhysicsError> {
         const SCALES: [Real; 3] = [1.0, 0.5, 0.25];
+        let parts: Vec<Vec<(usize, Vector3)>> =
+            SCALES.iter().map(|&s| self.loads_of(proposal, s)).collect();
+        // Whether part `k` is a single load that the stream's memory says is not carried.
+        let known =
+            |this: &Self, k: usize| match (parts[k].as_slice(), obs.time_secs, this.uncarried) {
+                ([(c, f)], Some(t), Some((c0, f0, t0))) => {
+                    *c == c0
+                        && f.norm() >= UNCARRIED_FORCE_FRACTION * f0
+                        && t >= t0
+                        && t - t0 <= UNCARRIED_MEMORY_SECS
+                }
+                _ => false,
+            };
         let mut carried = false;
-        for (k, &scale) in SCALES.iter().enumerate() {
-            let loads = self.loads_of(proposal, scale);
+        for k in 0..SCALES.len() {
+            if known(self, k) {
+                continue;
+            }
             let mut x = state.x.clone();
-            if !self.try_solve(&mut x, obs, &loads, solves)? {
+            if !self.try_solve(&mut x, obs, &parts[k], solves)? {
+                self.remember_uncarried(obs, &parts[k], *solves);
                 continue;
             }
             carried = true;
             let chi = self.residual_sq(&x, obs);
-            let mut best = Solved { x, loads, chi };
+            let mut best = Solved {
+                x,
+                loads: parts[k].clone(),
+                chi,
+            };
             let mut last = best.x.clone();
-            for &larger in SCALES[..k].iter().rev() {
-                let loads = self.loads_of(proposal, larger);
-                if !self.try_solve(&mut last, obs, &loads, solves)? {
+            for larger in (0..k).rev() {
+                if known(self, larger) {
+                    break;
+                }
+                if !self.try_solve(&mut last, obs, &parts[larger], solves)? {
+                    self.remember_uncarried(obs, &parts[larger], *solves);
                     break;
                 }
                 let chi = self.residual_sq(&last, obs);
                 if chi < best.chi {
                     best = Solved {
                         x: last.clone(),
-                        loads,
+                        loads: parts[larger].clone(),
                         chi,
                     };
                 }
@@ -87,6 +122,31 @@ impl FingerInverse {
             }
         }
         Ok((None, carried))
+    }
+
+    /// Remembers `loads`, whose solve did not converge, when it is a single load in a stream,
+    /// the model (not the spent budget) could not carry it, and it is smaller than the load
+    /// remembered at the same place.
+    fn remember_uncarried(
+        &mut self,
+        obs: &FingerObservation<'_>,
+        loads: &[(usize, Vector3)],
+        solves: usize,
+    ) {
+        let ([(c, f)], Some(t)) = (loads, obs.time_secs) else {
+            return;
+        };
+        if self.budget_end.is_some_and(|end| solves >= end) {
+            return;
+        }
+        let f = f.norm();
+        let smaller = match self.uncarried {
+            Some((c0, f0, t0)) if c0 == *c && t >= t0 && t - t0 <= UNCARRIED_MEMORY_SECS => f < f0,
+            _ => true,
+        };
+        if smaller {
+            self.uncarried = Some((*c, f, t));
+        }
     }
 
     /// Gauss–Newton on `count` loads from `state` (updated in place); returns the linear model
@@ -302,5 +362,79 @@ mod tests {
         assert!(moved > 1e-3, "the press moves the finger: {moved} m");
         assert!(gap < 1e-5, "{gap} m from the converged solve");
         assert!(carried.chi < 1e-12 * state.chi.max(1.0), "{}", carried.chi);
+    }
+
+    /// In a stream, a press along the axis on the apex that no part of converges (the finger
+    /// buckles) is not solved for again at the same place for a quarter of a second; another
+    /// place is, and so is the apex after that.
+    #[test]
+    fn a_load_that_cannot_be_carried_is_not_tried_again_at_once() {
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let model = &hand.fingers()[0].model;
+        let mut inverse = FingerInverse::new(
+            0,
+            model,
+            &HandMaterial::default(),
+            &PhysicsConfig::default(),
+        )
+        .unwrap();
+        let pulls = vec![0.0; model.tendon_routes().len()];
+        let unseen = vec![None; model.marker_vertices().len()];
+        let obs_at = |time_secs| FingerObservation {
+            markers: &unseen,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            world_from_finger: Iso3::identity(),
+            pulls: &pulls,
+            time_secs,
+            depth: &[],
+            covered: &[],
+            seen_through: &[],
+            image: None,
+        };
+        let mut solves = 0;
+        let free = inverse.static_free(&obs_at(None), &mut solves).unwrap();
+        let state = Solved {
+            chi: 1.0,
+            x: free,
+            loads: Vec::new(),
+        };
+        let apex = (0..inverse.candidates.len())
+            .max_by(|&a, &b| {
+                let z = |c: usize| inverse.rest_surface[inverse.candidates[c] as usize].z;
+                z(a).total_cmp(&z(b))
+            })
+            .unwrap();
+        let press = |c: usize, newtons: Real| super::super::search::Fit {
+            candidates: vec![c],
+            forces: vec![Vector3::new(0.0, 0.0, -newtons)],
+            residual_sq: 0.0,
+        };
+        let mut tried = |inverse: &mut FingerInverse, c, newtons, t| {
+            let before = solves;
+            let (found, carried) = inverse
+                .carry(&obs_at(t), &state, &press(c, newtons), &mut solves)
+                .unwrap();
+            (found.is_some() || carried, solves - before)
+        };
+        // 4 N along the axis on the apex: no part of it (4, 2 or 1 N) converges.
+        let (carried, spent) = tried(&mut inverse, apex, 4.0, Some(0.0));
+        assert!(!carried);
+        assert!(spent >= 3 * inverse.config.static_max_iterations, "{spent}");
+        // A tenth of a second later, at 3.2 N: not tried.
+        assert_eq!(tried(&mut inverse, apex, 3.2, Some(0.1)), (false, 0));
+        // Tried again: at a quarter of its force, at once; lone frames (no time) always; the
+        // same press after the memory has passed.
+        assert!(tried(&mut inverse, apex, 1.0, Some(0.15)).1 > 0);
+        assert!(tried(&mut inverse, apex, 4.0, None).1 > 0);
+        assert!(tried(&mut inverse, apex, 4.0, Some(0.6)).1 > 0);
+        // Another place is solved for: a press on the middle of the finger is carried.
+        let middle = inverse.candidates.len() / 2;
+        let (carried, spent) = tried(&mut inverse, middle, 0.2, Some(0.65));
+        assert!(carried && spent > 0);
+        // A reset forgets.
+        let (carried, _) = tried(&mut inverse, apex, 4.0, Some(0.7));
+        assert!(!carried);
+        inverse.reset();
+        assert!(tried(&mut inverse, apex, 4.0, Some(0.75)).1 > 0);
     }
 }

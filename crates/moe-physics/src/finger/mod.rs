@@ -196,6 +196,9 @@ pub(crate) struct FingerInverse {
     budget_end: Option<usize>,
     /// Whether this frame's search stopped short (its budget, or a proposal not carried).
     degraded: bool,
+    /// The last single load proposed in this stream of which no part converged: its
+    /// candidate, force magnitude (newtons) and the observation's time.
+    uncarried: Option<(usize, Real, Real)>,
     /// How far from its base the finger can put a marker, however it bends or stretches:
     /// twice its rest surface's furthest point, metres.
     reach_m: Real,
@@ -326,6 +329,7 @@ impl FingerInverse {
             previous_dent: None,
             budget_end: None,
             degraded: false,
+            uncarried: None,
             rest_normals: normals.clone(),
             markers: finger.marker_vertices().to_vec(),
             rest_surface,
@@ -375,6 +379,7 @@ impl FingerInverse {
         self.press_belief = None;
         self.seen_in_stream.clear();
         self.previous_dent = None;
+        self.uncarried = None;
     }
 
     fn settings(&self) -> StaticSettings {
