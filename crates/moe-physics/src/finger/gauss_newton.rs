@@ -280,34 +280,49 @@ mod tests {
     use crate::config::{HandMaterial, PhysicsConfig};
     use moe_geom::{FingerParams, HandModel, HandPreset, Iso3};
 
-    /// A proposed load whose solve stalls within its iterations (a 1 N press on the middle of
-    /// the finger, from the free shape, with 6 Newton iterations) is carried in a substep
-    /// through a quarter and a half of it, to the same equilibrium as a solve given all the iterations it needs.
-    #[test]
-    fn a_stalled_loaded_solve_substeps_to_the_same_equilibrium() {
+    /// Finger 0 of the two-finger hand's estimator with the default settings, its markers
+    /// unseen and its tendons' pulls (zero).
+    fn finger() -> (FingerInverse, Vec<Option<Point3>>, Vec<Real>) {
         let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
         let model = &hand.fingers()[0].model;
-        let mut inverse = FingerInverse::new(
+        let inverse = FingerInverse::new(
             0,
             model,
             &HandMaterial::default(),
             &PhysicsConfig::default(),
         )
         .unwrap();
-        let pulls = vec![0.0; model.tendon_routes().len()];
-        let observe = |markers: &[Option<Point3>]| -> Vec<Option<Point3>> { markers.to_vec() };
         let unseen = vec![None; model.marker_vertices().len()];
-        let obs_of = |markers| FingerObservation {
+        (inverse, unseen, vec![0.0; model.tendon_routes().len()])
+    }
+
+    /// The finger upright at the origin, seeing `markers`, at `time_secs`.
+    fn observation<'a>(
+        markers: &'a [Option<Point3>],
+        pulls: &'a [Real],
+        time_secs: Option<Real>,
+    ) -> FingerObservation<'a> {
+        FingerObservation {
             markers,
             gravity: Vector3::new(0.0, 0.0, -9.81),
             world_from_finger: Iso3::identity(),
-            pulls: &pulls,
-            time_secs: None,
+            pulls,
+            time_secs,
             depth: &[],
             covered: &[],
             seen_through: &[],
             image: None,
-        };
+        }
+    }
+
+    /// A proposed load whose solve stalls within its iterations (a 1 N press on the middle of
+    /// the finger, from the free shape, with 6 Newton iterations) is carried in
+    /// substeps through a quarter and a half of it, to the same equilibrium as a solve given
+    /// all the iterations it needs.
+    #[test]
+    fn a_stalled_loaded_solve_substeps_to_the_same_equilibrium() {
+        let (mut inverse, unseen, pulls) = finger();
+        let obs_of = |markers| observation(markers, &pulls, None);
         let mut solves = 0;
         let free = inverse.static_free(&obs_of(&unseen), &mut solves).unwrap();
         let c = inverse.candidates.len() / 2;
@@ -319,13 +334,11 @@ mod tests {
             .solve(&mut converged, &obs_of(&unseen), &loads, "", &mut solves)
             .unwrap();
         // The markers where the press puts them.
-        let seen = observe(
-            &inverse
-                .markers
-                .iter()
-                .map(|&m| Some(inverse.mech.surface_position(&converged, m)))
-                .collect::<Vec<_>>(),
-        );
+        let seen: Vec<Option<Point3>> = inverse
+            .markers
+            .iter()
+            .map(|&m| Some(inverse.mech.surface_position(&converged, m)))
+            .collect();
         let obs = obs_of(&seen);
 
         inverse.config.static_max_iterations = 6;
@@ -369,28 +382,8 @@ mod tests {
     /// place is, and so is the apex after that.
     #[test]
     fn a_load_that_cannot_be_carried_is_not_tried_again_at_once() {
-        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
-        let model = &hand.fingers()[0].model;
-        let mut inverse = FingerInverse::new(
-            0,
-            model,
-            &HandMaterial::default(),
-            &PhysicsConfig::default(),
-        )
-        .unwrap();
-        let pulls = vec![0.0; model.tendon_routes().len()];
-        let unseen = vec![None; model.marker_vertices().len()];
-        let obs_at = |time_secs| FingerObservation {
-            markers: &unseen,
-            gravity: Vector3::new(0.0, 0.0, -9.81),
-            world_from_finger: Iso3::identity(),
-            pulls: &pulls,
-            time_secs,
-            depth: &[],
-            covered: &[],
-            seen_through: &[],
-            image: None,
-        };
+        let (mut inverse, unseen, pulls) = finger();
+        let obs_at = |time_secs| observation(&unseen, &pulls, time_secs);
         let mut solves = 0;
         let free = inverse.static_free(&obs_at(None), &mut solves).unwrap();
         let state = Solved {
