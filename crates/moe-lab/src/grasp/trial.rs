@@ -303,10 +303,12 @@ impl<'a, C: ContactEstimator> Presses<'a, C> {
 /// again, and the judged press onto the last plane.
 ///
 /// # Errors
-/// An incline outside `[0°, 60°]`, a diverging simulation of the first press, a failing
-/// pipeline stage on the first or a refining press. A plane that cannot be fitted or pressed
-/// along is reported in the trial, and a deeper press that fails is passed over (the shallow
-/// press's plane stands), not returned as errors.
+/// An incline outside `[0°, 60°]`, a diverging simulation of the first press, or a camera,
+/// marker detector or pipeline that cannot be made for a press. A hold frame the pipeline
+/// cannot estimate is named in its plane's step ([`PlaneStep::failed_frames`]) and left out of
+/// the fit; a plane that cannot be fitted or pressed along is reported in the trial, and a
+/// deeper press that fails is passed over (the shallow press's plane stands), not returned as
+/// errors.
 pub fn run_grasp_trial<C: ContactEstimator>(
     hand: &HandModel,
     contacts: GraspContacts<C>,

@@ -185,8 +185,9 @@ impl FingerInverse {
             }
             let (accepted, carried) = self.carry(obs, state, &proposal, solves)?;
             let Some(next) = accepted else {
-                // No step of the proposal could be solved for, even in substeps: the loads
-                // are not the search's converged answer, and the finger says so.
+                // No part of the proposal converged (or the stream remembers that none
+                // does): the loads are not the search's converged answer, and the finger
+                // says so.
                 if !carried {
                     self.degraded = true;
                 }
