@@ -4,6 +4,7 @@
 mod contact;
 mod fixtures;
 mod mechanics;
+mod reference;
 mod scene;
 mod static_presses;
 mod tangent;
