@@ -168,6 +168,19 @@ pub struct RandomSceneParams {
     /// Tet-mesh resolution of every finger (`[voxel]`, e.g. `cell_size_m = 0.0025` for a finer
     /// mesh). Default [`VoxelParams::default`], 3.5 mm cells.
     pub voxel: VoxelParams,
+    /// How the hand is held: the rotation from the hand frame to the world at rest, as an
+    /// axis-angle vector (axis × angle), radians. Gravity stays along the world's −z, so this
+    /// turns the hand relative to gravity; the object and the press turn with the hand. Default
+    /// zero: fingers up, gravity along the hand's −z. `[1.5707963267948966, 0.0, 0.0]` holds
+    /// the hand horizontal with gravity across the fingers' sides, `[0.0, 1.5707963267948966,
+    /// 0.0]` horizontal with gravity from one finger toward the other (two-finger preset), and
+    /// `[3.141592653589793, 0.0, 0.0]` upside down.
+    #[serde(skip_serializing_if = "is_zero_rotation")]
+    pub hand_rotation_rad: [Real; 3],
+}
+
+fn is_zero_rotation(r: &[Real; 3]) -> bool {
+    r.iter().all(|&v| v == 0.0)
 }
 
 impl Default for RandomSceneParams {
@@ -188,6 +201,7 @@ impl Default for RandomSceneParams {
             contact: ContactParams::default(),
             material: Material::default(),
             voxel: VoxelParams::default(),
+            hand_rotation_rad: [0.0; 3],
         }
     }
 }
@@ -256,7 +270,12 @@ pub fn sample_scene(
             })?;
         let translation = target.coords + normal * params.gap_m - support;
         let world_from_object = Iso3::from_parts(translation.into(), rotation);
-        let placement = PoseTrajectory::fixed(translation.into(), (rotation.scaled_axis()).into());
+        // The object is placed in the hand frame and turned with the hand into the world.
+        let world_from_hand = hand_rotation(params);
+        let placement = PoseTrajectory::fixed(
+            (world_from_hand * translation).into(),
+            (world_from_hand * rotation).scaled_axis().into(),
+        );
         let obstacle_config = ObstacleConfig {
             shape,
             trajectory: placement,
@@ -355,7 +374,15 @@ fn validate(params: &RandomSceneParams) -> Result<(), SimError> {
     if params.save_every_steps == 0 {
         return bad("save_every_steps", 0.0, "must be positive");
     }
+    if let Some(&r) = params.hand_rotation_rad.iter().find(|r| !r.is_finite()) {
+        return bad("hand_rotation_rad", r, "must be finite");
+    }
     Ok(())
+}
+
+/// The hand's orientation in the world ([`RandomSceneParams::hand_rotation_rad`]).
+fn hand_rotation(params: &RandomSceneParams) -> moe_geom::math::UnitQuat {
+    moe_geom::math::UnitQuat::from_scaled_axis(Vector3::from(params.hand_rotation_rad))
 }
 
 /// A point of the finger's rest surface in `region` and its outward normal, finger frame.
@@ -518,14 +545,19 @@ fn build_config(
     let t1 = params.press_secs;
     let t2 = t1 + params.hold_secs;
     let t3 = t2 + params.retract_secs;
-    let mut wrist = vec![
-        PoseKeyframe::at(0.0, [0.0; 3]),
-        PoseKeyframe::at(t1, press.into()),
-    ];
+    // The wrist holds the hand's orientation and moves along the press turned into the world.
+    let world_from_hand = hand_rotation(params);
+    let press = world_from_hand * press;
+    let keyframe = |time_secs, translation: Vector3| PoseKeyframe {
+        time_secs,
+        translation_m: translation.into(),
+        rotation_rad: world_from_hand.scaled_axis().into(),
+    };
+    let mut wrist = vec![keyframe(0.0, Vector3::zeros()), keyframe(t1, press)];
     if params.hold_secs > 0.0 {
-        wrist.push(PoseKeyframe::at(t2, press.into()));
+        wrist.push(keyframe(t2, press));
     }
-    wrist.push(PoseKeyframe::at(t3, [0.0; 3]));
+    wrist.push(keyframe(t3, Vector3::zeros()));
     let actuation = hand
         .fingers()
         .iter()
@@ -572,6 +604,10 @@ fn build_config(
         ..SceneConfig::default()
     };
     config.solver.dt_secs = params.dt_secs;
+    // The hand has been held still before the press: its fingers start in their free
+    // equilibrium under gravity, not in the unloaded rest shape (4.6 mm apart at a horizontal
+    // fingertip).
+    config.solver.settled_start = true;
     config
 }
 

@@ -13,11 +13,12 @@ pub struct RunOutcome {
     pub last_step: Option<StepInfo>,
 }
 
-/// Runs `scene` for `steps` steps from its initial state, calling `on_frame` with the state at
+/// Runs `scene` for `steps` steps from its start state ([`Scene::start_state`]), calling `on_frame` with the state at
 /// every saved frame: the initial one, every `save_every_steps` steps, and the last one.
 ///
 /// # Errors
-/// [`SimError::StepsBeyondScene`] for more `steps` than the scene's duration covers
+/// [`SimError::StepsBeyondScene`] for more `steps` than the scene's duration covers, a settled
+/// start that fails
 /// ([`Scene::num_steps`], which the scene's own limits bound); divergence, naming the step and
 /// the element (see [`Scene::step`]), or the first error of `on_frame`; the run stops there.
 pub fn run_with<E: From<SimError>>(
@@ -30,7 +31,7 @@ pub fn run_with<E: From<SimError>>(
         return Err(SimError::StepsBeyondScene { steps, covered }.into());
     }
     let every = scene.config().save_every_steps.max(1);
-    let mut state = scene.initial_state();
+    let mut state = scene.start_state()?;
     on_frame(scene, &state)?;
     // One `StepInfo` reused by every step: the stepping itself does not allocate.
     let mut info = StepInfo::default();
@@ -46,7 +47,7 @@ pub fn run_with<E: From<SimError>>(
     })
 }
 
-/// Runs `scene` for `steps` steps from its initial state and returns the frames saved every
+/// Runs `scene` for `steps` steps from its start state and returns the frames saved every
 /// `save_every_steps` steps (the initial frame and the last one included).
 ///
 /// # Errors

@@ -169,6 +169,17 @@ fn bad_ranges_are_rejected() {
             }
         );
     }
+    let p = RandomSceneParams {
+        hand_rotation_rad: [0.0, Real::NAN, 0.0],
+        ..RandomSceneParams::default()
+    };
+    moe_geom::assert_err!(
+        sample_scene(&p, 0, 0),
+        SimError::InvalidParameter {
+            name: "hand_rotation_rad",
+            ..
+        }
+    );
 }
 
 /// `params` with Young's modulus times `factor` and cells of `cell_size_m`.
@@ -404,4 +415,81 @@ fn shared_finger_bodies_give_the_same_frames_and_refuse_another_material() {
             ..
         })
     ));
+}
+
+/// A hand held another way is the upright scene turned: without gravity its frames are the
+/// upright ones turned by the hand's rotation, and with gravity the free fingers sag along the
+/// gravity the turned hand feels.
+#[test]
+fn a_turned_hand_is_the_upright_scene_turned_and_sags_its_own_way() {
+    let upright = quick();
+    let turned = RandomSceneParams {
+        hand_rotation_rad: [0.5 * PI, 0.0, 0.0],
+        ..quick()
+    };
+    let rotation = hand_rotation(&turned);
+    let run = |params: &RandomSceneParams, gravity: [Real; 3]| {
+        let sampled = sample_scene(params, 5, 1).unwrap();
+        let mut config = sampled.config.clone();
+        config.gravity_m_s2 = gravity;
+        let mut scene = Scene::new(config).unwrap();
+        let steps = scene.num_steps();
+        (sampled, run_saving(&mut scene, steps).unwrap())
+    };
+    let (a, up) = run(&upright, [0.0; 3]);
+    let (b, turn) = run(&turned, [0.0; 3]);
+    // The draws are the same: only the placement in the world turns.
+    assert_eq!(
+        (a.family, a.finger, a.region),
+        (b.family, b.finger, b.region)
+    );
+    assert_eq!(a.target_in_hand, b.target_in_hand);
+    let mut largest: Real = 0.0;
+    let mut moved: Real = 0.0;
+    for (f, g) in up.iter().zip(&turn) {
+        assert!((g.world_from_hand.rotation.angle_to(&rotation)) < 1e-12);
+        for (i, (p, q)) in f.fingers.iter().zip(&g.fingers).enumerate() {
+            assert_eq!(p.labels, q.labels, "t = {}", f.time_secs);
+            for (x, y) in p.vertices_in_world.iter().zip(&q.vertices_in_world) {
+                largest = largest.max((rotation * x - y).norm());
+            }
+            moved = moved.max(
+                p.vertices_in_world
+                    .iter()
+                    .zip(&up[0].fingers[i].vertices_in_world)
+                    .map(|(x, y)| (x - y).norm())
+                    .fold(0.0, Real::max),
+            );
+        }
+    }
+    assert!(moved > 1e-3, "the scene does not move ({moved} m)");
+    assert!(largest < 1e-6, "turned frames differ by {largest} m");
+    // With gravity and no pull: the scene starts settled, its free finger's tip already moved
+    // from the rest shape along the gravity of the hand frame (across the fingers for the
+    // turned hand).
+    let still = |p: &RandomSceneParams| RandomSceneParams {
+        max_pull_m: 0.0,
+        ..p.clone()
+    };
+    let gravity = [0.0, 0.0, -9.81];
+    let hand = HandModel::preset(upright.preset, &upright.finger).unwrap();
+    let sag = |params: &RandomSceneParams| -> Vector3 {
+        let (sampled, frames) = run(&still(params), gravity);
+        let free = 1 - sampled.finger;
+        let rest = hand.rest_vertices_in_hand(free);
+        let in_hand = |f: &SimFrame, v: usize| {
+            f.world_from_hand.inverse() * f.fingers[free].vertices_in_world[v]
+        };
+        let tip = (0..rest.len())
+            .max_by(|&u, &v| rest[u].z.total_cmp(&rest[v].z))
+            .unwrap();
+        in_hand(&frames[0], tip) - rest[tip]
+    };
+    let g_turned = rotation.inverse() * Vector3::from(gravity);
+    let (s_up, s_turn) = (sag(&upright), sag(&turned));
+    assert!(
+        s_turn.dot(&g_turned.normalize()) > 0.9 * s_turn.norm(),
+        "{s_turn}"
+    );
+    assert!(s_turn.norm() > 5.0 * s_up.norm(), "{s_turn} vs {s_up}");
 }

@@ -501,3 +501,31 @@ fn a_static_step_that_stalls_is_solved_in_substeps() {
         .fold(0.0, Real::max);
     assert!(off < 1e-6, "{off:e} m from the fine path's equilibrium");
 }
+
+/// A settled start is the free equilibrium: a horizontal hand started settled holds still,
+/// while one started in the rest shape sags by millimetres in its first tenth of a second.
+#[test]
+fn a_settled_start_holds_still_where_a_rest_start_sags() {
+    let tip_motion = |settled: bool| -> Real {
+        let mut config = SceneConfig {
+            duration_secs: 0.1,
+            save_every_steps: 10,
+            wrist: PoseTrajectory::fixed([0.0; 3], [0.5 * std::f64::consts::PI, 0.0, 0.0]),
+            ..SceneConfig::default()
+        };
+        config.solver.settled_start = settled;
+        let mut scene = Scene::new(config).unwrap();
+        let steps = scene.num_steps();
+        let frames = moe_tendon_sim::run_saving(&mut scene, steps).unwrap();
+        let (first, last) = (&frames[0], &frames[frames.len() - 1]);
+        first.fingers[0]
+            .vertices_in_world
+            .iter()
+            .zip(&last.fingers[0].vertices_in_world)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, Real::max)
+    };
+    let (settled, rest) = (tip_motion(true), tip_motion(false));
+    assert!(settled < 2e-5, "a settled start moves {settled} m");
+    assert!(rest > 1e-3, "a rest start moves {rest} m");
+}
