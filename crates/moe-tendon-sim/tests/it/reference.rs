@@ -259,3 +259,145 @@ fn stiffness_per_mesh_size() {
         print_table(&reference, &format!("cell {:.1} mm", cell * 1e3), &rows);
     }
 }
+
+/// Marker positions (finger frame) of the default finger at `cell_size_m`, with its tendons
+/// held at `pulls` (displacement mode) and the nodal loads of `case` (if any) at full scale.
+fn with_tendons(
+    reference: &Reference,
+    cell_size_m: Real,
+    pulls: &[Real],
+    case: Option<&Case>,
+) -> Vec<Vector3> {
+    use moe_tendon_sim::{TendonCommand, TendonParams};
+    let finger = default_finger();
+    let body =
+        FingerBody::new(&finger, &Material::default(), &VoxelParams { cell_size_m }).unwrap();
+    let fem = body.fem();
+    let rest = fem.mesh().nodes().to_vec();
+    let surface = body.surface().points();
+    let mut node_force = vec![Vector3::zeros(); rest.len()];
+    if let Some(case) = case {
+        for row in &case.face_tractions_pa {
+            let face = reference.faces[row[0] as usize];
+            let [a, b, c] = face.map(|v| Point3::from(reference.vertices_m[v as usize]));
+            let area = 0.5 * (b - a).cross(&(c - a)).norm();
+            let force = Vector3::new(row[1], row[2], row[3]) * (area / 3.0);
+            for v in face {
+                let e = &surface[v as usize];
+                for (&n, &w) in e.nodes.iter().zip(&e.weights) {
+                    node_force[n as usize] += force * w;
+                }
+            }
+        }
+    }
+    let loads: Vec<(u32, Vector3)> = node_force
+        .into_iter()
+        .enumerate()
+        .filter(|(_, f)| f.norm() > 0.0)
+        .map(|(i, f)| (i as u32, f))
+        .collect();
+    let commands: Vec<TendonCommand> = (0..body.tendons().len())
+        .map(|j| TendonCommand::Displacement {
+            pull_m: pulls.get(j).copied().unwrap_or(0.0),
+        })
+        .collect();
+    let params = TendonParams::default();
+    let mut state = BodyState {
+        x: rest.clone(),
+        v: vec![Vector3::zeros(); rest.len()],
+    };
+    let mut ws = fem.workspace();
+    fem.step(
+        &mut ws,
+        StepContext::default(),
+        Integrator::Static {
+            tolerance_m: 1e-10,
+            max_iterations: 200,
+        },
+        &mut state,
+        FemInputs {
+            targets: &rest,
+            gravity: Vector3::zeros(),
+            terms: &mut |x: &[Point3], _, t: &mut Terms| {
+                t.nodal_forces.clone_from(&loads);
+                for (tendon, &c) in body.tendons().iter().zip(&commands) {
+                    tendon.add_terms(x, c, &params, t);
+                }
+            },
+        },
+    )
+    .unwrap();
+    finger
+        .marker_vertices()
+        .iter()
+        .map(|&m| {
+            let e = &surface[m as usize];
+            e.nodes
+                .iter()
+                .zip(&e.weights)
+                .map(|(&n, &w)| (state.x[n as usize] - rest[n as usize]) * w)
+                .sum()
+        })
+        .collect()
+}
+
+/// How the tendons converge with the mesh (docs/results.md, "The FEM against an independent
+/// code"): `cargo test -p moe-tendon-sim --test it reference::tendons_per_mesh_size --
+/// --ignored --nocapture`.
+#[test]
+#[ignore = "a report: about a minute"]
+fn tendons_per_mesh_size() {
+    let reference = reference();
+    let press = reference
+        .cases
+        .iter()
+        .find(|c| c.name == "press_tip_left")
+        .unwrap();
+    let cells = [0.0035, 0.003, 0.0025, 0.002, 0.00175];
+    let largest = |u: &[Vector3]| u.iter().map(|d| d.norm()).fold(0.0, Real::max);
+    for (label, pulls, case) in [
+        ("tendon 0 pulled 2 mm", vec![0.002], None),
+        (
+            "0.1 N tip press, tendons held at zero pull",
+            vec![],
+            Some(press),
+        ),
+    ] {
+        let runs: Vec<Vec<Vector3>> = cells
+            .iter()
+            .map(|&h| with_tendons(&reference, h, &pulls, case))
+            .collect();
+        eprintln!("{label}");
+        for (k, (h, u)) in cells.iter().zip(&runs).enumerate() {
+            let change = runs.get(k + 1).map(|v| {
+                u.iter()
+                    .zip(v)
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, Real::max)
+                    / largest(v)
+            });
+            eprintln!(
+                "  cell {:.2} mm: largest marker displacement {:.3} mm; change to the next finer mesh {}",
+                h * 1e3,
+                largest(u) * 1e3,
+                change.map_or("-".into(), |c| format!("{:.1} %", 100.0 * c))
+            );
+        }
+    }
+    let free: Vec<Vector3> = reference
+        .cases
+        .iter()
+        .find(|c| c.name == "press_tip_left")
+        .map(|c| {
+            reference
+                .marker_vertices
+                .iter()
+                .map(|&m| Vector3::from(c.displacement_m[m]))
+                .collect()
+        })
+        .unwrap();
+    eprintln!(
+        "reference without tendons (linear): {:.3} mm",
+        largest(&free) * 1e3
+    );
+}
