@@ -5,8 +5,8 @@
 //! `u_k = (p_{k+1} − p_k)/ℓ_k` pushes point `k` with `f_k = T (u_k − u_{k−1})` (`u_{−1} = u_n = 0`):
 //! `f_k = −T ∂L/∂p_k` with `L = Σ ℓ_k` its path length. In displacement mode the tension is a
 //! stiff penalty `T = k_t · max(0, L − (L₀ − pull))` (slack when the path is shorter than the
-//! rest length minus the pull; a negative pull pays cable out), treated implicitly as a
-//! unilateral rank-one term; in force mode `T` is given. Both add the cable's geometric
+//! rest length minus the pull; a negative pull pays cable out; `slack_m` lengthens the cable
+//! for every pull), treated implicitly as a unilateral rank-one term; in force mode `T` is given. Both add the cable's geometric
 //! stiffness `(T/ℓ_k)(I − u_k u_kᵀ)` between consecutive points.
 
 use moe_geom::{Matrix3, Point3, Real, TendonRoute, Vector3};
@@ -24,12 +24,25 @@ pub struct TendonParams {
     /// Axial stiffness of a tendon in displacement mode, N/m (a nearly inextensible cable).
     /// Default 1e5.
     pub stiffness_n_per_m: Real,
+    /// What a cable does at zero pull, in displacement mode: how much longer it is than its
+    /// route at rest, metres. 0 (the default): held at its rest length by its motor, taut
+    /// without tension, so it resists any bending that lengthens its path. Positive: slack by
+    /// that length, taken up before the cable pulls (a pull of `slack_m + d` acts as a pull of
+    /// `d` on a taut cable). Negative: pre-tensioned, stretched by that length at rest (tension
+    /// `stiffness_n_per_m × −slack_m` before any pull).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub slack_m: Real,
+}
+
+fn is_zero(v: &Real) -> bool {
+    *v == 0.0
 }
 
 impl Default for TendonParams {
     fn default() -> Self {
         Self {
             stiffness_n_per_m: 1e5,
+            slack_m: 0.0,
         }
     }
 }
@@ -38,9 +51,17 @@ impl TendonParams {
     /// Checks the parameters.
     ///
     /// # Errors
-    /// [`SimError::InvalidParameter`] for a non-positive stiffness.
+    /// [`SimError::InvalidParameter`] for a non-positive stiffness or a non-finite slack.
     pub fn validate(&self) -> Result<(), SimError> {
-        require_positive("tendon stiffness_n_per_m", self.stiffness_n_per_m)
+        require_positive("tendon stiffness_n_per_m", self.stiffness_n_per_m)?;
+        if !self.slack_m.is_finite() {
+            return Err(SimError::InvalidParameter {
+                name: "tendon slack_m",
+                value: self.slack_m,
+                reason: "must be finite",
+            });
+        }
+        Ok(())
     }
 }
 
@@ -158,6 +179,11 @@ impl Tendon {
         out
     }
 
+    /// The path length beyond which a cable pulled by `pull_m` is in tension.
+    fn held_length(&self, pull_m: Real, params: &TendonParams) -> Real {
+        self.rest_length_m + params.slack_m - pull_m
+    }
+
     /// Current path length for node positions `x`.
     pub fn length(&self, x: &[Point3]) -> Real {
         self.points
@@ -170,7 +196,7 @@ impl Tendon {
     pub fn tension(&self, x: &[Point3], command: TendonCommand, params: &TendonParams) -> Real {
         match command {
             TendonCommand::Displacement { pull_m } => {
-                let excess = self.length(x) - (self.rest_length_m - pull_m);
+                let excess = self.length(x) - self.held_length(pull_m, params);
                 params.stiffness_n_per_m * excess.max(0.0)
             }
             TendonCommand::Force { tension_n } => tension_n.max(0.0),
@@ -206,7 +232,7 @@ impl Tendon {
         };
         let tension = match command {
             TendonCommand::Displacement { pull_m } => {
-                let excess = length - (self.rest_length_m - pull_m);
+                let excess = length - self.held_length(pull_m, params);
                 // Contributions are summed per node in point order; −0 is the exact identity of
                 // floating-point addition, so each sum starts from its first contribution.
                 let mut gradient = terms.gradient_buffer();
@@ -255,5 +281,39 @@ impl Tendon {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_cable_parameters_are_named() {
+        for (params, name) in [
+            (
+                TendonParams {
+                    stiffness_n_per_m: 0.0,
+                    ..TendonParams::default()
+                },
+                "tendon stiffness_n_per_m",
+            ),
+            (
+                TendonParams {
+                    slack_m: Real::NAN,
+                    ..TendonParams::default()
+                },
+                "tendon slack_m",
+            ),
+        ] {
+            match params.validate() {
+                Err(SimError::InvalidParameter { name: got, .. }) => assert_eq!(got, name),
+                other => panic!("{name}: expected an error, got {other:?}"),
+            }
+        }
+        TendonParams::default().validate().unwrap();
+        // A default cable writes no slack field: files written before it read the same.
+        let text = serde_json::to_string(&TendonParams::default()).unwrap();
+        assert!(!text.contains("slack"), "{text}");
     }
 }

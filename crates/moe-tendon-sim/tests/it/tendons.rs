@@ -24,6 +24,15 @@ fn solve(body: &FingerBody, pulls: [Real; 4]) -> Vec<Point3> {
 
 /// Static equilibrium under tendon `commands`.
 fn solve_commands(body: &FingerBody, commands: [TendonCommand; 4]) -> Vec<Point3> {
+    solve_with(body, commands, &TendonParams::default())
+}
+
+/// Static equilibrium under tendon `commands` with cables of `params`.
+fn solve_with(
+    body: &FingerBody,
+    commands: [TendonCommand; 4],
+    params: &TendonParams,
+) -> Vec<Point3> {
     let rest = body.fem().mesh().nodes().to_vec();
     let mut state = BodyState {
         x: rest.clone(),
@@ -34,7 +43,7 @@ fn solve_commands(body: &FingerBody, commands: [TendonCommand; 4]) -> Vec<Point3
         targets: &rest,
         gravity: Vector3::zeros(),
         commands: &commands,
-        tendon: &TendonParams::default(),
+        tendon: params,
         obstacles: &posed,
         contact: &ContactParams::default(),
     };
@@ -162,4 +171,64 @@ fn force_drive_with_the_displacement_tension_reproduces_the_displacement_shape()
         .map(|(p, q)| (p - q).norm())
         .fold(0.0, Real::max);
     assert!(max < 1e-12, "moved by {max}");
+}
+
+/// The zero-pull state as the cable parameters state it. Slack is taken up before a cable pulls:
+/// with 1 mm of slack, pulls 1 mm longer give the taut cables' shape, and a pull within the
+/// slack leaves the finger at rest. Pre-tension (negative slack) on all four cables stretches
+/// them at rest: the finger shortens along its axis without bending, each cable in tension.
+#[test]
+fn slack_is_taken_up_before_a_cable_pulls_and_pretension_shortens_the_finger() {
+    let (model, body) = default_finger();
+    let taut = TendonParams::default();
+    let slack = TendonParams {
+        slack_m: 0.001,
+        ..TendonParams::default()
+    };
+    let pulls = |p: [Real; 4]| p.map(|pull_m| TendonCommand::Displacement { pull_m });
+    let bent = solve_with(&body, pulls([0.002, -0.002, 0.0, 0.0]), &taut);
+    let same = solve_with(&body, pulls([0.003, -0.001, 0.001, 0.001]), &slack);
+    let largest = bent
+        .iter()
+        .zip(&same)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    assert!(
+        largest < 1e-9,
+        "slack and longer pulls differ by {largest} m"
+    );
+    let tip = tip_displacement(&model, &body, &bent);
+    assert!(tip.norm() > 1e-3, "a 2 mm pull moves the tip {tip:?}");
+
+    let within = solve_with(&body, pulls([0.0005, 0.0, 0.0, 0.0]), &slack);
+    let rest = body.fem().mesh().nodes();
+    let moved = within
+        .iter()
+        .zip(rest)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, Real::max);
+    assert!(
+        moved < 1e-12,
+        "a pull within the slack moves the finger {moved} m"
+    );
+
+    let pretension = TendonParams {
+        slack_m: -0.0002,
+        ..TendonParams::default()
+    };
+    let zero = pulls([0.0; 4]);
+    let x = solve_with(&body, zero, &pretension);
+    let tip = tip_displacement(&model, &body, &x);
+    assert!(
+        tip.z < -1e-5,
+        "pre-tension does not shorten the finger: {tip:?}"
+    );
+    assert!(
+        tip.xy().norm() < 0.05 * tip.z.abs(),
+        "pre-tension bends the finger: {tip:?}"
+    );
+    for (j, tendon) in body.tendons().iter().enumerate() {
+        let t = tendon.tension(&x, zero[j], &pretension);
+        assert!(t > 0.0, "cable {j} is slack under pre-tension");
+    }
 }
