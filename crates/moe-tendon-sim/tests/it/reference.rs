@@ -74,6 +74,36 @@ fn default_finger() -> FingerModel {
     FingerModel::from_params(&FingerParams::default()).unwrap()
 }
 
+/// The nodal loads of `case`'s tractions times `scale`: each triangle's force, a third to each
+/// corner, each corner's share to the nodes of the element it is embedded in.
+fn node_loads(
+    reference: &Reference,
+    case: &Case,
+    surface: &[moe_tendon_sim::mechanics::Embedded],
+    num_nodes: usize,
+    scale: Real,
+) -> Vec<(u32, Vector3)> {
+    let mut node_force = vec![Vector3::zeros(); num_nodes];
+    for row in &case.face_tractions_pa {
+        let face = reference.faces[row[0] as usize];
+        let [a, b, c] = face.map(|v| Point3::from(reference.vertices_m[v as usize]));
+        let area = 0.5 * (b - a).cross(&(c - a)).norm();
+        let force = Vector3::new(row[1], row[2], row[3]) * (area * scale / 3.0);
+        for v in face {
+            let e = &surface[v as usize];
+            for (&n, &w) in e.nodes.iter().zip(&e.weights) {
+                node_force[n as usize] += force * w;
+            }
+        }
+    }
+    node_force
+        .into_iter()
+        .enumerate()
+        .filter(|(_, f)| f.norm() > 0.0)
+        .map(|(i, f)| (i as u32, f))
+        .collect()
+}
+
 /// The simulator's surface displacements for every case of `reference`, at `cell_size_m`.
 fn simulate(reference: &Reference, cell_size_m: Real) -> Vec<Vec<Vector3>> {
     let material = Material {
@@ -87,36 +117,11 @@ fn simulate(reference: &Reference, cell_size_m: Real) -> Vec<Vec<Vector3>> {
     let fem = body.fem();
     let rest = fem.mesh().nodes().to_vec();
     let surface = body.surface().points();
-    let vertices: Vec<Point3> = reference
-        .vertices_m
-        .iter()
-        .map(|p| Point3::new(p[0], p[1], p[2]))
-        .collect();
     reference
         .cases
         .iter()
         .map(|case| {
-            // Each triangle's force, a third to each corner, each corner's share to the nodes of
-            // the element it is embedded in.
-            let mut node_force = vec![Vector3::zeros(); rest.len()];
-            for row in &case.face_tractions_pa {
-                let face = reference.faces[row[0] as usize];
-                let [a, b, c] = face.map(|v| vertices[v as usize]);
-                let area = 0.5 * (b - a).cross(&(c - a)).norm();
-                let force = Vector3::new(row[1], row[2], row[3]) * (area * SCALE / 3.0);
-                for v in face {
-                    let e = &surface[v as usize];
-                    for (&n, &w) in e.nodes.iter().zip(&e.weights) {
-                        node_force[n as usize] += force * w;
-                    }
-                }
-            }
-            let loads: Vec<(u32, Vector3)> = node_force
-                .into_iter()
-                .enumerate()
-                .filter(|(_, f)| f.norm() > 0.0)
-                .map(|(i, f)| (i as u32, f))
-                .collect();
+            let loads = node_loads(reference, case, surface, rest.len(), SCALE);
             let g = Vector3::from(case.gravity_m_s2) * SCALE;
             let mut state = BodyState {
                 x: rest.clone(),
@@ -275,27 +280,9 @@ fn with_tendons(
     let fem = body.fem();
     let rest = fem.mesh().nodes().to_vec();
     let surface = body.surface().points();
-    let mut node_force = vec![Vector3::zeros(); rest.len()];
-    if let Some(case) = case {
-        for row in &case.face_tractions_pa {
-            let face = reference.faces[row[0] as usize];
-            let [a, b, c] = face.map(|v| Point3::from(reference.vertices_m[v as usize]));
-            let area = 0.5 * (b - a).cross(&(c - a)).norm();
-            let force = Vector3::new(row[1], row[2], row[3]) * (area / 3.0);
-            for v in face {
-                let e = &surface[v as usize];
-                for (&n, &w) in e.nodes.iter().zip(&e.weights) {
-                    node_force[n as usize] += force * w;
-                }
-            }
-        }
-    }
-    let loads: Vec<(u32, Vector3)> = node_force
-        .into_iter()
-        .enumerate()
-        .filter(|(_, f)| f.norm() > 0.0)
-        .map(|(i, f)| (i as u32, f))
-        .collect();
+    let loads = case.map_or_else(Vec::new, |case| {
+        node_loads(reference, case, surface, rest.len(), 1.0)
+    });
     let commands: Vec<TendonCommand> = (0..body.tendons().len())
         .map(|j| TendonCommand::Displacement {
             pull_m: pulls.get(j).copied().unwrap_or(0.0),
