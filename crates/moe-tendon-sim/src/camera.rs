@@ -41,6 +41,8 @@ use moe_geom::zbuffer::{ZBuffer, ZHit};
 use moe_geom::{GeomError, Iso3, Point3, Real, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::is_zero;
+
 pub use moe_geom::CameraIntrinsics;
 
 /// Sensor noise; see the module documentation for the model.
@@ -95,10 +97,6 @@ fn is_default_flying_step(x: &Real) -> bool {
 }
 
 const DEFAULT_FLYING_STEP_M: Real = 0.005;
-
-fn is_zero(x: &Real) -> bool {
-    *x == 0.0
-}
 
 fn is_default_spacing(px: &u32) -> bool {
     *px == 16

@@ -142,3 +142,9 @@ pub use trajectory::{
     ActuationKeyframe, ActuationMode, ActuationSchedule, PoseKeyframe, PoseTrajectory,
 };
 pub use voxelize::VoxelParams;
+
+/// `skip_serializing_if` for a parameter whose default is zero: a default value writes nothing,
+/// so files written before the parameter existed read and write the same.
+pub(crate) fn is_zero(x: &moe_geom::Real) -> bool {
+    *x == 0.0
+}

@@ -180,7 +180,7 @@ pub struct RandomSceneParams {
 }
 
 fn is_zero_rotation(r: &[Real; 3]) -> bool {
-    r.iter().all(|&v| v == 0.0)
+    r.iter().all(crate::is_zero)
 }
 
 impl Default for RandomSceneParams {

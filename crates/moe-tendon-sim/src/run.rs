@@ -1,4 +1,4 @@
-//! Running a scene: stepping it from its initial state and keeping the saved frames
+//! Running a scene: stepping it from its start state and keeping the saved frames
 //! ([`run_with`] calls back at each, [`run_saving`] collects them as [`SimFrame`]s).
 
 use crate::error::SimError;
@@ -13,14 +13,15 @@ pub struct RunOutcome {
     pub last_step: Option<StepInfo>,
 }
 
-/// Runs `scene` for `steps` steps from its start state ([`Scene::start_state`]), calling `on_frame` with the state at
-/// every saved frame: the initial one, every `save_every_steps` steps, and the last one.
+/// Runs `scene` for `steps` steps from its start state ([`Scene::start_state`]), calling
+/// `on_frame` with the state at every saved frame: the initial one, every `save_every_steps`
+/// steps, and the last one.
 ///
 /// # Errors
-/// [`SimError::StepsBeyondScene`] for more `steps` than the scene's duration covers, a settled
-/// start that fails
-/// ([`Scene::num_steps`], which the scene's own limits bound); divergence, naming the step and
-/// the element (see [`Scene::step`]), or the first error of `on_frame`; the run stops there.
+/// [`SimError::StepsBeyondScene`] for more `steps` than the scene's duration covers
+/// ([`Scene::num_steps`], which the scene's own limits bound); a settled start whose
+/// equilibrium is not found; divergence, naming the step and the element (see
+/// [`Scene::step`]), or the first error of `on_frame`; the run stops there.
 pub fn run_with<E: From<SimError>>(
     scene: &mut Scene,
     steps: u64,

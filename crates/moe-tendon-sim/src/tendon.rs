@@ -4,16 +4,18 @@
 //! A cable of tension `T` through points `p_0 … p_n` with unit segment directions
 //! `u_k = (p_{k+1} − p_k)/ℓ_k` pushes point `k` with `f_k = T (u_k − u_{k−1})` (`u_{−1} = u_n = 0`):
 //! `f_k = −T ∂L/∂p_k` with `L = Σ ℓ_k` its path length. In displacement mode the tension is a
-//! stiff penalty `T = k_t · max(0, L − (L₀ − pull))` (slack when the path is shorter than the
-//! rest length minus the pull; a negative pull pays cable out; `slack_m` lengthens the cable
-//! for every pull), treated implicitly as a unilateral rank-one term; in force mode `T` is given. Both add the cable's geometric
-//! stiffness `(T/ℓ_k)(I − u_k u_kᵀ)` between consecutive points.
+//! stiff penalty `T = k_t · max(0, L − (L₀ + s − pull))` (slack when the path is shorter than
+//! the rest length plus the cable's slack `s` ([`TendonParams::slack_m`], 0 by default) minus
+//! the pull; a negative pull pays cable out), treated implicitly as a unilateral rank-one term;
+//! in force mode `T` is given. Both add the cable's geometric stiffness `(T/ℓ_k)(I − u_k u_kᵀ)`
+//! between consecutive points.
 
 use moe_geom::{Matrix3, Point3, Real, TendonRoute, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::embedding::{Embedded, Embedding};
 use crate::error::{SimError, require_positive};
+use crate::is_zero;
 use crate::terms::{PairTerm, PointTerm, RankOneTerm, Terms};
 use crate::tetmesh::TetMesh;
 
@@ -32,10 +34,6 @@ pub struct TendonParams {
     /// `stiffness_n_per_m × −slack_m` before any pull).
     #[serde(skip_serializing_if = "is_zero")]
     pub slack_m: Real,
-}
-
-fn is_zero(v: &Real) -> bool {
-    *v == 0.0
 }
 
 impl Default for TendonParams {

@@ -447,7 +447,7 @@ fn a_turned_hand_is_the_upright_scene_turned_and_sags_its_own_way() {
     let mut largest: Real = 0.0;
     let mut moved: Real = 0.0;
     for (f, g) in up.iter().zip(&turn) {
-        assert!((g.world_from_hand.rotation.angle_to(&rotation)) < 1e-12);
+        assert!(g.world_from_hand.rotation.angle_to(&rotation) < 1e-12);
         for (i, (p, q)) in f.fingers.iter().zip(&g.fingers).enumerate() {
             assert_eq!(p.labels, q.labels, "t = {}", f.time_secs);
             for (x, y) in p.vertices_in_world.iter().zip(&q.vertices_in_world) {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use moe_geom::{FingerModel, FingerParams, Point3, Real, Vector3};
 use moe_tendon_sim::mechanics::{FemInputs, FingerBody, Integrator, StepContext, Terms};
-use moe_tendon_sim::{BodyState, Material, VoxelParams};
+use moe_tendon_sim::{BodyState, Material, TendonCommand, TendonParams, VoxelParams};
 use serde::Deserialize;
 
 /// Load scale of the simulator's solves (the reference is linear).
@@ -114,49 +114,66 @@ fn simulate(reference: &Reference, cell_size_m: Real) -> Vec<Vec<Vector3>> {
     };
     let finger = default_finger();
     let body = FingerBody::new(&finger, &material, &VoxelParams { cell_size_m }).unwrap();
-    let fem = body.fem();
-    let rest = fem.mesh().nodes().to_vec();
-    let surface = body.surface().points();
+    let (surface, num_nodes) = (body.surface().points(), body.fem().mesh().num_nodes());
     reference
         .cases
         .iter()
         .map(|case| {
-            let loads = node_loads(reference, case, surface, rest.len(), SCALE);
+            let loads = node_loads(reference, case, surface, num_nodes, SCALE);
             let g = Vector3::from(case.gravity_m_s2) * SCALE;
-            let mut state = BodyState {
-                x: rest.clone(),
-                v: vec![Vector3::zeros(); rest.len()],
-            };
-            let mut ws = fem.workspace();
-            let report = fem
-                .step(
-                    &mut ws,
-                    StepContext::default(),
-                    Integrator::Static {
-                        tolerance_m: 1e-11,
-                        max_iterations: 50,
-                    },
-                    &mut state,
-                    FemInputs {
-                        targets: &rest,
-                        gravity: g,
-                        terms: &mut |_, _, t: &mut Terms| t.nodal_forces.clone_from(&loads),
-                    },
-                )
-                .unwrap_or_else(|e| panic!("{}: {e}", case.name));
-            assert!(report.iterations < 50, "{}", case.name);
-            surface
-                .iter()
-                .map(|e| {
-                    e.nodes
-                        .iter()
-                        .zip(&e.weights)
-                        .map(|(&n, &w)| (state.x[n as usize] - rest[n as usize]) * w)
-                        .sum::<Vector3>()
-                        / SCALE
-                })
+            static_displacements(&body, &loads, g, &[], 1e-11)
+                .into_iter()
+                .map(|d| d / SCALE)
                 .collect()
         })
+        .collect()
+}
+
+/// The surface displacements of `body`'s static equilibrium from rest under nodal `loads`,
+/// `gravity` and tendon `commands` (none: no tendon terms), to `tolerance_m` (an error
+/// otherwise).
+fn static_displacements(
+    body: &FingerBody,
+    loads: &[(u32, Vector3)],
+    gravity: Vector3,
+    commands: &[TendonCommand],
+    tolerance_m: Real,
+) -> Vec<Vector3> {
+    let fem = body.fem();
+    let rest = fem.mesh().nodes().to_vec();
+    let params = TendonParams::default();
+    let mut state = BodyState {
+        x: rest.clone(),
+        v: vec![Vector3::zeros(); rest.len()],
+    };
+    let mut ws = fem.workspace();
+    fem.step(
+        &mut ws,
+        StepContext::default(),
+        Integrator::Static {
+            tolerance_m,
+            max_iterations: 200,
+        },
+        &mut state,
+        FemInputs {
+            targets: &rest,
+            gravity,
+            terms: &mut |x: &[Point3], _, t: &mut Terms| {
+                t.nodal_forces.clear();
+                t.nodal_forces.extend_from_slice(loads);
+                for (tendon, &c) in body.tendons().iter().zip(commands) {
+                    tendon.add_terms(x, c, &params, t);
+                }
+            },
+        },
+    )
+    .unwrap();
+    let surface = body.surface();
+    surface
+        .positions(&state.x)
+        .iter()
+        .zip(surface.positions(&rest))
+        .map(|(p, q)| p - q)
         .collect()
 }
 
@@ -168,17 +185,12 @@ fn agreements(reference: &Reference, cell_size_m: Real) -> Vec<Agreement> {
         .iter()
         .zip(&sim)
         .map(|(case, u)| {
-            let pick = |field: &dyn Fn(usize) -> Vector3| -> Vec<Vector3> {
-                reference
-                    .marker_vertices
-                    .iter()
-                    .map(|&m| field(m))
-                    .collect()
-            };
-            agreement(
-                &pick(&|m| u[m]),
-                &pick(&|m| Vector3::from(case.displacement_m[m])),
-            )
+            let (sim, reference): (Vec<Vector3>, Vec<Vector3>) = reference
+                .marker_vertices
+                .iter()
+                .map(|&m| (u[m], Vector3::from(case.displacement_m[m])))
+                .unzip();
+            agreement(&sim, &reference)
         })
         .collect()
 }
@@ -273,58 +285,23 @@ fn with_tendons(
     pulls: &[Real],
     case: Option<&Case>,
 ) -> Vec<Vector3> {
-    use moe_tendon_sim::{TendonCommand, TendonParams};
     let finger = default_finger();
     let body =
         FingerBody::new(&finger, &Material::default(), &VoxelParams { cell_size_m }).unwrap();
-    let fem = body.fem();
-    let rest = fem.mesh().nodes().to_vec();
     let surface = body.surface().points();
     let loads = case.map_or_else(Vec::new, |case| {
-        node_loads(reference, case, surface, rest.len(), 1.0)
+        node_loads(reference, case, surface, body.fem().mesh().num_nodes(), 1.0)
     });
     let commands: Vec<TendonCommand> = (0..body.tendons().len())
         .map(|j| TendonCommand::Displacement {
             pull_m: pulls.get(j).copied().unwrap_or(0.0),
         })
         .collect();
-    let params = TendonParams::default();
-    let mut state = BodyState {
-        x: rest.clone(),
-        v: vec![Vector3::zeros(); rest.len()],
-    };
-    let mut ws = fem.workspace();
-    fem.step(
-        &mut ws,
-        StepContext::default(),
-        Integrator::Static {
-            tolerance_m: 1e-10,
-            max_iterations: 200,
-        },
-        &mut state,
-        FemInputs {
-            targets: &rest,
-            gravity: Vector3::zeros(),
-            terms: &mut |x: &[Point3], _, t: &mut Terms| {
-                t.nodal_forces.clone_from(&loads);
-                for (tendon, &c) in body.tendons().iter().zip(&commands) {
-                    tendon.add_terms(x, c, &params, t);
-                }
-            },
-        },
-    )
-    .unwrap();
+    let u = static_displacements(&body, &loads, Vector3::zeros(), &commands, 1e-10);
     finger
         .marker_vertices()
         .iter()
-        .map(|&m| {
-            let e = &surface[m as usize];
-            e.nodes
-                .iter()
-                .zip(&e.weights)
-                .map(|(&n, &w)| (state.x[n as usize] - rest[n as usize]) * w)
-                .sum()
-        })
+        .map(|&m| u[m as usize])
         .collect()
 }
 
@@ -372,19 +349,12 @@ fn tendons_per_mesh_size() {
         }
     }
     let free: Vec<Vector3> = reference
-        .cases
+        .marker_vertices
         .iter()
-        .find(|c| c.name == "press_tip_left")
-        .map(|c| {
-            reference
-                .marker_vertices
-                .iter()
-                .map(|&m| Vector3::from(c.displacement_m[m]))
-                .collect()
-        })
-        .unwrap();
+        .map(|&m| Vector3::from(press.displacement_m[m]))
+        .collect();
     eprintln!(
-        "reference without tendons (linear): {:.3} mm",
+        "the same press in the reference, without tendons (linear): {:.3} mm",
         largest(&free) * 1e3
     );
 }
