@@ -46,6 +46,9 @@ pub struct FingerRecord {
     pub min_edge_length_m: Real,
     /// Longest edge, metres.
     pub max_edge_length_m: Real,
+    /// Each tendon's route through the body, from the base to its anchor, hand frame, metres
+    /// (a cable in displacement mode holds this path's length at zero pull).
+    pub tendon_routes_m: Vec<Vec<[Real; 3]>>,
 }
 
 /// `hand.json`, also the `moe-touch hand --json` summary.
@@ -164,6 +167,17 @@ pub fn hand_output(
             volume_m3: mesh.signed_volume(),
             min_edge_length_m: min_edge,
             max_edge_length_m: max_edge,
+            tendon_routes_m: f
+                .model
+                .tendon_routes()
+                .iter()
+                .map(|r| {
+                    r.points_in_finger
+                        .iter()
+                        .map(|p| f.hand_from_finger.transform_point(p).coords.into())
+                        .collect()
+                })
+                .collect(),
         });
         files.add_mesh(format!("finger_{i}.obj"), mesh);
     }
