@@ -109,6 +109,13 @@ pub struct PhysicsConfig {
     /// Friction coefficient of the loads' admissible cone: 0 admits only forces along the
     /// inward surface normal (frictionless contact). Default 0.
     pub friction: Real,
+    /// Whether a load turns with the surface it presses in the static solves (a follower load,
+    /// as an object's push stays normal to the surface it touches), rather than keeping the
+    /// direction it was proposed with (a dead load). Default false: on the held-out presses
+    /// (exact markers) following costs 5 → 42 degraded finger-frames of 1,356 and moves BCD
+    /// 3.91 → 4.28 mm and missed frames 4.9 → 7.7 %; it places large presses of an
+    /// independent code better (docs/results.md, "Large presses").
+    pub follow_surface: bool,
     /// Most loads per finger. Default 1: a finger pressed in two places is representable
     /// (2), but with a model that is not the hand's own mesh a pair of loads often explains a
     /// single press's markers better than the press itself (measured in docs/results.md), so the
@@ -363,6 +370,7 @@ impl Default for PhysicsConfig {
             min_force_n: 0.02,
             max_force_n: 10.0,
             friction: 0.0,
+            follow_surface: false,
             max_loads_per_finger: 1,
             second_load_chi2: 25.0,
             min_load_separation_m: 0.015,

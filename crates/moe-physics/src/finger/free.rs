@@ -76,13 +76,13 @@ impl FingerInverse {
     ) -> Result<Vec<Point3>, PhysicsError> {
         const STAGE: &str = "(free shape under the pulls)";
         if let Some(mut x) = self.warm_static.take()
-            && self.solve(&mut x, obs, &[], STAGE, solves).is_ok()
+            && self.solve(&mut x, obs, &[], &[], STAGE, solves).is_ok()
         {
             self.warm_static = Some(x.clone());
             return Ok(x);
         }
         let mut x = self.mech.rest_nodes().to_vec();
-        self.solve(&mut x, obs, &[], STAGE, solves)?;
+        self.solve(&mut x, obs, &[], &[], STAGE, solves)?;
         self.warm_static = Some(x.clone());
         Ok(x)
     }

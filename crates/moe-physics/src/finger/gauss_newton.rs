@@ -31,23 +31,32 @@ const UNCARRIED_MEMORY_SECS: Real = 0.25;
 const RESTART_FRACTION: Real = 0.1;
 
 impl FingerInverse {
-    /// [`FingerInverse::solve`] within the load search: `Ok(false)` for a load the model
-    /// cannot carry (a stall, an inverted element, no equilibrium) or a spent budget, after
-    /// which every further solve stops at once.
+    /// [`FingerInverse::solve`] within the load search (the loads given at `given_at`): the
+    /// loads at the solution, or `Ok(None)` for a load the model cannot carry (a stall, an
+    /// inverted element, no equilibrium) or a spent budget, after which every further solve
+    /// stops at once.
     fn try_solve(
         &mut self,
         x: &mut Vec<Point3>,
         obs: &FingerObservation<'_>,
         loads: &[(usize, Vector3)],
+        given_at: &[Point3],
         solves: &mut usize,
-    ) -> Result<bool, PhysicsError> {
-        match self.solve(x, obs, loads, "(shape under the estimated loads)", solves) {
-            Ok(()) => Ok(true),
+    ) -> Result<Option<Vec<(usize, Vector3)>>, PhysicsError> {
+        match self.solve(
+            x,
+            obs,
+            loads,
+            given_at,
+            "(shape under the estimated loads)",
+            solves,
+        ) {
+            Ok(turned) => Ok(Some(turned)),
             Err(
                 PhysicsError::StaticNotConverged { .. }
                 | PhysicsError::Model { .. }
                 | PhysicsError::FrameBudgetSpent { .. },
-            ) => Ok(false),
+            ) => Ok(None),
             Err(e) => Err(e),
         }
     }
@@ -87,32 +96,31 @@ impl FingerInverse {
             if known(self, k) {
                 continue;
             }
+            // Every part's forces are given in the shape the proposal was made in.
             let mut x = state.x.clone();
-            if !self.try_solve(&mut x, obs, &parts[k], solves)? {
+            let Some(loads) = self.try_solve(&mut x, obs, &parts[k], &state.x, solves)? else {
                 self.remember_uncarried(obs, &parts[k], *solves);
                 continue;
-            }
+            };
             carried = true;
             let chi = self.residual_sq(&x, obs);
-            let mut best = Solved {
-                x,
-                loads: parts[k].clone(),
-                chi,
-            };
+            let mut best = Solved { x, loads, chi };
             let mut last = best.x.clone();
             for larger in (0..k).rev() {
                 if known(self, larger) {
                     break;
                 }
-                if !self.try_solve(&mut last, obs, &parts[larger], solves)? {
+                let Some(loads) =
+                    self.try_solve(&mut last, obs, &parts[larger], &state.x, solves)?
+                else {
                     self.remember_uncarried(obs, &parts[larger], *solves);
                     break;
-                }
+                };
                 let chi = self.residual_sq(&last, obs);
                 if chi < best.chi {
                     best = Solved {
                         x: last.clone(),
-                        loads: parts[larger].clone(),
+                        loads,
                         chi,
                     };
                 }
@@ -248,15 +256,12 @@ impl FingerInverse {
         let fresh = state.clone();
         let mut from_tracked = false;
         if let Some(tracked) = self.tracked.take() {
-            let mut x = tracked.x;
-            if self.solve(&mut x, sobs, &tracked.loads, "", solves).is_ok() {
+            // Its forces are those at the shape it was found in.
+            let mut x = tracked.x.clone();
+            if let Ok(loads) = self.solve(&mut x, sobs, &tracked.loads, &tracked.x, "", solves) {
                 let chi = self.residual_sq(&x, sobs);
                 if chi < chi0 {
-                    state = Solved {
-                        x,
-                        loads: tracked.loads,
-                        chi,
-                    };
+                    state = Solved { x, loads, chi };
                     from_tracked = true;
                 }
             }
@@ -331,8 +336,15 @@ mod tests {
         let force = -inverse.rest_normals[v];
         let loads = [(c, force)];
         let mut converged = free.clone();
-        inverse
-            .solve(&mut converged, &obs_of(&unseen), &loads, "", &mut solves)
+        let turned = inverse
+            .solve(
+                &mut converged,
+                &obs_of(&unseen),
+                &loads,
+                &free,
+                "",
+                &mut solves,
+            )
             .unwrap();
         // The markers where the press puts them.
         let seen: Vec<Option<Point3>> = inverse
@@ -345,7 +357,7 @@ mod tests {
         inverse.config.static_max_iterations = 6;
         let mut direct = free.clone();
         assert!(matches!(
-            inverse.solve(&mut direct, &obs, &loads, "", &mut solves),
+            inverse.solve(&mut direct, &obs, &loads, &free, "", &mut solves),
             Err(PhysicsError::StaticNotConverged { .. })
         ));
         let state = Solved {
@@ -361,6 +373,7 @@ mod tests {
         let (carried, any) = inverse.carry(&obs, &state, &proposal, &mut solves).unwrap();
         let carried = carried.expect("the whole press, carried in substeps");
         assert!(any);
+        assert_eq!(turned, loads);
         assert_eq!(carried.loads, loads);
         let gap = carried
             .x
@@ -376,6 +389,49 @@ mod tests {
         assert!(moved > 1e-3, "the press moves the finger: {moved} m");
         assert!(gap < 1e-5, "{gap} m from the converged solve");
         assert!(carried.chi < 1e-12 * state.chi.max(1.0), "{}", carried.chi);
+    }
+
+    /// A 1 N press on the middle of the finger that follows the surface: at the solution the
+    /// patch has turned by more than 10°, the force with it (its angle to the patch's normal
+    /// kept within the solve's 1° tolerance), and the shape is the equilibrium under that force
+    /// held fixed.
+    #[test]
+    fn a_follower_press_turns_with_its_patch_to_an_equilibrium() {
+        let (mut inverse, unseen, pulls) = finger();
+        inverse.config.follow_surface = true;
+        let obs = observation(&unseen, &pulls, None);
+        let mut solves = 0;
+        let free = inverse.static_free(&obs, &mut solves).unwrap();
+        let c = inverse.candidates.len() / 2;
+        let v = inverse.candidates[c] as usize;
+        let force = -inverse.rest_normals[v];
+        let mut x = free.clone();
+        let turned = inverse
+            .solve(&mut x, &obs, &[(c, force)], &free, "", &mut solves)
+            .unwrap();
+        let body = inverse.mech.body();
+        let normal = |x: &[Point3]| {
+            crate::mechanics::Follow::normal_at(&inverse.patch_faces[c], body, x).unwrap()
+        };
+        let (before, after) = (normal(&free), normal(&x));
+        assert!(before.angle(&after) > 0.175, "{}", before.angle(&after));
+        assert!((turned[0].1.norm() - 1.0).abs() < 1e-12);
+        assert!(
+            (turned[0].1.angle(&after) - force.angle(&before)).abs() < 0.0175,
+            "{} against {}",
+            turned[0].1.angle(&after),
+            force.angle(&before)
+        );
+        let mut again = x.clone();
+        inverse
+            .solve_dead(&mut again, &obs, &turned, "", &mut solves)
+            .unwrap();
+        let gap = again
+            .iter()
+            .zip(&x)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, Real::max);
+        assert!(gap < 1e-5, "{gap} m");
     }
 
     /// In a stream, a press along the axis on the apex that no part of converges (the finger

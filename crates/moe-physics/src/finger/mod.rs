@@ -39,7 +39,7 @@ use moe_tendon_sim::{SimError, TendonCommand};
 
 use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
-use crate::mechanics::{FingerMechanics, PatchLoad, StaticSettings};
+use crate::mechanics::{FingerMechanics, Follow, PatchLoad, StaticSettings};
 
 pub(crate) use depth::{DepthRow, nearest_depth};
 use free::{DynamicFree, FreeReference};
@@ -137,6 +137,23 @@ pub(crate) struct FingerEstimate {
     pub(crate) degraded: bool,
 }
 
+/// Rounds of a follower solve at the full load: solves under the loads as they stand, each
+/// followed by the loads turned to where their patches face ([`PhysicsConfig::follow_surface`]).
+const FOLLOW_ROUNDS: usize = 8;
+
+/// A follower solve has converged when no load turns by more than this in a round, radians
+/// (1°: the force along it is then within 0.02 % of the converged one, and a small press
+/// costs no second solve).
+const FOLLOW_TOLERANCE_RAD: Real = 0.0175;
+
+/// A follower load whose first full solve turns it by more than this (radians, 10°) is raised
+/// in the steps of [`FOLLOW_RAMP`] instead.
+const FOLLOW_JUMP_RAD: Real = 0.175;
+
+/// The fractions of its force through which a follower load is raised when the whole of it at
+/// once turns too far.
+const FOLLOW_RAMP: [Real; 4] = [0.2, 0.4, 0.6, 0.8];
+
 /// The start of an observation's estimate: the free finger it is compared with.
 #[derive(Debug)]
 pub(crate) struct Begun {
@@ -158,6 +175,9 @@ pub(crate) struct FingerInverse {
     patches: Vec<Vec<(u32, Real)>>,
     /// Per candidate: the free nodes its patch's load acts on, `(free index, weight)`.
     patch_nodes: Vec<Vec<(u32, Real)>>,
+    /// Per candidate: the surface triangles touching its patch, each weighted by the shares of
+    /// its corners in the patch, whose normals a follower load turns with.
+    patch_faces: Vec<Vec<([u32; 3], Real)>>,
     /// Per surface vertex: a third of its faces' areas.
     area: Vec<Real>,
     /// Candidates at least [`PAIR_SPACING_M`] apart: the coarse pair search.
@@ -300,6 +320,28 @@ impl FingerInverse {
                 nodes
             })
             .collect();
+        let mut vertex_faces: Vec<Vec<u32>> = vec![Vec::new(); rest_surface.len()];
+        for (i, f) in faces.iter().enumerate() {
+            for &v in f {
+                vertex_faces[v as usize].push(i as u32);
+            }
+        }
+        let patch_faces = patches
+            .iter()
+            .map(|patch| {
+                let mut weighted: Vec<([u32; 3], Real)> = Vec::new();
+                for &(u, share) in patch {
+                    for &fi in &vertex_faces[u as usize] {
+                        let f = faces[fi as usize];
+                        match weighted.iter_mut().find(|w| w.0 == f) {
+                            Some(w) => w.1 += share,
+                            None => weighted.push((f, share)),
+                        }
+                    }
+                }
+                weighted
+            })
+            .collect();
         let mut pair_subset: Vec<usize> = Vec::new();
         for (c, &v) in candidates.iter().enumerate() {
             let p = rest_surface[v as usize];
@@ -337,6 +379,7 @@ impl FingerInverse {
             candidates,
             patches,
             patch_nodes,
+            patch_faces,
             area,
             config: config.clone(),
             beta: material.material.rayleigh_stiffness,
@@ -398,8 +441,127 @@ impl FingerInverse {
 
     /// Solves the static shape from `x` under `loads`, naming `stage` on failure, and adds its
     /// Newton iterations to `solves` (those of a solve that did not converge as well: they
-    /// took their time).
+    /// took their time). The forces of `loads` are given in the shape `given_at` (node
+    /// positions; unused without loads). With [`PhysicsConfig::follow_surface`] each turns
+    /// with its patch from there ([`Self::solve_following`]). Returns the loads with the
+    /// forces the solution is the equilibrium of (as given, for dead loads).
     fn solve(
+        &mut self,
+        x: &mut Vec<Point3>,
+        obs: &FingerObservation<'_>,
+        loads: &[(usize, Vector3)],
+        given_at: &[Point3],
+        stage: &'static str,
+        solves: &mut usize,
+    ) -> Result<Vec<(usize, Vector3)>, PhysicsError> {
+        if !self.config.follow_surface || loads.is_empty() {
+            self.solve_dead(x, obs, loads, stage, solves)?;
+            return Ok(loads.to_vec());
+        }
+        let body = self.mech.body();
+        let follows: Vec<Option<Follow>> = loads
+            .iter()
+            .map(|&(c, _)| {
+                let faces = &self.patch_faces[c];
+                Follow::normal_at(faces, body, given_at).map(|normal| Follow {
+                    faces: faces.clone(),
+                    normal,
+                })
+            })
+            .collect();
+        let start = x.clone();
+        match self.solve_following(x, obs, loads, &follows, &[], stage, solves) {
+            Ok(turned) => Ok(turned),
+            // A budget spent is final.
+            Err(e @ PhysicsError::FrameBudgetSpent { .. }) => Err(e),
+            Err(_) => {
+                // The whole load at once took the finger elsewhere (a large press can buckle
+                // a finger under a force that does not turn): again from the start, the load
+                // raised in steps that each turn it to where the patch faces.
+                *x = start;
+                self.solve_following(x, obs, loads, &follows, &FOLLOW_RAMP, stage, solves)
+            }
+        }
+    }
+
+    /// A follower solve: the loads raised through the fractions `ramp` of their forces (one
+    /// dead solve each, the loads turned to where their patches face before each), then
+    /// solved for in full, turned again and solved again until no load turns by more than
+    /// [`FOLLOW_TOLERANCE_RAD`] in a round (at most [`FOLLOW_ROUNDS`]). A first full round
+    /// that turns a load by more than [`FOLLOW_JUMP_RAD`] fails, so that the caller raises
+    /// the load in steps instead.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_following(
+        &mut self,
+        x: &mut Vec<Point3>,
+        obs: &FingerObservation<'_>,
+        loads: &[(usize, Vector3)],
+        follows: &[Option<Follow>],
+        ramp: &[Real],
+        stage: &'static str,
+        solves: &mut usize,
+    ) -> Result<Vec<(usize, Vector3)>, PhysicsError> {
+        let turned_at = |this: &Self, x: &[Point3], scale: Real| -> Vec<(usize, Vector3)> {
+            loads
+                .iter()
+                .zip(follows)
+                .map(|(&(c, f), follow)| {
+                    let f = follow
+                        .as_ref()
+                        .map_or(f, |follow| follow.turned(&f, this.mech.body(), x));
+                    (c, f * scale)
+                })
+                .collect()
+        };
+        for &scale in ramp {
+            let part = turned_at(self, x, scale);
+            self.solve_dead(x, obs, &part, stage, solves)?;
+        }
+        let mut current = turned_at(self, x, 1.0);
+        let mut moved = Real::INFINITY;
+        for round in 0..FOLLOW_ROUNDS {
+            let before = x.clone();
+            self.solve_dead(x, obs, &current, stage, solves)?;
+            moved = x
+                .iter()
+                .zip(&before)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, Real::max);
+            let next = turned_at(self, x, 1.0);
+            let turn = next
+                .iter()
+                .zip(&current)
+                .map(|(a, b)| a.1.angle(&b.1))
+                .fold(0.0, Real::max);
+            if turn <= FOLLOW_TOLERANCE_RAD {
+                // The forces `x` is the equilibrium of.
+                return Ok(current);
+            }
+            // Half way to where the patches face: a load that turns strongly with its own
+            // press makes the plain fixed point oscillate.
+            current = next
+                .iter()
+                .zip(&current)
+                .map(|(n, c)| {
+                    let half = nalgebra::Rotation3::rotation_between(&c.1, &n.1)
+                        .map_or(n.1, |r| r.powf(0.5) * c.1);
+                    (n.0, half)
+                })
+                .collect();
+            if round == 0 && ramp.is_empty() && turn > FOLLOW_JUMP_RAD {
+                break;
+            }
+        }
+        Err(PhysicsError::StaticNotConverged {
+            finger: self.index,
+            stage,
+            iterations: FOLLOW_ROUNDS,
+            update_m: moved,
+        })
+    }
+
+    /// Solves the static shape from `x` under the dead loads `loads`, as [`Self::solve`].
+    fn solve_dead(
         &mut self,
         x: &mut Vec<Point3>,
         obs: &FingerObservation<'_>,
