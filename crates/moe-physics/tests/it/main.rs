@@ -5,4 +5,5 @@ mod bad_input;
 mod calibration;
 mod common;
 mod depth;
+mod large_press;
 mod recovery;
