@@ -303,9 +303,7 @@ def main() -> None:
                 "marker_vertices": list(markers),
                 "presses": doc_presses,
             }
-            out_path.parent.mkdir(parents=True, exist_ok=True)
-            out_path.write_text(json.dumps(doc, separators=(",", ":")) + "\n")
-    print(f"wrote {out_path} ({out_path.stat().st_size / 1e6:.2f} MB)")
+            fr.write_fixture(out_path, doc)
 
 
 if __name__ == "__main__":

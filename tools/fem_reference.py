@@ -250,6 +250,13 @@ def solve(verts, faces, cases, base_z, max_volume, refine_surface):
     return out, {"tets": int(mesh.t.shape[1]), "dofs": int(basis.N), "free": int(len(free))}
 
 
+def write_fixture(out_path: Path, doc: dict) -> None:
+    """Writes `doc` as compact JSON, creating the directory."""
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(json.dumps(doc, separators=(",", ":")) + "\n")
+    print(f"wrote {out_path} ({out_path.stat().st_size / 1e6:.2f} MB)")
+
+
 def main() -> None:
     hand_dir, out_path = Path(sys.argv[1]), Path(sys.argv[2])
     verts, faces, markers, base = load_finger(hand_dir)
@@ -294,9 +301,7 @@ def main() -> None:
         "marker_vertices": list(markers),
         "cases": doc_cases,
     }
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_text(json.dumps(doc, separators=(",", ":")) + "\n")
-    print(f"wrote {out_path} ({out_path.stat().st_size / 1e6:.2f} MB)")
+    write_fixture(out_path, doc)
 
 
 if __name__ == "__main__":
