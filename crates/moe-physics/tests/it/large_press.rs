@@ -178,13 +178,15 @@ fn print(rows: &[Recovered]) {
 }
 
 /// A press the estimator cannot explain is never reported as no press in silence: at 1 N, with
-/// the default settings and with friction (where every loaded solve from the free shape fails),
-/// finger 0 either carries a load or says its estimate is degraded.
+/// the default settings, with friction (where every loaded solve from the free shape fails for
+/// the tip and middle presses) and with loads that follow the surface, finger 0 either carries a
+/// load or says its estimate is degraded.
 #[test]
 fn no_large_press_is_missed_in_silence() {
-    for friction in [0.0, 1.0] {
+    for (friction, follow_surface) in [(0.0, false), (1.0, false), (0.0, true)] {
         let config = PhysicsConfig {
             friction,
+            follow_surface,
             ..PhysicsConfig::default()
         };
         let rows = recover(&config, 1.0);
@@ -193,7 +195,7 @@ fn no_large_press_is_missed_in_silence() {
         for r in &rows {
             assert!(
                 r.place_error_m.is_some() || r.degraded,
-                "friction {friction}, {}: no load and not degraded",
+                "friction {friction}, following {follow_surface}, {}: no load and not degraded",
                 r.name
             );
         }
