@@ -336,7 +336,7 @@ mod tests {
         let force = -inverse.rest_normals[v];
         let loads = [(c, force)];
         let mut converged = free.clone();
-        let turned = inverse
+        inverse
             .solve(
                 &mut converged,
                 &obs_of(&unseen),
