@@ -237,18 +237,29 @@ def main() -> None:
                 du = -lu.solve(residual[free])
                 # Halve a step that would invert an element (ln J undefined).
                 alpha = 1.0
+                trial = None
                 for _ in range(20):
-                    trial = u.copy()
-                    trial[free] += alpha * du
-                    g = basis.interpolate(trial).grad
+                    candidate = u.copy()
+                    candidate[free] += alpha * du
+                    g = basis.interpolate(candidate).grad
                     if np.all(det(g + identity(g)) > 0):
+                        trial = candidate
                         break
                     alpha *= 0.5
+                if trial is None:
+                    # Every step inverts an element: no equilibrium on this path.
+                    converged = False
+                    break
                 u = trial
                 iterations += 1
-                if np.abs(alpha * du).max() < TOLERANCE_M:
+                # Converged on a full Newton step only: a damped one is short far from
+                # equilibrium.
+                if alpha == 1.0 and np.abs(du).max() < TOLERANCE_M:
+                    converged = True
                     break
             else:
+                converged = False
+            if not converged:
                 # No equilibrium found (the finger folds): the press keeps the forces solved.
                 failed_at = force
                 print(f"{case['name']:24s} {force:5.2f} N  did not converge", flush=True)
