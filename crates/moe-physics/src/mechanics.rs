@@ -21,55 +21,49 @@ pub(crate) struct PatchLoad {
     pub(crate) force: Vector3,
 }
 
-/// How a follower load turns: with the smallest rotation that takes the patch's normal where
-/// the force was given to its normal in another shape.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Follow {
-    /// The surface triangles whose area-weighted normals, times their weights, make the
-    /// patch's normal.
-    pub(crate) faces: Vec<([u32; 3], Real)>,
-    /// The patch's unit normal in the shape where the force was given.
-    pub(crate) normal: Vector3,
+/// The unit normal of a patch of surface with node positions `x`: the area-weighted normals of
+/// its triangles `faces`, each times its weight (`None` for a patch of no area).
+pub(crate) fn patch_normal(
+    faces: &[([u32; 3], Real)],
+    body: &FingerBody,
+    x: &[Point3],
+) -> Option<Vector3> {
+    let points = body.surface().points();
+    let n: Vector3 = faces
+        .iter()
+        .map(|&(f, w)| {
+            let [a, b, c] = f.map(|v| points[v as usize].position(x));
+            (b - a).cross(&(c - a)) * w
+        })
+        .sum();
+    n.try_normalize(0.0)
 }
 
-impl Follow {
-    /// The patch's unit normal with node positions `x` (`None` for a patch of no area).
-    pub(crate) fn normal_at(
-        faces: &[([u32; 3], Real)],
-        body: &FingerBody,
-        x: &[Point3],
-    ) -> Option<Vector3> {
-        let points = body.surface().points();
-        let n: Vector3 = faces
-            .iter()
-            .map(|&(f, w)| {
-                let [a, b, c] = f.map(|v| points[v as usize].position(x));
-                (b - a).cross(&(c - a)) * w
-            })
-            .sum();
-        n.try_normalize(0.0)
-    }
-
-    /// `force`, given where the patch's normal was [`Self::normal`], turned with the patch to
-    /// node positions `x`.
-    pub(crate) fn turned(&self, force: &Vector3, body: &FingerBody, x: &[Point3]) -> Vector3 {
-        let Some(now) = Self::normal_at(&self.faces, body, x) else {
-            return *force;
-        };
-        match nalgebra::Rotation3::rotation_between(&self.normal, &now) {
-            Some(rotation) => rotation * force,
-            // Turned half a revolution: about any axis across the normal.
-            None => {
-                let axis = self
-                    .normal
-                    .cross(&Vector3::x())
-                    .try_normalize(1e-6)
-                    .unwrap_or_else(|| self.normal.cross(&Vector3::y()).normalize());
-                nalgebra::Rotation3::from_axis_angle(
-                    &nalgebra::Unit::new_unchecked(axis),
-                    std::f64::consts::PI,
-                ) * force
-            }
+/// `force`, given where the patch of triangles `faces` had the unit normal `from`, turned with
+/// the patch to node positions `x` (a follower load): by the smallest rotation from `from` to
+/// the patch's normal there.
+pub(crate) fn turned_with_patch(
+    force: &Vector3,
+    from: &Vector3,
+    faces: &[([u32; 3], Real)],
+    body: &FingerBody,
+    x: &[Point3],
+) -> Vector3 {
+    let Some(now) = patch_normal(faces, body, x) else {
+        return *force;
+    };
+    match nalgebra::Rotation3::rotation_between(from, &now) {
+        Some(rotation) => rotation * force,
+        // Turned half a revolution: about any axis across the normal.
+        None => {
+            let axis = from
+                .cross(&Vector3::x())
+                .try_normalize(1e-6)
+                .unwrap_or_else(|| from.cross(&Vector3::y()).normalize());
+            nalgebra::Rotation3::from_axis_angle(
+                &nalgebra::Unit::new_unchecked(axis),
+                std::f64::consts::PI,
+            ) * force
         }
     }
 }

@@ -396,8 +396,19 @@ mod tests {
     /// held fixed.
     #[test]
     fn a_follower_press_turns_with_its_patch_to_an_equilibrium() {
-        let (mut inverse, unseen, pulls) = finger();
-        inverse.config.follow_surface = true;
+        let (_, unseen, pulls) = finger();
+        let hand = HandModel::preset(HandPreset::TwoFinger, &FingerParams::default()).unwrap();
+        let config = PhysicsConfig {
+            follow_surface: true,
+            ..PhysicsConfig::default()
+        };
+        let mut inverse = FingerInverse::new(
+            0,
+            &hand.fingers()[0].model,
+            &HandMaterial::default(),
+            &config,
+        )
+        .unwrap();
         let obs = observation(&unseen, &pulls, None);
         let mut solves = 0;
         let free = inverse.static_free(&obs, &mut solves).unwrap();
@@ -410,7 +421,7 @@ mod tests {
             .unwrap();
         let body = inverse.mech.body();
         let normal = |x: &[Point3]| {
-            crate::mechanics::Follow::normal_at(&inverse.patch_faces[c], body, x).unwrap()
+            crate::mechanics::patch_normal(&inverse.patch_faces[c], body, x).unwrap()
         };
         let (before, after) = (normal(&free), normal(&x));
         assert!(before.angle(&after) > 0.175, "{}", before.angle(&after));

@@ -39,7 +39,9 @@ use moe_tendon_sim::{SimError, TendonCommand};
 
 use crate::config::{HandMaterial, PhysicsConfig};
 use crate::error::PhysicsError;
-use crate::mechanics::{FingerMechanics, Follow, PatchLoad, StaticSettings};
+use crate::mechanics::{
+    FingerMechanics, PatchLoad, StaticSettings, patch_normal, turned_with_patch,
+};
 
 pub(crate) use depth::{DepthRow, nearest_depth};
 use free::{DynamicFree, FreeReference};
@@ -176,7 +178,8 @@ pub(crate) struct FingerInverse {
     /// Per candidate: the free nodes its patch's load acts on, `(free index, weight)`.
     patch_nodes: Vec<Vec<(u32, Real)>>,
     /// Per candidate: the surface triangles touching its patch, each weighted by the shares of
-    /// its corners in the patch, whose normals a follower load turns with.
+    /// its corners in the patch, whose normals a follower load turns with (built only with
+    /// [`PhysicsConfig::follow_surface`]; empty otherwise).
     patch_faces: Vec<Vec<([u32; 3], Real)>>,
     /// Per surface vertex: a third of its faces' areas.
     area: Vec<Real>,
@@ -238,6 +241,37 @@ fn to_physics(finger: usize, stage: &'static str, e: SimError) -> PhysicsError {
         },
         source => PhysicsError::Model { finger, source },
     }
+}
+
+/// Per patch: the surface triangles touching it, each weighted by the shares of its corners in
+/// the patch.
+fn patch_faces(
+    patches: &[Vec<(u32, Real)>],
+    faces: &[[u32; 3]],
+    num_vertices: usize,
+) -> Vec<Vec<([u32; 3], Real)>> {
+    let mut vertex_faces: Vec<Vec<u32>> = vec![Vec::new(); num_vertices];
+    for (i, f) in faces.iter().enumerate() {
+        for &v in f {
+            vertex_faces[v as usize].push(i as u32);
+        }
+    }
+    patches
+        .iter()
+        .map(|patch| {
+            let mut weighted: Vec<([u32; 3], Real)> = Vec::new();
+            for &(u, share) in patch {
+                for &fi in &vertex_faces[u as usize] {
+                    let f = faces[fi as usize];
+                    match weighted.iter_mut().find(|w| w.0 == f) {
+                        Some(w) => w.1 += share,
+                        None => weighted.push((f, share)),
+                    }
+                }
+            }
+            weighted
+        })
+        .collect()
 }
 
 /// The no-load hypothesis a fit is tested against.
@@ -320,28 +354,11 @@ impl FingerInverse {
                 nodes
             })
             .collect();
-        let mut vertex_faces: Vec<Vec<u32>> = vec![Vec::new(); rest_surface.len()];
-        for (i, f) in faces.iter().enumerate() {
-            for &v in f {
-                vertex_faces[v as usize].push(i as u32);
-            }
-        }
-        let patch_faces = patches
-            .iter()
-            .map(|patch| {
-                let mut weighted: Vec<([u32; 3], Real)> = Vec::new();
-                for &(u, share) in patch {
-                    for &fi in &vertex_faces[u as usize] {
-                        let f = faces[fi as usize];
-                        match weighted.iter_mut().find(|w| w.0 == f) {
-                            Some(w) => w.1 += share,
-                            None => weighted.push((f, share)),
-                        }
-                    }
-                }
-                weighted
-            })
-            .collect();
+        let patch_faces = if config.follow_surface {
+            patch_faces(&patches, &faces, rest_surface.len())
+        } else {
+            Vec::new()
+        };
         let mut pair_subset: Vec<usize> = Vec::new();
         for (c, &v) in candidates.iter().enumerate() {
             let p = rest_surface[v as usize];
@@ -458,19 +475,15 @@ impl FingerInverse {
             self.solve_dead(x, obs, loads, stage, solves)?;
             return Ok(loads.to_vec());
         }
+        // Each patch's normal where the forces were given (`None`: a patch of no area, whose
+        // load stays dead).
         let body = self.mech.body();
-        let follows: Vec<Option<Follow>> = loads
+        let given_normals: Vec<Option<Vector3>> = loads
             .iter()
-            .map(|&(c, _)| {
-                let faces = &self.patch_faces[c];
-                Follow::normal_at(faces, body, given_at).map(|normal| Follow {
-                    faces: faces.clone(),
-                    normal,
-                })
-            })
+            .map(|&(c, _)| patch_normal(&self.patch_faces[c], body, given_at))
             .collect();
         let start = x.clone();
-        match self.solve_following(x, obs, loads, &follows, &[], stage, solves) {
+        match self.solve_following(x, obs, loads, &given_normals, &[], stage, solves) {
             Ok(turned) => Ok(turned),
             // A budget spent is final.
             Err(e @ PhysicsError::FrameBudgetSpent { .. }) => Err(e),
@@ -479,12 +492,13 @@ impl FingerInverse {
                 // a finger under a force that does not turn): again from the start, the load
                 // raised in steps that each turn it to where the patch faces.
                 *x = start;
-                self.solve_following(x, obs, loads, &follows, &FOLLOW_RAMP, stage, solves)
+                self.solve_following(x, obs, loads, &given_normals, &FOLLOW_RAMP, stage, solves)
             }
         }
     }
 
-    /// A follower solve: the loads raised through the fractions `ramp` of their forces (one
+    /// A follower solve of `loads`, given where their patches' normals were `given_normals`:
+    /// the loads raised through the fractions `ramp` of their forces (one
     /// dead solve each, the loads turned to where their patches face before each), then
     /// solved for in full, turned again and solved again until no load turns by more than
     /// [`FOLLOW_TOLERANCE_RAD`] in a round (at most [`FOLLOW_ROUNDS`]). A first full round
@@ -496,7 +510,7 @@ impl FingerInverse {
         x: &mut Vec<Point3>,
         obs: &FingerObservation<'_>,
         loads: &[(usize, Vector3)],
-        follows: &[Option<Follow>],
+        given_normals: &[Option<Vector3>],
         ramp: &[Real],
         stage: &'static str,
         solves: &mut usize,
@@ -504,11 +518,11 @@ impl FingerInverse {
         let turned_at = |this: &Self, x: &[Point3], scale: Real| -> Vec<(usize, Vector3)> {
             loads
                 .iter()
-                .zip(follows)
-                .map(|(&(c, f), follow)| {
-                    let f = follow
-                        .as_ref()
-                        .map_or(f, |follow| follow.turned(&f, this.mech.body(), x));
+                .zip(given_normals)
+                .map(|(&(c, f), from)| {
+                    let f = from.as_ref().map_or(f, |from| {
+                        turned_with_patch(&f, from, &this.patch_faces[c], this.mech.body(), x)
+                    });
                     (c, f * scale)
                 })
                 .collect()
@@ -537,6 +551,9 @@ impl FingerInverse {
                 // The forces `x` is the equilibrium of.
                 return Ok(current);
             }
+            if round == 0 && ramp.is_empty() && turn > FOLLOW_JUMP_RAD {
+                break;
+            }
             // Half way to where the patches face: a load that turns strongly with its own
             // press makes the plain fixed point oscillate.
             current = next
@@ -548,9 +565,6 @@ impl FingerInverse {
                     (n.0, half)
                 })
                 .collect();
-            if round == 0 && ramp.is_empty() && turn > FOLLOW_JUMP_RAD {
-                break;
-            }
         }
         Err(PhysicsError::StaticNotConverged {
             finger: self.index,
